@@ -1,0 +1,24 @@
+"""sliders: a chain of frictional sliders on an incline tilted to the avalanche.
+
+Amon, Blanc & Geminard, "Avalanche precursors in a frictional model".  The
+public API:
+
+* ``Scene``: one configured run (validated on construction);
+* ``tilt(scene, backend="fortran"|"numpy")``: tilt to the avalanche, returns a
+  ``TiltResult`` (save/load in HDF5);
+* ``prepare(scene)``: the prepared chain at alpha = 0;
+* ``model``: the analytical single-slider and master-equation results.
+"""
+
+__version__ = "0.1.0"
+
+from .chain import ChainState
+from .driver import Progress, tilt
+from .preparation import prepare
+from .result import EventSparse, TiltResult
+from .scene import Scene, SceneError
+
+__all__ = [
+    "ChainState", "EventSparse", "Progress", "Scene", "SceneError", "TiltResult",
+    "__version__", "prepare", "tilt",
+]

@@ -1,0 +1,133 @@
+"""The quasi-static tilt driver: prepare, relax, then tilt to the avalanche.
+
+Both backends implement the same ``advance(state, max_events, relax_only)``
+method (see ``reference.NumpyEngine``); the driver calls it in chunks so that
+it can report progress, and assembles the result.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from . import status
+from .chain import ChainState
+from .preparation import prepare
+from .reference import Chunk, NumpyEngine
+from .result import EventSparse, TiltResult
+from .scene import BACKENDS, Scene, SceneError
+
+CHUNK_EVENTS = {"numpy": 16, "fortran": 512}
+
+
+@dataclass
+class Progress:
+    """What a progress callback receives after every chunk."""
+
+    alpha: float
+    n_events: int
+    elapsed: float
+    slider_steps: int
+
+
+def make_engine(scene: Scene, backend: str):
+    """The engine of a backend name ("fortran" or "numpy")."""
+    if backend == "numpy":
+        return NumpyEngine(scene)
+    if backend == "fortran":
+        from .fortran_engine import FortranEngine
+
+        return FortranEngine(scene)
+    raise SceneError(f"backend={backend!r} must be one of {BACKENDS}")
+
+
+def tilt(
+    scene: Scene,
+    backend: str = "fortran",
+    *,
+    state: ChainState | None = None,
+    progress: Callable[[Progress], None] | None = None,
+) -> TiltResult:
+    """Tilt a prepared chain quasi-statically until the avalanche.
+
+    Parameters
+    ----------
+    scene : Scene
+        The configured run.
+    backend : {"fortran", "numpy"}
+        The Fortran kernel or the NumPy reference; both give the same events.
+    state : ChainState, optional
+        Start from this state instead of preparing one (it is copied).
+    progress : callable, optional
+        Called with a ``Progress`` after every chunk of events.
+    """
+    if not isinstance(scene, Scene):
+        raise TypeError(f"scene must be a sliders.Scene, not {type(scene).__name__}")
+    engine = make_engine(scene, backend)
+    started = time.perf_counter()
+    state = prepare(scene) if state is None else state.copy()
+
+    relaxation = {"n_events": 0, "n_moved": 0, "slider_steps": 0}
+    if True:  # with xi > 0 the coupling may destabilise sliders at alpha = 0
+        relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
+        if relax.status != status.RELAXED:
+            return _finish(scene, backend, relax.status, relax.message, math.nan, [], state, state,
+                           relaxation, started)
+        relaxation = {
+            "n_events": relax.n_events,
+            "n_moved": int(np.count_nonzero(state.displacement)),
+            "slider_steps": int(relax.events["slider_steps"].sum()),
+        }
+    initial = state.copy()
+
+    chunks: list[Chunk] = []
+    n_events = 0
+    slider_steps = 0
+    budget = CHUNK_EVENTS[backend]
+    while True:
+        remaining = scene.max_events - n_events
+        if remaining <= 0:
+            code, message, alpha_c = status.MAX_EVENTS, "", math.nan
+            break
+        chunk = engine.advance(state, max_events=min(budget, remaining))
+        chunks.append(chunk)
+        n_events += chunk.n_events
+        slider_steps += int(chunk.events["slider_steps"].sum())
+        if progress is not None:
+            progress(Progress(state.alpha, n_events, time.perf_counter() - started, slider_steps))
+        if chunk.status not in (status.RUNNING, status.SPARSE_FULL):
+            code, message, alpha_c = chunk.status, chunk.message, chunk.alpha_c
+            break
+    return _finish(scene, backend, code, message, alpha_c, chunks, initial, state, relaxation, started)
+
+
+def _finish(scene, backend, code, message, alpha_c, chunks, initial, final, relaxation, started):
+    events = {f: np.concatenate([c.events[f] for c in chunks]) if chunks else np.zeros(0)
+              for f in status.EVENT_FIELDS}
+    for f in ("n_moved", "n_stops", "n_steps", "slider_steps"):
+        events[f] = events[f].astype(np.int64)
+    displacement = None
+    if scene.record != "summary":
+        ptr = [np.zeros(1, dtype=np.int64)]
+        offset = 0
+        for c in chunks:
+            ptr.append(c.sparse_ptr[1:] + offset)
+            offset += c.sparse_index.size
+        displacement = EventSparse(
+            np.concatenate(ptr),
+            np.concatenate([c.sparse_index for c in chunks]) if chunks else np.zeros(0, np.int64),
+            np.concatenate([c.sparse_displacement for c in chunks]) if chunks else np.zeros(0),
+            scene.n_sliders,
+        )
+    if not message and code in status.ERRORS:
+        message = status.NAMES[code]
+    return TiltResult(
+        scene=scene, backend=backend, status=status.NAMES[code], message=message,
+        alpha_c=float(alpha_c), events=events, displacement=displacement,
+        initial=initial, final=final, relaxation=relaxation,
+        wall_time=time.perf_counter() - started,
+    )

@@ -1,0 +1,255 @@
+"""NumPy reference implementation of the quasi-static tilt, written for clarity.
+
+This is the executable specification that the Fortran kernel
+(``fortran/sliders_events.f90``) must reproduce event by event.  It favours
+obviousness over speed: every step recomputes the force on every slider.
+
+Algorithm (MODEL.md sections 3-5):
+
+* Between events nothing moves, so E_n = F_n - sin(alpha) is fixed and slider n
+  destabilises at the smallest alpha' >= alpha with |E_n + sin a'| = mu_n cos a'
+  (closed form, ``next_instability``).  Tilt jumps there; every slider whose
+  angle ties within ``TIE_TOL`` starts with it.
+* An event integrates the moving sliders at fixed alpha with velocity Verlet.
+  A moving slider has a fixed direction d = sign(F) while it runs, so its
+  friction is -mu_d cos(alpha) d.  Crossings inside a step are a resting slider
+  exceeding its threshold, |F| > mu cos(alpha) + force_tol, or a moving slider
+  whose velocity changes sign, d v < 0.  When a step of size h crosses, the
+  crossing is bracketed in [0, h] and the bracket is closed by bisection on
+  the step size (each trial restarts from the start of the step) until its
+  width is below ``refine_tol``; the step taken is the bracket's upper end.
+* A stopping slider comes to rest (v = 0), increments its stop count k and
+  draws mu_s(seed, n, k); if |F| still exceeds the new threshold it restarts
+  at once in the direction of F.
+* The event ends when every slider is at rest.  The avalanche is the paper's
+  criterion: every slider is moving, all downwards, with tan(alpha) > mu_d so
+  that the centre of mass accelerates.  An event longer than
+  ``max_event_duration`` (tau) stops the run with its own status.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import keyed_random, status
+from .chain import ChainState, elastic_energy, elastic_force
+from .scene import Scene
+
+TIE_TOL = 1e-12  # sliders whose instability angles tie within this start together
+
+
+@dataclass
+class Chunk:
+    """What one call of a backend's ``advance`` produced."""
+
+    status: int
+    events: dict[str, np.ndarray]
+    sparse_ptr: np.ndarray  # events[k] moved sliders are entries ptr[k]:ptr[k+1]
+    sparse_index: np.ndarray
+    sparse_displacement: np.ndarray
+    alpha_c: float = math.nan
+    message: str = ""
+
+    @property
+    def n_events(self) -> int:
+        return len(self.events["alpha"])
+
+
+@dataclass
+class _EventOutcome:
+    status: int
+    record: dict = field(default_factory=dict)
+    moved_index: np.ndarray | None = None
+    moved_displacement: np.ndarray | None = None
+
+
+def next_instability(elastic: np.ndarray, mu: np.ndarray, alpha: float):
+    """Smallest angle >= alpha at which some resting slider destabilises.
+
+    Downwards: E + sin a = mu cos a, i.e. R sin(a - phi) = -E with
+    R = sqrt(1 + mu^2), phi = atan(mu); on [0, pi/2] the left side only grows,
+    so the root phi + asin(-E/R) is the one, if E >= -1 (else it lies beyond
+    pi/2).  Upwards: E + sin a = -mu cos a, R sin(a + phi) = -E; the left side
+    falls only beyond pi/2 - phi, so the root is pi - phi - asin(-E/R), which
+    lies in [0, pi/2] only if E <= -1.
+    Returns (angle, trigger indices, directions +1 down / -1 up).
+    """
+    radius = np.hypot(1.0, mu)
+    phi = np.arctan(mu)
+    ratio = -elastic / radius
+    inside = np.abs(ratio) <= 1.0
+    safe = np.where(inside, ratio, 0.0)
+    down = np.where(inside & (elastic >= -1.0), phi + np.arcsin(safe), np.inf)
+    up = np.where(inside & (elastic <= -1.0), np.pi - phi - np.arcsin(safe), np.inf)
+    root = np.maximum(np.minimum(down, up), alpha)
+    angle = float(root.min())
+    triggers = np.flatnonzero(root <= angle + TIE_TOL)
+    directions = np.where(down[triggers] <= up[triggers], 1.0, -1.0)
+    return angle, triggers, directions
+
+
+class NumpyEngine:
+    """The reference backend: same interface as the Fortran one."""
+
+    name = "numpy"
+
+    def __init__(self, scene: Scene):
+        self.scene = scene
+
+    # -- public -----------------------------------------------------------
+    def advance(self, state: ChainState, max_events: int, relax_only: bool = False) -> Chunk:
+        """Run rearrangements until ``max_events`` are recorded or the run ends."""
+        sc = self.scene
+        records: list[dict] = []
+        ptr, index, disp = [0], [], []
+
+        def chunk(code, alpha_c=math.nan, message=""):
+            events = {f: np.array([r[f] for r in records], dtype=float) for f in status.EVENT_FIELDS}
+            for f in ("n_moved", "n_stops", "n_steps", "slider_steps"):
+                events[f] = events[f].astype(np.int64)
+            return Chunk(
+                code, events, np.array(ptr, dtype=np.int64),
+                np.array(np.concatenate(index) if index else [], dtype=np.int64),
+                np.array(np.concatenate(disp) if disp else [], dtype=float),
+                alpha_c, message,
+            )
+
+        while True:
+            elastic = elastic_force(state, sc.xi, sc.walls)
+            force = elastic + math.sin(state.alpha)
+            unstable = np.abs(force) > state.mu_s * math.cos(state.alpha) + sc.force_tol
+            if unstable.any():  # relaxation (preparation with coupling)
+                triggers = np.flatnonzero(unstable)
+                directions = np.sign(force[triggers])
+            elif relax_only:
+                return chunk(status.RELAXED)
+            else:
+                if len(records) >= max_events:
+                    return chunk(status.RUNNING)
+                angle, triggers, directions = next_instability(elastic, state.mu_s, state.alpha)
+                if not math.isfinite(angle) and angle != math.inf:
+                    return chunk(status.NON_FINITE, message="non-finite instability angle")
+                if angle > sc.alpha_max:
+                    return chunk(status.ALPHA_MAX)
+                state.alpha = angle
+            outcome = self._event(state, triggers, directions)
+            if outcome.status == status.AVALANCHE:
+                return chunk(status.AVALANCHE, alpha_c=state.alpha)
+            if outcome.status != status.RUNNING:
+                return chunk(outcome.status, message=outcome.record.get("message", ""))
+            records.append(outcome.record)
+            if sc.record != "summary":
+                index.append(outcome.moved_index)
+                disp.append(outcome.moved_displacement)
+                ptr.append(ptr[-1] + outcome.moved_index.size)
+            else:
+                ptr.append(0)
+
+    # -- one rearrangement ------------------------------------------------
+    def _event(self, state: ChainState, triggers, directions) -> _EventOutcome:
+        sc = self.scene
+        n = state.n_sliders
+        sin_a, cos_a = math.sin(state.alpha), math.cos(state.alpha)
+        friction = sc.mu_d * cos_a
+        threshold = state.mu_s * cos_a + sc.force_tol
+
+        du_start = state.displacement.copy()
+        du = du_start.copy()
+        v = np.zeros(n)
+        direction = np.zeros(n)
+        moving = np.zeros(n, dtype=bool)
+        moving[triggers] = True
+        direction[triggers] = directions
+        moved = moving.copy()
+        force = elastic_force(state, sc.xi, sc.walls, du) + sin_a
+        acc = np.where(moving, force - friction * direction, 0.0)
+
+        def substep(h):
+            """Velocity-Verlet step of size h from (du, v, acc); only movers move."""
+            du1 = du + np.where(moving, v * h + 0.5 * acc * h * h, 0.0)
+            force1 = elastic_force(state, sc.xi, sc.walls, du1) + sin_a
+            acc1 = np.where(moving, force1 - friction * direction, 0.0)
+            v1 = np.where(moving, v + 0.5 * (acc + acc1) * h, 0.0)
+            return du1, v1, force1
+
+        def crossed(trial):
+            _, v1, force1 = trial
+            stops = moving & (direction * v1 < 0.0)
+            starts = ~moving & (np.abs(force1) > threshold)
+            return bool(stops.any() or starts.any())
+
+        t = 0.0
+        n_steps = slider_steps = n_stops = 0
+        path = 0.0
+        while moving.any():
+            h = sc.dt
+            trial = substep(h)
+            if crossed(trial):
+                lo, hi = 0.0, h
+                while hi - lo > sc.refine_tol:
+                    mid = 0.5 * (lo + hi)
+                    trial_mid = substep(mid)
+                    if crossed(trial_mid):
+                        hi, trial = mid, trial_mid
+                    else:
+                        lo = mid
+                h = hi
+            du1, v1, force1 = trial
+            if not (np.all(np.isfinite(du1)) and np.all(np.isfinite(v1))):
+                return _EventOutcome(status.NON_FINITE, {"message": f"non-finite state at alpha={state.alpha}"})
+            path += float(np.sum(np.where(moving, direction * (du1 - du), 0.0)))
+            n_steps += 1
+            slider_steps += int(moving.sum())
+            t += h
+            du, v, force = du1, v1, force1
+
+            stops = np.flatnonzero(moving & (direction * v < 0.0))
+            if stops.size:
+                n_stops += stops.size
+                v[stops] = 0.0
+                moving[stops] = False
+                direction[stops] = 0.0
+                state.n_stops[stops] += 1
+                try:
+                    state.mu_s[stops] = keyed_random.static_coefficient(
+                        sc.seed, stops, state.n_stops[stops], sc.mu_s_mean, sc.sigma_mu, sc.mu_d
+                    )
+                except RuntimeError as exc:
+                    return _EventOutcome(status.RANDOM_FAILURE, {"message": str(exc)})
+                threshold[stops] = state.mu_s[stops] * cos_a + sc.force_tol
+            starts = np.flatnonzero(~moving & (np.abs(force) > threshold))
+            moving[starts] = True
+            direction[starts] = np.sign(force[starts])
+            moved[starts] = True
+            acc = np.where(moving, force - friction * direction, 0.0)
+
+            if t > sc.max_event_duration:
+                return _EventOutcome(
+                    status.EVENT_DURATION_CAP,
+                    {"message": f"rearrangement at alpha={state.alpha:.6f} still moving after "
+                                f"{t:.1f} tau (max_event_duration={sc.max_event_duration} tau)"},
+                )
+            if (not sc.walls and moving.all() and np.all(direction > 0.0)
+                    and sin_a > sc.mu_d * cos_a):
+                state.displacement[:] = du
+                return _EventOutcome(status.AVALANCHE)
+
+        step = du - du_start
+        record = {
+            "alpha": state.alpha,
+            "n_moved": int(moved.sum()),
+            "n_stops": n_stops,
+            "n_steps": n_steps,
+            "slider_steps": slider_steps,
+            "duration": t,
+            "work_gravity": sin_a * float(step.sum()),
+            "elastic_change": elastic_energy(state, sc.xi, sc.walls, du)
+            - elastic_energy(state, sc.xi, sc.walls, du_start),
+            "dissipation": friction * path,
+        }
+        state.displacement[:] = du
+        moved_index = np.flatnonzero(moved)
+        return _EventOutcome(status.RUNNING, record, moved_index, step[moved_index])

@@ -1,0 +1,179 @@
+"""The record of one tilt run, and its HDF5 form."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import status
+from .chain import ChainState, tangential_force as _tangential_force
+from .scene import Scene
+
+FORMAT_VERSION = 1
+
+
+@dataclass
+class EventSparse:
+    """Per-event values for the sliders that moved (CSR layout).
+
+    Event k's entries are ``index[ptr[k]:ptr[k+1]]`` (slider numbers, 0-based,
+    increasing) and ``value[ptr[k]:ptr[k+1]]``.
+    """
+
+    ptr: np.ndarray
+    index: np.ndarray
+    value: np.ndarray
+    n_sliders: int
+
+    @property
+    def n_events(self) -> int:
+        return self.ptr.size - 1
+
+    def event(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        a, b = self.ptr[k], self.ptr[k + 1]
+        return self.index[a:b], self.value[a:b]
+
+    def event_of_entry(self) -> np.ndarray:
+        """Event number of every stored entry."""
+        return np.repeat(np.arange(self.n_events), np.diff(self.ptr))
+
+    def dense(self) -> np.ndarray:
+        """Dense (K, N) array, zero where a slider did not move."""
+        out = np.zeros((self.n_events, self.n_sliders))
+        out[self.event_of_entry(), self.index] = self.value
+        return out
+
+
+@dataclass
+class TiltResult:
+    """Everything a tilt run recorded.
+
+    ``alpha`` is the angle of every completed rearrangement (increasing);
+    ``alpha_c`` the avalanche angle (NaN if the run ended otherwise, see
+    ``status``).  Per-event scalars: ``n_moved``, ``n_stops``, ``n_steps``,
+    ``slider_steps``, ``duration`` (tau), ``work_gravity``, ``elastic_change``
+    and ``dissipation``.  ``displacement`` holds the displacement of each
+    slider that moved, per event (``.dense()`` for a (K, N) array); it is None
+    when the scene records only a summary.
+    """
+
+    scene: Scene
+    backend: str
+    status: str
+    message: str
+    alpha_c: float
+    events: dict[str, np.ndarray]
+    displacement: EventSparse | None
+    initial: ChainState
+    final: ChainState
+    relaxation: dict[str, float] = field(default_factory=dict)
+    wall_time: float = math.nan
+
+    def __getattr__(self, name):
+        events = self.__dict__.get("events", {})
+        if name in events:
+            return events[name]
+        raise AttributeError(name)
+
+    @property
+    def n_events(self) -> int:
+        return int(self.events["alpha"].size)
+
+    @property
+    def energy_residual(self) -> np.ndarray:
+        """Work of gravity - elastic change - dissipation, per event."""
+        e = self.events
+        return e["work_gravity"] - e["elastic_change"] - e["dissipation"]
+
+    def _need_displacements(self, what: str) -> EventSparse:
+        if self.displacement is None:
+            raise ValueError(
+                f"{what} needs the displacements: this run recorded only a summary "
+                f"(scene.record={self.scene.record!r}); rerun with record='displacements' or 'forces'"
+            )
+        return self.displacement
+
+    def displacement_after(self) -> np.ndarray:
+        """(K, N) displacement since preparation after each event."""
+        return self.initial.displacement + np.cumsum(self._need_displacements("displacement_after").dense(), axis=0)
+
+    @property
+    def tangential_force(self) -> np.ndarray:
+        """(K, N) tangential force F_t of every slider just after each event."""
+        du = self.displacement_after()
+        return _tangential_force(self.initial, self.scene.xi, self.scene.walls, self.alpha, du)
+
+    def prepared_force(self) -> np.ndarray:
+        """The drawn tangential forces at alpha = 0, before the coupling is switched on."""
+        return self.initial.elastic_force0 + self.scene.xi * self.initial.cantilever_stretch0
+
+    def start_force(self) -> np.ndarray:
+        """F_t of every slider at alpha = 0 when the tilt starts (after any relaxation)."""
+        return _tangential_force(self.initial, self.scene.xi, self.scene.walls, 0.0)
+
+    # -- HDF5 ---------------------------------------------------------------
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the run to an HDF5 file (overwrites)."""
+        import h5py
+
+        from . import __version__
+
+        with h5py.File(path, "w") as f:
+            f.attrs["format"] = "sliders.tilt"
+            f.attrs["format_version"] = FORMAT_VERSION
+            f.attrs["software_version"] = __version__
+            f.attrs["scene"] = json.dumps(self.scene.to_dict())
+            f.attrs["backend"] = self.backend
+            f.attrs["status"] = self.status
+            f.attrs["message"] = self.message
+            f.attrs["alpha_c"] = self.alpha_c
+            f.attrs["wall_time"] = self.wall_time
+            f.attrs["relaxation"] = json.dumps(self.relaxation)
+            ev = f.create_group("events")
+            for name, values in self.events.items():
+                ev.create_dataset(name, data=values)
+            if self.displacement is not None:
+                g = f.create_group("displacement")
+                g.create_dataset("ptr", data=self.displacement.ptr)
+                g.create_dataset("index", data=self.displacement.index.astype(np.int32))
+                g.create_dataset("value", data=self.displacement.value)
+            for label, st in (("initial", self.initial), ("final", self.final)):
+                g = f.create_group(label)
+                for name in ("elastic_force0", "spring_extension0", "cantilever_stretch0",
+                             "lattice_position0", "mu_s", "displacement", "n_stops"):
+                    g.create_dataset(name, data=getattr(st, name))
+                g.attrs["alpha"] = st.alpha
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> "TiltResult":
+        import h5py
+
+        with h5py.File(path, "r") as f:
+            if f.attrs.get("format") != "sliders.tilt":
+                raise ValueError(f"{os.fspath(path)!r} is not a sliders tilt file")
+            scene = Scene.from_dict(json.loads(f.attrs["scene"]))
+            events = {name: ds[()] for name, ds in f["events"].items()}
+            disp = None
+            if "displacement" in f:
+                g = f["displacement"]
+                disp = EventSparse(g["ptr"][()], g["index"][()].astype(np.int64), g["value"][()],
+                                   scene.n_sliders)
+            states = {}
+            for label in ("initial", "final"):
+                g = f[label]
+                states[label] = ChainState(**{k: g[k][()] for k in g}, alpha=float(g.attrs["alpha"]))
+            return cls(
+                scene=scene, backend=str(f.attrs["backend"]), status=str(f.attrs["status"]),
+                message=str(f.attrs["message"]), alpha_c=float(f.attrs["alpha_c"]),
+                events=events, displacement=disp, initial=states["initial"], final=states["final"],
+                relaxation=json.loads(f.attrs["relaxation"]), wall_time=float(f.attrs["wall_time"]),
+            )
+
+
+def empty_events() -> dict[str, np.ndarray]:
+    return {f: np.zeros(0, dtype=np.int64 if f in ("n_moved", "n_stops", "n_steps", "slider_steps")
+                        else float) for f in status.EVENT_FIELDS}

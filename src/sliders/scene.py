@@ -1,0 +1,208 @@
+"""A scene: one configured run (system, loading, integrator, what to record).
+
+Every field is checked on construction; a bad value raises ``SceneError``
+whose message names the parameter and the allowed range.  Units are the
+paper's dimensionless ones: time in tau = sqrt(m/k), length in g tau^2.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+ENDS = ("free", "walls")
+RECORDS = ("summary", "displacements", "forces")
+AVALANCHE_CRITERIA = ("sliding",)
+BACKENDS = ("fortran", "numpy")
+
+# Verlet needs dt well below the fastest spring period 2 pi / sqrt(4 + xi).
+DT_PERIOD_FRACTION = 1.0 / 30.0
+
+
+class SceneError(ValueError):
+    """An invalid scene parameter; the message names it and its allowed range."""
+
+
+def fastest_period(xi: float) -> float:
+    """Shortest normal-mode period of the chain, 2 pi / sqrt(4 + xi) (in tau)."""
+    return 2.0 * math.pi / math.sqrt(4.0 + xi)
+
+
+def max_time_step(xi: float) -> float:
+    """Largest accepted time step: a thirtieth of the fastest spring period."""
+    return DT_PERIOD_FRACTION * fastest_period(xi)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """One configured tilt run.
+
+    System: ``n_sliders`` (N), ``xi`` (cantilever/neighbour stiffness ratio),
+    ``spring_length`` (l), ``mu_d``, ``mu_s_mean``, ``sigma_mu``, ``seed``,
+    ``ends`` ("free" chain or between two immobile "walls").
+    Integrator: ``dt`` (velocity-Verlet step), ``refine_tol`` (width in tau
+    to which a crossing is bracketed), ``max_event_duration`` (cap on the
+    duration of one rearrangement, in tau; hitting it ends the run with status
+    ``"event_duration_cap"``, never taken for the avalanche), ``max_events``
+    and ``alpha_max`` (stop tilting there; needed for walls, which never
+    avalanche).
+    Recording: ``record`` is "summary" (per-event scalars only),
+    "displacements" (plus the displacement of every slider that moved, stored
+    sparsely) or "forces" (same storage; the tangential force after each
+    event is reconstructed from it on demand).
+    """
+
+    n_sliders: int = 100
+    xi: float = 0.0
+    spring_length: float = 10.0
+    mu_d: float = 0.55
+    mu_s_mean: float = 0.6
+    sigma_mu: float = 0.01
+    seed: int = 0
+    ends: str = "free"
+    dt: float = 1e-3
+    refine_tol: float = 1e-10
+    max_event_duration: float = 5000.0
+    max_events: int = 10_000_000
+    alpha_max: float = math.pi / 2
+    force_tol: float = 1e-12
+    avalanche: str = "sliding"
+    record: str = "displacements"
+    output: str | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        _check_int("n_sliders", self.n_sliders, 1, None)
+        _check_real("xi", self.xi, 0.0, None)
+        _check_real("spring_length", self.spring_length, 0.0, None)
+        _check_real("mu_d", self.mu_d, 0.0, None)
+        _check_real("mu_s_mean", self.mu_s_mean, 0.0, None)
+        if not self.mu_s_mean > self.mu_d:
+            raise SceneError(
+                f"mu_s_mean={self.mu_s_mean!r} must exceed mu_d={self.mu_d!r} "
+                "(static friction above dynamic: mu_d < mu_s_mean)"
+            )
+        _check_real("sigma_mu", self.sigma_mu, 0.0, None)
+        _check_int("seed", self.seed, 0, 2**32 - 1)
+        if self.ends not in ENDS:
+            raise SceneError(f"ends={self.ends!r} must be one of {ENDS}")
+        dt_max = max_time_step(self.xi)
+        _check_real("dt", self.dt, 0.0, dt_max, open_low=True,
+                    why=f"a thirtieth of the fastest spring period 2*pi/sqrt(4+xi) = "
+                        f"{fastest_period(self.xi):.4g} tau")
+        _check_real("refine_tol", self.refine_tol, 0.0, self.dt, open_low=True,
+                    why="the crossing bracket must close below one time step")
+        _check_real("max_event_duration", self.max_event_duration, 0.0, None, open_low=True)
+        if self.max_event_duration < 100 * self.dt:
+            raise SceneError(
+                f"max_event_duration={self.max_event_duration!r} tau must be at least "
+                f"100 time steps ({100 * self.dt:g} tau); the last events before the "
+                "avalanche last hundreds of tau"
+            )
+        _check_int("max_events", self.max_events, 1, None)
+        _check_real("alpha_max", self.alpha_max, 0.0, math.pi / 2, open_low=True)
+        _check_real("force_tol", self.force_tol, 0.0, 1e-6)
+        if self.avalanche not in AVALANCHE_CRITERIA:
+            raise SceneError(f"avalanche={self.avalanche!r} must be one of {AVALANCHE_CRITERIA}")
+        if self.record not in RECORDS:
+            raise SceneError(f"record={self.record!r} must be one of {RECORDS}")
+        if self.output is not None:
+            check_writable("output", self.output)
+
+    # -- convenience -------------------------------------------------------
+    @property
+    def delta_mu(self) -> float:
+        """Delta mu = mu_s_mean - mu_d, the paper's bin half-width."""
+        return self.mu_s_mean - self.mu_d
+
+    @property
+    def walls(self) -> bool:
+        return self.ends == "walls"
+
+    @property
+    def alpha_c_bounds(self) -> tuple[float, float]:
+        """MODEL.md section 4 bounds with the mean static coefficient, atan(mu_d) and atan(mu_s_mean)."""
+        return math.atan(self.mu_d), math.atan(self.mu_s_mean)
+
+    def replace(self, **changes: Any) -> "Scene":
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d.pop("output")
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "Scene":
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise SceneError(
+                f"unknown scene key(s) {unknown}; allowed keys are {sorted(known - {'output'})}"
+            )
+        return cls(**d)
+
+    @classmethod
+    def from_toml(cls, path: str | os.PathLike[str]) -> "Scene":
+        import tomllib
+
+        try:
+            with open(path, "rb") as fh:
+                data = tomllib.load(fh)
+        except FileNotFoundError:
+            raise SceneError(f"scene file {str(path)!r} does not exist") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise SceneError(f"scene file {str(path)!r} is not valid TOML: {exc}") from None
+        data = data.get("scene", data)
+        return cls.from_dict(data)
+
+
+def _check_real(name, value, low, high, *, open_low=False, why=None) -> None:
+    rng = _range_text(low, high, open_low)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SceneError(f"{name}={value!r} must be a real number in {rng}")
+    if not math.isfinite(value):
+        raise SceneError(f"{name}={value!r} must be finite, in {rng}")
+    too_low = low is not None and (value <= low if open_low else value < low)
+    too_high = high is not None and value > high
+    if too_low or too_high:
+        extra = f" ({why})" if why else ""
+        raise SceneError(f"{name}={value!r} is out of range: allowed {rng}{extra}")
+
+
+def _check_int(name, value, low, high) -> None:
+    rng = _range_text(low, high, False)
+    if isinstance(value, bool) or not isinstance(value, int):
+        try:
+            import numpy as np
+
+            ok = isinstance(value, np.integer)
+        except ImportError:  # pragma: no cover
+            ok = False
+        if not ok:
+            raise SceneError(f"{name}={value!r} must be an integer in {rng}")
+    if (low is not None and value < low) or (high is not None and value > high):
+        raise SceneError(f"{name}={value!r} is out of range: allowed {rng}")
+
+
+def _range_text(low, high, open_low) -> str:
+    lo = "-inf" if low is None else f"{low:g}"
+    hi = "+inf" if high is None else f"{high:g}"
+    return f"{'(' if open_low or low is None else '['}{lo}, {hi}{')' if high is None else ']'}"
+
+
+def check_writable(name: str, path: str | os.PathLike[str]) -> None:
+    """Refuse a path whose file cannot be created or written."""
+    p = os.fspath(path)
+    if p == "" or os.path.isdir(p):
+        raise SceneError(f"{name}={p!r} is a directory or empty; give a file path to write")
+    parent = os.path.dirname(os.path.abspath(p)) or "."
+    if not os.path.isdir(parent):
+        raise SceneError(f"{name}={p!r}: directory {parent!r} does not exist")
+    if os.path.exists(p):
+        if not os.access(p, os.W_OK):
+            raise SceneError(f"{name}={p!r} exists and is not writable")
+    elif not os.access(parent, os.W_OK | os.X_OK):
+        raise SceneError(f"{name}={p!r}: directory {parent!r} is not writable")

@@ -1,0 +1,41 @@
+"""Run status codes, shared with the Fortran kernel (fortran/sliders_status.f90)."""
+
+from __future__ import annotations
+
+RUNNING = 0  # the chunk's event budget is used up; call again
+AVALANCHE = 1  # every slider slides downwards with tan(alpha) > mu_d
+ALPHA_MAX = 2  # the next rearrangement would be beyond scene.alpha_max
+MAX_EVENTS = 3  # scene.max_events rearrangements recorded
+EVENT_DURATION_CAP = 4  # one rearrangement lasted longer than scene.max_event_duration
+NON_FINITE = 5  # a NaN or infinity appeared in the state
+RANDOM_FAILURE = 6  # no static coefficient above mu_d could be drawn
+RELAXED = 7  # relax-only call: the chain is at rest at the current angle
+SPARSE_FULL = 8  # the displacement buffer filled mid-chunk (call again)
+
+NAMES = {
+    RUNNING: "running",
+    AVALANCHE: "avalanche",
+    ALPHA_MAX: "alpha_max",
+    MAX_EVENTS: "max_events",
+    EVENT_DURATION_CAP: "event_duration_cap",
+    NON_FINITE: "non_finite",
+    RANDOM_FAILURE: "random_failure",
+    RELAXED: "relaxed",
+    SPARSE_FULL: "sparse_full",
+}
+
+FINAL_OK = {AVALANCHE, ALPHA_MAX, MAX_EVENTS}
+ERRORS = {EVENT_DURATION_CAP, NON_FINITE, RANDOM_FAILURE}
+
+# Per-event scalar records, in this order in both backends.
+EVENT_FIELDS = (
+    "alpha",  # tilt at which the rearrangement happened
+    "n_moved",  # distinct sliders that moved
+    "n_stops",  # stops (velocity zero crossings) during the event
+    "n_steps",  # accepted integration steps
+    "slider_steps",  # sum over steps of the number of moving sliders
+    "duration",  # in tau
+    "work_gravity",  # sin(alpha) * sum of displacements
+    "elastic_change",  # change of elastic energy (springs + cantilevers)
+    "dissipation",  # mu_d cos(alpha) * path length
+)
