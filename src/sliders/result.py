@@ -107,6 +107,27 @@ class TiltResult:
         du = self.displacement_after()
         return _tangential_force(self.initial, self.scene.xi, self.scene.walls, self.alpha, du)
 
+    def events_before(self, alphas) -> np.ndarray:
+        """For each angle, how many rearrangements happened at or below it."""
+        return np.searchsorted(self.alpha, np.asarray(alphas, dtype=float), side="right")
+
+    def displacement_at(self, alphas) -> np.ndarray:
+        """(G, N) displacement since preparation of the chain at rest at each angle."""
+        alphas = np.asarray(alphas, dtype=float)
+        after = np.vstack([self.initial.displacement[None, :], self.displacement_after()])
+        return after[self.events_before(alphas)]
+
+    def force_at(self, alphas) -> np.ndarray:
+        """(G, N) tangential force of every slider at each angle (chain at rest there).
+
+        Between events nothing moves, so F_n(alpha) = E_n + sin(alpha) with E_n
+        the elastic force after the last rearrangement at or below alpha.
+        Angles beyond the avalanche are meaningless (the chain is gone).
+        """
+        alphas = np.asarray(alphas, dtype=float)
+        return _tangential_force(self.initial, self.scene.xi, self.scene.walls, alphas,
+                                 self.displacement_at(alphas))
+
     def prepared_force(self) -> np.ndarray:
         """The drawn tangential forces at alpha = 0, before the coupling is switched on."""
         return self.initial.elastic_force0 + self.scene.xi * self.initial.cantilever_stretch0
