@@ -93,7 +93,13 @@ def tilt(
         if remaining <= 0:
             code, message, alpha_c = status.MAX_EVENTS, "", math.nan
             break
-        chunk = engine.advance(state, max_events=min(budget, remaining))
+        try:
+            chunk = engine.advance(state, max_events=min(budget, remaining))
+        except KeyboardInterrupt:
+            # The chunk in flight is lost (its events were not returned); the
+            # state may be mid-event, so the completed events are what counts.
+            code, message, alpha_c = status.INTERRUPTED, "interrupted by the user", math.nan
+            break
         chunks.append(chunk)
         n_events += chunk.n_events
         slider_steps += int(chunk.events["slider_steps"].sum())

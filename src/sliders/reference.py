@@ -119,6 +119,8 @@ class NumpyEngine:
 
         while True:
             elastic = elastic_force(state, sc.xi, sc.walls)
+            if not np.all(np.isfinite(elastic)):
+                return chunk(status.NON_FINITE, message="non-finite force in the resting chain")
             force = elastic + math.sin(state.alpha)
             unstable = np.abs(force) > state.mu_s * math.cos(state.alpha) + sc.force_tol
             if unstable.any():  # relaxation (preparation with coupling)
@@ -130,8 +132,6 @@ class NumpyEngine:
                 if len(records) >= max_events:
                     return chunk(status.RUNNING)
                 angle, triggers, directions = next_instability(elastic, state.mu_s, state.alpha)
-                if not math.isfinite(angle) and angle != math.inf:
-                    return chunk(status.NON_FINITE, message="non-finite instability angle")
                 if angle > sc.alpha_max:
                     return chunk(status.ALPHA_MAX)
                 state.alpha = angle

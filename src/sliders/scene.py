@@ -201,8 +201,12 @@ def check_writable(name: str, path: str | os.PathLike[str]) -> None:
     parent = os.path.dirname(os.path.abspath(p)) or "."
     if not os.path.isdir(parent):
         raise SceneError(f"{name}={p!r}: directory {parent!r} does not exist")
-    if os.path.exists(p):
-        if not os.access(p, os.W_OK):
-            raise SceneError(f"{name}={p!r} exists and is not writable")
-    elif not os.access(parent, os.W_OK | os.X_OK):
-        raise SceneError(f"{name}={p!r}: directory {parent!r} is not writable")
+    existed = os.path.exists(p)
+    try:  # the honest test (permission bits say nothing for root or read-only mounts)
+        with open(p, "ab"):
+            pass
+    except OSError as exc:
+        what = "exists and is not writable" if existed else f"cannot be created in {parent!r}"
+        raise SceneError(f"{name}={p!r} {what} ({exc.strerror})") from None
+    if not existed:
+        os.remove(p)

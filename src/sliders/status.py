@@ -11,6 +11,7 @@ NON_FINITE = 5  # a NaN or infinity appeared in the state
 RANDOM_FAILURE = 6  # no static coefficient above mu_d could be drawn
 RELAXED = 7  # relax-only call: the chain is at rest at the current angle
 SPARSE_FULL = 8  # the displacement buffer filled mid-chunk (call again)
+INTERRUPTED = 9  # Python only: Ctrl-C/SIGTERM; the completed events are kept
 
 NAMES = {
     RUNNING: "running",
@@ -22,6 +23,7 @@ NAMES = {
     RANDOM_FAILURE: "random_failure",
     RELAXED: "relaxed",
     SPARSE_FULL: "sparse_full",
+    INTERRUPTED: "interrupted",
 }
 
 FINAL_OK = {AVALANCHE, ALPHA_MAX, MAX_EVENTS}

@@ -1,0 +1,86 @@
+"""Command-line pieces shared by ``python -m sliders`` and ``python -m sliders.ensemble``."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import sys
+import time
+import typing
+
+from .scene import Scene, SceneError, check_writable
+
+_SKIP = {"output"}
+
+
+def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
+    """One option per Scene field (``--n-sliders``, ``--xi``, ...) plus ``--scene FILE.toml``."""
+    group = parser.add_argument_group("scene (defaults: the paper's parameters)")
+    group.add_argument("--scene", metavar="FILE.toml",
+                       help="read the scene from a TOML file; options given here override it")
+    hints = typing.get_type_hints(Scene)
+    for f in dataclasses.fields(Scene):
+        if f.name in _SKIP:
+            continue
+        kind = hints[f.name]
+        conv = int if kind is int else float if kind is float else str
+        group.add_argument("--" + f.name.replace("_", "-"), dest=f.name, type=_typed(conv, f.name),
+                           default=None, metavar=f.name.upper(), help=f"default {f.default!r}")
+
+
+def _typed(conv, name):
+    def parse(text: str):
+        try:
+            return conv(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} expects {conv.__name__}, got {text!r}") from None
+    return parse
+
+
+def scene_from_args(args: argparse.Namespace) -> Scene:
+    """The Scene given by ``--scene`` and the per-field options (validated)."""
+    values: dict = {}
+    if args.scene:
+        values.update(Scene.from_toml(args.scene).to_dict())
+    for f in dataclasses.fields(Scene):
+        given = getattr(args, f.name, None)
+        if f.name not in _SKIP and given is not None:
+            values[f.name] = given
+    return Scene.from_dict(values)
+
+
+def check_output(path: str, overwrite: bool) -> None:
+    """Refuse an unwritable output, or an existing one without --overwrite."""
+    check_writable("--out", path)
+    if os.path.exists(path) and not overwrite:
+        raise SceneError(f"--out {path!r} exists; pass --overwrite to replace it")
+
+
+class ProgressLine:
+    """A single status line on stderr, refreshed at most every ``interval`` s."""
+
+    def __init__(self, interval: float = 1.0, stream=None):
+        self.interval = interval
+        self.stream = stream or sys.stderr
+        self.last = -1e9
+        self.tty = self.stream.isatty()
+
+    def show(self, text: str, force: bool = False) -> None:
+        now = time.monotonic()
+        if force or now - self.last >= self.interval:
+            self.last = now
+            end = "\r" if self.tty else "\n"
+            self.stream.write(f"{text:<78s}{end}")
+            self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def fail(message: str, code: int = 2) -> typing.NoReturn:
+    """Print a one-line error (no traceback) and exit non-zero."""
+    sys.stderr.write(f"error: {message}\n")
+    raise SystemExit(code)

@@ -1,0 +1,124 @@
+"""Every invalid scene is refused at construction with a message naming the parameter."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+
+import pytest
+
+import sliders
+from sliders import Scene, SceneError
+from sliders.scene import max_time_step
+
+BAD = [
+    (dict(n_sliders=0), r"n_sliders=0 is out of range: allowed \[1, \+inf\)"),
+    (dict(n_sliders=2.5), r"n_sliders=2.5 must be an integer"),
+    (dict(mu_d=0.6), r"mu_s_mean=0.6 must exceed mu_d=0.6"),
+    (dict(mu_d=0.7), r"must exceed mu_d=0.7"),
+    (dict(sigma_mu=-0.01), r"sigma_mu=-0.01 is out of range: allowed \[0, \+inf\)"),
+    (dict(dt=0.0), r"dt=0.0 is out of range: allowed \(0, "),
+    (dict(dt=-1e-3), r"dt=-0.001 is out of range"),
+    (dict(dt=0.5), r"dt=0.5 is out of range.*fastest spring period"),
+    (dict(xi=100.0, dt=0.03), r"dt=0.03 is out of range.*fastest spring period"),
+    (dict(xi=-0.001), r"xi=-0.001 is out of range: allowed \[0, \+inf\)"),
+    (dict(xi=math.nan), r"xi=nan must be finite"),
+    (dict(mu_d=math.inf), r"mu_d=inf must be finite"),
+    (dict(spring_length=-math.inf), r"spring_length=-inf must be finite"),
+    (dict(mu_s_mean=math.nan), r"mu_s_mean=nan must be finite"),
+    (dict(ends="periodic"), r"ends='periodic' must be one of \('free', 'walls'\)"),
+    (dict(record="everything"), r"record='everything' must be one of"),
+    (dict(seed=-1), r"seed=-1 is out of range"),
+    (dict(refine_tol=1e-2), r"refine_tol=0.01 is out of range"),
+    (dict(max_event_duration=0.01), r"max_event_duration=0.01 tau must be at least 100 time steps"),
+    (dict(alpha_max=2.0), r"alpha_max=2.0 is out of range"),
+    (dict(output="/nonexistent-dir/run.h5"), r"output='/nonexistent-dir/run.h5': directory '/nonexistent-dir' does not exist"),
+    (dict(output="/"), r"output='/' is a directory"),
+]
+
+
+@pytest.mark.parametrize("changes, message", BAD, ids=[str(c) for c, _ in BAD])
+def test_bad_scene_is_refused_with_its_message(changes, message):
+    with pytest.raises(SceneError, match=message):
+        Scene(**changes)
+
+
+def test_unwritable_location_is_refused(tmp_path):
+    # /proc refuses new files even for root; a directory path cannot be a file either
+    with pytest.raises(SceneError, match=r"output='/proc/run.h5' cannot be created in '/proc'"):
+        Scene(output="/proc/run.h5")
+    target = tmp_path / "run.h5"
+    Scene(output=str(target))
+    assert not target.exists()  # the check leaves nothing behind
+
+
+def test_time_step_limit_follows_the_stiffness():
+    assert max_time_step(0.0) == pytest.approx(2 * math.pi / 2 / 30)
+    assert max_time_step(100.0) < max_time_step(1.0) < max_time_step(0.0)
+    Scene(xi=100.0, dt=max_time_step(100.0))  # the limit itself is accepted
+
+
+def test_unknown_backend_is_refused():
+    with pytest.raises(SceneError, match=r"backend='cuda' must be one of \('fortran', 'numpy'\)"):
+        sliders.tilt(Scene(n_sliders=2), backend="cuda")
+
+
+def test_unknown_key_in_scene_file(tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text("n_sliders = 10\nfrobnicate = 3\n")
+    with pytest.raises(SceneError, match=r"unknown scene key\(s\) \['frobnicate'\]"):
+        Scene.from_toml(path)
+
+
+def test_scene_round_trips_through_dict():
+    scene = Scene(n_sliders=7, xi=0.001, seed=12, ends="walls")
+    assert Scene.from_dict(scene.to_dict()) == scene
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "sliders", *args], capture_output=True, text=True,
+                          timeout=120, cwd=cwd)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--n-sliders", "0"], "n_sliders=0 is out of range"),
+    (["--mu-d", "0.7"], "must exceed mu_d=0.7"),
+    (["--dt", "nan"], "dt=nan must be finite"),
+    (["--sigma-mu", "-1"], "sigma_mu=-1.0 is out of range"),
+    (["--xi", "-1"], "xi=-1.0 is out of range"),
+    (["--out", "/nonexistent-dir/x.h5"], "directory '/nonexistent-dir' does not exist"),
+])
+def test_command_line_refuses_bad_input_without_traceback(args, message, tmp_path):
+    argv = ["tilt", "--out", str(tmp_path / "run.h5"), *args]
+    proc = _cli(*argv)
+    assert proc.returncode != 0
+    assert message in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_command_line_backend_choice_is_checked(tmp_path):
+    proc = _cli("tilt", "--backend", "cuda", "--out", str(tmp_path / "run.h5"))
+    assert proc.returncode != 0 and "invalid choice: 'cuda'" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_command_line_never_overwrites_silently(tmp_path):
+    out = tmp_path / "run.h5"
+    out.write_text("precious")
+    proc = _cli("tilt", "--n-sliders", "2", "--out", str(out))
+    assert proc.returncode != 0 and "exists; pass --overwrite" in proc.stderr
+    assert out.read_text() == "precious"
+
+
+def test_command_line_runs_and_writes_a_loadable_file(tmp_path):
+    out = tmp_path / "run.h5"
+    proc = _cli("tilt", "--n-sliders", "10", "--seed", "4", "--backend", "numpy", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert "avalanche: alpha_c=" in proc.stdout
+    result = sliders.TiltResult.load(out)
+    direct = sliders.tilt(Scene(n_sliders=10, seed=4), backend="numpy")
+    assert result.alpha_c == direct.alpha_c
+    assert (result.alpha == direct.alpha).all()
