@@ -39,6 +39,8 @@ MAX_FORCE_ATTEMPTS = 1000
 def draw_initial_forces(scene: Scene, mu_s: np.ndarray) -> np.ndarray:
     """Uniform forces in ]-mu_s_mean, mu_s_mean[, each stable for its own mu_s."""
     n = scene.n_sliders
+    if scene.initial_forces == "zero":
+        return np.zeros(n)
     sliders = np.arange(n)
     bound = np.minimum(mu_s, scene.mu_s_mean)
     forces = np.full(n, np.nan)

@@ -16,6 +16,7 @@ from typing import Any
 ENDS = ("free", "walls")
 RECORDS = ("summary", "displacements", "forces")
 AVALANCHE_CRITERIA = ("sliding",)
+INITIAL_FORCES = ("uniform", "zero")
 BACKENDS = ("fortran", "numpy")
 
 # Verlet needs dt well below the fastest spring period 2 pi / sqrt(4 + xi).
@@ -43,6 +44,8 @@ class Scene:
     System: ``n_sliders`` (N), ``xi`` (cantilever/neighbour stiffness ratio),
     ``spring_length`` (l), ``mu_d``, ``mu_s_mean``, ``sigma_mu``, ``seed``,
     ``ends`` ("free" chain or between two immobile "walls").
+    ``initial_forces`` is the paper's "uniform" preparation or "zero" (every
+    spring at rest: with sigma_mu = 0 a scene without any disorder).
     Integrator: ``dt`` (velocity-Verlet step), ``refine_tol`` (width in tau
     to which a crossing is bracketed), ``max_event_duration`` (cap on the
     duration of one rearrangement, in tau; hitting it ends the run with status
@@ -63,6 +66,7 @@ class Scene:
     sigma_mu: float = 0.01
     seed: int = 0
     ends: str = "free"
+    initial_forces: str = "uniform"
     dt: float = 1e-3
     refine_tol: float = 1e-10
     max_event_duration: float = 5000.0
@@ -88,6 +92,8 @@ class Scene:
         _check_int("seed", self.seed, 0, 2**32 - 1)
         if self.ends not in ENDS:
             raise SceneError(f"ends={self.ends!r} must be one of {ENDS}")
+        if self.initial_forces not in INITIAL_FORCES:
+            raise SceneError(f"initial_forces={self.initial_forces!r} must be one of {INITIAL_FORCES}")
         dt_max = max_time_step(self.xi)
         _check_real("dt", self.dt, 0.0, dt_max, open_low=True,
                     why=f"a thirtieth of the fastest spring period 2*pi/sqrt(4+xi) = "
