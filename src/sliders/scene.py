@@ -21,6 +21,10 @@ BACKENDS = ("fortran", "numpy")
 
 # Verlet needs dt well below the fastest spring period 2 pi / sqrt(4 + xi).
 DT_PERIOD_FRACTION = 1.0 / 30.0
+# Between walls the rearrangement angles pile up towards pi/2 (Delta alpha is
+# proportional to cos alpha: infinitely many events before pi/2), and the
+# displacement per event, (mu_s - mu_d) cos alpha, sinks below rounding.
+ALPHA_MAX_LIMIT = math.pi / 2 - 1e-6
 
 
 class SceneError(ValueError):
@@ -71,7 +75,7 @@ class Scene:
     refine_tol: float = 1e-10
     max_event_duration: float = 5000.0
     max_events: int = 10_000_000
-    alpha_max: float = math.pi / 2
+    alpha_max: float = ALPHA_MAX_LIMIT
     force_tol: float = 1e-12
     avalanche: str = "sliding"
     record: str = "displacements"
@@ -108,7 +112,9 @@ class Scene:
                 "avalanche last hundreds of tau"
             )
         _check_int("max_events", self.max_events, 1, None)
-        _check_real("alpha_max", self.alpha_max, 0.0, math.pi / 2, open_low=True)
+        _check_real("alpha_max", self.alpha_max, 0.0, ALPHA_MAX_LIMIT, open_low=True,
+                    why="pi/2 - 1e-6: towards pi/2 the rearrangements pile up without end "
+                        "(Delta alpha ~ cos alpha) and cos alpha sinks below rounding")
         _check_real("force_tol", self.force_tol, 0.0, 1e-6)
         if self.avalanche not in AVALANCHE_CRITERIA:
             raise SceneError(f"avalanche={self.avalanche!r} must be one of {AVALANCHE_CRITERIA}")
@@ -194,8 +200,8 @@ def _check_int(name, value, low, high) -> None:
 
 
 def _range_text(low, high, open_low) -> str:
-    lo = "-inf" if low is None else f"{low:g}"
-    hi = "+inf" if high is None else f"{high:g}"
+    lo = "-inf" if low is None else f"{low:.10g}"
+    hi = "+inf" if high is None else f"{high:.10g}"
     return f"{'(' if open_low or low is None else '['}{lo}, {hi}{')' if high is None else ']'}"
 
 
