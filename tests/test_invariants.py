@@ -107,6 +107,20 @@ def test_initial_forces_are_flat_zero_sum_and_stable():
     assert np.all(np.abs(counts - expected) < 5 * math.sqrt(expected))
 
 
+def test_small_chains_keep_a_flat_initial_distribution():
+    """Zero net force must not thin the edges (a plain projection loses ~40 % there at N = 100).
+
+    The remaining edge deficit is physical: each force must also lie below its
+    own mu_s ~ N(0.6, 0.01), which removes ~4 % of the outermost bin, and the
+    zero-sum condition ~1.5 %.
+    """
+    forces = np.concatenate([prepare(Scene(n_sliders=100, seed=s)).elastic_force0 for s in range(200)])
+    density, _ = np.histogram(forces, bins=12, range=(-0.6, 0.6), density=True)
+    flat = 1 / 1.2
+    assert np.all(np.abs(density[1:-1] / flat - 1) < 0.08)
+    assert np.all(np.abs(density[[0, -1]] / flat - 0.945) < 0.08)
+
+
 def test_coupling_relaxation_leaves_a_stable_chain(backend):
     scene = Scene(n_sliders=50, xi=1.0, seed=2, dt=1e-3)
     state = prepare(scene)

@@ -9,13 +9,17 @@ Steps, and the choices made where the paper is silent:
    redrawn (keyed rejection); the forces stay uniform on
    ]-a_n, a_n[ with a_n = min(mu_s_mean, mu_{s,n}).
 3. *Zero sum* (free chain only): the internal forces of a free chain sum to
-   zero, so the drawn forces must too.  The residual S = sum f is removed by
-   moving every force towards the bound on the side that absorbs S, in
-   proportion to its room to that bound: for S > 0,
-   f_n -> f_n - S (f_n + a_n) / sum_m (f_m + a_m).  This keeps every force
-   strictly inside its own stability range (the room used is a fraction
-   S / (S + sum a) < 1 of each slider's room) and perturbs the flat
-   distribution by O(1/sqrt(N)) in scale only.  For N = 1 it gives f = 0.
+   zero, so the drawn forces must too.  Wanted: the uniform law on the box
+   prod ]-a_n, a_n[ conditioned on sum f = 0 (whose one-slider marginals are
+   flat up to O(1/N)).  A feasible start is made by removing the residual
+   S = sum f in proportion to each force's room to its bound (for S > 0,
+   f_n -> f_n - S (f_n + a_n) / sum_m (f_m + a_m), which keeps every force
+   inside its range), then ``ZERO_SUM_SWEEPS`` sweeps of a pairwise Gibbs
+   sampler mix it: the sliders are paired at random (keyed permutation) and
+   each pair's forces are redrawn uniformly on the segment that keeps their
+   sum and both bounds.  That move leaves the conditioned uniform law
+   invariant, so the start's bias (the projection alone thins the end bins by
+   ~40 % at N = 100) is washed out.  For N = 1 the force is 0.
    Between walls no constraint applies: the walls take the net force.
 4. Positions from forces: spring tensions are running sums of the forces
    (T_0 = 0 at the left end), positions running sums of the tensions.
@@ -34,6 +38,9 @@ from .chain import ChainState
 from .scene import Scene
 
 MAX_FORCE_ATTEMPTS = 1000
+ZERO_SUM_SWEEPS = 20
+PAIRING_STREAM = 0xFFFFFFFD  # keyed stream of the random pairings
+PAIR_DRAW_STREAM = 0xFFFFFFFC  # keyed stream of the pair redraws
 
 
 def draw_initial_forces(scene: Scene, mu_s: np.ndarray) -> np.ndarray:
@@ -57,7 +64,25 @@ def draw_initial_forces(scene: Scene, mu_s: np.ndarray) -> np.ndarray:
     else:  # pragma: no cover - needs mu_s far below mu_s_mean for 1000 draws
         raise RuntimeError("preparation: could not draw stable initial forces")
     if not scene.walls:
-        forces = remove_net_force(forces, bound)
+        forces = mix_at_zero_sum(scene.seed, remove_net_force(forces, bound), bound)
+    return forces
+
+
+def mix_at_zero_sum(seed: int, forces: np.ndarray, bound: np.ndarray,
+                    sweeps: int = ZERO_SUM_SWEEPS) -> np.ndarray:
+    """Pairwise Gibbs sweeps at fixed sum, inside ]-bound, bound[ (see module doc)."""
+    forces = forces.copy()
+    n = forces.size
+    sliders = np.arange(n)
+    for sweep in range(sweeps):
+        order = np.argsort(keyed_random.uniform(seed, sliders, PAIRING_STREAM, sweep), kind="stable")
+        first, second = order[0 : n - 1 : 2], order[1:n:2]
+        total = forces[first] + forces[second]
+        low = np.maximum(-bound[first], total - bound[second])
+        high = np.minimum(bound[first], total + bound[second])
+        u = keyed_random.uniform(seed, first, PAIR_DRAW_STREAM, sweep)
+        forces[first] = low + u * (high - low)
+        forces[second] = total - forces[first]
     return forces
 
 
