@@ -1,0 +1,885 @@
+!> The quasi-static tilt: next-instability angles, one rearrangement, the
+!> tilt loop.
+!>
+!> This is src/sliders/reference.py (the specification) reorganised so that
+!> the cost follows what moves ("integrate only what moves"):
+!>
+!> * Per integration step only the *active* sliders (the moving ones and
+!>   their neighbours) have their force computed and their threshold checked;
+!>   they are kept as runs of consecutive sliders, so that the step is a few
+!>   branch-free loops over contiguous memory (vectorised).  A resting active
+!>   slider has v = acc = 0, so the Verlet update leaves it in place.  The
+!>   *involved* sliders (every slider active at some point of the event) are
+!>   remembered for the bookkeeping at the end of the event.  The sum of du is
+!>   kept incrementally during an event (recomputed exactly between events).
+!> * Every other slider (resting, not active: the "pool") has a fixed force
+!>   when xi = 0; when xi > 0 they all feel the same shift
+!>   s = xi (mean(du) - mean at event start).  The pool is tested through two
+!>   scalars, the minima over it of  gap+ = thr - (F - s)  and
+!>   gap- = thr + (F - s)  (thr = mu cos(a) + force_tol, F and s taken when
+!>   the slider joined the pool): a pool slider crosses when s > gap+ or
+!>   -s > gap-.  A minimum is rescanned (O(N), rare: at most twice per start)
+!>   only when its slider leaves the pool.  A pool slider crossing is a start
+!>   like any other (it enters the bisection predicate).  A slider already
+!>   beyond its threshold at the start of an event is caught the same way.
+!> * The instability angle of every slider is cached.  With xi = 0 only the
+!>   involved sliders of the last event have their elastic force and angle
+!>   recomputed, then one min scan (next_instability, O(N) comparisons).  With
+!>   xi > 0 every elastic force shifts in every event, so all angles are
+!>   recomputed: O(N) transcendentals per event (known cost).
+!> * The elastic energy change of an event is computed locally
+!>   (sliders_chain), exactly; the path length (dissipation) telescopes to
+!>   the sum over sliding phases of |du at stop - du at start|.
+!>
+!> Between events O(N) work (threshold scan, min scan, exact sum) is
+!> accepted; per integration step no O(N) work is done.  Same operations in
+!> the same order as the reference wherever it matters for rounding (forces,
+!> Verlet update, crossing tests); the remaining differences (libm, order of
+!> sums) are at the last-bit level.
+module sliders_events
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, &
+                                           ieee_positive_inf, ieee_quiet_nan
+  use sliders_kinds, only: dp, ip, i8
+  use sliders_status, only: status_running, status_avalanche, status_alpha_max, &
+                            status_event_duration_cap, status_non_finite, &
+                            status_random_failure, status_relaxed, status_sparse_full
+  use sliders_chain, only: chain_params, elastic_force, elastic_forces, total_displacement, &
+                           spring_energy_change, cantilever_energy_change
+  use sliders_random, only: static_coefficient
+  implicit none
+  private
+
+  public :: tilt_params, tilt_run
+  public :: instability_roots, next_instability
+  public :: tie_tol
+  public :: n_event_real, n_event_int
+  public :: ev_alpha, ev_duration, ev_work_gravity, ev_elastic_change, ev_dissipation
+  public :: ev_n_moved, ev_n_stops, ev_n_steps, ev_slider_steps
+  public :: detail_none, detail_resting, detail_state
+
+  !> Sliders whose instability angles tie within this start together.
+  real(dp), parameter :: tie_tol = 1.0e-12_dp
+  real(dp), parameter :: pi = 3.141592653589793_dp   ! == numpy.pi
+
+  !> Columns of the per-event buffers (status.EVENT_FIELDS, split by type).
+  integer(ip), parameter :: n_event_real = 5, n_event_int = 4
+  integer(ip), parameter :: ev_alpha = 1, ev_duration = 2, ev_work_gravity = 3, &
+                            ev_elastic_change = 4, ev_dissipation = 5
+  integer(ip), parameter :: ev_n_moved = 1, ev_n_stops = 2, ev_n_steps = 3, &
+                            ev_slider_steps = 4
+  !> What a non-finite status refers to (for the message).
+  integer(ip), parameter :: detail_none = 0, detail_resting = 1, detail_state = 2
+
+  !> Everything of the scene the kernel uses.
+  type :: tilt_params
+    type(chain_params) :: chain
+    real(dp) :: mu_d = 0.55_dp
+    real(dp) :: mu_s_mean = 0.6_dp
+    real(dp) :: sigma_mu = 0.01_dp
+    integer(i8) :: seed = 0_i8
+    real(dp) :: dt = 1.0e-3_dp
+    real(dp) :: refine_tol = 1.0e-10_dp
+    real(dp) :: max_event_duration = 5000.0_dp
+    real(dp) :: alpha_max = 1.5707963267948966_dp
+    real(dp) :: force_tol = 1.0e-12_dp
+    logical :: record_sparse = .true.   !< store the moved sliders' displacements
+    logical :: relax_only = .false.     !< only relax at the current angle
+    integer(ip) :: max_events = 1       !< events to record in this call
+  end type tilt_params
+
+  !> Work arrays of one tilt_run call (allocated once per call, sized n).
+  !> Between events: du_start = du_t = du, v = acc = dir = 0, nmov = 0,
+  !> nothing active, involved or moved; `elastic` and the roots up to date.
+  !> A slider moves iff dir /= 0 (+1 down, -1 up).
+  type :: workspace
+    real(dp), allocatable :: elastic(:)      !< E_i at rest (cache)
+    real(dp), allocatable :: root_down(:)    !< instability angle downwards
+    real(dp), allocatable :: root_up(:)      !< instability angle upwards
+    real(dp), allocatable :: du_start(:)     !< du at the start of the event
+    real(dp), allocatable :: du_t(:)         !< trial du (== du unless moving)
+    real(dp), allocatable :: du_phase(:)     !< du when the slider last started
+    real(dp), allocatable :: v(:), acc(:), dir(:)
+    real(dp), allocatable :: v_t(:), acc_t(:)
+    real(dp), allocatable :: f_t(:)          !< force F of the active sliders, trial
+    real(dp), allocatable :: thr(:)          !< mu cos(a) + force_tol
+    real(dp), allocatable :: gap_plus(:)     !< pool: thr - (F - s) on joining it
+    real(dp), allocatable :: gap_minus(:)    !< pool: thr + (F - s) on joining it
+    real(dp), allocatable :: mu_new(:)
+    logical, allocatable :: active(:), involved(:), moved(:)
+    integer(ip), allocatable :: nmov(:)      !< moving sliders among i-1, i, i+1
+    integer(ip), allocatable :: ilist(:)     !< involved sliders (unordered)
+    integer(ip), allocatable :: slist(:)     !< triggers / starts of one step
+    real(dp), allocatable :: sdir(:)         !< their directions
+    integer(ip), allocatable :: stops(:)     !< stops of one step
+    integer(ip), allocatable :: sorted(:)    !< moved sliders, increasing
+    integer(ip), allocatable :: run_lo(:), run_hi(:)  !< runs of active sliders
+    integer(ip) :: n_runs = 0
+    integer(ip) :: m = 0                     !< number of moving sliders
+    integer(ip) :: ni = 0                    !< number of involved sliders
+    integer(ip) :: n_down = 0                !< moving sliders with dir > 0
+    integer(ip) :: i_lo = 0, i_hi = 0        !< range of the involved sliders
+    real(dp) :: sum_du = 0.0_dp              !< sum of du at rest (exact loop)
+    real(dp) :: dsum = 0.0_dp                !< sum of du - du_start, in the event
+    real(dp) :: path = 0.0_dp                !< path length of the event so far
+    real(dp) :: min_plus = 0.0_dp, min_minus = 0.0_dp  !< pool gap minima
+    integer(ip) :: arg_plus = 0, arg_minus = 0         !< where (0: empty pool)
+    logical :: stale = .false.               !< a minimum's slider left the pool
+  end type workspace
+
+  !> What one event produced.
+  type :: event_record
+    integer(ip) :: status = status_running
+    integer(ip) :: detail = detail_none
+    integer(i8) :: n_moved = 0, n_stops = 0, n_steps = 0, slider_steps = 0
+    real(dp) :: duration = 0.0_dp, work_gravity = 0.0_dp
+    real(dp) :: elastic_change = 0.0_dp, dissipation = 0.0_dp
+  end type event_record
+
+contains
+
+  ! ------------------------------------------------------------------ angles
+
+  !> Instability angles of one resting slider of elastic force `elastic` and
+  !> static coefficient `mu` (reference.next_instability): downwards the root
+  !> of E + sin a = mu cos a, phi + asin(-E/R) if E >= -1; upwards the root of
+  !> E + sin a = -mu cos a, pi - phi - asin(-E/R) if E <= -1 (R = hypot(1, mu),
+  !> phi = atan(mu)); +inf where there is none in [0, pi/2].
+  elemental subroutine instability_roots(elastic, mu, down, up)
+    real(dp), intent(in) :: elastic, mu
+    real(dp), intent(out) :: down, up
+    real(dp) :: radius, phi, ratio, s
+
+    down = ieee_value(down, ieee_positive_inf)
+    up = down
+    radius = hypot(1.0_dp, mu)
+    phi = atan(mu)
+    ratio = -elastic/radius
+    if (abs(ratio) <= 1.0_dp) then
+      s = asin(ratio)
+      if (elastic >= -1.0_dp) down = phi + s
+      if (elastic <= -1.0_dp) up = (pi - phi) - s
+    end if
+  end subroutine instability_roots
+
+  !> Smallest angle >= alpha at which a resting slider destabilises, from the
+  !> cached roots; the sliders within tie_tol of it (increasing order) and
+  !> their directions (+1 down, -1 up).  A min scan, O(n) comparisons: kept
+  !> separate so that a tournament tree can replace it.
+  pure subroutine next_instability(root_down, root_up, alpha, angle, n_trig, trig, trig_dir)
+    real(dp), contiguous, intent(in) :: root_down(:), root_up(:)
+    real(dp), intent(in) :: alpha
+    real(dp), intent(out) :: angle
+    integer(ip), intent(out) :: n_trig
+    integer(ip), contiguous, intent(inout) :: trig(:)
+    real(dp), contiguous, intent(inout) :: trig_dir(:)
+    integer(ip) :: i
+
+    angle = ieee_value(angle, ieee_positive_inf)
+    do i = 1, size(root_down, kind=ip)
+      angle = min(angle, max(min(root_down(i), root_up(i)), alpha))
+    end do
+    n_trig = 0
+    do i = 1, size(root_down, kind=ip)
+      if (max(min(root_down(i), root_up(i)), alpha) <= angle + tie_tol) then
+        n_trig = n_trig + 1
+        trig(n_trig) = i
+        if (root_down(i) <= root_up(i)) then
+          trig_dir(n_trig) = 1.0_dp
+        else
+          trig_dir(n_trig) = -1.0_dp
+        end if
+      end if
+    end do
+  end subroutine next_instability
+
+  ! -------------------------------------------------------------- tilt loop
+
+  !> Rearrangements from the state (mutated in place) until `max_events` are
+  !> recorded or the run ends: reference.NumpyEngine.advance.
+  !>
+  !> Per event k (1-based): ev_real(k, ev_*) and ev_int(k, ev_*); with
+  !> record_sparse the moved sliders (0-based, increasing) and their
+  !> displacements are sp_index/sp_value(sp_ptr(k)+1 : sp_ptr(k+1)), else
+  !> sp_ptr stays 0.  Before starting an event the call returns
+  !> status_sparse_full if the event buffer is full or, with record_sparse,
+  !> fewer than n sparse entries are free.  `event_time` is the duration of
+  !> the event that hit the duration cap; `detail` says what a non-finite
+  !> status refers to.
+  subroutine tilt_run(p, e0, t0, w0, mu, n_stops, du, alpha, ev_real, ev_int, &
+                      sp_ptr, sp_index, sp_value, n_events, n_sparse, status, &
+                      alpha_c, event_time, detail)
+    type(tilt_params), intent(in) :: p
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), intent(in) :: t0(0:)
+    real(dp), contiguous, intent(in) :: w0(:)
+    real(dp), contiguous, intent(inout) :: mu(:)
+    integer(i8), contiguous, intent(inout) :: n_stops(:)
+    real(dp), contiguous, intent(inout) :: du(:)
+    real(dp), intent(inout) :: alpha
+    real(dp), intent(inout) :: ev_real(:, :)
+    integer(i8), intent(inout) :: ev_int(:, :)
+    integer(i8), contiguous, intent(inout) :: sp_ptr(:)
+    integer(i8), contiguous, intent(inout) :: sp_index(:)
+    real(dp), contiguous, intent(inout) :: sp_value(:)
+    integer(ip), intent(out) :: n_events, n_sparse, status
+    real(dp), intent(out) :: alpha_c, event_time
+    integer(ip), intent(out) :: detail
+    type(workspace) :: ws
+    type(event_record) :: rec
+    integer(ip) :: n, i, n_trig, j, n_bad
+    real(dp) :: sin_a, cos_a, f, angle
+
+    n = p%chain%n
+    call allocate_workspace(ws, n)
+    ws%du_start = du
+    ws%du_t = du
+    ws%sum_du = total_displacement(du)
+    do i = 1, n
+      ws%elastic(i) = elastic_force(p%chain, e0, du, i, ws%sum_du/real(n, dp))
+    end do
+    call instability_roots(ws%elastic, mu, ws%root_down, ws%root_up)
+
+    n_events = 0
+    n_sparse = 0
+    sp_ptr(1) = 0
+    alpha_c = ieee_value(alpha_c, ieee_quiet_nan)
+    event_time = 0.0_dp
+    detail = detail_none
+    do
+      ! A non-finite force stops the run; unstable sliders at the current
+      ! angle start at once (relaxation).
+      sin_a = sin(alpha)
+      cos_a = cos(alpha)
+      n_trig = 0
+      n_bad = 0
+      do i = 1, n
+        f = ws%elastic(i) + sin_a
+        n_bad = n_bad + merge(0_ip, 1_ip, abs(ws%elastic(i)) <= huge(1.0_dp))
+        if (abs(f) > mu(i)*cos_a + p%force_tol) then
+          n_trig = n_trig + 1
+          ws%slist(n_trig) = i
+          ws%sdir(n_trig) = sign(1.0_dp, f)
+        end if
+      end do
+      if (n_bad > 0) then
+        status = status_non_finite
+        detail = detail_resting
+        exit
+      end if
+      angle = alpha
+      if (n_trig == 0) then
+        if (p%relax_only) then
+          status = status_relaxed
+          exit
+        end if
+        if (n_events >= p%max_events) then
+          status = status_running
+          exit
+        end if
+        call next_instability(ws%root_down, ws%root_up, alpha, angle, n_trig, &
+                              ws%slist, ws%sdir)
+        if (angle > p%alpha_max) then
+          status = status_alpha_max
+          exit
+        end if
+      end if
+      if (n_events >= size(ev_real, 1) .or. &
+          (p%record_sparse .and. size(sp_index) - n_sparse < n)) then
+        status = status_sparse_full
+        exit
+      end if
+      alpha = angle
+
+      call run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, rec)
+      if (rec%status == status_avalanche) then
+        alpha_c = alpha
+        status = status_avalanche
+        exit
+      end if
+      if (rec%status /= status_running) then
+        status = rec%status
+        detail = rec%detail
+        event_time = rec%duration
+        exit
+      end if
+
+      n_events = n_events + 1
+      ev_real(n_events, ev_alpha) = alpha
+      ev_real(n_events, ev_duration) = rec%duration
+      ev_real(n_events, ev_work_gravity) = rec%work_gravity
+      ev_real(n_events, ev_elastic_change) = rec%elastic_change
+      ev_real(n_events, ev_dissipation) = rec%dissipation
+      ev_int(n_events, ev_n_moved) = rec%n_moved
+      ev_int(n_events, ev_n_stops) = rec%n_stops
+      ev_int(n_events, ev_n_steps) = rec%n_steps
+      ev_int(n_events, ev_slider_steps) = rec%slider_steps
+      if (p%record_sparse) then
+        do j = 1, int(rec%n_moved, ip)
+          i = ws%sorted(j)
+          sp_index(n_sparse + j) = int(i - 1, i8)
+          sp_value(n_sparse + j) = du(i) - ws%du_start(i)
+        end do
+        n_sparse = n_sparse + int(rec%n_moved, ip)
+        sp_ptr(n_events + 1) = int(n_sparse, i8)
+      else
+        sp_ptr(n_events + 1) = 0
+      end if
+      call end_event(p, ws, e0, mu, du)
+    end do
+  end subroutine tilt_run
+
+  !> Allocates every work array of size n (once per tilt_run) and clears them.
+  subroutine allocate_workspace(ws, n)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: n
+
+    allocate (ws%elastic(n), ws%root_down(n), ws%root_up(n), ws%du_start(n), ws%du_t(n))
+    allocate (ws%du_phase(n))
+    allocate (ws%v(n), ws%acc(n), ws%dir(n), ws%v_t(n), ws%acc_t(n), ws%f_t(n))
+    allocate (ws%thr(n), ws%gap_plus(n), ws%gap_minus(n), ws%mu_new(n))
+    allocate (ws%active(n), ws%involved(n), ws%moved(n), ws%nmov(n), ws%ilist(n))
+    allocate (ws%slist(n), ws%sdir(n), ws%stops(n), ws%sorted(n), ws%run_lo(n), ws%run_hi(n))
+    ws%v = 0.0_dp
+    ws%acc = 0.0_dp
+    ws%dir = 0.0_dp
+    ws%v_t = 0.0_dp
+    ws%acc_t = 0.0_dp
+    ws%f_t = 0.0_dp
+    ws%active = .false.
+    ws%involved = .false.
+    ws%moved = .false.
+    ws%nmov = 0
+  end subroutine allocate_workspace
+
+  ! ------------------------------------------------------------ one event
+
+  !> One rearrangement at fixed alpha, started by the n_trig sliders in
+  !> ws%slist with directions ws%sdir (reference.NumpyEngine._event).
+  !> On a normal end du holds the new displacements and ws%sorted the moved
+  !> sliders; on an error du is restored to the event start (mu and n_stops
+  !> keep the draws already made, as in the reference); on an avalanche du is
+  !> the state at detection.
+  subroutine run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, rec)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), intent(in) :: t0(0:)
+    real(dp), contiguous, intent(in) :: w0(:)
+    real(dp), contiguous, intent(inout) :: mu(:)
+    integer(i8), contiguous, intent(inout) :: n_stops(:)
+    real(dp), contiguous, intent(inout) :: du(:)
+    real(dp), intent(in) :: alpha
+    integer(ip), intent(in) :: n_trig
+    type(event_record), intent(out) :: rec
+    integer(ip) :: n, i, j, k, r, n_moved, n_start, n_stop, draw_status
+    real(dp) :: sin_a, cos_a, friction, sum0, mean0, mean, t, h, lo, hi, mid
+    real(dp) :: dsum_t, step, xi, shift, f
+    logical :: crossed, trial_is_hi, draws_ok, changed
+
+    n = p%chain%n
+    xi = p%chain%xi
+    sin_a = sin(alpha)
+    cos_a = cos(alpha)
+    friction = p%mu_d*cos_a
+    sum0 = ws%sum_du
+    mean0 = sum0/real(n, dp)
+
+    ! Thresholds and every slider's gaps to them at event start (O(n)): all
+    ! resting sliders start in the pool, so one already beyond its threshold
+    ! is found by the first step's check, as in the reference.
+    do i = 1, n
+      ws%thr(i) = mu(i)*cos_a + p%force_tol
+      f = ws%elastic(i) + sin_a
+      ws%gap_plus(i) = ws%thr(i) - f
+      ws%gap_minus(i) = ws%thr(i) + f
+    end do
+    ws%m = 0
+    ws%ni = 0
+    ws%n_down = 0
+    ws%i_lo = n + 1
+    ws%i_hi = 0
+    do k = 1, n_trig
+      call start_slider(ws, ws%slist(k), ws%sdir(k), n, du)
+    end do
+    call find_runs(ws)
+    do r = 1, ws%n_runs
+      do i = ws%run_lo(r), ws%run_hi(r)
+        ws%f_t(i) = ws%elastic(i) + sin_a
+        if (ws%dir(i) /= 0.0_dp) ws%acc(i) = ws%f_t(i) - friction*ws%dir(i)
+      end do
+    end do
+    call far_minima(ws, n)
+
+    t = 0.0_dp
+    ws%path = 0.0_dp
+    ws%dsum = 0.0_dp
+    rec = event_record()
+    do while (ws%m > 0)
+      ! ---- one step, cut back to the first crossing by bisection
+      h = p%dt
+      call trial_step(p, ws, e0, du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
+      if (crossed) then
+        lo = 0.0_dp
+        hi = h
+        trial_is_hi = .true.
+        do while (hi - lo > p%refine_tol)
+          mid = 0.5_dp*(lo + hi)
+          call trial_step(p, ws, e0, du, mid, sum0, mean0, sin_a, friction, dsum_t, crossed)
+          if (crossed) then
+            hi = mid
+          else
+            lo = mid
+          end if
+          trial_is_hi = crossed
+        end do
+        h = hi
+        if (.not. trial_is_hi) &
+          call trial_step(p, ws, e0, du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
+      end if
+
+      ! ---- accept the step (a resting active slider has du_t = du, v_t = 0)
+      do r = 1, ws%n_runs
+        call accept_run(ws%run_lo(r), ws%run_hi(r), ws%du_t, ws%v_t, ws%acc_t, du, ws%v, &
+                        ws%acc)
+      end do
+      ws%dsum = dsum_t
+      rec%n_steps = rec%n_steps + 1
+      rec%slider_steps = rec%slider_steps + ws%m
+      t = t + h
+
+      ! ---- NaN or infinity: checked before anything else can happen (a
+      ! crossing, the duration cap), and every 1024 steps; in between
+      ! nothing but du and v (restored on abort) changes, so this is the
+      ! reference's check at every step.
+      if (crossed .or. t > p%max_event_duration .or. iand(rec%n_steps, 1023_i8) == 0) then
+        if (.not. all_finite(ws, du)) then
+          rec%status = status_non_finite
+          rec%detail = detail_state
+          call abort_event(ws, du)
+          return
+        end if
+      end if
+
+      ! ---- a crossing step: stops, then starts (nothing else changes state)
+      if (crossed) then
+        mean = (sum0 + ws%dsum)/real(n, dp)
+        shift = 0.0_dp
+        if (xi /= 0.0_dp) shift = xi*(mean - mean0)
+
+        ! stops: rest, count, redraw (keyed by the 0-based slider number)
+        n_stop = 0
+        do r = 1, ws%n_runs
+          do i = ws%run_lo(r), ws%run_hi(r)
+            if (ws%dir(i)*ws%v(i) < 0.0_dp) then
+              n_stop = n_stop + 1
+              ws%stops(n_stop) = i
+            end if
+          end do
+        end do
+        if (n_stop > 0) then
+          rec%n_stops = rec%n_stops + n_stop
+          draws_ok = .true.
+          do k = 1, n_stop
+            i = ws%stops(k)
+            call stop_slider(ws, i, n, du)
+            n_stops(i) = n_stops(i) + 1
+            ws%mu_new(k) = static_coefficient(p%seed, int(i - 1, i8), n_stops(i), &
+                                              p%mu_s_mean, p%sigma_mu, p%mu_d, draw_status)
+            if (draw_status /= 0) draws_ok = .false.
+          end do
+          if (.not. draws_ok) then
+            rec%status = status_random_failure
+            call abort_event(ws, du)
+            return
+          end if
+          do k = 1, n_stop
+            i = ws%stops(k)
+            mu(i) = ws%mu_new(k)
+            ws%thr(i) = mu(i)*cos_a + p%force_tol
+          end do
+        end if
+
+        ! starts: every resting slider beyond its threshold now
+        n_start = 0
+        do r = 1, ws%n_runs
+          do i = ws%run_lo(r), ws%run_hi(r)
+            if (ws%dir(i) == 0.0_dp .and. abs(ws%f_t(i)) > ws%thr(i)) then
+              n_start = n_start + 1
+              ws%slist(n_start) = i
+              ws%sdir(n_start) = sign(1.0_dp, ws%f_t(i))
+            end if
+          end do
+        end do
+        if (shift > ws%min_plus .or. -shift > ws%min_minus) then
+          do i = 1, n        ! rare: a pool slider crossed, find it (O(n))
+            if (ws%active(i)) cycle
+            if (shift > ws%gap_plus(i) .or. -shift > ws%gap_minus(i)) then
+              ws%f_t(i) = elastic_force(p%chain, e0, du, i, mean) + sin_a
+              n_start = n_start + 1
+              ws%slist(n_start) = i
+              ws%sdir(n_start) = sign(1.0_dp, ws%f_t(i))
+            end if
+          end do
+        end if
+        do k = 1, n_start
+          i = ws%slist(k)
+          call start_slider(ws, i, ws%sdir(k), n, du)
+          ws%acc(i) = ws%f_t(i) - friction*ws%dir(i)
+        end do
+        ! sliders left with no moving neighbour go back to the pool
+        changed = n_start > 0
+        do k = 1, n_stop
+          i = ws%stops(k)
+          do j = max(i - 1, 1), min(i + 1, n)
+            if (ws%active(j) .and. ws%nmov(j) == 0) then
+              call deactivate(ws, j, shift)
+              changed = .true.
+            end if
+          end do
+        end do
+        if (changed) call find_runs(ws)
+        if (ws%stale) call far_minima(ws, n)
+      end if
+
+      if (t > p%max_event_duration) then
+        rec%status = status_event_duration_cap
+        rec%duration = t
+        call abort_event(ws, du)
+        return
+      end if
+      if (.not. p%chain%walls .and. ws%m == n .and. ws%n_down == n .and. sin_a > friction) then
+        rec%status = status_avalanche
+        return
+      end if
+    end do
+
+    ! ---- the event is over: record it
+    n_moved = 0
+    do i = ws%i_lo, ws%i_hi
+      if (ws%moved(i)) then
+        n_moved = n_moved + 1
+        ws%sorted(n_moved) = i
+      end if
+    end do
+    rec%n_moved = n_moved
+    rec%duration = t
+    step = 0.0_dp
+    do k = 1, n_moved
+      i = ws%sorted(k)
+      step = step + (du(i) - ws%du_start(i))
+    end do
+    rec%work_gravity = sin_a*step
+    rec%elastic_change = &
+      spring_energy_change(p%chain, t0, ws%du_start, du, ws%sorted(1:n_moved)) + &
+      cantilever_energy_change(p%chain, w0, ws%du_start, du, ws%sorted(1:n_moved), mean0)
+    rec%dissipation = friction*ws%path
+  end subroutine run_event
+
+  !> One velocity-Verlet trial of size h from the start of the step, over the
+  !> runs of active sliders: du_t, v_t, acc_t, and the forces f_t.  Resting
+  !> sliders keep du_t = du and get v_t = acc_t = 0.  `crossed`: a mover's
+  !> velocity changed sign, or a resting slider (active, or in the pool
+  !> through the gap minima) exceeds its threshold.
+  subroutine trial_step(p, ws, e0, du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), contiguous, intent(in) :: du(:)
+    real(dp), intent(in) :: h, sum0, mean0, sin_a, friction
+    real(dp), intent(out) :: dsum_t
+    logical, intent(out) :: crossed
+    integer(ip) :: r
+    real(dp) :: mean_t, shift, excess
+
+    dsum_t = ws%dsum
+    do r = 1, ws%n_runs
+      call predict_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t)
+    end do
+    mean_t = mean0
+    shift = 0.0_dp
+    if (p%chain%xi /= 0.0_dp) then
+      do r = 1, ws%n_runs
+        call add_increments(ws%run_lo(r), ws%run_hi(r), du, ws%du_t, dsum_t)
+      end do
+      mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
+      shift = p%chain%xi*(mean_t - mean0)
+    end if
+    excess = -huge(1.0_dp)
+    do r = 1, ws%n_runs
+      call elastic_forces(p%chain, e0, ws%du_t, ws%run_lo(r), ws%run_hi(r), mean_t, sin_a, &
+                          ws%f_t)
+      call correct_run(ws%run_lo(r), ws%run_hi(r), h, friction, ws%f_t, ws%dir, ws%v, &
+                       ws%acc, ws%thr, ws%acc_t, ws%v_t, excess)
+    end do
+    crossed = excess > 0.0_dp .or. shift > ws%min_plus .or. -shift > ws%min_minus
+  end subroutine trial_step
+
+  !> Velocity-Verlet positions over one run: du_t = du + v h + acc h**2/2.
+  pure subroutine predict_run(lo, hi, h, du, v, acc, du_t)
+    integer(ip), intent(in) :: lo, hi
+    real(dp), intent(in) :: h
+    real(dp), contiguous, intent(in) :: du(:), v(:), acc(:)
+    real(dp), contiguous, intent(inout) :: du_t(:)
+    integer(ip) :: i
+
+    do i = lo, hi
+      du_t(i) = du(i) + (v(i)*h + 0.5_dp*acc(i)*h*h)
+    end do
+  end subroutine predict_run
+
+  !> dsum = dsum + sum of (du_t - du) over one run (four partial sums: the
+  !> order of the additions is free, the chain of dependent additions short).
+  pure subroutine add_increments(lo, hi, du, du_t, dsum)
+    integer(ip), intent(in) :: lo, hi
+    real(dp), contiguous, intent(in) :: du(:), du_t(:)
+    real(dp), intent(inout) :: dsum
+    integer(ip) :: i, last
+    real(dp) :: s1, s2, s3, s4
+
+    s1 = 0.0_dp
+    s2 = 0.0_dp
+    s3 = 0.0_dp
+    s4 = 0.0_dp
+    last = lo + 4*((hi - lo + 1)/4) - 1
+    do i = lo, last, 4
+      s1 = s1 + (du_t(i) - du(i))
+      s2 = s2 + (du_t(i + 1) - du(i + 1))
+      s3 = s3 + (du_t(i + 2) - du(i + 2))
+      s4 = s4 + (du_t(i + 3) - du(i + 3))
+    end do
+    do i = last + 1, hi
+      s1 = s1 + (du_t(i) - du(i))
+    end do
+    dsum = dsum + ((s1 + s2) + (s3 + s4))
+  end subroutine add_increments
+
+  !> Velocity-Verlet velocities over one run from the trial forces f, and
+  !> the largest crossing excess: -dir v_t for a mover (its velocity turned
+  !> against its direction if > 0), |f| - thr for a resting slider (beyond
+  !> its threshold if > 0).  For a mover (dir = +-1, dir**2 = 1) acc_t is
+  !> f - friction dir exactly, for a resting one (dir = 0) it is 0, and v_t
+  !> stays 0; a crossing is excess > 0, exactly the reference's tests.
+  !> Branch-free, so that it vectorises.
+  pure subroutine correct_run(lo, hi, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+    integer(ip), intent(in) :: lo, hi
+    real(dp), intent(in) :: h, friction
+    real(dp), contiguous, intent(in) :: f(:), dir(:), v(:), acc(:), thr(:)
+    real(dp), contiguous, intent(inout) :: acc_t(:), v_t(:)
+    real(dp), intent(inout) :: excess
+    integer(ip) :: i
+    real(dp) :: moving
+
+    do i = lo, hi
+      moving = dir(i)*dir(i)
+      acc_t(i) = (f(i) - friction*dir(i))*moving
+      v_t(i) = v(i) + 0.5_dp*(acc(i) + acc_t(i))*h
+      excess = max(excess, -dir(i)*v_t(i), (1.0_dp - moving)*abs(f(i)) - thr(i))
+    end do
+  end subroutine correct_run
+
+  !> Takes the trial over one run.
+  pure subroutine accept_run(lo, hi, du_t, v_t, acc_t, du, v, acc)
+    integer(ip), intent(in) :: lo, hi
+    real(dp), contiguous, intent(in) :: du_t(:), v_t(:), acc_t(:)
+    real(dp), contiguous, intent(inout) :: du(:), v(:), acc(:)
+
+    integer(ip) :: i
+
+    do i = lo, hi
+      du(i) = du_t(i)
+      v(i) = v_t(i)
+      acc(i) = acc_t(i)
+    end do
+  end subroutine accept_run
+
+  !> Whether du and v of every active slider are finite.
+  pure function all_finite(ws, du) result(finite)
+    type(workspace), intent(in) :: ws
+    real(dp), contiguous, intent(in) :: du(:)
+    logical :: finite
+    integer(ip) :: r, i
+
+    finite = .true.
+    do r = 1, ws%n_runs
+      do i = ws%run_lo(r), ws%run_hi(r)
+        finite = finite .and. abs(du(i)) <= huge(1.0_dp) .and. abs(ws%v(i)) <= huge(1.0_dp)
+      end do
+    end do
+  end function all_finite
+
+  !> Sets resting slider i moving in direction d; it and its neighbours
+  !> become active.  The runs are then out of date (find_runs).
+  subroutine start_slider(ws, i, d, n, du)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: i
+    real(dp), intent(in) :: d
+    integer(ip), intent(in) :: n
+    real(dp), contiguous, intent(in) :: du(:)
+    integer(ip) :: j
+
+    ws%du_phase(i) = du(i)
+    ws%moved(i) = .true.
+    ws%dir(i) = d
+    ws%m = ws%m + 1
+    if (d > 0.0_dp) ws%n_down = ws%n_down + 1
+    do j = max(i - 1, 1), min(i + 1, n)
+      ws%nmov(j) = ws%nmov(j) + 1
+      if (.not. ws%active(j)) call activate(ws, j)
+    end do
+  end subroutine start_slider
+
+  !> Brings moving slider i to rest (v = 0, no direction) and adds the path
+  !> of its sliding phase, dir (du - du at start), to ws%path (the sum over
+  !> the steps of dir (du_t - du) telescopes to it); it and its neighbours
+  !> stay active until the caller deactivates them.
+  subroutine stop_slider(ws, i, n, du)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: i, n
+    real(dp), contiguous, intent(in) :: du(:)
+    integer(ip) :: j
+
+    ws%path = ws%path + ws%dir(i)*(du(i) - ws%du_phase(i))
+    if (ws%dir(i) > 0.0_dp) ws%n_down = ws%n_down - 1
+    ws%v(i) = 0.0_dp
+    ws%acc(i) = 0.0_dp
+    ws%dir(i) = 0.0_dp
+    ws%m = ws%m - 1
+    do j = max(i - 1, 1), min(i + 1, n)
+      ws%nmov(j) = ws%nmov(j) - 1
+    end do
+  end subroutine stop_slider
+
+  !> Slider i leaves the pool: active (and involved for the rest of the event).
+  subroutine activate(ws, i)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: i
+
+    ws%active(i) = .true.
+    if (i == ws%arg_plus .or. i == ws%arg_minus) ws%stale = .true.
+    if (.not. ws%involved(i)) then
+      ws%involved(i) = .true.
+      ws%ni = ws%ni + 1
+      ws%ilist(ws%ni) = i
+      ws%i_lo = min(ws%i_lo, i)
+      ws%i_hi = max(ws%i_hi, i)
+    end if
+  end subroutine activate
+
+  !> Resting slider i, with no moving neighbour, joins the pool; its force
+  !> f_t(i) is current and `shift` the pool's current shift.
+  subroutine deactivate(ws, i, shift)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: i
+    real(dp), intent(in) :: shift
+
+    ws%active(i) = .false.
+    ws%gap_plus(i) = ws%thr(i) - (ws%f_t(i) - shift)
+    ws%gap_minus(i) = ws%thr(i) + (ws%f_t(i) - shift)
+    if (ws%arg_plus == 0 .or. ws%gap_plus(i) < ws%min_plus) then
+      ws%min_plus = ws%gap_plus(i)
+      ws%arg_plus = i
+    end if
+    if (ws%arg_minus == 0 .or. ws%gap_minus(i) < ws%min_minus) then
+      ws%min_minus = ws%gap_minus(i)
+      ws%arg_minus = i
+    end if
+  end subroutine deactivate
+
+  !> The maximal runs of consecutive active sliders, found by a scan of the
+  !> range of the involved ones (the active sliders are involved).
+  subroutine find_runs(ws)
+    type(workspace), intent(inout) :: ws
+    integer(ip) :: i
+
+    ws%n_runs = 0
+    i = ws%i_lo
+    do while (i <= ws%i_hi)
+      if (ws%active(i)) then
+        ws%n_runs = ws%n_runs + 1
+        ws%run_lo(ws%n_runs) = i
+        do while (i < ws%i_hi)
+          if (.not. ws%active(i + 1)) exit
+          i = i + 1
+        end do
+        ws%run_hi(ws%n_runs) = i
+      end if
+      i = i + 1
+    end do
+  end subroutine find_runs
+
+  !> Minima of gap_plus and gap_minus over the pool (+inf if it is empty),
+  !> and where they are (0 if empty).
+  subroutine far_minima(ws, n)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: n
+    integer(ip) :: i
+
+    ws%min_plus = ieee_value(ws%min_plus, ieee_positive_inf)
+    ws%min_minus = ws%min_plus
+    ws%arg_plus = 0
+    ws%arg_minus = 0
+    do i = 1, n
+      if (ws%active(i)) cycle
+      if (ws%arg_plus == 0 .or. ws%gap_plus(i) < ws%min_plus) then
+        ws%min_plus = ws%gap_plus(i)
+        ws%arg_plus = i
+      end if
+      if (ws%arg_minus == 0 .or. ws%gap_minus(i) < ws%min_minus) then
+        ws%min_minus = ws%gap_minus(i)
+        ws%arg_minus = i
+      end if
+    end do
+    ws%stale = .false.
+  end subroutine far_minima
+
+  !> After a completed event: exact sum of du, elastic forces and instability
+  !> angles of the sliders whose force changed (the involved ones with xi = 0,
+  !> all with xi > 0), and the workspace back to its between-events state.
+  subroutine end_event(p, ws, e0, mu, du)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), contiguous, intent(in) :: mu(:)
+    real(dp), contiguous, intent(in) :: du(:)
+    integer(ip) :: k, i, n
+    real(dp) :: mean
+
+    n = p%chain%n
+    ws%sum_du = total_displacement(du)
+    mean = ws%sum_du/real(n, dp)
+    if (p%chain%xi == 0.0_dp) then
+      do k = 1, ws%ni
+        i = ws%ilist(k)
+        ws%elastic(i) = elastic_force(p%chain, e0, du, i, mean)
+        call instability_roots(ws%elastic(i), mu(i), ws%root_down(i), ws%root_up(i))
+      end do
+    else
+      do i = 1, n
+        ws%elastic(i) = elastic_force(p%chain, e0, du, i, mean)
+      end do
+      call instability_roots(ws%elastic, mu, ws%root_down, ws%root_up)
+    end if
+    do k = 1, ws%ni
+      i = ws%ilist(k)
+      ws%involved(i) = .false.
+      ws%moved(i) = .false.
+      ws%du_start(i) = du(i)
+      ws%du_t(i) = du(i)
+    end do
+    ws%ni = 0
+    ws%n_runs = 0
+  end subroutine end_event
+
+  !> An event that ends the run in error: du back to the event start.
+  subroutine abort_event(ws, du)
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(inout) :: du(:)
+    integer(ip) :: k, i
+
+    do k = 1, ws%ni
+      i = ws%ilist(k)
+      du(i) = ws%du_start(i)
+    end do
+  end subroutine abort_event
+
+end module sliders_events

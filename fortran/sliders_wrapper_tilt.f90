@@ -1,0 +1,63 @@
+! The f2py-facing tilt routine of the sliders kernel (compiled into
+! sliders._kernel together with sliders_wrapper.f90).
+!
+! A plain subroutine outside any module: explicit-shape arrays and
+! iso_c_binding kinds only.  The work is done in module sliders_events;
+! src/sliders/fortran_engine.py is the Python side.
+
+subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigma_mu, &
+                        seed, dt, refine_tol, max_event_duration, alpha_max, force_tol, &
+                        record_sparse, relax_only, max_events, &
+                        elastic_force0, spring_extension0, cantilever_stretch0, &
+                        mu_s, n_stops, displacement, alpha, &
+                        event_real, event_int, sparse_ptr, sparse_index, sparse_value, &
+                        alpha_out, n_events, n_sparse, status, alpha_c, event_time, detail)
+  use iso_c_binding, only: c_double, c_int, c_int64_t
+  use sliders_events, only: tilt_params, tilt_run, n_event_real, n_event_int
+  implicit none
+  integer(c_int), intent(in) :: n
+  !f2py integer(c_int) intent(hide), depend(elastic_force0) :: n = len(elastic_force0)
+  integer(c_int), intent(in) :: n_cap
+  !f2py integer(c_int) intent(hide), depend(event_real) :: n_cap = shape(event_real, 0)
+  integer(c_int), intent(in) :: n_sparse_cap
+  !f2py integer(c_int) intent(hide), depend(sparse_index) :: n_sparse_cap = len(sparse_index)
+  integer(c_int), intent(in) :: walls, record_sparse, relax_only, max_events
+  real(c_double), intent(in) :: xi, mu_d, mu_s_mean, sigma_mu
+  integer(c_int64_t), intent(in) :: seed
+  real(c_double), intent(in) :: dt, refine_tol, max_event_duration, alpha_max, force_tol
+  real(c_double), intent(in) :: elastic_force0(n), spring_extension0(n + 1)
+  real(c_double), intent(in) :: cantilever_stretch0(n)
+  real(c_double), intent(inout) :: mu_s(n)
+  integer(c_int64_t), intent(inout) :: n_stops(n)
+  real(c_double), intent(inout) :: displacement(n)
+  real(c_double), intent(in) :: alpha
+  real(c_double), intent(inout) :: event_real(n_cap, 5)
+  integer(c_int64_t), intent(inout) :: event_int(n_cap, 4)
+  integer(c_int64_t), intent(inout) :: sparse_ptr(n_cap + 1)
+  integer(c_int64_t), intent(inout) :: sparse_index(n_sparse_cap)
+  real(c_double), intent(inout) :: sparse_value(n_sparse_cap)
+  real(c_double), intent(out) :: alpha_out, alpha_c, event_time
+  integer(c_int), intent(out) :: n_events, n_sparse, status, detail
+  type(tilt_params) :: p
+
+  if (n_event_real /= 5 .or. n_event_int /= 4) error stop "tilt_advance: event buffer layout"
+  p%chain%n = n
+  p%chain%walls = walls /= 0
+  p%chain%xi = xi
+  p%mu_d = mu_d
+  p%mu_s_mean = mu_s_mean
+  p%sigma_mu = sigma_mu
+  p%seed = seed
+  p%dt = dt
+  p%refine_tol = refine_tol
+  p%max_event_duration = max_event_duration
+  p%alpha_max = alpha_max
+  p%force_tol = force_tol
+  p%record_sparse = record_sparse /= 0
+  p%relax_only = relax_only /= 0
+  p%max_events = max_events
+  alpha_out = alpha
+  call tilt_run(p, elastic_force0, spring_extension0, cantilever_stretch0, mu_s, n_stops, &
+                displacement, alpha_out, event_real, event_int, sparse_ptr, sparse_index, &
+                sparse_value, n_events, n_sparse, status, alpha_c, event_time, detail)
+end subroutine tilt_advance

@@ -1,0 +1,156 @@
+"""The Fortran backend: ``sliders._kernel.tilt_advance`` behind the engine API.
+
+``FortranEngine.advance`` has the contract of ``reference.NumpyEngine.advance``
+(the specification): it mutates ``state.displacement``, ``state.mu_s``,
+``state.n_stops`` and ``state.alpha`` in place and returns a ``Chunk`` with the
+same event fields and dtypes and the same sparse (CSR) layout.  The kernel is
+``fortran/sliders_events.f90``; it reproduces the reference event by event.
+
+Buffers.  The kernel writes into buffers owned by the engine (reused across
+calls).  It stops before starting an event when the event buffer is full or,
+when displacements are recorded, fewer than N sparse entries are free, and
+returns ``SPARSE_FULL``; the driver calls again.  A relax-only call must end
+``RELAXED``, so there the engine calls again itself and joins the pieces.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import keyed_random, status
+from .chain import ChainState
+from .reference import Chunk
+from .scene import Scene
+
+EVENT_CAPACITY = 4096  # events per kernel call, at most
+_REAL_FIELDS = ("alpha", "duration", "work_gravity", "elastic_change", "dissipation")
+_INT_FIELDS = ("n_moved", "n_stops", "n_steps", "slider_steps")
+_DETAIL_RESTING, _DETAIL_STATE = 1, 2  # sliders_events: detail_resting, detail_state
+
+
+def sparse_capacity(n_sliders: int) -> int:
+    """Entries of the displacement buffer: room for at least 8 full events."""
+    return max(8 * n_sliders, 4096) + n_sliders
+
+
+class FortranEngine:
+    """The compiled backend: same interface as ``reference.NumpyEngine``."""
+
+    name = "fortran"
+
+    def __init__(self, scene: Scene):
+        from . import _kernel  # the compiled extension (meson build)
+
+        self.scene = scene
+        self._tilt_advance = _kernel.tilt_advance
+        self._record_sparse = scene.record != "summary"
+        n = scene.n_sliders
+        self._sparse_index = np.zeros(sparse_capacity(n) if self._record_sparse else 1, dtype=np.int64)
+        self._sparse_value = np.zeros(self._sparse_index.size)
+        self._capacity = 0
+        self._event_real = self._event_int = self._sparse_ptr = None
+
+    def _buffers(self, capacity: int) -> None:
+        if capacity > self._capacity:
+            self._capacity = capacity
+            self._event_real = np.zeros((capacity, len(_REAL_FIELDS)), order="F")
+            self._event_int = np.zeros((capacity, len(_INT_FIELDS)), dtype=np.int64, order="F")
+            self._sparse_ptr = np.zeros(capacity + 1, dtype=np.int64)
+
+    # -- public -----------------------------------------------------------
+    def advance(self, state: ChainState, max_events: int, relax_only: bool = False) -> Chunk:
+        """Run rearrangements until ``max_events`` are recorded or the run ends."""
+        if not relax_only:
+            return self._call(state, max_events, relax_only=False)
+        pieces = []
+        while True:  # a relaxation must end RELAXED (or in error): join the pieces
+            piece = self._call(state, max_events, relax_only=True)
+            pieces.append(piece)
+            if piece.status != status.SPARSE_FULL:
+                return _join(pieces)
+
+    # -- one kernel call --------------------------------------------------
+    def _call(self, state: ChainState, max_events: int, relax_only: bool) -> Chunk:
+        sc = self.scene
+        n = state.n_sliders
+        if n != sc.n_sliders:
+            raise ValueError(f"state has {n} sliders, scene.n_sliders={sc.n_sliders}")
+        max_events = int(max(0, min(max_events, np.iinfo(np.int32).max)))
+        self._buffers(EVENT_CAPACITY if relax_only else max(1, min(max_events, EVENT_CAPACITY)))
+
+        e0 = np.ascontiguousarray(state.elastic_force0, dtype=np.float64)
+        t0 = np.ascontiguousarray(state.spring_extension0, dtype=np.float64)
+        w0 = np.ascontiguousarray(state.cantilever_stretch0, dtype=np.float64)
+        mu = np.ascontiguousarray(state.mu_s, dtype=np.float64)
+        stops = np.ascontiguousarray(state.n_stops, dtype=np.int64)
+        du = np.ascontiguousarray(state.displacement, dtype=np.float64)
+        if t0.size != n + 1 or e0.size != n or w0.size != n or stops.size != n or du.size != n:
+            raise ValueError("inconsistent ChainState array sizes")
+
+        alpha, n_events, n_sparse, code, alpha_c, event_time, detail = self._tilt_advance(
+            int(sc.walls), float(sc.xi), float(sc.mu_d), float(sc.mu_s_mean), float(sc.sigma_mu),
+            int(sc.seed), float(sc.dt), float(sc.refine_tol), float(sc.max_event_duration),
+            float(sc.alpha_max), float(sc.force_tol), int(self._record_sparse), int(relax_only),
+            max_events, e0, t0, w0, mu, stops, du, float(state.alpha),
+            self._event_real, self._event_int, self._sparse_ptr,
+            self._sparse_index, self._sparse_value,
+        )
+        # write back (no-ops when the state arrays were passed themselves)
+        state.mu_s[:] = mu
+        state.n_stops[:] = stops
+        state.displacement[:] = du
+        state.alpha = float(alpha)
+
+        k = int(n_events)
+        if code == status.SPARSE_FULL and k == 0:
+            raise RuntimeError(
+                f"Fortran kernel: the displacement buffer ({self._sparse_index.size} entries) "
+                f"cannot hold one event of {n} sliders")
+        events = {f: self._event_real[:k, j].copy() for j, f in enumerate(_REAL_FIELDS)}
+        events.update({f: self._event_int[:k, j].copy() for j, f in enumerate(_INT_FIELDS)})
+        events = {f: events[f] for f in status.EVENT_FIELDS}
+        ptr = self._sparse_ptr[: k + 1].copy()
+        m = int(n_sparse)
+        return Chunk(
+            int(code), events, ptr,
+            self._sparse_index[:m].copy(), self._sparse_value[:m].copy(),
+            float(alpha_c) if code == status.AVALANCHE else math.nan,
+            _message(sc, int(code), int(detail), state.alpha, float(event_time)),
+        )
+
+
+def _message(sc: Scene, code: int, detail: int, alpha: float, event_time: float) -> str:
+    """The reference's messages for the error statuses."""
+    if code == status.NON_FINITE:
+        if detail == _DETAIL_RESTING:
+            return "non-finite force in the resting chain"
+        return f"non-finite state at alpha={alpha}"
+    if code == status.EVENT_DURATION_CAP:
+        return (f"rearrangement at alpha={alpha:.6f} still moving after "
+                f"{event_time:.1f} tau (max_event_duration={sc.max_event_duration} tau)")
+    if code == status.RANDOM_FAILURE:
+        return (f"static coefficient: no draw above mu_d={sc.mu_d} in "
+                f"{keyed_random.MAX_ATTEMPTS} attempts "
+                f"(mu_s_mean={sc.mu_s_mean}, sigma_mu={sc.sigma_mu})")
+    return ""
+
+
+def _join(pieces: list[Chunk]) -> Chunk:
+    """One chunk from consecutive ones (CSR pointers shifted)."""
+    if len(pieces) == 1:
+        return pieces[0]
+    events = {f: np.concatenate([c.events[f] for c in pieces]) for f in status.EVENT_FIELDS}
+    ptr = [np.zeros(1, dtype=np.int64)]
+    offset = 0
+    for c in pieces:
+        ptr.append(c.sparse_ptr[1:] + offset)
+        offset += c.sparse_index.size
+    last = pieces[-1]
+    return Chunk(
+        last.status, events, np.concatenate(ptr),
+        np.concatenate([c.sparse_index for c in pieces]),
+        np.concatenate([c.sparse_displacement for c in pieces]),
+        last.alpha_c, last.message,
+    )
