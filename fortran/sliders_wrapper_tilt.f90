@@ -4,6 +4,18 @@
 ! A plain subroutine outside any module: explicit-shape arrays and
 ! iso_c_binding kinds only.  The work is done in module sliders_events;
 ! src/sliders/fortran_engine.py is the Python side.
+!
+! tilt_advance runs rearrangements from the state (mu_s, n_stops and
+! displacement are updated in place, the new angle is alpha_out) until
+! max_events are recorded (status 0), the run ends (status codes of
+! sliders_status / status.py) or a buffer is full (status 8, call again).
+! Buffers, n_cap events: event_real columns alpha, duration, work_gravity,
+! elastic_change, dissipation; event_int columns n_moved, n_stops, n_steps,
+! slider_steps; CSR sparse_ptr(1:n_events+1) (0-based offsets) into
+! sparse_index (0-based slider numbers, increasing) and sparse_value
+! (displacement of the event), all zero with record_sparse = 0.  event_time
+! is the duration of an event stopped by the cap; detail tells what a
+! non-finite status refers to (1: the resting chain, 2: the moving state).
 
 subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigma_mu, &
                         seed, dt, refine_tol, max_event_duration, alpha_max, force_tol, &
@@ -13,7 +25,7 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigm
                         event_real, event_int, sparse_ptr, sparse_index, sparse_value, &
                         alpha_out, n_events, n_sparse, status, alpha_c, event_time, detail)
   use iso_c_binding, only: c_double, c_int, c_int64_t
-  use sliders_events, only: tilt_params, tilt_run, n_event_real, n_event_int
+  use sliders_events, only: tilt_params, tilt_run
   implicit none
   integer(c_int), intent(in) :: n
   !f2py integer(c_int) intent(hide), depend(elastic_force0) :: n = len(elastic_force0)
@@ -40,7 +52,6 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigm
   integer(c_int), intent(out) :: n_events, n_sparse, status, detail
   type(tilt_params) :: p
 
-  if (n_event_real /= 5 .or. n_event_int /= 4) error stop "tilt_advance: event buffer layout"
   p%chain%n = n
   p%chain%walls = walls /= 0
   p%chain%xi = xi
