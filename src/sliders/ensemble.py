@@ -1,0 +1,766 @@
+"""``python -m sliders.ensemble``: many realisations of one scene over MPI ranks, one HDF5 file.
+
+    mpirun -n 2 python -m sliders.ensemble --scene S.toml --realisations 100 --out E.h5
+    python -m sliders.ensemble --n-sliders 10 --realisations 4 --out E.h5   # serial
+
+Realisation ``r`` is the scene with seed ``realisation_seed(scene.seed, r)``;
+its row of the file (``storage`` module) depends on nothing else, so the file
+is the same (bit for bit, apart from wall times and the creation date) with 1,
+2 or 4 ranks.
+
+Scheduling (dynamic): rank 0 hands out realisation indices on request and
+computes realisations itself.  It answers requests between chunks of events
+of its own run (the driver's progress callback), so no rank sits idle as a
+dedicated master.  Every other rank asks for its next index as soon as it
+starts one (one index prefetched), so the answer is there when it finishes.
+
+Storage: ``storage.MpioFile`` (parallel h5py, every rank writes its own rows)
+or ``storage.GatherFile`` (rows shipped to rank 0 with the "done" message);
+``--storage auto`` picks mpio with several ranks when h5py has MPI.
+
+Interruption: SIGTERM/SIGINT on any rank stops the whole run at the next safe
+point (between chunks of events): runs in progress are dropped, rows already
+written stay, the file is closed, rank 0 prints one line and every rank exits
+with 128 + signal number.  ``--resume`` then computes the missing rows only.
+
+Ensemble statistics are not stored: ``load_summary(path)`` derives them with
+``observables.combine`` from the rows marked done.
+
+Test hooks (environment variables, for the test suite only):
+``SLIDERS_ENSEMBLE_STOP_AFTER=K``: rank 0 behaves as if it received SIGTERM
+once K realisations have been completed in this session.
+``SLIDERS_ENSEMBLE_TEST_DELAY=S``: every realisation starts with a sleep of S
+seconds (so that a test can signal or kill a run that is still going).
+``SLIDERS_ENSEMBLE_TEST_FAIL=r``: realisation r raises RuntimeError (an
+unexpected failure on one rank mid-run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import signal
+import sys
+import time
+from collections import Counter, deque
+from typing import Any
+
+import numpy as np
+
+from . import status as status_codes
+from .scene import BACKENDS, Scene, SceneError
+
+TAG_MSG, TAG_REPLY, TAG_CTRL = 71, 72, 73
+NO_MORE, DECLINED = -1, -2  # replies to a request for an index
+PREFETCH = 2  # indices a worker asks for ahead of the one it is computing
+STATUS_CODES = {name: code for code, name in status_codes.NAMES.items()}
+UNKNOWN_STATUS = -2
+
+
+class UsageError(Exception):
+    """A bad command line or input: one line on rank 0, every rank exits non-zero."""
+
+    def __init__(self, message: str, code: int = 1):
+        super().__init__(message)
+        self.code = code
+
+
+class _HelpExit(Exception):
+    def __init__(self, code: int):
+        self.code = code
+
+
+class Interrupted(Exception):
+    """Raised at a safe point once the run has to stop (signal or abort from rank 0)."""
+
+
+# ---------------------------------------------------------------------------
+# MPI, or a stand-in for a single process without mpi4py
+# ---------------------------------------------------------------------------
+class SerialComm:
+    """The few communicator calls used here, for one process without mpi4py."""
+
+    rank = 0
+    size = 1
+
+    def bcast(self, obj, root=0):
+        return obj
+
+    def allgather(self, obj):
+        return [obj]
+
+    def Abort(self, code=1):  # noqa: N802 - MPI spelling
+        os._exit(code)
+
+
+def get_comm():
+    """(COMM_WORLD, True) with mpi4py, else (SerialComm(), False)."""
+    try:
+        from mpi4py import MPI
+    except ImportError:
+        return SerialComm(), False
+    return MPI.COMM_WORLD, True
+
+
+# ---------------------------------------------------------------------------
+# command line
+# ---------------------------------------------------------------------------
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises instead of exiting and prints only on rank 0."""
+
+    rank = 0
+
+    def error(self, message):
+        raise UsageError(f"{message} (see --help)", code=2)
+
+    def exit(self, status=0, message=None):
+        if message:
+            self._print_message(message, sys.stderr)
+        raise _HelpExit(status)
+
+    def _print_message(self, message, file=None):
+        if self.rank == 0:
+            super()._print_message(message, file)
+
+
+def build_parser(rank: int = 0) -> argparse.ArgumentParser:
+    from .cli import add_scene_arguments
+    from .storage import STORAGES
+
+    p = _Parser(
+        prog="python -m sliders.ensemble",
+        description="Tilt R realisations of one scene (seed of realisation r = "
+                    "realisation_seed(scene seed, r)), spread over MPI ranks with dynamic load "
+                    "balancing, into one HDF5 file (one row per realisation).  Run under "
+                    "`mpirun -n P` or plainly (serial).",
+    )
+    p.rank = rank
+    add_scene_arguments(p)
+    g = p.add_argument_group("ensemble")
+    g.add_argument("--realisations", "-R", type=int, metavar="R",
+                   help="number of realisations (required unless --resume, which takes the file's)")
+    g.add_argument("--out", required=True, metavar="FILE.h5", help="output HDF5 file")
+    g.add_argument("--backend", choices=BACKENDS, default="fortran",
+                   help="tilt backend (default fortran)")
+    g.add_argument("--resume", action="store_true",
+                   help="complete the missing realisations of an existing file of the same scene")
+    g.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    g.add_argument("--storage", choices=STORAGES, default="auto",
+                   help="file writer: parallel h5py (mpio), rows gathered to rank 0 (gather), or "
+                        "auto: mpio with several ranks when h5py has MPI (default)")
+    g.add_argument("--progress-interval", type=float, default=5.0, metavar="S",
+                   help="seconds between progress lines on stderr (0: after every realisation)")
+    g.add_argument("--quiet", action="store_true", help="no progress lines")
+    return p
+
+
+def _scene_diff(a: Scene, b: Scene) -> str:
+    da, db = a.to_dict(), b.to_dict()
+    diffs = [f"{k}={da[k]!r} in file, {db[k]!r} requested" for k in da if da[k] != db.get(k)]
+    return "; ".join(diffs)
+
+
+def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
+    """Validate everything that can be checked locally (every rank, same answer)."""
+    from .cli import scene_from_args
+    from .storage import StorageError, choose_storage
+
+    scene = scene_from_args(args)
+    if scene.record == "summary":
+        raise SceneError("record='summary' keeps no displacements, which the ensemble statistics "
+                         "need; use record='displacements' (or 'forces')")
+    if args.realisations is not None and args.realisations < 1:
+        raise UsageError(f"--realisations={args.realisations} must be at least 1")
+    if args.realisations is None and not args.resume:
+        raise UsageError("--realisations R is required (unless --resume)", code=2)
+    if args.resume and args.overwrite:
+        raise UsageError("--resume and --overwrite exclude each other", code=2)
+    if args.progress_interval < 0:
+        raise UsageError(f"--progress-interval={args.progress_interval} must be >= 0")
+    try:
+        storage = choose_storage(args.storage, comm.size, have_mpi)
+    except StorageError as exc:
+        raise UsageError(str(exc)) from None
+    from .driver import make_engine
+
+    try:
+        make_engine(scene, args.backend)
+    except (ImportError, AttributeError) as exc:  # not built, or built from older sources
+        raise UsageError(f"backend {args.backend!r} is not available ({exc}); "
+                         "build it (scripts/setup.sh) or use --backend numpy") from None
+    return {"scene": scene, "storage": storage}
+
+
+def _plan_root(args, plan) -> dict[str, Any]:
+    """Rank 0: output file checks, resume compatibility, the layout."""
+    from .cli import check_output
+    from .keyed_random import realisation_seed
+    from .observables import default_grids, statistics_layout
+    from .storage import StorageError, file_attributes, make_layout, read_header
+
+    scene: Scene = plan["scene"]
+    out = args.out
+    check_output(out, overwrite=True)  # a writable file path (existence checked below)
+    resume = args.resume and os.path.exists(out)
+    if os.path.exists(out) and not (args.overwrite or resume):
+        raise UsageError(f"--out {out!r} exists; pass --resume to complete it or --overwrite "
+                         "to replace it")
+    grids = default_grids(scene).to_arrays()
+    R = args.realisations
+    if R is None and not resume:
+        raise UsageError(f"--resume: {out!r} does not exist; give --realisations R to start it")
+    done = None
+    if resume:
+        try:
+            head = read_header(out)
+        except StorageError as exc:
+            raise UsageError(f"--resume: {exc}") from None
+        attrs = head["attrs"]
+        try:
+            file_scene = Scene.from_dict(json.loads(attrs["scene"]))
+        except (SceneError, ValueError, KeyError) as exc:
+            raise UsageError(f"--resume: {out!r} holds an unreadable scene ({exc})") from None
+        if file_scene != scene:
+            raise UsageError(f"--resume: {out!r} holds a different scene ({_scene_diff(file_scene, scene)})")
+        if R is not None and R != attrs["realisations"]:
+            raise UsageError(f"--resume: {out!r} has {attrs['realisations']} realisations, "
+                             f"--realisations {R} requested")
+        if attrs["backend"] != args.backend:
+            raise UsageError(f"--resume: {out!r} was computed with --backend {attrs['backend']}, "
+                             f"not {args.backend}; resume with the same backend")
+        R = int(attrs["realisations"])
+        for k, v in grids.items():
+            if k not in head["grids"] or not np.array_equal(head["grids"][k], v):
+                raise UsageError(f"--resume: the statistics grid {k!r} of {out!r} differs from "
+                                 "this version's; start a new file")
+        done = head["done"]
+        file_attrs = attrs
+    else:
+        file_attrs = file_attributes(scene.to_dict(), scene.seed, R, args.backend)
+    seeds = np.array([realisation_seed(scene.seed, r) for r in range(R)], dtype=np.uint32)
+    layout = make_layout(R, seeds, grids, statistics_layout(default_grids(scene), scene.n_sliders),
+                         file_attrs)
+    if resume:
+        cols = read_header(out)["columns"]
+        for c in layout.columns:
+            if c.name not in cols or tuple(cols[c.name][0]) != c.shape:
+                raise UsageError(f"--resume: {out!r} has no dataset /realisations/{c.name} of shape "
+                                 f"(R, *{c.shape}); it was written by another version of sliders")
+        if not np.array_equal(head["seeds"], seeds):
+            raise UsageError(f"--resume: the seeds of {out!r} differ from this version's")
+    if done is None:
+        done = np.zeros(R, dtype=bool)
+    return {"layout": layout, "resume": resume, "done": done}
+
+
+# ---------------------------------------------------------------------------
+# one realisation
+# ---------------------------------------------------------------------------
+def compute_row(scene: Scene, r: int, backend: str, grids, progress=None) -> dict[str, Any]:
+    """Realisation ``r`` of the scene: its file row (base columns + statistics/<key>)."""
+    from .driver import tilt
+    from .keyed_random import realisation_seed
+    from .observables import realisation_statistics
+    from .storage import STATISTICS
+
+    started = time.perf_counter()
+    delay = os.environ.get("SLIDERS_ENSEMBLE_TEST_DELAY")
+    if delay:
+        time.sleep(float(delay))
+        if progress is not None:
+            progress(None)
+    if os.environ.get("SLIDERS_ENSEMBLE_TEST_FAIL") == str(r):
+        raise RuntimeError(f"test hook SLIDERS_ENSEMBLE_TEST_FAIL: realisation {r} fails")
+    result = tilt(scene.replace(seed=realisation_seed(scene.seed, r)), backend=backend,
+                  progress=progress)
+    stats = realisation_statistics(result, grids)
+    row: dict[str, Any] = {
+        "status": STATUS_CODES.get(result.status, UNKNOWN_STATUS),
+        "alpha_c": float(result.alpha_c),
+        "n_events": int(result.n_events),
+        "slider_steps": int(np.sum(result.events["slider_steps"])),
+    }
+    row.update({STATISTICS + k: v for k, v in stats.items()})
+    row["wall_time"] = time.perf_counter() - started
+    return row
+
+
+# ---------------------------------------------------------------------------
+# the run: rank 0 (hands out indices, computes, reports) and the other ranks
+# ---------------------------------------------------------------------------
+class _Stop:
+    """Signal flag (set by the handler, acted on at safe points)."""
+
+    signum: int | None = None
+
+    @classmethod
+    def handler(cls, signum, frame):
+        if cls.signum is None:
+            cls.signum = signum
+
+
+def _fmt_time(s: float) -> str:
+    if not math.isfinite(s):
+        return "?"
+    if s < 120:
+        return f"{s:.1f} s" if s < 10 else f"{s:.0f} s"
+    s = int(round(s))
+    if s < 7200:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {(s % 3600) // 60:02d} min"
+
+
+class _Root:
+    """Rank 0: serve requests, compute, write (gather), report progress."""
+
+    def __init__(self, comm, handler, pending, n_done_before, ctx):
+        self.comm = comm
+        self.handler = handler
+        self.queue = deque(int(r) for r in pending)
+        self.total = ctx["R"]
+        self.done_before = n_done_before
+        self.done_now = 0
+        self.ctx = ctx
+        self.alive = set(range(1, comm.size))
+        self.ctrl_sent: set[int] = set()
+        self.sends: list = []
+        self.stop_reason: str | None = None
+        self.signum: int | None = None
+        self.statuses: Counter = Counter()
+        self.started = time.monotonic()
+        self.last_report = self.started
+        self.timing = {"compute": 0.0, "idle": 0.0}
+        self.n_needs = 0
+        stop_after = os.environ.get("SLIDERS_ENSEMBLE_STOP_AFTER")
+        self.stop_after = int(stop_after) if stop_after else None
+        if comm.size > 1:
+            from mpi4py import MPI
+
+            self._status = MPI.Status()
+            self._any = MPI.ANY_SOURCE
+
+    # -- messages ----------------------------------------------------------
+    def _reply(self, dest: int, ahead: bool) -> None:
+        """Next index for ``dest``; -1: no more work; -2: a prefetch declined near the end.
+
+        A request made ahead (the worker still has work in hand) is declined
+        once few indices are left, so that no rank sits on unstarted work
+        while another one runs out.
+        """
+        if self.stop_reason or not self.queue:
+            idx = NO_MORE
+        elif ahead and len(self.queue) <= self.comm.size:
+            idx = DECLINED
+        else:
+            idx = self.queue.popleft()
+        self.sends.append(self.comm.isend(idx, dest=dest, tag=TAG_REPLY))
+        if len(self.sends) > 256:  # keep only the sends still in flight
+            self.sends = [q for q in self.sends if not q.Test()]
+
+    def _handle(self, src: int, msg: tuple) -> None:
+        kind = msg[0]
+        if kind == "need":
+            self.n_needs += 1
+            self._reply(src, ahead=msg[1])
+        elif kind == "done":
+            _, r, ops, code = msg
+            self.handler.apply(ops)
+            self._completed(code)
+        elif kind == "interrupted":
+            self.stop(msg[1], msg[2])
+        elif kind == "bye":
+            self.alive.discard(src)
+            if src not in self.ctrl_sent:
+                self.ctrl_sent.add(src)
+                self.sends.append(self.comm.isend("final", dest=src, tag=TAG_CTRL))
+        else:  # pragma: no cover - protocol bug
+            raise RuntimeError(f"unknown message {kind!r} from rank {src}")
+
+    def service(self) -> bool:
+        """Handle every waiting message; True if there was one."""
+        if self.comm.size == 1:
+            return False
+        got = False
+        while self.comm.Iprobe(source=self._any, tag=TAG_MSG, status=self._status):
+            src = self._status.Get_source()
+            self._handle(src, self.comm.recv(source=src, tag=TAG_MSG))
+            got = True
+        return got
+
+    def stop(self, reason: str, signum: int | None) -> None:
+        if self.stop_reason is None:
+            self.stop_reason, self.signum = reason, signum
+            for w in sorted(self.alive - self.ctrl_sent):
+                self.ctrl_sent.add(w)
+                self.sends.append(self.comm.isend("abort", dest=w, tag=TAG_CTRL))
+
+    def _check_stop(self) -> None:
+        if _Stop.signum is not None:
+            sig = _Stop.signum
+            self.stop(f"{signal.Signals(sig).name} on rank 0", sig)
+        elif self.stop_after is not None and self.done_now >= self.stop_after:
+            self.stop(f"test hook SLIDERS_ENSEMBLE_STOP_AFTER={self.stop_after}", signal.SIGTERM)
+
+    # -- progress ----------------------------------------------------------
+    def _completed(self, code: int) -> None:
+        self.done_now += 1
+        self.statuses[status_codes.NAMES.get(code, "unknown")] += 1
+        self._check_stop()
+        self.report(force=self.ctx["interval"] == 0)
+
+    def report(self, force: bool = False) -> None:
+        if self.ctx["quiet"]:
+            return
+        now = time.monotonic()
+        interval = self.ctx["interval"]
+        if not force and (interval == 0 or now - self.last_report < interval):
+            return
+        self.last_report = now
+        elapsed = now - self.started
+        done = self.done_before + self.done_now
+        rate = self.done_now / elapsed if elapsed > 0 else math.nan
+        left = self.total - done
+        eta = left / rate if rate > 0 else math.inf
+        sys.stderr.write(f"ensemble: {done}/{self.total} realisations done, "
+                         f"{rate:.3g}/s, elapsed {_fmt_time(elapsed)}, ETA {_fmt_time(eta)}\n")
+        sys.stderr.flush()
+
+    def poll(self, _progress=None) -> None:
+        """Progress callback of rank 0's own runs: serve, report, stop if asked."""
+        self.service()
+        self._check_stop()
+        self.report()
+        if self.stop_reason:
+            raise Interrupted(self.stop_reason)
+
+    # -- main loop ---------------------------------------------------------
+    def run(self) -> None:
+        ctx = self.ctx
+        # first request of every worker, so that all ranks start at once
+        for _ in range(len(self.alive)):
+            src = None
+            while src is None:
+                if self.comm.Iprobe(source=self._any, tag=TAG_MSG, status=self._status):
+                    src = self._status.Get_source()
+                else:
+                    time.sleep(0.001)
+            self._handle(src, self.comm.recv(source=src, tag=TAG_MSG))
+        # ... and their first requests ahead (sent as soon as they have an index)
+        deadline = time.monotonic() + 0.2
+        while self.n_needs < len(self.alive) * (1 + PREFETCH) and time.monotonic() < deadline:
+            if not self.service():
+                time.sleep(0.001)
+        while self.queue and not self.stop_reason:
+            r = self.queue.popleft()
+            t0 = time.perf_counter()
+            try:
+                row = compute_row(ctx["scene"], r, ctx["backend"], ctx["grids"], self.poll)
+            except Interrupted:
+                break
+            finally:
+                self.timing["compute"] += time.perf_counter() - t0
+            self.handler.write_row(r, row)
+            self.handler.mark_done(r)
+            self.handler.flush()
+            self._completed(row["status"])
+            self.service()
+        t0 = time.perf_counter()
+        while self.alive:  # serve the other ranks until they have all finished
+            self._check_stop()
+            if not self.service():
+                self.report()
+                time.sleep(0.002)
+        self.timing["idle"] += time.perf_counter() - t0
+        if self.sends:
+            from mpi4py import MPI
+
+            MPI.Request.Waitall(self.sends)
+
+
+def _worker(comm, handler, ctx) -> dict[str, float]:
+    """Ranks > 0: ask for indices, compute them, write (or ship) their rows.
+
+    Besides the index being computed, up to ``PREFETCH`` requests are kept
+    ahead, so that the answers (given by rank 0 between chunks of its own
+    events) are there when needed.  Returns the time spent computing and
+    waiting for indices.
+    """
+    from mpi4py import MPI
+
+    ctrl: list[str] = []
+    timing = {"compute": 0.0, "idle": 0.0}
+
+    def check(_progress=None):
+        if not ctrl and comm.Iprobe(source=0, tag=TAG_CTRL):
+            ctrl.append(comm.recv(source=0, tag=TAG_CTRL))
+        if _Stop.signum is not None or (ctrl and ctrl[0] == "abort"):
+            raise Interrupted()
+
+    held: deque[int] = deque()  # indices received, not started
+    pending: deque = deque()  # requests sent, answers not read
+    exhausted = False
+    sends = []
+
+    def ask(ahead: bool) -> None:
+        comm.send(("need", ahead), dest=0, tag=TAG_MSG)
+        pending.append(comm.irecv(source=0, tag=TAG_REPLY))
+
+    def take(block: bool) -> None:
+        """Read the answers that are there (all of them, in order, if ``block``)."""
+        nonlocal exhausted
+        while pending:
+            if block:
+                t0 = time.perf_counter()
+                value = pending[0].wait()
+                timing["idle"] += time.perf_counter() - t0
+            else:
+                done, value = pending[0].test()
+                if not done:
+                    return
+            pending.popleft()
+            if value >= 0:
+                held.append(value)
+            elif value == NO_MORE:
+                exhausted = True
+
+    def next_index() -> int | None:
+        take(block=False)
+        if not held and pending:
+            take(block=True)
+        if not held and not exhausted:
+            ask(ahead=False)
+            take(block=True)
+        return held.popleft() if held else None
+
+    r = next_index()
+    try:
+        while r is not None:
+            check()
+            while not exhausted and len(held) + len(pending) < PREFETCH:
+                ask(ahead=True)
+            t0 = time.perf_counter()
+            try:
+                row = compute_row(ctx["scene"], r, ctx["backend"], ctx["grids"], check)
+            finally:
+                timing["compute"] += time.perf_counter() - t0
+            handler.write_row(r, row)
+            handler.mark_done(r)
+            handler.flush()
+            sends.append(comm.isend(("done", r, handler.outbox(), row["status"]), dest=0,
+                                    tag=TAG_MSG))
+            r = next_index()
+    except Interrupted:
+        pass
+    take(block=True)  # every request gets its answer before the end
+    if _Stop.signum is not None:
+        sig = _Stop.signum
+        comm.send(("interrupted", f"{signal.Signals(sig).name} on rank {comm.rank}", sig),
+                  dest=0, tag=TAG_MSG)
+    MPI.Request.Waitall(sends)
+    comm.send(("bye",), dest=0, tag=TAG_MSG)
+    if not ctrl:
+        ctrl.append(comm.recv(source=0, tag=TAG_CTRL))
+    return timing
+
+
+# ---------------------------------------------------------------------------
+# main
+# ---------------------------------------------------------------------------
+def _error_line(message: str) -> str:
+    return "error: " + " ".join(str(message).split())
+
+
+def main(argv: list[str] | None = None) -> int:
+    comm, have_mpi = get_comm()
+    rank = comm.rank
+
+    # 1. validate (no collective before this point: every rank reaches the allgather)
+    err: tuple[int, str] | None = None
+    plan = root_plan = None
+    args = None
+    try:
+        args = build_parser(rank).parse_args(argv)
+        plan = _plan(args, comm, have_mpi)
+        if rank == 0:
+            root_plan = _plan_root(args, plan)
+    except _HelpExit as exc:
+        err = (exc.code, "")
+    except UsageError as exc:
+        err = (exc.code, str(exc))
+    except (SceneError, ValueError, OSError) as exc:
+        err = (1, str(exc))
+    except Exception as exc:  # noqa: BLE001 - any failure here must reach every rank
+        err = (1, f"{type(exc).__name__}: {exc}")
+    errors = comm.allgather(err)
+    first = next((e for e in errors if e is not None), None)
+    if first is not None:
+        code, message = first
+        if rank == 0 and message:
+            sys.stderr.write(_error_line(message) + "\n")
+        return code
+    root_plan = comm.bcast(root_plan, root=0)
+
+    # 2. create or open the file (collective for mpio)
+    from .observables import StatisticsGrids
+    from .storage import HANDLERS
+
+    layout = root_plan["layout"]
+    scene: Scene = plan["scene"]
+    storage = plan["storage"]
+    handler = None
+    err = None
+    try:
+        cls = HANDLERS[storage]
+        if root_plan["resume"]:
+            handler = cls.open_for_resume(args.out, layout, comm)
+        else:
+            handler = cls.create(args.out, layout, comm, overwrite=args.overwrite)
+    except Exception as exc:  # noqa: BLE001
+        err = f"cannot {'open' if root_plan['resume'] else 'create'} {args.out!r}: {exc}"
+    errors = comm.allgather(err)
+    if any(errors):
+        if rank == next(i for i, e in enumerate(errors) if e):  # one line, from one rank
+            sys.stderr.write(_error_line(errors[rank]) + "\n")
+            sys.stderr.flush()
+        if all(errors):
+            return 1
+        comm.Abort(1)  # some ranks hold a half-open collective file
+
+    done = root_plan["done"]
+    pending = np.flatnonzero(~done)
+    ctx = {
+        "scene": scene, "backend": args.backend, "R": layout.n_realisations,
+        "grids": StatisticsGrids.from_arrays(layout.grids),
+        "interval": args.progress_interval, "quiet": args.quiet,
+    }
+    if rank == 0 and not args.quiet and pending.size == 0:
+        sys.stderr.write(f"ensemble: all {layout.n_realisations} realisations of {args.out} are "
+                         "done already; nothing to do\n")
+    elif rank == 0 and not args.quiet:
+        verb = "resuming" if root_plan["resume"] else "starting"
+        sys.stderr.write(
+            f"ensemble: {verb} {pending.size} of {layout.n_realisations} realisations of "
+            f"N={scene.n_sliders} xi={scene.xi:g} (backend {args.backend}) on {comm.size} "
+            f"rank{'s' if comm.size > 1 else ''}, storage {storage} -> {args.out}\n")
+        sys.stderr.flush()
+
+    # 3. run
+    old = {s: signal.signal(s, _Stop.handler) for s in (signal.SIGTERM, signal.SIGINT)}
+    root = None
+    timing = None
+    try:
+        if rank == 0:
+            root = _Root(comm, handler, pending, int(done.sum()), ctx)
+            root.run()
+            timing = root.timing
+        else:
+            timing = _worker(comm, handler, ctx)
+    except Exception as exc:  # noqa: BLE001 - a bug or a failed write: nothing may hang
+        sys.stderr.write(_error_line(f"rank {rank}: {type(exc).__name__}: {exc}") + "\n")
+        if os.environ.get("SLIDERS_DEBUG"):
+            import traceback
+
+            traceback.print_exc()
+        sys.stderr.flush()
+        if comm.size > 1:
+            comm.Abort(1)
+        try:
+            handler.close()
+        finally:
+            return 1
+
+    # 4. close (collective) and report
+    try:
+        handler.close()
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    timings = comm.gather(timing, root=0) if comm.size > 1 else [timing]
+    if rank == 0 and os.environ.get("SLIDERS_DEBUG"):
+        sys.stderr.write(f"ensemble: timings per rank {timings}\n")
+    final = None
+    if rank == 0:
+        final = {"stop": root.stop_reason, "signum": root.signum,
+                 "done": root.done_before + root.done_now, "write_s": handler.write_seconds}
+    final = comm.bcast(final, root=0)
+    if rank == 0:
+        elapsed = time.monotonic() - root.started
+        n_now = root.done_now
+        if final["stop"]:
+            sys.stderr.write(
+                f"ensemble: interrupted ({final['stop']}): {final['done']}/{layout.n_realisations} "
+                f"realisations in {args.out}; rerun with --resume to complete them\n")
+        elif not args.quiet:
+            stats = ", ".join(f"{k} {v}" for k, v in sorted(root.statuses.items())) or "none run"
+            rate = f"{n_now / elapsed:.3g}/s" if elapsed > 0 and n_now else "-"
+            rows = handler.rows_written
+            cost = (f"; rank 0 wrote {rows} rows at {1e3 * handler.write_seconds / rows:.2f} ms "
+                    "each (write + flush)") if rows else ""
+            busy = "/".join(f"{100 * t['compute'] / elapsed:.0f}%" for t in timings) \
+                if elapsed > 0 else "-"
+            sys.stderr.write(
+                f"ensemble: {final['done']}/{layout.n_realisations} realisations done, {n_now} in "
+                f"this run in {elapsed:.2f} s ({rate}); statuses: {stats}; ranks busy {busy}"
+                f"{cost} -> {args.out}\n")
+        bad = {k: v for k, v in root.statuses.items()
+               if k not in ("avalanche", "alpha_max", "max_events")}
+        if bad and not final["stop"]:
+            sys.stderr.write(f"ensemble: warning: {sum(bad.values())} realisation(s) ended without "
+                             f"an avalanche: {dict(bad)}\n")
+        sys.stderr.flush()
+    if final["stop"]:
+        return 128 + int(final["signum"] or signal.SIGTERM)
+    return 0
+
+
+# ---------------------------------------------------------------------------
+# reading
+# ---------------------------------------------------------------------------
+def read_realisations(path) -> dict[str, Any]:
+    """Every row of an ensemble file (R rows, done or not).
+
+    Keys: ``seed``, ``done`` (bool), ``status`` (codes), ``status_name``,
+    ``alpha_c``, ``n_events``, ``slider_steps``, ``wall_time`` and
+    ``statistics`` ({key: (R, ...) array}).
+    """
+    from .storage import STATISTICS, read_rows
+
+    rows = read_rows(path)
+    out: dict[str, Any] = {k: v for k, v in rows.items() if not k.startswith(STATISTICS)}
+    out["done"] = out["done"].astype(bool)
+    out["status_name"] = np.array([status_codes.NAMES.get(int(c), "not_run" if c < 0 else "unknown")
+                                   for c in out["status"]])
+    out["statistics"] = {k[len(STATISTICS):]: v for k, v in rows.items() if k.startswith(STATISTICS)}
+    return out
+
+
+def load_summary(path):
+    """``(EnsembleSummary, grids, scene, info)`` of an ensemble file, over its done rows.
+
+    ``info``: the file attributes plus ``n_done``, ``n_realisations``,
+    ``done`` (mask), ``statuses`` ({name: count} over done rows) and
+    ``wall_time`` (sum over done rows, seconds of computing).
+    """
+    from .observables import StatisticsGrids, combine
+    from .storage import read_header
+
+    head = read_header(path)
+    rows = read_realisations(path)
+    grids = StatisticsGrids.from_arrays(head["grids"])
+    scene = Scene.from_dict(json.loads(head["attrs"]["scene"]))
+    done = rows["done"]
+    stats = {k: v[done] for k, v in rows["statistics"].items()}
+    summary = combine(stats, grids, scene.n_sliders)
+    info = dict(head["attrs"])
+    info.update({
+        "n_done": int(done.sum()), "n_realisations": int(done.size), "done": done,
+        "statuses": dict(Counter(str(s) for s in rows["status_name"][done])),
+        "wall_time": float(np.sum(rows["wall_time"][done])),
+    })
+    return summary, grids, scene, info
+
+
+if __name__ == "__main__":
+    sys.exit(main())

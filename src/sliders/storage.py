@@ -1,0 +1,449 @@
+"""The ensemble's HDF5 file: its layout and a small file handler with two writers.
+
+One file holds an ensemble of ``R`` realisations of one scene, one row per
+realisation ``r`` (the seed of row ``r`` is ``realisation_seed(base_seed, r)``)::
+
+    /                      attrs: format, format_version, scene (JSON of
+                           Scene.to_dict()), software_version, base_seed,
+                           realisations (R), backend, created (UTC, ISO 8601)
+    /grids/<field>         the StatisticsGrids the statistics were binned on
+    /realisations/seed     (R,) uint32, written when the file is created
+    /realisations/done     (R,) uint8, 1 once the row below is complete
+    /realisations/status   (R,) int8, sliders.status code (-1: not run);
+                           attr "codes" = JSON {code: name}
+    /realisations/alpha_c, n_events, slider_steps, wall_time   (R,)
+    /realisations/statistics/<key>   (R, *shape): observables.realisation_statistics
+
+Every dataset is contiguous, allocated and filled when the file is created, so
+that writing a row never touches HDF5 metadata: a row is raw bytes written in
+place, then ``done[r] = 1``.  A process killed between two rows leaves a
+readable file in which every row with ``done = 1`` is complete.
+
+The handler (``EnsembleFile``) has two implementations with the same interface
+and the same file content:
+
+* ``MpioFile``: parallel h5py (``driver="mpio"``).  Every rank makes the same
+  structural calls (file, groups, datasets and attributes are created
+  collectively), then each rank writes its own rows independently.
+* ``GatherFile``: rank 0 alone opens the file with plain (serial) h5py; the
+  other ranks queue their rows (``outbox``) and the ensemble scheduler ships
+  them to rank 0 with its "done" message, where ``apply`` writes them.  Used
+  when h5py has no MPI support, with a single process, or when forced.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import status
+
+FORMAT = "sliders.ensemble"
+FORMAT_VERSION = 1
+STORAGES = ("auto", "mpio", "gather")
+NOT_RUN = -1  # status code of a row that has not been computed
+
+
+class StorageError(RuntimeError):
+    """The file cannot be created, opened or does not match the requested ensemble."""
+
+
+@dataclass(frozen=True)
+class Column:
+    """One per-realisation dataset: /realisations/<name>, shape (R, *shape)."""
+
+    name: str
+    shape: tuple[int, ...]
+    dtype: np.dtype
+    fill: Any = 0
+
+
+@dataclass
+class Layout:
+    """Everything needed to create an ensemble file (identical on every rank)."""
+
+    n_realisations: int
+    columns: list[Column]
+    seeds: np.ndarray  # (R,) uint32
+    grids: dict[str, np.ndarray]
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+    def column(self, name: str) -> Column:
+        for c in self.columns:
+            if c.name == name:
+                return c
+        raise KeyError(name)
+
+
+BASE_COLUMNS = (
+    Column("status", (), np.dtype(np.int8), NOT_RUN),
+    Column("alpha_c", (), np.dtype(np.float64), np.nan),
+    Column("n_events", (), np.dtype(np.int64), -1),
+    Column("slider_steps", (), np.dtype(np.int64), -1),
+    Column("wall_time", (), np.dtype(np.float64), np.nan),
+)
+STATISTICS = "statistics/"
+
+
+def make_layout(n_realisations: int, seeds, grids: dict[str, np.ndarray],
+                statistics: dict[str, tuple[tuple[int, ...], np.dtype]],
+                attrs: dict[str, Any]) -> Layout:
+    """The layout of an ensemble: base columns plus one column per statistic."""
+    cols = list(BASE_COLUMNS)
+    for key in sorted(statistics):
+        shape, dtype = statistics[key]
+        dtype = np.dtype(dtype)
+        fill = np.nan if dtype.kind == "f" else 0
+        cols.append(Column(STATISTICS + key, tuple(int(s) for s in shape), dtype, fill))
+    return Layout(int(n_realisations), cols, np.asarray(seeds, dtype=np.uint32),
+                  {k: np.asarray(v) for k, v in grids.items()}, dict(attrs))
+
+
+def file_attributes(scene_dict: dict, base_seed: int, n_realisations: int, backend: str) -> dict:
+    from . import __version__
+
+    return {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "scene": json.dumps(scene_dict, sort_keys=True),
+        "software_version": __version__,
+        "base_seed": int(base_seed),
+        "realisations": int(n_realisations),
+        "backend": backend,
+        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+    }
+
+
+def h5py_has_mpi() -> bool:
+    try:
+        import h5py
+    except ImportError:  # pragma: no cover - h5py is a dependency
+        return False
+    return bool(h5py.get_config().mpi)
+
+
+def choose_storage(requested: str, comm_size: int, have_mpi: bool) -> str:
+    """``auto``: mpio with several ranks when h5py has MPI, gather otherwise."""
+    if requested not in STORAGES:
+        raise StorageError(f"--storage {requested!r} must be one of {STORAGES}")
+    if requested == "auto":
+        return "mpio" if (comm_size > 1 and have_mpi and h5py_has_mpi()) else "gather"
+    if requested == "mpio":
+        if not have_mpi:
+            raise StorageError("--storage mpio needs mpi4py (run under mpirun)")
+        if not h5py_has_mpi():
+            raise StorageError("--storage mpio needs h5py built with parallel HDF5 "
+                               "(h5py.get_config().mpi is False); use --storage gather")
+    return requested
+
+
+# ---------------------------------------------------------------------------
+# structure: the same calls on every rank (mpio) or on rank 0 alone (gather)
+# ---------------------------------------------------------------------------
+def _dcpl():
+    """Contiguous, allocated and filled at creation (parallel HDF5 forces this anyway)."""
+    import h5py
+
+    dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+    dcpl.set_alloc_time(h5py.h5d.ALLOC_TIME_EARLY)
+    dcpl.set_fill_time(h5py.h5d.FILL_TIME_ALLOC)
+    return dcpl
+
+
+def _create_structure(f, layout: Layout) -> None:
+    for k, v in layout.attrs.items():
+        f.attrs[k] = v
+    g = f.create_group("grids")
+    for name in sorted(layout.grids):
+        g.create_dataset(name, data=layout.grids[name])
+    rg = f.create_group("realisations")
+    rg.create_group("statistics")
+    R = layout.n_realisations
+    rg.create_dataset("seed", shape=(R,), dtype=np.uint32, dcpl=_dcpl())
+    rg.create_dataset("done", shape=(R,), dtype=np.uint8, fillvalue=0, dcpl=_dcpl())
+    for c in layout.columns:
+        rg.create_dataset(c.name, shape=(R,) + c.shape, dtype=c.dtype, fillvalue=c.fill,
+                          dcpl=_dcpl())
+    rg["status"].attrs["codes"] = json.dumps({str(k): v for k, v in status.NAMES.items()})
+
+
+def _check_structure(f, layout: Layout) -> None:
+    """Refuse a file whose datasets do not match the layout (resume)."""
+    rg = f["realisations"]
+    R = layout.n_realisations
+    for c in layout.columns:
+        if c.name not in rg:
+            raise StorageError(f"the file has no dataset /realisations/{c.name}; "
+                               "it was written by another version of sliders")
+        ds = rg[c.name]
+        if ds.shape != (R,) + c.shape or ds.dtype != c.dtype:
+            raise StorageError(
+                f"/realisations/{c.name} has shape {ds.shape} {ds.dtype}, expected "
+                f"{(R,) + c.shape} {c.dtype}; it was written by another version of sliders")
+
+
+class EnsembleFile:
+    """File handler of an ensemble (Dedalus style): create or resume, write rows, close.
+
+    ``create`` and ``open_for_resume`` are collective over ``comm``; so is
+    ``close``.  ``write_row``, ``mark_done`` and ``flush`` are local.
+    """
+
+    kind = "abstract"
+
+    def __init__(self, path: str, layout: Layout, comm):
+        self.path = os.fspath(path)
+        self.layout = layout
+        self.comm = comm
+        self.file = None
+        self._ds: dict = {}
+        self.rows_written = 0
+        self.write_seconds = 0.0  # time spent writing rows and flushing (cost of "flush per row")
+
+    # -- construction ------------------------------------------------------
+    @classmethod
+    def create(cls, path, layout: Layout, comm, overwrite: bool = False) -> "EnsembleFile":
+        """Create the file (refuses an existing one unless ``overwrite``)."""
+        self = cls(path, layout, comm)
+        # decided on rank 0, raised on every rank (never a collective open on some ranks only)
+        exists = comm.bcast(os.path.exists(self.path) if comm.rank == 0 else None, root=0)
+        if exists and not overwrite:
+            raise StorageError(f"{self.path!r} exists; pass --overwrite to replace it")
+        self._create()
+        return self
+
+    @classmethod
+    def open_for_resume(cls, path, layout: Layout, comm) -> "EnsembleFile":
+        """Open an existing file to complete its missing rows (layout already checked)."""
+        self = cls(path, layout, comm)
+        self._open()
+        return self
+
+    # -- rows --------------------------------------------------------------
+    def write_row(self, r: int, row: dict[str, Any]) -> None:
+        """Write realisation ``r``'s values (keys: the layout's column names)."""
+        raise NotImplementedError
+
+    def mark_done(self, r: int) -> None:
+        raise NotImplementedError
+
+    def flush(self) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    # gather transport hooks (no-ops for mpio)
+    def outbox(self) -> list | None:
+        """Queued operations to ship to rank 0 (gather writer on ranks > 0)."""
+        return None
+
+    def apply(self, ops: list | None) -> None:
+        """Rank 0: perform operations shipped by another rank."""
+        if ops:
+            raise StorageError(f"{self.kind} writer received rows from another rank")
+
+    # -- helpers -------------------------------------------------------------
+    def _row_arrays(self, row: dict[str, Any]) -> dict[str, np.ndarray]:
+        out = {}
+        names = {c.name for c in self.layout.columns}
+        unknown = sorted(set(row) - names)
+        if unknown:
+            raise StorageError(f"row has unknown column(s) {unknown}")
+        for c in self.layout.columns:
+            if c.name not in row:
+                raise StorageError(f"row lacks column {c.name!r}")
+            v = np.asarray(row[c.name])
+            if v.shape != c.shape:
+                raise StorageError(f"column {c.name!r}: row shape {v.shape}, layout {c.shape}")
+            out[c.name] = v.astype(c.dtype, casting="same_kind")
+        return out
+
+    def _bind(self) -> None:
+        """Open every row dataset once, in the same order on every rank holding the file
+        (dataset opens are collective in parallel HDF5 unless the object is not modified)."""
+        rg = self.file["realisations"]
+        self._ds = {c.name: rg[c.name] for c in self.layout.columns}
+        self._ds["done"] = rg["done"]
+
+    def _write_local(self, r: int, row: dict[str, Any]) -> None:
+        import time
+
+        t = time.perf_counter()
+        for name, v in self._row_arrays(row).items():
+            self._ds[name][r] = v
+        self.rows_written += 1
+        self.write_seconds += time.perf_counter() - t
+
+    def _done_local(self, r: int) -> None:
+        import time
+
+        t = time.perf_counter()
+        self._ds["done"][r] = 1
+        self.write_seconds += time.perf_counter() - t
+
+
+class MpioFile(EnsembleFile):
+    """Parallel h5py: collective structure, independent row writes by every rank.
+
+    Raw data of contiguous, early-allocated datasets goes straight to
+    MPI_File_write_at (no HDF5 raw-data cache), and H5Fflush is collective in
+    parallel HDF5, so ``flush`` is a no-op between rows: the bytes of a row
+    are in the operating system once ``write_row``/``mark_done`` return.
+    """
+
+    kind = "mpio"
+
+    def _create(self) -> None:
+        import h5py
+
+        self.file = h5py.File(self.path, "w", driver="mpio", comm=self.comm)
+        _create_structure(self.file, self.layout)
+        if self.comm.rank == 0:
+            self.file["realisations"]["seed"][:] = self.layout.seeds
+        self.file.flush()  # collective: structure and seeds on disk before any row
+        self._bind()
+
+    def _open(self) -> None:
+        import h5py
+
+        self.file = h5py.File(self.path, "r+", driver="mpio", comm=self.comm)
+        _check_structure(self.file, self.layout)
+        self._bind()
+
+    def write_row(self, r, row):
+        self._write_local(r, row)
+
+    def mark_done(self, r):
+        self._done_local(r)
+
+    def flush(self):
+        pass
+
+    def close(self):
+        if self.file is not None:
+            self._ds = {}
+            self.file.close()  # collective
+            self.file = None
+
+
+class GatherFile(EnsembleFile):
+    """Rank 0 writes with serial h5py and flushes after every row; others queue."""
+
+    kind = "gather"
+
+    def __init__(self, path, layout, comm):
+        super().__init__(path, layout, comm)
+        self._queue: list = []
+
+    def _create(self) -> None:
+        if self.comm.rank == 0:
+            import h5py
+
+            self.file = h5py.File(self.path, "w")
+            _create_structure(self.file, self.layout)
+            self.file["realisations"]["seed"][:] = self.layout.seeds
+            self.file.flush()
+            self._bind()
+
+    def _open(self) -> None:
+        if self.comm.rank == 0:
+            import h5py
+
+            self.file = h5py.File(self.path, "r+")
+            _check_structure(self.file, self.layout)
+            self._bind()
+
+    def write_row(self, r, row):
+        if self.comm.rank == 0:
+            self._write_local(r, row)
+        else:
+            self._queue.append(("row", int(r), self._row_arrays(row)))
+
+    def mark_done(self, r):
+        if self.comm.rank == 0:
+            self._done_local(r)
+        else:
+            self._queue.append(("done", int(r), None))
+
+    def flush(self):
+        if self.comm.rank == 0 and self.file is not None:
+            import time
+
+            t = time.perf_counter()
+            self.file.flush()
+            self.write_seconds += time.perf_counter() - t
+
+    def outbox(self):
+        ops, self._queue = self._queue, []
+        return ops
+
+    def apply(self, ops):
+        for op, r, values in ops or ():
+            if op == "row":
+                self._write_local(r, values)
+            else:
+                self._done_local(r)
+        if ops:
+            self.flush()
+
+    def close(self):
+        if self.file is not None:
+            self._ds = {}
+            self.file.close()
+            self.file = None
+
+
+HANDLERS = {"mpio": MpioFile, "gather": GatherFile}
+
+
+# ---------------------------------------------------------------------------
+# reading (serial, any process)
+# ---------------------------------------------------------------------------
+def read_header(path) -> dict[str, Any]:
+    """Attributes, grids, done mask and column shapes of an ensemble file."""
+    import h5py
+
+    p = os.fspath(path)
+    if not os.path.exists(p):
+        raise StorageError(f"{p!r} does not exist")
+    try:
+        f = h5py.File(p, "r")
+    except OSError as exc:
+        raise StorageError(f"{p!r} is not a readable HDF5 file ({exc})") from None
+    with f:
+        if f.attrs.get("format") != FORMAT:
+            raise StorageError(f"{p!r} is not a sliders ensemble file")
+        attrs = {k: _plain(v) for k, v in f.attrs.items()}
+        grids = {k: ds[()] for k, ds in f["grids"].items()}
+        rg = f["realisations"]
+        columns = {}
+        rg.visititems(lambda name, obj: columns.__setitem__(name, (obj.shape[1:], obj.dtype))
+                      if isinstance(obj, h5py.Dataset) else None)
+        done = rg["done"][()].astype(bool)
+        seeds = rg["seed"][()]
+    return {"attrs": attrs, "grids": grids, "columns": columns, "done": done, "seeds": seeds}
+
+
+def read_rows(path) -> dict[str, np.ndarray]:
+    """Every /realisations dataset as an array of R rows (``statistics/<key>`` names)."""
+    import h5py
+
+    out: dict[str, np.ndarray] = {}
+    with h5py.File(os.fspath(path), "r") as f:
+        f["realisations"].visititems(
+            lambda name, obj: out.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None)
+    return out
+
+
+def _plain(v):
+    if isinstance(v, bytes):
+        return v.decode()
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
