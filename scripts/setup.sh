@@ -10,9 +10,11 @@
 set -euo pipefail
 
 # ---- the main job of `setup.sh run` (the lead changes this) -----------------
+# An MPI ensemble of the paper's N = 100 scene (200 realisations on 2 ranks,
+# parallel HDF5) and the statistics figures drawn from it, in results/main/.
+# Restartable: running it again completes what is missing (--resume).
 main_job() {
-  mkdir -p results
-  python -m sliders tilt --out results/tilt.h5 "$@"
+  R=${R:-200} NP=${NP:-2} OUT=${OUT:-results/main} bash mpi_runs/paper_n100.sh "$@"
 }
 # -----------------------------------------------------------------------------
 
