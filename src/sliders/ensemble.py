@@ -11,8 +11,10 @@ is the same (bit for bit, apart from wall times and the creation date) with 1,
 Scheduling (dynamic): rank 0 hands out realisation indices on request and
 computes realisations itself.  It answers requests between chunks of events
 of its own run (the driver's progress callback), so no rank sits idle as a
-dedicated master.  Every other rank asks for its next index as soon as it
-starts one (one index prefetched), so the answer is there when it finishes.
+dedicated master.  Every other rank keeps ``PREFETCH`` requests ahead of the
+realisation it computes, so the answers are there when it finishes; near the
+end rank 0 declines requests made ahead, so that no rank holds unstarted work
+while another runs out.
 
 Storage: ``storage.MpioFile`` (parallel h5py, every rank writes its own rows)
 or ``storage.GatherFile`` (rows shipped to rank 0 with the "done" message);
@@ -668,8 +670,9 @@ def main(argv: list[str] | None = None) -> int:
             comm.Abort(1)
         try:
             handler.close()
-        finally:
-            return 1
+        except Exception:  # noqa: BLE001 - already failing; the message above is the one
+            pass
+        return 1
 
     # 4. close (collective) and report
     try:
