@@ -72,16 +72,16 @@ def tilt(
     state = prepare(scene) if state is None else state.copy()
 
     relaxation = {"n_events": 0, "n_moved": 0, "slider_steps": 0}
-    if True:  # with xi > 0 the coupling may destabilise sliders at alpha = 0
-        relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
-        if relax.status != status.RELAXED:
-            return _finish(scene, backend, relax.status, relax.message, math.nan, [], state, state,
-                           relaxation, started)
-        relaxation = {
-            "n_events": relax.n_events,
-            "n_moved": int(np.count_nonzero(state.displacement)),
-            "slider_steps": int(relax.events["slider_steps"].sum()),
-        }
+    # Relax at alpha = 0 first: with xi > 0 the coupling may destabilise sliders.
+    relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
+    if relax.status != status.RELAXED:
+        return _finish(scene, backend, relax.status, relax.message, math.nan, [], state, state,
+                       relaxation, started)
+    relaxation = {
+        "n_events": relax.n_events,
+        "n_moved": int(np.count_nonzero(state.displacement)),
+        "slider_steps": int(relax.events["slider_steps"].sum()),
+    }
     initial = state.copy()
 
     chunks: list[Chunk] = []
