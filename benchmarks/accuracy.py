@@ -406,15 +406,27 @@ def verdict(bias, sem, noise) -> str:
     return "unresolved" if abs(bias) >= 2 * sem else "unresolved(no bias seen)"
 
 
-def std_comparison(values, ref_values) -> dict:
+def std_comparison(values, ref_values, n_boot: int = 2000) -> dict:
+    """Difference of the alpha_c spreads on the runs that avalanched at both settings.
+
+    The uncertainty is a paired bootstrap over the realisations (the alpha_c
+    distribution has a tail, so the Gaussian formula std/sqrt(2(R-1)) would
+    understate it).
+    """
     v, r = np.asarray(values, float), np.asarray(ref_values, float)
-    v, r = v[np.isfinite(v)], r[np.isfinite(r)]
+    ok = np.isfinite(v) & np.isfinite(r)
+    v, r = v[ok], r[ok]
     sv, sr = float(np.std(v, ddof=1)), float(np.std(r, ddof=1))
-    sem = math.sqrt(sv ** 2 / (2 * (v.size - 1)) + sr ** 2 / (2 * (r.size - 1)))
-    noise20 = sr / math.sqrt(2 * 19)
-    return {"std": sv, "std_ref": sr, "bias": sv - sr, "sem": sem, "noise20": noise20,
-            "noise1000": sr / math.sqrt(2 * 999), "verdict20": verdict(sv - sr, sem, noise20),
-            "verdict1000": verdict(sv - sr, sem, sr / math.sqrt(2 * 999))}
+    rng = np.random.default_rng(12345)
+    idx = rng.integers(0, v.size, size=(n_boot, v.size))
+    boot = np.std(v[idx], axis=1, ddof=1) - np.std(r[idx], axis=1, ddof=1)
+    sem = float(np.std(boot, ddof=1))
+    boot_ref = np.std(r[rng.integers(0, r.size, size=(n_boot, 20))], axis=1, ddof=1)  # a 20-run std
+    noise20 = float(np.std(boot_ref, ddof=1))
+    noise1000 = noise20 * math.sqrt(19 / 999)
+    return {"n": int(v.size), "std": sv, "std_ref": sr, "bias": sv - sr, "sem": sem, "noise20": noise20,
+            "noise1000": noise1000, "verdict20": verdict(sv - sr, sem, noise20),
+            "verdict1000": verdict(sv - sr, sem, noise1000)}
 
 
 def grid_comparison(rows, ref_rows) -> dict:
@@ -499,6 +511,7 @@ def statistics(args) -> dict:
                  "wall_s_per_run": info["wall_s_per_run"],
                  "slider_steps_per_run": info["slider_steps_per_run"], "statuses": info["statuses"],
                  "scalars": {k: paired([x[k] for x in rows], [x[k] for x in ref_rows]) for k in scalars}}
+        entry["per_run"] = {k: [x[k] for x in rows] for k in scalars} | {"status": [x["_status"] for x in rows]}
         entry["alpha_c_std"] = std_comparison([x["alpha_c"] for x in rows], [x["alpha_c"] for x in ref_rows])
         entry["P_grid"] = grid_comparison(rows, ref_rows)
         entry["event_sizes"] = ks_sizes([x["_sizes"] for x in rows], [x["_sizes"] for x in ref_rows])
@@ -515,6 +528,8 @@ def statistics(args) -> dict:
         say(f"{'':24s} {'':8s} {'event sizes':16s} KS {e['ks_distance']:.3f} (5% critical "
             f"{e['ks_critical_5pc']:.3f}; between two 20-run ensembles {e['ks_critical_20_vs_20']:.3f})")
         out["rows"].append(entry)
+    out["reference"]["per_run"] = ({k: [x[k] for x in ref_rows] for k in scalars}
+                                   | {"status": [x["_status"] for x in ref_rows]})
     out["reference"].update(cpu_s_per_run=per[STAT_REF]["cpu_s_per_run"],
                             slider_steps_per_run=per[STAT_REF]["slider_steps_per_run"],
                             statuses=per[STAT_REF]["statuses"], scalars=ref_info)
@@ -555,10 +570,22 @@ def pareto_figure(report, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(17, 5.6))
+    if "trajectories" not in report:  # statistics only (--parts C)
+        fig, ax = plt.subplots(1, 1, figsize=(7, 5.6))
+        axes = [None, None, ax]
+    else:
+        fig, axes = plt.subplots(1, 3, figsize=(17, 5.6))
     colours = {"single_walls": "tab:blue", "N10": "tab:orange", "N100_prefix": "tab:green"}
+    if "trajectories" in report:
+        _trajectory_panels(report, axes[0], axes[1], colours)
+    _statistics_panel(report, axes[2])
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def _trajectory_panels(report, ax, ax2, colours) -> None:
     tol_marker = {1e-6: "v", 1e-8: "s", 1e-10: "o", 1e-12: "D"}
-    ax = axes[0]
     for name, sc in report.get("trajectories", {}).items():
         c = colours[name]
         rows = [r for r in sc["rows"] if r["backend"] == "fortran" and r["identical_sequence"]
@@ -571,9 +598,13 @@ def pareto_figure(report, path: Path) -> None:
         front = [rows[i] for i in pareto_front(pts)]
         ax.plot([r["cpu_s"] for r in front], [r["err_x"] for r in front], "-", color=c, lw=1.5,
                 label=f"{name} (N={sc['scene']['n_sliders']}): Pareto front")
+        seen = set()
         for r in front:
-            ax.annotate(f"{r['dt']:g}/{r['refine_tol']:g}", (r["cpu_s"], r["err_x"]), fontsize=5.5,
-                        xytext=(3, 2), textcoords="offset points", color=c)
+            if r["dt"] in seen:
+                continue
+            seen.add(r["dt"])
+            ax.annotate(f"{r['dt']:g}", (r["cpu_s"], r["err_x"]), fontsize=6.5,
+                        xytext=(4, 3), textcoords="offset points", color=c)
         nps = [r for r in sc["rows"] if r["backend"] == "numpy"]
         if nps:
             ax.plot([r["cpu_s"] for r in nps], [max(r["err_x"], 1e-15) for r in nps], "*", color=c,
@@ -584,11 +615,11 @@ def pareto_figure(report, path: Path) -> None:
     ax.set_yscale("log")
     ax.set_xlabel("CPU time per run (s)")
     ax.set_ylabel("max position error (g tau^2)")
-    ax.set_title("A. trajectories: error against cost\n(labels on the front: dt/refine_tol)", fontsize=10)
-    ax.legend(fontsize=6, loc="lower left")
+    ax.set_title("A. trajectories: error against cost\n(front labelled with dt; marker: refine_tol)", fontsize=10)
+    ax.legend(fontsize=6, loc="center right")
     ax.grid(True, which="major", alpha=0.3)
 
-    ax = axes[1]
+    ax = ax2
     for name, sc in report.get("trajectories", {}).items():
         c = colours[name]
         for tol, ls in ((1e-12, "-"), (1e-6, ":")):
@@ -609,7 +640,9 @@ def pareto_figure(report, path: Path) -> None:
     ax.legend(fontsize=6)
     ax.grid(True, which="major", alpha=0.3)
 
-    ax = axes[2]
+
+
+def _statistics_panel(report, ax) -> None:
     st = report.get("statistics")
     if st:
         floor = 1e-3
@@ -626,26 +659,22 @@ def pareto_figure(report, path: Path) -> None:
                 up.append(max((abs(s["bias"]) + 2 * s["sem"]) / s["std_ref"] - max(y, floor), 0.0))
             ax.errorbar(xs, lo, yerr=[[0.0] * len(lo), up], fmt="o", color=c, capsize=2, ms=4,
                         label=f"{name}: |bias| / std, bar to +2 sem")
-        for e in st["rows"]:
-            s = e["scalars"]["alpha_c"]
-            ax.annotate(f"{e['dt']:g}/{e['refine_tol']:g}", (e["cpu_s_per_run"], 2.0), fontsize=5.5,
-                        rotation=90, ha="center", va="top")
+        for i, e in enumerate(sorted(st["rows"], key=lambda e: e["cpu_s_per_run"])):
+            ax.annotate(f"{e['dt']:g}/{e['refine_tol']:g}", (e["cpu_s_per_run"], (2.3, 1.65, 1.2)[i % 3]),
+                        fontsize=6, ha="center", va="top")
         ref_cpu = st["reference"]["cpu_s_per_run"]
         ax.axvline(ref_cpu, color="grey", ls=":", label="reference setting (cost)")
         ax.axhline(1 / math.sqrt(20), color="k", ls="--", label="noise of a 20-run ensemble")
         ax.axhline(1 / math.sqrt(1000), color="k", ls="-.", label="noise of a 1000-run ensemble")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_ylim(0.7 * floor, 2.2)
+        ax.set_ylim(0.7 * floor, 2.4)
         ax.set_xlabel("CPU time per run (s)")
         ax.set_ylabel("systematic error / ensemble std  (floor 1e-3)")
         ax.set_title(f"C. ensemble statistics, N={st['scene']['n_sliders']}, "
                      f"R={st['realisations']} paired runs", fontsize=10)
         ax.legend(fontsize=6, loc="lower right")
         ax.grid(True, which="major", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
 
 
 # ----------------------------------------------------------------------------- main
