@@ -27,6 +27,11 @@
 !>   recomputed, then one min scan (next_instability, O(N) comparisons).  With
 !>   xi > 0 every elastic force shifts in every event, so all angles are
 !>   recomputed: O(N) transcendentals per event (known cost).
+!> * A step that crosses is cut back by bisection, whose trials test only the
+!>   sliders that crossed in the full step (and their neighbours' positions;
+!>   the mean as well when xi > 0): a crossing costs two full trials plus
+!>   O(crossers) per bisection trial, not O(active) per trial, which was
+!>   quadratic in the number of moving sliders for the large late events.
 !> * The elastic energy change of an event is computed locally
 !>   (sliders_chain), exactly; the path length (dissipation) telescopes to
 !>   the sum over sliding phases of |du at stop - du at start|.
@@ -109,6 +114,7 @@ module sliders_events
     integer(ip), allocatable :: nmov(:)      !< moving sliders among i-1, i, i+1
     integer(ip), allocatable :: ilist(:)     !< involved sliders (unordered)
     integer(ip), allocatable :: slist(:)     !< triggers / starts of one step
+    integer(ip), allocatable :: cand(:)      !< sliders that crossed in a full step
     real(dp), allocatable :: sdir(:)         !< their directions
     integer(ip), allocatable :: stops(:)     !< stops of one step
     integer(ip), allocatable :: sorted(:)    !< moved sliders, increasing
@@ -338,7 +344,7 @@ contains
     allocate (ws%v(n), ws%acc(n), ws%dir(n), ws%v_t(n), ws%acc_t(n), ws%f_t(n))
     allocate (ws%thr(n), ws%gap_plus(n), ws%gap_minus(n), ws%mu_new(n))
     allocate (ws%active(n), ws%involved(n), ws%moved(n), ws%nmov(n), ws%ilist(n))
-    allocate (ws%slist(n), ws%sdir(n), ws%stops(n), ws%sorted(n), ws%run_lo(n), ws%run_hi(n))
+    allocate (ws%cand(n), ws%slist(n), ws%sdir(n), ws%stops(n), ws%sorted(n), ws%run_lo(n), ws%run_hi(n))
     ws%v = 0.0_dp
     ws%acc = 0.0_dp
     ws%dir = 0.0_dp
@@ -374,7 +380,8 @@ contains
     integer(ip) :: n, i, j, k, r, n_moved, n_start, n_stop, draw_status
     real(dp) :: sin_a, cos_a, friction, sum0, mean0, mean, t, h, lo, hi, mid
     real(dp) :: dsum_t, step, xi, shift, f
-    logical :: crossed, trial_is_hi, draws_ok, changed
+    integer(ip) :: n_cand
+    logical :: crossed, pool_crossed, draws_ok, changed
 
     n = p%chain%n
     xi = p%chain%xi
@@ -416,25 +423,26 @@ contains
     rec = event_record()
     do while (ws%m > 0)
       ! ---- one step, cut back to the first crossing by bisection
+      ! (the bisection tests only the sliders that crossed in the full step,
+      ! and the pool if it did: O(crossers) per trial, not O(active))
       h = p%dt
       call trial_step(p, ws, e0, du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
       if (crossed) then
+        call crossing_candidates(ws, sum0 + dsum_t, mean0, xi, n, n_cand, pool_crossed)
         lo = 0.0_dp
         hi = h
-        trial_is_hi = .true.
         do while (hi - lo > p%refine_tol)
           mid = 0.5_dp*(lo + hi)
-          call trial_step(p, ws, e0, du, mid, sum0, mean0, sin_a, friction, dsum_t, crossed)
+          call candidate_trial(p, ws, e0, du, mid, sum0, mean0, sin_a, friction, n_cand, &
+                               pool_crossed, crossed)
           if (crossed) then
             hi = mid
           else
             lo = mid
           end if
-          trial_is_hi = crossed
         end do
         h = hi
-        if (.not. trial_is_hi) &
-          call trial_step(p, ws, e0, du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
+        call trial_step(p, ws, e0, du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
       end if
 
       ! ---- accept the step (a resting active slider has du_t = du, v_t = 0)
@@ -613,6 +621,81 @@ contains
     end do
     crossed = excess > 0.0_dp .or. shift > ws%min_plus .or. -shift > ws%min_minus
   end subroutine trial_step
+
+  !> After a full trial step that crossed: the active sliders that crossed
+  !> (excess > 0, the test of correct_run) into ws%cand(1:n_cand), and
+  !> whether the pool crossed (its shift beyond a gap minimum) given the
+  !> trial's total displacement `sum_t`.
+  subroutine crossing_candidates(ws, sum_t, mean0, xi, n, n_cand, pool_crossed)
+    type(workspace), intent(inout) :: ws
+    real(dp), intent(in) :: sum_t, mean0, xi
+    integer(ip), intent(in) :: n
+    integer(ip), intent(out) :: n_cand
+    logical, intent(out) :: pool_crossed
+    integer(ip) :: r, i
+    real(dp) :: moving, shift
+
+    n_cand = 0
+    do r = 1, ws%n_runs
+      do i = ws%run_lo(r), ws%run_hi(r)
+        moving = ws%dir(i)*ws%dir(i)
+        if (max(-ws%dir(i)*ws%v_t(i), (1.0_dp - moving)*abs(ws%f_t(i)) - ws%thr(i)) > 0.0_dp) then
+          n_cand = n_cand + 1
+          ws%cand(n_cand) = i
+        end if
+      end do
+    end do
+    shift = 0.0_dp
+    if (xi /= 0.0_dp) shift = xi*(sum_t/real(n, dp) - mean0)
+    pool_crossed = shift > ws%min_plus .or. -shift > ws%min_minus
+  end subroutine crossing_candidates
+
+  !> The crossing test of trial_step restricted to the candidates (and the
+  !> pool if pool_crossed): the same operations on the same numbers, so each
+  !> candidate's excess is bit-identical to the full trial's.  With xi = 0
+  !> only the candidates and their neighbours are predicted; with xi > 0 the
+  !> mean needs every active slider's trial position.
+  subroutine candidate_trial(p, ws, e0, du, h, sum0, mean0, sin_a, friction, n_cand, &
+                             pool_crossed, crossed)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), contiguous, intent(in) :: du(:)
+    real(dp), intent(in) :: h, sum0, mean0, sin_a, friction
+    integer(ip), intent(in) :: n_cand
+    logical, intent(in) :: pool_crossed
+    logical, intent(out) :: crossed
+    integer(ip) :: r, k, i, lo, hi
+    real(dp) :: mean_t, shift, excess, dsum_t
+
+    mean_t = mean0
+    shift = 0.0_dp
+    if (p%chain%xi /= 0.0_dp) then
+      dsum_t = ws%dsum
+      do r = 1, ws%n_runs
+        call predict_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t)
+        call add_increments(ws%run_lo(r), ws%run_hi(r), du, ws%du_t, dsum_t)
+      end do
+      mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
+      shift = p%chain%xi*(mean_t - mean0)
+    else
+      do k = 1, n_cand
+        i = ws%cand(k)
+        lo = max(i - 1, 1_ip)
+        hi = min(i + 1, p%chain%n)
+        call predict_run(lo, hi, h, du, ws%v, ws%acc, ws%du_t)
+      end do
+    end if
+    excess = -huge(1.0_dp)
+    do k = 1, n_cand
+      i = ws%cand(k)
+      call elastic_forces(p%chain, e0, ws%du_t, i, i, mean_t, sin_a, ws%f_t)
+      call correct_run(i, i, h, friction, ws%f_t, ws%dir, ws%v, ws%acc, ws%thr, ws%acc_t, &
+                       ws%v_t, excess)
+    end do
+    crossed = excess > 0.0_dp
+    if (pool_crossed) crossed = crossed .or. shift > ws%min_plus .or. -shift > ws%min_minus
+  end subroutine candidate_trial
 
   !> Velocity-Verlet positions over one run: du_t = du + v h + acc h**2/2.
   pure subroutine predict_run(lo, hi, h, du, v, acc, du_t)

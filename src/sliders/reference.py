@@ -18,6 +18,9 @@ Algorithm (MODEL.md sections 3-5):
   crossing is bracketed in [0, h] and the bracket is closed by bisection on
   the step size (each trial restarts from the start of the step) until its
   width is below ``refine_tol``; the step taken is the bracket's upper end.
+  The bisection tests only the sliders that crossed in the full step (a
+  slider that crosses and uncrosses within one step is not a crossing), so
+  that the kernel's refinement costs O(crossers), not O(moving sliders).
 * A stopping slider comes to rest (v = 0), increments its stop count k and
   draws mu_s(seed, n, k); if |F| still exceeds the new threshold it restarts
   at once in the direction of F.
@@ -175,11 +178,12 @@ class NumpyEngine:
             v1 = np.where(moving, v + 0.5 * (acc + acc1) * h, 0.0)
             return du1, v1, force1
 
-        def crossed(trial):
+        def crossings(trial):
+            """Mask of the sliders that cross in this trial (stop or start)."""
             _, v1, force1 = trial
             stops = moving & (direction * v1 < 0.0)
             starts = ~moving & (np.abs(force1) > threshold)
-            return bool(stops.any() or starts.any())
+            return stops | starts
 
         t = 0.0
         n_steps = slider_steps = n_stops = 0
@@ -187,12 +191,13 @@ class NumpyEngine:
         while moving.any():
             h = sc.dt
             trial = substep(h)
-            if crossed(trial):
+            candidates = crossings(trial)
+            if candidates.any():
                 lo, hi = 0.0, h
                 while hi - lo > sc.refine_tol:
                     mid = 0.5 * (lo + hi)
                     trial_mid = substep(mid)
-                    if crossed(trial_mid):
+                    if crossings(trial_mid)[candidates].any():
                         hi, trial = mid, trial_mid
                     else:
                         lo = mid
