@@ -18,7 +18,11 @@ P.  Reported per run:
 * ``slowdown``: mean compute time of a realisation with P ranks / with 1 rank
   (the same realisations): the cost of P processes sharing the machine
   (caches, memory bandwidth, a VM's cores), which no scheduling removes.
-  efficiency = busy(P) / busy(1) / slowdown, up to rounding.
+  efficiency = busy(P) / busy(1) / slowdown, up to rounding;
+* ``machine``: the same slowdown measured without MPI, P independent plain
+  processes running the same K realisations at once against one alone, and
+  ``eff/machine`` = efficiency x machine: the efficiency of the ensemble
+  relative to what this machine allows P processes (1 = perfect scheduling).
 
 Writes the table to stdout and to ``benchmarks/results/ensemble_scaling.json``.
 """
@@ -76,6 +80,30 @@ def run_one(n_sliders: int, realisations: int, ranks: int, backend: str, seed: i
     }
 
 
+BASELINE = """
+import sys, time
+import sliders
+from sliders.ensemble import compute_row
+from sliders.observables import default_grids
+n, k, backend, seed = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], int(sys.argv[4])
+scene = sliders.Scene(n_sliders=n, seed=seed)
+grids = default_grids(scene)
+t = time.perf_counter()
+for r in range(k):
+    compute_row(scene, r, backend, grids)
+print(time.perf_counter() - t)
+"""
+
+
+def machine_baseline(n_sliders: int, k: int, ranks: int, backend: str, seed: int) -> float:
+    """Seconds for ``ranks`` independent plain processes (no MPI) to run the same k
+    realisations each, at the same time: the machine's own cost of running P at once."""
+    cmd = [sys.executable, "-c", BASELINE, str(n_sliders), str(k), backend, str(seed)]
+    procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True) for _ in range(ranks)]
+    times = [float(p.communicate(timeout=6 * 3600)[0]) for p in procs]
+    return sum(times) / len(times)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[100, 400])
@@ -85,6 +113,10 @@ def main(argv=None) -> int:
     p.add_argument("--backend", choices=("fortran", "numpy"), default="fortran")
     p.add_argument("--storage", choices=("auto", "mpio", "gather"), default="auto")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--baseline", type=int, default=None, metavar="K",
+                   help="also time K realisations in 1 and in P independent plain processes "
+                        "at once (no MPI): the machine's slowdown when P run together "
+                        "(default: R/4 per size; 0 to skip)")
     p.add_argument("--repeat", type=int, default=1,
                    help="run every configuration this many times and keep the fastest "
                         "(a shared machine: other load only ever slows a run down)")
@@ -106,6 +138,19 @@ def main(argv=None) -> int:
                 row = min(tries, key=lambda t: t["elapsed_s"])
                 row["repeats_elapsed_s"] = [t["elapsed_s"] for t in tries]
                 rows.append(row)
+            k = args.baseline if args.baseline is not None else max(1, r // 4)
+            if k > 0:
+                alone = machine_baseline(n, k, 1, args.backend, args.seed)
+                for ranks in args.ranks:
+                    together = alone if ranks == 1 else machine_baseline(n, k, ranks, args.backend,
+                                                                       args.seed)
+                    for row in rows:
+                        if row["n_sliders"] == n and row["ranks"] == ranks:
+                            row["machine_slowdown"] = together / alone
+                            row["machine_baseline_k"] = k
+                print(f"  N={n}: {k} realisations alone {alone:.1f} s; P at once: "
+                      + ", ".join(f"{row['ranks']}: x{row['machine_slowdown']:.2f}"
+                                  for row in rows if row["n_sliders"] == n), flush=True)
                 print(f"  N={n} ranks={ranks}: {row['elapsed_s']:.1f} s, "
                       f"{row['rate_per_s']:.3f} realisations/s", flush=True)
     base = {row["n_sliders"]: row for row in rows if row["ranks"] == 1}
@@ -114,16 +159,23 @@ def main(argv=None) -> int:
         row["efficiency"] = row["rate_per_s"] / (row["ranks"] * b["rate_per_s"]) if b else None
         row["slowdown"] = (row["realisation_s_min_mean_max"][1] / b["realisation_s_min_mean_max"][1]
                            if b else None)
+        hw = row.get("machine_slowdown")
+        row["efficiency_vs_machine"] = row["efficiency"] * hw if (hw and row["efficiency"]) else None
 
     lines = [f"{'N':>5} {'ranks':>5} {'R':>5} {'elapsed s':>10} {'real./s':>9} "
-             f"{'efficiency':>10} {'busy':>6} {'slowdown':>8} {'s/real. (min/mean/max)':>24}"]
+             f"{'efficiency':>10} {'busy':>6} {'slowdown':>8} {'machine':>8} {'eff/machine':>11} "
+             f"{'s/real. (min/mean/max)':>24}"]
     for row in rows:
         eff = f"{100 * row['efficiency']:.1f}%" if row["efficiency"] else "-"
         slow = f"{row['slowdown']:.3f}" if row["slowdown"] else "-"
+        hw = f"{row['machine_slowdown']:.3f}" if row.get("machine_slowdown") else "-"
+        effm = (f"{100 * row['efficiency_vs_machine']:.1f}%" if row.get("efficiency_vs_machine")
+                else "-")
         mn, me, mx = row["realisation_s_min_mean_max"]
         lines.append(f"{row['n_sliders']:>5} {row['ranks']:>5} {row['realisations']:>5} "
                      f"{row['elapsed_s']:>10.2f} {row['rate_per_s']:>9.3f} {eff:>10} "
-                     f"{100 * row['busy']:>5.1f}% {slow:>8} {mn:>7.2f}/{me:.2f}/{mx:.2f}")
+                     f"{100 * row['busy']:>5.1f}% {slow:>8} {hw:>8} {effm:>11} "
+                     f"{mn:>7.2f}/{me:.2f}/{mx:.2f}")
     table = "\n".join(lines)
     print(table)
 
