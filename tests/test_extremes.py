@@ -179,11 +179,12 @@ def test_slow_avalanche_hits_the_duration_cap_with_a_clear_status():
     """Found by benchmarks/accuracy.py: N = 100, seed 22, dt = 1e-2.
 
     The last event starts at tan(alpha) - mu_d = 1.7e-4: the centre of mass
-    accelerates at only ~1.5e-4, and 5000 tau (the default cap) pass before
-    every slider slides downwards at once.  The run must say so, not call it
-    an avalanche; with a larger cap the same event is the avalanche.
+    accelerates at only ~1.5e-4, and 5000 tau (the default cap before the
+    speed modes) pass before every slider slides downwards at once.  The run
+    must say so, not call it an avalanche; with a larger cap the same event is
+    the avalanche.
     """
-    scene = Scene(n_sliders=100, seed=22, dt=1e-2, record="summary")
+    scene = Scene(n_sliders=100, seed=22, dt=1e-2, record="summary", max_event_duration=5000.0)
     capped = isolated(tilt, scene)
     assert capped.status == "event_duration_cap" and math.isnan(capped.alpha_c)
     assert "still moving after 5000.0 tau" in capped.message

@@ -9,7 +9,7 @@ import sys
 import time
 import typing
 
-from .scene import Scene, SceneError, check_writable
+from .scene import DEFAULT_MODE, SPEED_MODES, Scene, SceneError, check_writable, toml_values
 
 _SKIP = {"output"}
 
@@ -23,10 +23,14 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     for f in dataclasses.fields(Scene):
         if f.name in _SKIP:
             continue
-        kind = hints[f.name]
-        conv = int if kind is int else float if kind is float else str
+        kinds = typing.get_args(hints[f.name]) or (hints[f.name],)
+        conv = int if int in kinds else float if float in kinds else str
+        default = (f"from --mode (default {DEFAULT_MODE!r}: {SPEED_MODES[DEFAULT_MODE][f.name]!r})"
+                   if f.default is None else f"default {f.default!r}")
+        choices = tuple(SPEED_MODES) if f.name == "mode" else None
         group.add_argument("--" + f.name.replace("_", "-"), dest=f.name, type=_typed(conv, f.name),
-                           default=None, metavar=f.name.upper(), help=f"default {f.default!r}")
+                           default=None, metavar=None if choices else f.name.upper(),
+                           choices=choices, help=default)
 
 
 def _typed(conv, name):
@@ -42,7 +46,8 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
     """The Scene given by ``--scene`` and the per-field options (validated)."""
     values: dict = {}
     if args.scene:
-        values.update(Scene.from_toml(args.scene).to_dict())
+        values.update(toml_values(args.scene))
+        Scene.from_dict(values)  # the file alone must be a valid scene
     for f in dataclasses.fields(Scene):
         given = getattr(args, f.name, None)
         if f.name not in _SKIP and given is not None:

@@ -27,6 +27,23 @@ DT_PERIOD_FRACTION = 1.0 / 30.0
 ALPHA_MAX_LIMIT = math.pi / 2 - 1e-6
 
 
+# Speed modes: named integrator settings (dt, refine_tol, max_event_duration)
+# with the accuracy measured by benchmarks/accuracy.py (docs/accuracy.md).
+# A field given explicitly overrides its mode's value.
+SPEED_MODES: dict[str, dict[str, float]] = {
+    # ensemble statistics at the 20-run noise level: no bias resolved by 200
+    # paired N = 100 runs (alpha_c +4e-4 +- 2e-4); 5x cheaper than trajectory
+    "explore": {"dt": 1e-2, "refine_tol": 1e-10, "max_event_duration": 1e5},
+    # statistics of large ensembles: no bias resolved on alpha_c, P_i, sizes
+    "statistics": {"dt": 3e-3, "refine_tol": 1e-10, "max_event_duration": 1e5},
+    # one trajectory: event angles to ~1e-6 for N = 10, same event sequence
+    "trajectory": {"dt": 1e-3, "refine_tol": 1e-10, "max_event_duration": 1e5},
+    # reference-quality trajectory: angles to ~1e-8
+    "reference": {"dt": 1e-4, "refine_tol": 1e-12, "max_event_duration": 1e5},
+}
+DEFAULT_MODE = "trajectory"
+
+
 class SceneError(ValueError):
     """An invalid scene parameter; the message names it and its allowed range."""
 
@@ -50,10 +67,13 @@ class Scene:
     ``ends`` ("free" chain or between two immobile "walls").
     ``initial_forces`` is the paper's "uniform" preparation or "zero" (every
     spring at rest: with sigma_mu = 0 a scene without any disorder).
-    Integrator: ``dt`` (velocity-Verlet step), ``refine_tol`` (width in tau
-    to which a crossing is bracketed), ``max_event_duration`` (cap on the
-    duration of one rearrangement, in tau; hitting it ends the run with status
-    ``"event_duration_cap"``, never taken for the avalanche), ``max_events``
+    Integrator: ``mode`` names a speed/accuracy setting (``SPEED_MODES``:
+    "explore", "statistics", "trajectory" (default), "reference") that gives
+    ``dt`` (velocity-Verlet step), ``refine_tol`` (width in tau to which a
+    crossing is bracketed) and ``max_event_duration`` (cap on the duration of
+    one rearrangement, in tau; hitting it ends the run with status
+    ``"event_duration_cap"``, never taken for the avalanche) unless they are
+    given explicitly.  ``max_events``
     and ``alpha_max`` (stop tilting there; needed for walls, which never
     avalanche).
     Recording: ``record`` is "summary" (per-event scalars only),
@@ -71,9 +91,10 @@ class Scene:
     seed: int = 0
     ends: str = "free"
     initial_forces: str = "uniform"
-    dt: float = 1e-3
-    refine_tol: float = 1e-10
-    max_event_duration: float = 5000.0
+    mode: str = DEFAULT_MODE
+    dt: float | None = None
+    refine_tol: float | None = None
+    max_event_duration: float | None = None
     max_events: int = 10_000_000
     alpha_max: float = ALPHA_MAX_LIMIT
     force_tol: float = 1e-12
@@ -82,6 +103,21 @@ class Scene:
     output: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
+        if self.mode not in SPEED_MODES:
+            raise SceneError(f"mode={self.mode!r} must be one of {tuple(SPEED_MODES)}")
+        from_mode = [name for name in SPEED_MODES[self.mode] if getattr(self, name) is None]
+        for name in from_mode:
+            object.__setattr__(self, name, SPEED_MODES[self.mode][name])
+        try:
+            self._check()
+        except SceneError as exc:
+            named = [name for name in from_mode if str(exc).startswith(name + "=")]
+            if not named:
+                raise
+            raise SceneError(f"{exc}; {named[0]} comes from mode={self.mode!r}: "
+                             f"give {named[0]} explicitly") from None
+
+    def _check(self) -> None:
         _check_int("n_sliders", self.n_sliders, 1, None)
         _check_real("xi", self.xi, 0.0, None)
         _check_real("spring_length", self.spring_length, 0.0, None)
@@ -139,6 +175,11 @@ class Scene:
         return math.atan(self.mu_d), math.atan(self.mu_s_mean)
 
     def replace(self, **changes: Any) -> "Scene":
+        """A copy with ``changes``; a new ``mode`` brings its own integrator
+        settings, except those given in the same call."""
+        if "mode" in changes:
+            for name in SPEED_MODES[DEFAULT_MODE]:
+                changes.setdefault(name, None)
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
@@ -158,17 +199,21 @@ class Scene:
 
     @classmethod
     def from_toml(cls, path: str | os.PathLike[str]) -> "Scene":
-        import tomllib
+        return cls.from_dict(toml_values(path))
 
-        try:
-            with open(path, "rb") as fh:
-                data = tomllib.load(fh)
-        except FileNotFoundError:
-            raise SceneError(f"scene file {str(path)!r} does not exist") from None
-        except tomllib.TOMLDecodeError as exc:
-            raise SceneError(f"scene file {str(path)!r} is not valid TOML: {exc}") from None
-        data = data.get("scene", data)
-        return cls.from_dict(data)
+
+def toml_values(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The scene keys of a TOML file (its [scene] table, or the top level), as written."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError:
+        raise SceneError(f"scene file {str(path)!r} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"scene file {str(path)!r} is not valid TOML: {exc}") from None
+    return dict(data.get("scene", data))
 
 
 def _check_real(name, value, low, high, *, open_low=False, why=None) -> None:
