@@ -209,11 +209,13 @@ contains
   !> sp_ptr stays 0.  Before starting an event the call returns
   !> status_sparse_full if the event buffer is full or, with record_sparse,
   !> fewer than n sparse entries are free.  `event_time` is the duration of
-  !> the event that hit the duration cap; `detail` says what a non-finite
-  !> status refers to.
+  !> the event that ended the run unfinished (the avalanche, the duration
+  !> cap, a non-finite state), `final_work` its integration steps and
+  !> slider-steps (zero otherwise); `detail` says what a non-finite status
+  !> refers to.
   subroutine tilt_run(p, e0, t0, w0, mu, n_stops, du, alpha, ev_real, ev_int, &
                       sp_ptr, sp_index, sp_value, n_events, n_sparse, status, &
-                      alpha_c, event_time, detail)
+                      alpha_c, event_time, final_work, detail)
     type(tilt_params), intent(in) :: p
     real(dp), contiguous, intent(in) :: e0(:)
     real(dp), intent(in) :: t0(0:)
@@ -229,6 +231,7 @@ contains
     real(dp), contiguous, intent(inout) :: sp_value(:)
     integer(ip), intent(out) :: n_events, n_sparse, status
     real(dp), intent(out) :: alpha_c, event_time
+    integer(i8), intent(out) :: final_work(2)
     integer(ip), intent(out) :: detail
     type(workspace) :: ws
     type(event_record) :: rec
@@ -250,6 +253,7 @@ contains
     sp_ptr(1) = 0
     alpha_c = ieee_value(alpha_c, ieee_quiet_nan)
     event_time = 0.0_dp
+    final_work = 0_i8
     detail = detail_none
     do
       ! A non-finite force stops the run; unstable sliders at the current
@@ -297,15 +301,12 @@ contains
       alpha = angle
 
       call run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, rec)
-      if (rec%status == status_avalanche) then
-        alpha_c = alpha
-        status = status_avalanche
-        exit
-      end if
       if (rec%status /= status_running) then
         status = rec%status
         detail = rec%detail
         event_time = rec%duration
+        final_work = [rec%n_steps, rec%slider_steps]
+        if (status == status_avalanche) alpha_c = alpha
         exit
       end if
 
@@ -463,6 +464,7 @@ contains
         if (.not. all_finite(ws, du)) then
           rec%status = status_non_finite
           rec%detail = detail_state
+          rec%duration = t
           call abort_event(ws, du)
           return
         end if
@@ -497,6 +499,7 @@ contains
           end do
           if (.not. draws_ok) then
             rec%status = status_random_failure
+            rec%duration = t
             call abort_event(ws, du)
             return
           end if
@@ -557,6 +560,7 @@ contains
       end if
       if (.not. p%chain%walls .and. ws%m == n .and. ws%n_down == n .and. sin_a > friction) then
         rec%status = status_avalanche
+        rec%duration = t
         return
       end if
     end do

@@ -13,8 +13,9 @@
 ! elastic_change, dissipation; event_int columns n_moved, n_stops, n_steps,
 ! slider_steps; CSR sparse_ptr(1:n_events+1) (0-based offsets) into
 ! sparse_index (0-based slider numbers, increasing) and sparse_value
-! (displacement of the event), all zero with record_sparse = 0.  event_time
-! is the duration of an event stopped by the cap; detail tells what a
+! (displacement of the event), all zero with record_sparse = 0.  event_time,
+! final_steps and final_slider_steps describe the event that ended the run
+! unfinished (avalanche, cap, error; zero otherwise); detail tells what a
 ! non-finite status refers to (1: the resting chain, 2: the moving state).
 
 subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigma_mu, &
@@ -23,7 +24,8 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigm
                         elastic_force0, spring_extension0, cantilever_stretch0, &
                         mu_s, n_stops, displacement, alpha, &
                         event_real, event_int, sparse_ptr, sparse_index, sparse_value, &
-                        alpha_out, n_events, n_sparse, status, alpha_c, event_time, detail)
+                        alpha_out, n_events, n_sparse, status, alpha_c, event_time, &
+                        final_steps, final_slider_steps, detail)
   use iso_c_binding, only: c_double, c_int, c_int64_t
   use sliders_events, only: tilt_params, tilt_run
   implicit none
@@ -49,8 +51,10 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigm
   integer(c_int64_t), intent(inout) :: sparse_index(n_sparse_cap)
   real(c_double), intent(inout) :: sparse_value(n_sparse_cap)
   real(c_double), intent(out) :: alpha_out, alpha_c, event_time
+  integer(c_int64_t), intent(out) :: final_steps, final_slider_steps
   integer(c_int), intent(out) :: n_events, n_sparse, status, detail
   type(tilt_params) :: p
+  integer(c_int64_t) :: final_work(2)
 
   p%chain%n = n
   p%chain%walls = walls /= 0
@@ -70,5 +74,8 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigm
   alpha_out = alpha
   call tilt_run(p, elastic_force0, spring_extension0, cantilever_stretch0, mu_s, n_stops, &
                 displacement, alpha_out, event_real, event_int, sparse_ptr, sparse_index, &
-                sparse_value, n_events, n_sparse, status, alpha_c, event_time, detail)
+                sparse_value, n_events, n_sparse, status, alpha_c, event_time, final_work, &
+                detail)
+  final_steps = final_work(1)
+  final_slider_steps = final_work(2)
 end subroutine tilt_advance

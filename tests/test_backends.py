@@ -68,6 +68,11 @@ def assert_same_run(f: sliders.TiltResult, n: sliders.TiltResult) -> None:
     # a crossing within rounding of a step boundary may add one (tiny) step
     np.testing.assert_allclose(f.n_steps, n.n_steps, rtol=0, atol=1)
     np.testing.assert_allclose(f.duration, n.duration, rtol=0, atol=f.scene.dt)
+    # the unfinished last event (avalanche, cap): reported by both; a long
+    # avalanche event amplifies last-bit differences, so only roughly equal
+    assert f.final_event.keys() == n.final_event.keys()
+    for key, value in f.final_event.items():
+        np.testing.assert_allclose(value, n.final_event[key], rtol=0.05, err_msg=key)
     drift = np.zeros(f.n_events)
     if f.scene.record != "summary":
         np.testing.assert_array_equal(np.diff(f.displacement.ptr), f.n_moved)
@@ -315,6 +320,24 @@ def test_event_duration_cap():
     assert f.status == "event_duration_cap"
     assert "max_event_duration=0.5 tau" in f.message
     assert_same_run(f, n)
+
+
+def test_final_event_work_is_reported():
+    """The work of the event that ends the run counts: the capped event's
+    steps are exact, the avalanche event ends on a step where all N move."""
+    capped = Scene(n_sliders=10, seed=2, dt=0.001, max_event_duration=0.5)
+    for backend in ("fortran", "numpy"):
+        run = tilt(capped, backend)
+        assert 500 <= run.final_event["n_steps"] <= 501
+        assert 0.5 < run.final_event["duration"] <= 0.5 + capped.dt
+        assert run.final_event["slider_steps"] >= run.final_event["n_steps"]
+        assert run.total_slider_steps == run.final_event["slider_steps"] + run.relaxation["slider_steps"]
+    avalanche = tilt(Scene(n_sliders=30, seed=3, dt=0.01))
+    work = avalanche.final_event
+    assert avalanche.status == "avalanche" and work["duration"] > 1.0
+    assert work["n_steps"] + 30 - 1 <= work["slider_steps"] <= 30 * work["n_steps"]
+    between = tilt(Scene(n_sliders=30, seed=3, dt=0.01, alpha_max=0.3))
+    assert between.status == "alpha_max" and between.final_event == {}
 
 
 def test_relaxation_with_strong_coupling():

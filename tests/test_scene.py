@@ -180,3 +180,4 @@ def test_command_line_runs_and_writes_a_loadable_file(tmp_path):
     direct = sliders.tilt(Scene(n_sliders=10, seed=4), backend="numpy")
     assert result.alpha_c == direct.alpha_c
     assert (result.alpha == direct.alpha).all()
+    assert result.final_event == direct.final_event and result.final_event["n_steps"] > 0

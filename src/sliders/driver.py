@@ -76,7 +76,7 @@ def tilt(
     relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
     if relax.status != status.RELAXED:
         return _finish(scene, backend, relax.status, relax.message, math.nan, [], state, state,
-                       relaxation, started)
+                       relaxation, started, relax.final_event)
     relaxation = {
         "n_events": relax.n_events,
         "n_moved": int(np.count_nonzero(state.displacement)),
@@ -85,6 +85,7 @@ def tilt(
     initial = state.copy()
 
     chunks: list[Chunk] = []
+    final_event: dict = {}
     n_events = 0
     slider_steps = 0
     budget = CHUNK_EVENTS[backend]
@@ -107,11 +108,14 @@ def tilt(
             progress(Progress(state.alpha, n_events, time.perf_counter() - started, slider_steps))
         if chunk.status not in (status.RUNNING, status.SPARSE_FULL):
             code, message, alpha_c = chunk.status, chunk.message, chunk.alpha_c
+            final_event = chunk.final_event
             break
-    return _finish(scene, backend, code, message, alpha_c, chunks, initial, state, relaxation, started)
+    return _finish(scene, backend, code, message, alpha_c, chunks, initial, state, relaxation,
+                   started, final_event)
 
 
-def _finish(scene, backend, code, message, alpha_c, chunks, initial, final, relaxation, started):
+def _finish(scene, backend, code, message, alpha_c, chunks, initial, final, relaxation, started,
+            final_event):
     events = {f: np.concatenate([c.events[f] for c in chunks]) if chunks else np.zeros(0)
               for f in status.EVENT_FIELDS}
     for f in ("n_moved", "n_stops", "n_steps", "slider_steps"):
@@ -135,5 +139,5 @@ def _finish(scene, backend, code, message, alpha_c, chunks, initial, final, rela
         scene=scene, backend=backend, status=status.NAMES[code], message=message,
         alpha_c=float(alpha_c), events=events, displacement=displacement,
         initial=initial, final=final, relaxation=relaxation,
-        wall_time=time.perf_counter() - started,
+        wall_time=time.perf_counter() - started, final_event=dict(final_event),
     )

@@ -89,7 +89,8 @@ class FortranEngine:
         if t0.size != n + 1 or e0.size != n or w0.size != n or stops.size != n or du.size != n:
             raise ValueError("inconsistent ChainState array sizes")
 
-        alpha, n_events, n_sparse, code, alpha_c, event_time, detail = self._tilt_advance(
+        (alpha, n_events, n_sparse, code, alpha_c, event_time, final_steps, final_slider_steps,
+         detail) = self._tilt_advance(
             int(sc.walls), float(sc.xi), float(sc.mu_d), float(sc.mu_s_mean), float(sc.sigma_mu),
             int(sc.seed), float(sc.dt), float(sc.refine_tol), float(sc.max_event_duration),
             float(sc.alpha_max), float(sc.force_tol), int(self._record_sparse), int(relax_only),
@@ -118,7 +119,16 @@ class FortranEngine:
             self._sparse_index[:m].copy(), self._sparse_value[:m].copy(),
             float(alpha_c) if code == status.AVALANCHE else math.nan,
             _message(sc, int(code), int(detail), state.alpha, float(event_time)),
+            _final_event(int(code), float(event_time), int(final_steps), int(final_slider_steps)),
         )
+
+
+def _final_event(code: int, duration: float, n_steps: int, slider_steps: int) -> dict:
+    """The work of the event that ended the run unfinished (empty between events)."""
+    if n_steps == 0 or code in (status.RUNNING, status.SPARSE_FULL, status.ALPHA_MAX,
+                                status.RELAXED):
+        return {}
+    return {"duration": duration, "n_steps": n_steps, "slider_steps": slider_steps}
 
 
 def _message(sc: Scene, code: int, detail: int, alpha: float, event_time: float) -> str:
@@ -152,5 +162,5 @@ def _join(pieces: list[Chunk]) -> Chunk:
         last.status, events, np.concatenate(ptr),
         np.concatenate([c.sparse_index for c in pieces]),
         np.concatenate([c.sparse_displacement for c in pieces]),
-        last.alpha_c, last.message,
+        last.alpha_c, last.message, last.final_event,
     )

@@ -55,6 +55,7 @@ class Chunk:
     sparse_displacement: np.ndarray
     alpha_c: float = math.nan
     message: str = ""
+    final_event: dict = field(default_factory=dict)  # work of an unfinished last event
 
     @property
     def n_events(self) -> int:
@@ -109,7 +110,7 @@ class NumpyEngine:
         records: list[dict] = []
         ptr, index, disp = [0], [], []
 
-        def chunk(code, alpha_c=math.nan, message=""):
+        def chunk(code, alpha_c=math.nan, message="", final_event=None):
             events = {f: np.array([r[f] for r in records], dtype=float) for f in status.EVENT_FIELDS}
             for f in ("n_moved", "n_stops", "n_steps", "slider_steps"):
                 events[f] = events[f].astype(np.int64)
@@ -117,7 +118,7 @@ class NumpyEngine:
                 code, events, np.array(ptr, dtype=np.int64),
                 np.array(np.concatenate(index) if index else [], dtype=np.int64),
                 np.array(np.concatenate(disp) if disp else [], dtype=float),
-                alpha_c, message,
+                alpha_c, message, dict(final_event or {}),
             )
 
         while True:
@@ -139,10 +140,12 @@ class NumpyEngine:
                     return chunk(status.ALPHA_MAX)
                 state.alpha = angle
             outcome = self._event(state, triggers, directions)
-            if outcome.status == status.AVALANCHE:
-                return chunk(status.AVALANCHE, alpha_c=state.alpha)
             if outcome.status != status.RUNNING:
-                return chunk(outcome.status, message=outcome.record.get("message", ""))
+                work = {k: outcome.record[k] for k in ("duration", "n_steps", "slider_steps")}
+                if outcome.status == status.AVALANCHE:
+                    return chunk(status.AVALANCHE, alpha_c=state.alpha, final_event=work)
+                return chunk(outcome.status, message=outcome.record.get("message", ""),
+                             final_event=work)
             records.append(outcome.record)
             if sc.record != "summary":
                 index.append(outcome.moved_index)
@@ -188,6 +191,14 @@ class NumpyEngine:
         t = 0.0
         n_steps = slider_steps = n_stops = 0
         path = 0.0
+
+        def unfinished(code, message=""):
+            """The event ends the run: its status and the work it did."""
+            record = {"duration": t, "n_steps": n_steps, "slider_steps": slider_steps}
+            if message:
+                record["message"] = message
+            return _EventOutcome(code, record)
+
         while moving.any():
             h = sc.dt
             trial = substep(h)
@@ -203,12 +214,12 @@ class NumpyEngine:
                         lo = mid
                 h = hi
             du1, v1, force1 = trial
-            if not (np.all(np.isfinite(du1)) and np.all(np.isfinite(v1))):
-                return _EventOutcome(status.NON_FINITE, {"message": f"non-finite state at alpha={state.alpha}"})
-            path += float(np.sum(np.where(moving, direction * (du1 - du), 0.0)))
             n_steps += 1
             slider_steps += int(moving.sum())
             t += h
+            if not (np.all(np.isfinite(du1)) and np.all(np.isfinite(v1))):
+                return unfinished(status.NON_FINITE, f"non-finite state at alpha={state.alpha}")
+            path += float(np.sum(np.where(moving, direction * (du1 - du), 0.0)))
             du, v, force = du1, v1, force1
 
             stops = np.flatnonzero(moving & (direction * v < 0.0))
@@ -223,7 +234,7 @@ class NumpyEngine:
                         sc.seed, stops, state.n_stops[stops], sc.mu_s_mean, sc.sigma_mu, sc.mu_d
                     )
                 except RuntimeError as exc:
-                    return _EventOutcome(status.RANDOM_FAILURE, {"message": str(exc)})
+                    return unfinished(status.RANDOM_FAILURE, str(exc))
                 threshold[stops] = state.mu_s[stops] * cos_a + sc.force_tol
             starts = np.flatnonzero(~moving & (np.abs(force) > threshold))
             moving[starts] = True
@@ -232,15 +243,15 @@ class NumpyEngine:
             acc = np.where(moving, force - friction * direction, 0.0)
 
             if t > sc.max_event_duration:
-                return _EventOutcome(
+                return unfinished(
                     status.EVENT_DURATION_CAP,
-                    {"message": f"rearrangement at alpha={state.alpha:.6f} still moving after "
-                                f"{t:.1f} tau (max_event_duration={sc.max_event_duration} tau)"},
+                    f"rearrangement at alpha={state.alpha:.6f} still moving after "
+                    f"{t:.1f} tau (max_event_duration={sc.max_event_duration} tau)",
                 )
             if (not sc.walls and moving.all() and np.all(direction > 0.0)
                     and sin_a > sc.mu_d * cos_a):
                 state.displacement[:] = du
-                return _EventOutcome(status.AVALANCHE)
+                return unfinished(status.AVALANCHE)
 
         step = du - du_start
         record = {

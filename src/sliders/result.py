@@ -58,7 +58,10 @@ class TiltResult:
     ``slider_steps``, ``duration`` (tau), ``work_gravity``, ``elastic_change``
     and ``dissipation``.  ``displacement`` holds the displacement of each
     slider that moved, per event (``.dense()`` for a (K, N) array); it is None
-    when the scene records only a summary.
+    when the scene records only a summary.  ``final_event`` is the work of the
+    event that ended the run unfinished (the avalanche, the duration cap, an
+    error): ``duration`` (tau), ``n_steps``, ``slider_steps``; empty if the
+    run ended between events.
     """
 
     scene: Scene
@@ -72,6 +75,7 @@ class TiltResult:
     final: ChainState
     relaxation: dict[str, float] = field(default_factory=dict)
     wall_time: float = math.nan
+    final_event: dict[str, float] = field(default_factory=dict)
 
     def __getattr__(self, name):
         events = self.__dict__.get("events", {})
@@ -82,6 +86,12 @@ class TiltResult:
     @property
     def n_events(self) -> int:
         return int(self.events["alpha"].size)
+
+    @property
+    def total_slider_steps(self) -> int:
+        """Integration work of the whole run: relaxation, events and the final event."""
+        return (int(self.events["slider_steps"].sum()) + int(self.relaxation.get("slider_steps", 0))
+                + int(self.final_event.get("slider_steps", 0)))
 
     @property
     def energy_residual(self) -> np.ndarray:
@@ -154,6 +164,7 @@ class TiltResult:
             f.attrs["alpha_c"] = self.alpha_c
             f.attrs["wall_time"] = self.wall_time
             f.attrs["relaxation"] = json.dumps(self.relaxation)
+            f.attrs["final_event"] = json.dumps(self.final_event)
             ev = f.create_group("events")
             for name, values in self.events.items():
                 ev.create_dataset(name, data=values)
@@ -192,6 +203,7 @@ class TiltResult:
                 message=str(f.attrs["message"]), alpha_c=float(f.attrs["alpha_c"]),
                 events=events, displacement=disp, initial=states["initial"], final=states["final"],
                 relaxation=json.loads(f.attrs["relaxation"]), wall_time=float(f.attrs["wall_time"]),
+                final_event=json.loads(f.attrs.get("final_event", "{}")),
             )
 
 
