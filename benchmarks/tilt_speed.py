@@ -54,8 +54,8 @@ def main(argv=None) -> dict:
                     and np.allclose(ref.alpha, fast.alpha, rtol=0, atol=1e-9)
                     and (ref.n_moved == fast.n_moved).all())
             full, t_full = timed(scene, "fortran")
-            steps = int(full.n_steps.sum())
-            work = int(full.slider_steps.sum()) + full.relaxation["slider_steps"]
+            steps = int(full.n_steps.sum()) + int(full.final_event.get("n_steps", 0))
+            work = full.total_slider_steps  # relaxation + events + the avalanche event
             rows.append({
                 "xi": xi, "seed": seed,
                 "prefix_events": prefix.max_events,
