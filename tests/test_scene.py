@@ -75,7 +75,7 @@ def test_speed_mode_gives_the_integrator_settings_unless_given():
 
 
 def test_speed_mode_errors_name_the_mode():
-    with pytest.raises(SceneError, match=r"mode='fast' must be one of \('explore'"):
+    with pytest.raises(SceneError, match=r"mode='fast' must be one of \('sketch'"):
         Scene(mode="fast")
     # explore's dt = 1e-2 is beyond a thirtieth of the fastest period for xi = 1e4
     with pytest.raises(SceneError, match=r"dt=0.01 is out of range.*comes from mode='explore': "

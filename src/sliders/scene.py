@@ -31,10 +31,14 @@ ALPHA_MAX_LIMIT = math.pi / 2 - 1e-6
 # with the accuracy measured by benchmarks/accuracy.py (docs/accuracy.md).
 # A field given explicitly overrides its mode's value.
 SPEED_MODES: dict[str, dict[str, float]] = {
-    # ensemble statistics at the 20-run noise level: no bias resolved by 200
-    # paired N = 100 runs (alpha_c +4e-4 +- 2e-4); 5x cheaper than trajectory
+    # quick looks: no bias detected by 200 paired N = 100 runs; N = 10 event
+    # angles to ~1e-3, same events; 7x cheaper than trajectory
+    "sketch": {"dt": 3e-2, "refine_tol": 1e-10, "max_event_duration": 1e5},
+    # ensembles of 20 to a few hundred runs: no bias resolved by 200 paired
+    # N = 100 runs (alpha_c +4e-4 +- 2e-4, below the 20-run noise); 5x cheaper
     "explore": {"dt": 1e-2, "refine_tol": 1e-10, "max_event_duration": 1e5},
-    # statistics of large ensembles: no bias resolved on alpha_c, P_i, sizes
+    # statistics of any ensemble (1000 runs and more): 11x smaller local
+    # error than explore, no bias resolved on alpha_c, P_i, event sizes
     "statistics": {"dt": 3e-3, "refine_tol": 1e-10, "max_event_duration": 1e5},
     # one trajectory: event angles to ~1e-6 for N = 10, same event sequence
     "trajectory": {"dt": 1e-3, "refine_tol": 1e-10, "max_event_duration": 1e5},
@@ -68,7 +72,8 @@ class Scene:
     ``initial_forces`` is the paper's "uniform" preparation or "zero" (every
     spring at rest: with sigma_mu = 0 a scene without any disorder).
     Integrator: ``mode`` names a speed/accuracy setting (``SPEED_MODES``:
-    "explore", "statistics", "trajectory" (default), "reference") that gives
+    "sketch", "explore", "statistics", "trajectory" (default), "reference";
+    README "Speed modes") that gives
     ``dt`` (velocity-Verlet step), ``refine_tol`` (width in tau to which a
     crossing is bracketed) and ``max_event_duration`` (cap on the duration of
     one rearrangement, in tau; hitting it ends the run with status
