@@ -282,7 +282,7 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None) -> dic
         "status": STATUS_CODES.get(result.status, UNKNOWN_STATUS),
         "alpha_c": float(result.alpha_c),
         "n_events": int(result.n_events),
-        "slider_steps": int(np.sum(result.events["slider_steps"])),
+        "slider_steps": int(result.total_slider_steps),  # the avalanche event included
     }
     row.update({STATISTICS + k: v for k, v in stats.items()})
     row["wall_time"] = time.perf_counter() - started
