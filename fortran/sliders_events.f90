@@ -26,7 +26,8 @@
 !>   involved sliders of the last event have their elastic force and angle
 !>   recomputed, then one min scan (next_instability, O(N) comparisons).  With
 !>   xi > 0 every elastic force shifts in every event, so all angles are
-!>   recomputed: O(N) transcendentals per event (known cost).
+!>   recomputed: one asin per slider per event (hypot(1, mu) and atan(mu)
+!>   are cached, renewed only for the involved sliders, whose mu may change).
 !> * A step that crosses is cut back by bisection, whose trials test only the
 !>   sliders that crossed in the full step (and their neighbours' positions;
 !>   the mean as well when xi > 0): a crossing costs two full trials plus
@@ -100,6 +101,8 @@ module sliders_events
     real(dp), allocatable :: elastic(:)      !< E_i at rest (cache)
     real(dp), allocatable :: root_down(:)    !< instability angle downwards
     real(dp), allocatable :: root_up(:)      !< instability angle upwards
+    real(dp), allocatable :: radius(:)       !< hypot(1, mu) (cache)
+    real(dp), allocatable :: phi(:)          !< atan(mu) (cache)
     real(dp), allocatable :: du_start(:)     !< du at the start of the event
     real(dp), allocatable :: du_t(:)         !< trial du (== du unless moving)
     real(dp), allocatable :: du_phase(:)     !< du when the slider last started
@@ -153,19 +156,26 @@ contains
   elemental subroutine instability_roots(elastic, mu, down, up)
     real(dp), intent(in) :: elastic, mu
     real(dp), intent(out) :: down, up
-    real(dp) :: radius, phi, ratio, s
+
+    call roots_from(elastic, hypot(1.0_dp, mu), atan(mu), down, up)
+  end subroutine instability_roots
+
+  !> instability_roots with R = hypot(1, mu) and phi = atan(mu) given (they
+  !> change only when mu does, so the kernel caches them per slider).
+  elemental subroutine roots_from(elastic, radius, phi, down, up)
+    real(dp), intent(in) :: elastic, radius, phi
+    real(dp), intent(out) :: down, up
+    real(dp) :: ratio, s
 
     down = ieee_value(down, ieee_positive_inf)
     up = down
-    radius = hypot(1.0_dp, mu)
-    phi = atan(mu)
     ratio = -elastic/radius
     if (abs(ratio) <= 1.0_dp) then
       s = asin(ratio)
       if (elastic >= -1.0_dp) down = phi + s
       if (elastic <= -1.0_dp) up = (pi - phi) - s
     end if
-  end subroutine instability_roots
+  end subroutine roots_from
 
   !> Smallest angle >= alpha at which a resting slider destabilises, from the
   !> cached roots; the sliders within tie_tol of it (increasing order) and
@@ -246,7 +256,11 @@ contains
     do i = 1, n
       ws%elastic(i) = elastic_force(p%chain, e0, du, i, ws%sum_du/real(n, dp))
     end do
-    call instability_roots(ws%elastic, mu, ws%root_down, ws%root_up)
+    !GCC$ novector
+    do i = 1, n
+      call cache_trig(ws, mu, i)
+    end do
+    call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
 
     n_events = 0
     n_sparse = 0
@@ -341,6 +355,7 @@ contains
     integer(ip), intent(in) :: n
 
     allocate (ws%elastic(n), ws%root_down(n), ws%root_up(n), ws%du_start(n), ws%du_t(n))
+    allocate (ws%radius(n), ws%phi(n))
     allocate (ws%du_phase(n))
     allocate (ws%v(n), ws%acc(n), ws%dir(n), ws%v_t(n), ws%acc_t(n), ws%f_t(n))
     allocate (ws%thr(n), ws%gap_plus(n), ws%gap_minus(n), ws%mu_new(n))
@@ -934,17 +949,22 @@ contains
     n = p%chain%n
     ws%sum_du = total_displacement(du)
     mean = ws%sum_du/real(n, dp)
+    !GCC$ novector
+    do k = 1, ws%ni             ! only the involved sliders can have a new mu
+      call cache_trig(ws, mu, ws%ilist(k))
+    end do
     if (p%chain%xi == 0.0_dp) then
       do k = 1, ws%ni
         i = ws%ilist(k)
         ws%elastic(i) = elastic_force(p%chain, e0, du, i, mean)
-        call instability_roots(ws%elastic(i), mu(i), ws%root_down(i), ws%root_up(i))
+        call roots_from(ws%elastic(i), ws%radius(i), ws%phi(i), ws%root_down(i), &
+                        ws%root_up(i))
       end do
     else
       do i = 1, n
         ws%elastic(i) = elastic_force(p%chain, e0, du, i, mean)
       end do
-      call instability_roots(ws%elastic, mu, ws%root_down, ws%root_up)
+      call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
     end if
     do k = 1, ws%ni
       i = ws%ilist(k)
@@ -956,6 +976,19 @@ contains
     ws%ni = 0
     ws%n_runs = 0
   end subroutine end_event
+
+  !> hypot(1, mu) and atan(mu) of slider i into the cache.  Its loops are
+  !> marked novector: a vectorised loop would call glibc's libmvec variants (_ZGV*_atan,
+  !> _ZGV*_hypot), which differ from the scalar functions in the last bit and
+  !> would break the bit-for-bit agreement with the reference.
+  subroutine cache_trig(ws, mu, i)
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: mu(:)
+    integer(ip), intent(in) :: i
+
+    ws%radius(i) = hypot(1.0_dp, mu(i))
+    ws%phi(i) = atan(mu(i))
+  end subroutine cache_trig
 
   !> An event that ends the run in error: du back to the event start.
   subroutine abort_event(ws, du)
