@@ -114,6 +114,9 @@ module sliders_events
     real(dp), allocatable :: gap_minus(:)    !< pool: thr + (F - s) on joining it
     real(dp), allocatable :: mu_new(:)
     logical, allocatable :: active(:), involved(:), moved(:)
+    logical, allocatable :: redrawn(:)       !< stopped (mu redrawn) in this event
+    real(dp), allocatable :: mu_start(:)     !< mu at the event start, if redrawn
+    integer(i8), allocatable :: stops_start(:)  !< stop count at the event start, if redrawn
     integer(ip), allocatable :: nmov(:)      !< moving sliders among i-1, i, i+1
     integer(ip), allocatable :: ilist(:)     !< involved sliders (unordered)
     integer(ip), allocatable :: slist(:)     !< triggers / starts of one step
@@ -360,6 +363,7 @@ contains
     allocate (ws%v(n), ws%acc(n), ws%dir(n), ws%v_t(n), ws%acc_t(n), ws%f_t(n))
     allocate (ws%thr(n), ws%gap_plus(n), ws%gap_minus(n), ws%mu_new(n))
     allocate (ws%active(n), ws%involved(n), ws%moved(n), ws%nmov(n), ws%ilist(n))
+    allocate (ws%redrawn(n), ws%mu_start(n), ws%stops_start(n))
     allocate (ws%cand(n), ws%slist(n), ws%sdir(n), ws%stops(n), ws%sorted(n), ws%run_lo(n), ws%run_hi(n))
     ws%v = 0.0_dp
     ws%acc = 0.0_dp
@@ -370,6 +374,7 @@ contains
     ws%active = .false.
     ws%involved = .false.
     ws%moved = .false.
+    ws%redrawn = .false.
     ws%nmov = 0
   end subroutine allocate_workspace
 
@@ -378,9 +383,8 @@ contains
   !> One rearrangement at fixed alpha, started by the n_trig sliders in
   !> ws%slist with directions ws%sdir (reference.NumpyEngine._event).
   !> On a normal end du holds the new displacements and ws%sorted the moved
-  !> sliders; on an error du is restored to the event start (mu and n_stops
-  !> keep the draws already made, as in the reference); on an avalanche du is
-  !> the state at detection.
+  !> sliders; on an error du, mu and n_stops are restored to the event start
+  !> (as in the reference); on an avalanche du is the state at detection.
   subroutine run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, rec)
     type(tilt_params), intent(in) :: p
     type(workspace), intent(inout) :: ws
@@ -480,7 +484,7 @@ contains
           rec%status = status_non_finite
           rec%detail = detail_state
           rec%duration = t
-          call abort_event(ws, du)
+          call abort_event(ws, du, mu, n_stops)
           return
         end if
       end if
@@ -507,6 +511,11 @@ contains
           do k = 1, n_stop
             i = ws%stops(k)
             call stop_slider(ws, i, n, du)
+            if (.not. ws%redrawn(i)) then    ! keep the event-start draw for an abort
+              ws%redrawn(i) = .true.
+              ws%mu_start(i) = mu(i)
+              ws%stops_start(i) = n_stops(i)
+            end if
             n_stops(i) = n_stops(i) + 1
             ws%mu_new(k) = static_coefficient(p%seed, int(i - 1, i8), n_stops(i), &
                                               p%mu_s_mean, p%sigma_mu, p%mu_d, draw_status)
@@ -515,7 +524,7 @@ contains
           if (.not. draws_ok) then
             rec%status = status_random_failure
             rec%duration = t
-            call abort_event(ws, du)
+            call abort_event(ws, du, mu, n_stops)
             return
           end if
           do k = 1, n_stop
@@ -570,7 +579,7 @@ contains
       if (t > p%max_event_duration) then
         rec%status = status_event_duration_cap
         rec%duration = t
-        call abort_event(ws, du)
+        call abort_event(ws, du, mu, n_stops)
         return
       end if
       if (.not. p%chain%walls .and. ws%m == n .and. ws%n_down == n .and. sin_a > friction) then
@@ -970,6 +979,7 @@ contains
       i = ws%ilist(k)
       ws%involved(i) = .false.
       ws%moved(i) = .false.
+      ws%redrawn(i) = .false.
       ws%du_start(i) = du(i)
       ws%du_t(i) = du(i)
     end do
@@ -990,15 +1000,24 @@ contains
     ws%phi(i) = atan(mu(i))
   end subroutine cache_trig
 
-  !> An event that ends the run in error: du back to the event start.
-  subroutine abort_event(ws, du)
+  !> An event that ends the run in error: du, mu and the stop counts back to
+  !> the event start, so that the state is the one before the event (a run
+  !> continued from it with a larger cap repeats the event exactly).
+  subroutine abort_event(ws, du, mu, n_stops)
     type(workspace), intent(inout) :: ws
     real(dp), contiguous, intent(inout) :: du(:)
+    real(dp), contiguous, intent(inout) :: mu(:)
+    integer(i8), contiguous, intent(inout) :: n_stops(:)
     integer(ip) :: k, i
 
     do k = 1, ws%ni
       i = ws%ilist(k)
       du(i) = ws%du_start(i)
+      if (ws%redrawn(i)) then
+        mu(i) = ws%mu_start(i)
+        n_stops(i) = ws%stops_start(i)
+        ws%redrawn(i) = .false.
+      end if
     end do
   end subroutine abort_event
 

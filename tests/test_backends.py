@@ -340,6 +340,25 @@ def test_final_event_work_is_reported():
     assert between.status == "alpha_max" and between.final_event == {}
 
 
+@pytest.mark.parametrize("backend", ["fortran", "numpy"])
+def test_a_capped_run_leaves_the_state_before_the_event(backend):
+    """The capped event is undone entirely (positions, draws, stop counts), so
+    a run continued from it with a larger cap is the uncapped run."""
+    # event 41 lasts 21.9 tau with 26 stops: the cap at 20 tau cuts it late
+    capped_scene = Scene(n_sliders=30, seed=3, dt=0.01, max_event_duration=20.0)
+    capped = tilt(capped_scene, backend)
+    assert capped.status == "event_duration_cap" and capped.n_events == 41
+    free = capped_scene.replace(max_event_duration=1e5)
+    before = tilt(free.replace(max_events=41), backend).final
+    for name in ("displacement", "mu_s", "n_stops"):
+        np.testing.assert_array_equal(getattr(capped.final, name), getattr(before, name))
+    direct = tilt(free, backend)
+    continued = tilt(free, backend, state=capped.final)
+    assert direct.status == continued.status == "avalanche" and direct.n_events > 60
+    np.testing.assert_array_equal(continued.alpha, direct.alpha[41:])
+    assert continued.alpha_c == direct.alpha_c
+
+
 def test_relaxation_with_strong_coupling():
     """xi > 0 destabilises sliders at alpha = 0: the relax-only call works."""
     scene = Scene(n_sliders=10, xi=0.5, seed=0, dt=0.01, max_events=5)

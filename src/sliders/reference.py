@@ -192,8 +192,13 @@ class NumpyEngine:
         n_steps = slider_steps = n_stops = 0
         path = 0.0
 
+        mu_start, stops_start = state.mu_s.copy(), state.n_stops.copy()
+
         def unfinished(code, message=""):
-            """The event ends the run: its status and the work it did."""
+            """The event ends the run: its status and the work it did.  On an
+            error the state is the one before the event (draws undone too)."""
+            if code != status.AVALANCHE:
+                state.mu_s[:], state.n_stops[:] = mu_start, stops_start
             record = {"duration": t, "n_steps": n_steps, "slider_steps": slider_steps}
             if message:
                 record["message"] = message
