@@ -7,7 +7,9 @@ For each scene (N = 400, xi = 0 and 0.001, dt = 1e-3):
   speed-up as a ratio measured in one run on identical work (the events are
   checked to be the same);
 * the Fortran kernel then runs the whole scene to the avalanche: wall time,
-  events, integration steps, slider-steps and slider-steps per second.
+  events, integration steps, slider-steps and slider-steps per second;
+* then each scene runs to the avalanche in the coarser speed modes
+  (``--modes``, default sketch, explore, statistics): wall time and alpha_c.
 
 Prints a table and writes ``benchmarks/results/tilt_speed.json``.
 Usage: python benchmarks/tilt_speed.py [--prefix-events 40] [--seeds 0 1 2]
@@ -40,6 +42,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--n-sliders", type=int, default=400)
     parser.add_argument("--prefix-events", type=int, default=40)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--modes", nargs="*", default=["sketch", "explore", "statistics"],
+                        help="also run every scene to the avalanche in these speed modes")
     parser.add_argument("--out", default=str(RESULTS / "tilt_speed.json"))
     args = parser.parse_args(argv)
 
@@ -74,12 +78,30 @@ def main(argv=None) -> dict:
                   f"{r['slider_steps_per_s']:.3g} slider-steps/s, alpha_c={full.alpha_c:.4f}",
                   flush=True)
 
+    mode_rows = []
+    if args.modes:
+        print(f"\nto the avalanche by speed mode (N={args.n_sliders}; wall s, alpha_c):")
+    for mode in args.modes:
+        line = []
+        for xi in (0.0, 0.001):
+            for seed in args.seeds:
+                scene = Scene(n_sliders=args.n_sliders, xi=xi, seed=seed, mode=mode)
+                run, t = timed(scene, "fortran")
+                mode_rows.append({"mode": mode, "dt": scene.dt, "xi": xi, "seed": seed, "wall_s": t,
+                                  "status": run.status, "alpha_c": run.alpha_c,
+                                  "events": run.n_events, "slider_steps": run.total_slider_steps})
+                line.append(f"xi={xi:g}/{seed}: {t:.2f} s ({run.alpha_c:.4f})")
+        walls = [r["wall_s"] for r in mode_rows if r["mode"] == mode]
+        print(f"  {mode:<10s} dt={Scene(mode=mode).dt:<6g} max {max(walls):.2f} s | " + ", ".join(line),
+              flush=True)
+
     summary = {
         "machine": platform.processor() or platform.machine(),
         "python": platform.python_version(),
         "n_sliders": args.n_sliders,
         "dt": 1e-3,
         "rows": rows,
+        "modes": mode_rows,
         "median_speedup": float(np.median([r["speedup"] for r in rows])),
         "max_full_s": float(max(r["fortran_full_s"] for r in rows)),
         "median_slider_steps_per_s": float(np.median([r["slider_steps_per_s"] for r in rows])),
