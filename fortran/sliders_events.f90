@@ -24,7 +24,10 @@
 !>   beyond its threshold at the start of an event is caught the same way.
 !> * The instability angle of every slider is cached.  With xi = 0 only the
 !>   involved sliders of the last event have their elastic force and angle
-!>   recomputed, then one min scan (next_instability, O(N) comparisons).  With
+!>   recomputed, and the next angle comes from a min-tree (tree_next,
+!>   O(log N) per changed slider); the stability check after an event covers
+!>   the involved sliders only, and the pool needs no thresholds (its forces
+!>   never change), so an event costs O(involved log N), not O(N).  With
 !>   xi > 0 every elastic force shifts in every event, so all angles are
 !>   recomputed: one asin per slider per event (hypot(1, mu) and atan(mu)
 !>   are cached, renewed only for the involved sliders, whose mu may change).
@@ -37,8 +40,8 @@
 !>   (sliders_chain), exactly; the path length (dissipation) telescopes to
 !>   the sum over sliding phases of |du at stop - du at start|.
 !>
-!> Between events O(N) work (threshold scan, min scan, exact sum) is
-!> accepted; per integration step no O(N) work is done.  Same operations in
+!> With xi > 0 the O(N) work between events (threshold scan, min scan,
+!> exact sum) stays; per integration step no O(N) work is done.  Same operations in
 !> the same order as the reference wherever it matters for rounding (forces,
 !> Verlet update, crossing tests); the remaining differences (libm, order of
 !> sums) are at the last-bit level.
@@ -125,6 +128,12 @@ module sliders_events
     integer(ip), allocatable :: stops(:)     !< stops of one step
     integer(ip), allocatable :: sorted(:)    !< moved sliders, increasing
     integer(ip), allocatable :: run_lo(:), run_hi(:)  !< runs of active sliders
+    integer(ip), allocatable :: changed(:)   !< involved sliders of the last event, increasing
+    real(dp), allocatable :: tree(:)         !< min-tree of min(root_down, root_up) (xi = 0)
+    integer(ip) :: leaves = 0                !< its number of leaves (a power of 2 >= n)
+    integer(ip) :: n_changed = 0
+    real(dp) :: cos_a = 1.0_dp               !< cos(alpha) of the current event
+    real(dp) :: force_tol = 0.0_dp
     integer(ip) :: n_runs = 0
     integer(ip) :: m = 0                     !< number of moving sliders
     integer(ip) :: ni = 0                    !< number of involved sliders
@@ -248,10 +257,12 @@ contains
     integer(ip), intent(out) :: detail
     type(workspace) :: ws
     type(event_record) :: rec
-    integer(ip) :: n, i, n_trig, j, n_bad
+    integer(ip) :: n, i, n_trig, j, n_bad, k, n_check
     real(dp) :: sin_a, cos_a, f, angle
+    logical :: coupled
 
     n = p%chain%n
+    coupled = p%chain%xi /= 0.0_dp
     call allocate_workspace(ws, n)
     ws%du_start = du
     ws%du_t = du
@@ -264,6 +275,13 @@ contains
       call cache_trig(ws, mu, i)
     end do
     call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
+    if (.not. coupled) call tree_build(ws, n)
+    ! the first check covers every slider; with xi = 0 the later ones only
+    ! the sliders of the last event (no other force changed)
+    n_check = n
+    do i = 1, n
+      ws%changed(i) = i
+    end do
 
     n_events = 0
     n_sparse = 0
@@ -279,7 +297,10 @@ contains
       cos_a = cos(alpha)
       n_trig = 0
       n_bad = 0
-      do i = 1, n
+      if (coupled) n_check = n
+      do k = 1, n_check
+        i = k
+        if (n_check < n) i = ws%changed(k)
         f = ws%elastic(i) + sin_a
         n_bad = n_bad + merge(0_ip, 1_ip, abs(ws%elastic(i)) <= huge(1.0_dp))
         if (abs(f) > mu(i)*cos_a + p%force_tol) then
@@ -303,8 +324,12 @@ contains
           status = status_running
           exit
         end if
-        call next_instability(ws%root_down, ws%root_up, alpha, angle, n_trig, &
-                              ws%slist, ws%sdir)
+        if (coupled) then
+          call next_instability(ws%root_down, ws%root_up, alpha, angle, n_trig, &
+                                ws%slist, ws%sdir)
+        else
+          call tree_next(ws, alpha, angle, n_trig)
+        end if
         if (angle > p%alpha_max) then
           status = status_alpha_max
           exit
@@ -349,6 +374,7 @@ contains
         sp_ptr(n_events + 1) = 0
       end if
       call end_event(p, ws, e0, mu, du)
+      n_check = ws%n_changed
     end do
   end subroutine tilt_run
 
@@ -363,7 +389,12 @@ contains
     allocate (ws%v(n), ws%acc(n), ws%dir(n), ws%v_t(n), ws%acc_t(n), ws%f_t(n))
     allocate (ws%thr(n), ws%gap_plus(n), ws%gap_minus(n), ws%mu_new(n))
     allocate (ws%active(n), ws%involved(n), ws%moved(n), ws%nmov(n), ws%ilist(n))
-    allocate (ws%redrawn(n), ws%mu_start(n), ws%stops_start(n))
+    allocate (ws%redrawn(n), ws%mu_start(n), ws%stops_start(n), ws%changed(n))
+    ws%leaves = 1
+    do while (ws%leaves < n)
+      ws%leaves = 2*ws%leaves
+    end do
+    allocate (ws%tree(2*ws%leaves - 1))
     allocate (ws%cand(n), ws%slist(n), ws%sdir(n), ws%stops(n), ws%sorted(n), ws%run_lo(n), ws%run_hi(n))
     ws%v = 0.0_dp
     ws%acc = 0.0_dp
@@ -411,22 +442,29 @@ contains
     sum0 = ws%sum_du
     mean0 = sum0/real(n, dp)
 
-    ! Thresholds and every slider's gaps to them at event start (O(n)): all
-    ! resting sliders start in the pool, so one already beyond its threshold
-    ! is found by the first step's check, as in the reference.
-    do i = 1, n
-      ws%thr(i) = mu(i)*cos_a + p%force_tol
-      f = ws%elastic(i) + sin_a
-      ws%gap_plus(i) = ws%thr(i) - f
-      ws%gap_minus(i) = ws%thr(i) + f
-    end do
+    ! With xi > 0, thresholds and every slider's gaps to them at event start
+    ! (O(n)): all resting sliders start in the pool, so one already beyond
+    ! its threshold is found by the first step's check, as in the reference.
+    ! With xi = 0 no pool force ever changes and none is beyond its threshold
+    ! (the tilt loop started every such slider), so only the active sliders
+    ! need a threshold, set when they become active.
+    ws%cos_a = cos_a
+    ws%force_tol = p%force_tol
+    if (xi /= 0.0_dp) then
+      do i = 1, n
+        ws%thr(i) = mu(i)*cos_a + p%force_tol
+        f = ws%elastic(i) + sin_a
+        ws%gap_plus(i) = ws%thr(i) - f
+        ws%gap_minus(i) = ws%thr(i) + f
+      end do
+    end if
     ws%m = 0
     ws%ni = 0
     ws%n_down = 0
     ws%i_lo = n + 1
     ws%i_hi = 0
     do k = 1, n_trig
-      call start_slider(ws, ws%slist(k), ws%sdir(k), n, du)
+      call start_slider(ws, ws%slist(k), ws%sdir(k), n, du, mu)
     end do
     call find_runs(ws)
     do r = 1, ws%n_runs
@@ -435,7 +473,7 @@ contains
         if (ws%dir(i) /= 0.0_dp) ws%acc(i) = ws%f_t(i) - friction*ws%dir(i)
       end do
     end do
-    call far_minima(ws, n)
+    call far_minima(ws, n, xi /= 0.0_dp)
 
     t = 0.0_dp
     ws%path = 0.0_dp
@@ -558,7 +596,7 @@ contains
         end if
         do k = 1, n_start
           i = ws%slist(k)
-          call start_slider(ws, i, ws%sdir(k), n, du)
+          call start_slider(ws, i, ws%sdir(k), n, du, mu)
           ws%acc(i) = ws%f_t(i) - friction*ws%dir(i)
         end do
         ! sliders left with no moving neighbour go back to the pool
@@ -573,7 +611,7 @@ contains
           end do
         end do
         if (changed) call find_runs(ws)
-        if (ws%stale) call far_minima(ws, n)
+        if (ws%stale) call far_minima(ws, n, xi /= 0.0_dp)
       end if
 
       if (t > p%max_event_duration) then
@@ -820,12 +858,12 @@ contains
 
   !> Sets resting slider i moving in direction d; it and its neighbours
   !> become active.  The runs are then out of date (find_runs).
-  subroutine start_slider(ws, i, d, n, du)
+  subroutine start_slider(ws, i, d, n, du, mu)
     type(workspace), intent(inout) :: ws
     integer(ip), intent(in) :: i
     real(dp), intent(in) :: d
     integer(ip), intent(in) :: n
-    real(dp), contiguous, intent(in) :: du(:)
+    real(dp), contiguous, intent(in) :: du(:), mu(:)
     integer(ip) :: j
 
     ws%du_phase(i) = du(i)
@@ -835,7 +873,7 @@ contains
     if (d > 0.0_dp) ws%n_down = ws%n_down + 1
     do j = max(i - 1, 1), min(i + 1, n)
       ws%nmov(j) = ws%nmov(j) + 1
-      if (.not. ws%active(j)) call activate(ws, j)
+      if (.not. ws%active(j)) call activate(ws, j, mu)
     end do
   end subroutine start_slider
 
@@ -860,12 +898,15 @@ contains
     end do
   end subroutine stop_slider
 
-  !> Slider i leaves the pool: active (and involved for the rest of the event).
-  subroutine activate(ws, i)
+  !> Slider i leaves the pool: active (and involved for the rest of the
+  !> event), with its threshold mu cos(a) + force_tol.
+  subroutine activate(ws, i, mu)
     type(workspace), intent(inout) :: ws
     integer(ip), intent(in) :: i
+    real(dp), contiguous, intent(in) :: mu(:)
 
     ws%active(i) = .true.
+    ws%thr(i) = mu(i)*ws%cos_a + ws%force_tol
     if (i == ws%arg_plus .or. i == ws%arg_minus) ws%stale = .true.
     if (.not. ws%involved(i)) then
       ws%involved(i) = .true.
@@ -919,16 +960,20 @@ contains
   end subroutine find_runs
 
   !> Minima of gap_plus and gap_minus over the pool (+inf if it is empty),
-  !> and where they are (0 if empty).
-  subroutine far_minima(ws, n)
+  !> and where they are (0 if empty).  Without coupling (`pool` false) the
+  !> pool's forces never change and it is left out: +inf, no O(n) scan.
+  subroutine far_minima(ws, n, pool)
     type(workspace), intent(inout) :: ws
     integer(ip), intent(in) :: n
+    logical, intent(in) :: pool
     integer(ip) :: i
 
     ws%min_plus = ieee_value(ws%min_plus, ieee_positive_inf)
     ws%min_minus = ws%min_plus
     ws%arg_plus = 0
     ws%arg_minus = 0
+    ws%stale = .false.
+    if (.not. pool) return
     do i = 1, n
       if (ws%active(i)) cycle
       if (ws%arg_plus == 0 .or. ws%gap_plus(i) < ws%min_plus) then
@@ -956,8 +1001,16 @@ contains
     real(dp) :: mean
 
     n = p%chain%n
-    ws%sum_du = total_displacement(du)
+    if (p%chain%xi /= 0.0_dp) ws%sum_du = total_displacement(du)   ! the mean matters
     mean = ws%sum_du/real(n, dp)
+    ! the involved sliders in increasing order (the tilt loop checks them)
+    ws%n_changed = 0
+    do i = ws%i_lo, ws%i_hi
+      if (ws%involved(i)) then
+        ws%n_changed = ws%n_changed + 1
+        ws%changed(ws%n_changed) = i
+      end if
+    end do
     !GCC$ novector
     do k = 1, ws%ni             ! only the involved sliders can have a new mu
       call cache_trig(ws, mu, ws%ilist(k))
@@ -968,6 +1021,7 @@ contains
         ws%elastic(i) = elastic_force(p%chain, e0, du, i, mean)
         call roots_from(ws%elastic(i), ws%radius(i), ws%phi(i), ws%root_down(i), &
                         ws%root_up(i))
+        call tree_update(ws, i)
       end do
     else
       do i = 1, n
@@ -986,6 +1040,77 @@ contains
     ws%ni = 0
     ws%n_runs = 0
   end subroutine end_event
+
+  ! ------------------------------------------------ next-instability tree
+
+  !> The min-tree over min(root_down, root_up) (xi = 0: between events only
+  !> the involved sliders' angles change).  Node k has children 2k and
+  !> 2k + 1; slider i is leaf leaves + i - 1; padding leaves are +inf.
+  subroutine tree_build(ws, n)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: n
+    integer(ip) :: k
+
+    ws%tree = ieee_value(1.0_dp, ieee_positive_inf)
+    do k = 1, n
+      ws%tree(ws%leaves + k - 1) = min(ws%root_down(k), ws%root_up(k))
+    end do
+    do k = ws%leaves - 1, 1, -1
+      ws%tree(k) = min(ws%tree(2*k), ws%tree(2*k + 1))
+    end do
+  end subroutine tree_build
+
+  !> Slider i's angle changed: its leaf and the path to the root, O(log n).
+  subroutine tree_update(ws, i)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: i
+    integer(ip) :: k
+
+    k = ws%leaves + i - 1
+    ws%tree(k) = min(ws%root_down(i), ws%root_up(i))
+    do while (k > 1)
+      k = k/2
+      ws%tree(k) = min(ws%tree(2*k), ws%tree(2*k + 1))
+    end do
+  end subroutine tree_update
+
+  !> next_instability from the tree: the same angle, max(min root, alpha),
+  !> and the same triggers in increasing order (a left-to-right descent into
+  !> the subtrees whose minimum is within tie_tol), O((1 + ties) log n).
+  subroutine tree_next(ws, alpha, angle, n_trig)
+    type(workspace), intent(inout) :: ws
+    real(dp), intent(in) :: alpha
+    real(dp), intent(out) :: angle
+    integer(ip), intent(out) :: n_trig
+    integer(ip) :: stack(64), top, k, i
+    real(dp) :: limit
+
+    angle = max(ws%tree(1), alpha)
+    n_trig = 0
+    if (.not. angle <= huge(1.0_dp)) return     ! no root in [0, pi/2]
+    limit = angle + tie_tol
+    top = 1
+    stack(1) = 1
+    do while (top > 0)
+      k = stack(top)
+      top = top - 1
+      if (.not. ws%tree(k) <= limit) cycle
+      if (k >= ws%leaves) then
+        i = k - ws%leaves + 1
+        n_trig = n_trig + 1
+        ws%slist(n_trig) = i
+        if (ws%root_down(i) <= ws%root_up(i)) then
+          ws%sdir(n_trig) = 1.0_dp
+        else
+          ws%sdir(n_trig) = -1.0_dp
+        end if
+      else
+        stack(top + 1) = 2*k + 1      ! right below left: left is visited first
+        stack(top + 2) = 2*k
+        top = top + 2
+      end if
+    end do
+  end subroutine tree_next
 
   !> hypot(1, mu) and atan(mu) of slider i into the cache.  Its loops are
   !> marked novector: a vectorised loop would call glibc's libmvec variants (_ZGV*_atan,
