@@ -402,6 +402,7 @@ def test_full_buffers_resume_exactly(monkeypatch):
 
     monkeypatch.setattr(FortranEngine, "_call", spy)
     monkeypatch.setattr(fortran_engine, "EVENT_CAPACITY", 2)
+    monkeypatch.setattr(fortran_engine, "MAX_EVENT_CAPACITY", 2)
     monkeypatch.setattr(fortran_engine, "sparse_capacity", lambda n: n + 5)
     cramped = tilt(scene, "fortran")
     assert status.SPARSE_FULL in seen

@@ -22,6 +22,14 @@ from .result import EventSparse, TiltResult
 from .scene import BACKENDS, Scene, SceneError
 
 CHUNK_EVENTS = {"numpy": 16, "fortran": 512}
+# A kernel call starts with O(N) set-up (forces, angles, min-tree): for long
+# chains the chunks grow with N so that it stays a few per cent of the run.
+CHUNK_EVENTS_PER_SLIDER = {"numpy": 0.0, "fortran": 0.02}
+
+
+def chunk_events(scene: Scene, backend: str) -> int:
+    """Events per engine call (one progress report each)."""
+    return max(CHUNK_EVENTS[backend], int(CHUNK_EVENTS_PER_SLIDER[backend] * scene.n_sliders))
 
 
 @dataclass
@@ -88,7 +96,7 @@ def tilt(
     final_event: dict = {}
     n_events = 0
     slider_steps = 0
-    budget = CHUNK_EVENTS[backend]
+    budget = chunk_events(scene, backend)
     while True:
         remaining = scene.max_events - n_events
         if remaining <= 0:

@@ -24,7 +24,8 @@ from .chain import ChainState
 from .reference import Chunk
 from .scene import Scene
 
-EVENT_CAPACITY = 4096  # events per kernel call, at most
+EVENT_CAPACITY = 4096  # event buffer of a relax-only call
+MAX_EVENT_CAPACITY = 1 << 16  # events per kernel call, at most (4.7 MB of buffers)
 _REAL_FIELDS = ("alpha", "duration", "work_gravity", "elastic_change", "dissipation")
 _INT_FIELDS = ("n_moved", "n_stops", "n_steps", "slider_steps")
 _DETAIL_RESTING, _DETAIL_STATE = 1, 2  # sliders_events: detail_resting, detail_state
@@ -78,7 +79,7 @@ class FortranEngine:
         if n != sc.n_sliders:
             raise ValueError(f"state has {n} sliders, scene.n_sliders={sc.n_sliders}")
         max_events = int(max(0, min(max_events, np.iinfo(np.int32).max)))
-        self._buffers(EVENT_CAPACITY if relax_only else max(1, min(max_events, EVENT_CAPACITY)))
+        self._buffers(EVENT_CAPACITY if relax_only else max(1, min(max_events, MAX_EVENT_CAPACITY)))
 
         e0 = np.ascontiguousarray(state.elastic_force0, dtype=np.float64)
         t0 = np.ascontiguousarray(state.spring_extension0, dtype=np.float64)
