@@ -128,7 +128,7 @@ module sliders_events
     integer(ip), allocatable :: stops(:)     !< stops of one step
     integer(ip), allocatable :: sorted(:)    !< moved sliders, increasing
     integer(ip), allocatable :: run_lo(:), run_hi(:)  !< runs of active sliders
-    integer(ip), allocatable :: changed(:)   !< involved sliders of the last event, increasing
+    integer(ip), allocatable :: changed(:)   !< sliders the tilt loop checks (increasing): all, or the last event's (xi = 0)
     real(dp), allocatable :: tree(:)         !< min-tree of min(root_down, root_up) (xi = 0)
     integer(ip) :: leaves = 0                !< its number of leaves (a power of 2 >= n)
     integer(ip) :: n_changed = 0
@@ -257,7 +257,7 @@ contains
     integer(ip), intent(out) :: detail
     type(workspace) :: ws
     type(event_record) :: rec
-    integer(ip) :: n, i, n_trig, j, n_bad, k, n_check
+    integer(ip) :: n, i, n_trig, j, n_bad, k
     real(dp) :: sin_a, cos_a, f, angle
     logical :: coupled
 
@@ -277,8 +277,8 @@ contains
     call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
     if (.not. coupled) call tree_build(ws, n)
     ! the first check covers every slider; with xi = 0 the later ones only
-    ! the sliders of the last event (no other force changed)
-    n_check = n
+    ! the sliders of the last event (end_event: no other force changed)
+    ws%n_changed = n
     do i = 1, n
       ws%changed(i) = i
     end do
@@ -297,10 +297,8 @@ contains
       cos_a = cos(alpha)
       n_trig = 0
       n_bad = 0
-      if (coupled) n_check = n
-      do k = 1, n_check
-        i = k
-        if (n_check < n) i = ws%changed(k)
+      do k = 1, ws%n_changed
+        i = ws%changed(k)
         f = ws%elastic(i) + sin_a
         n_bad = n_bad + merge(0_ip, 1_ip, abs(ws%elastic(i)) <= huge(1.0_dp))
         if (abs(f) > mu(i)*cos_a + p%force_tol) then
@@ -374,7 +372,6 @@ contains
         sp_ptr(n_events + 1) = 0
       end if
       call end_event(p, ws, e0, mu, du)
-      n_check = ws%n_changed
     end do
   end subroutine tilt_run
 
@@ -583,7 +580,7 @@ contains
             end if
           end do
         end do
-        if (shift > ws%min_plus .or. -shift > ws%min_minus) then
+        if (pool_crosses(ws, shift)) then
           do i = 1, n        ! rare: a pool slider crossed, find it (O(n))
             if (ws%active(i)) cycle
             if (shift > ws%gap_plus(i) .or. -shift > ws%gap_minus(i)) then
@@ -685,7 +682,7 @@ contains
       call correct_run(ws%run_lo(r), ws%run_hi(r), h, friction, ws%f_t, ws%dir, ws%v, &
                        ws%acc, ws%thr, ws%acc_t, ws%v_t, excess)
     end do
-    crossed = excess > 0.0_dp .or. shift > ws%min_plus .or. -shift > ws%min_minus
+    crossed = excess > 0.0_dp .or. pool_crosses(ws, shift)
   end subroutine trial_step
 
   !> After a full trial step that crossed: the active sliders that crossed
@@ -699,13 +696,12 @@ contains
     integer(ip), intent(out) :: n_cand
     logical, intent(out) :: pool_crossed
     integer(ip) :: r, i
-    real(dp) :: moving, shift
+    real(dp) :: shift
 
     n_cand = 0
     do r = 1, ws%n_runs
       do i = ws%run_lo(r), ws%run_hi(r)
-        moving = ws%dir(i)*ws%dir(i)
-        if (max(-ws%dir(i)*ws%v_t(i), (1.0_dp - moving)*abs(ws%f_t(i)) - ws%thr(i)) > 0.0_dp) then
+        if (crossing_excess(ws%dir(i), ws%v_t(i), ws%f_t(i), ws%thr(i)) > 0.0_dp) then
           n_cand = n_cand + 1
           ws%cand(n_cand) = i
         end if
@@ -713,7 +709,7 @@ contains
     end do
     shift = 0.0_dp
     if (xi /= 0.0_dp) shift = xi*(sum_t/real(n, dp) - mean0)
-    pool_crossed = shift > ws%min_plus .or. -shift > ws%min_minus
+    pool_crossed = pool_crosses(ws, shift)
   end subroutine crossing_candidates
 
   !> The crossing test of trial_step restricted to the candidates (and the
@@ -760,7 +756,7 @@ contains
                        ws%v_t, excess)
     end do
     crossed = excess > 0.0_dp
-    if (pool_crossed) crossed = crossed .or. shift > ws%min_plus .or. -shift > ws%min_minus
+    if (pool_crossed) crossed = crossed .or. pool_crosses(ws, shift)
   end subroutine candidate_trial
 
   !> Velocity-Verlet positions over one run: du_t = du + v h + acc h**2/2.
@@ -822,9 +818,28 @@ contains
       moving = dir(i)*dir(i)
       acc_t(i) = (f(i) - friction*dir(i))*moving
       v_t(i) = v(i) + 0.5_dp*(acc(i) + acc_t(i))*h
-      excess = max(excess, -dir(i)*v_t(i), (1.0_dp - moving)*abs(f(i)) - thr(i))
+      excess = max(excess, crossing_excess(dir(i), v_t(i), f(i), thr(i)))
     end do
   end subroutine correct_run
+
+  !> How far a slider is beyond a crossing (a crossing if > 0): -dir v_t for
+  !> a mover (its velocity turned against its direction), |f| - thr for a
+  !> resting slider (beyond its threshold).  Branch-free (dir = 0 or +-1).
+  elemental function crossing_excess(dir, v_t, f, thr) result(excess)
+    real(dp), intent(in) :: dir, v_t, f, thr
+    real(dp) :: excess
+
+    excess = max(-dir*v_t, (1.0_dp - dir*dir)*abs(f) - thr)
+  end function crossing_excess
+
+  !> Whether a pool slider crossed: the pool's shift beyond a gap minimum.
+  pure function pool_crosses(ws, shift) result(crossed)
+    type(workspace), intent(in) :: ws
+    real(dp), intent(in) :: shift
+    logical :: crossed
+
+    crossed = shift > ws%min_plus .or. -shift > ws%min_minus
+  end function pool_crosses
 
   !> Takes the trial over one run.
   pure subroutine accept_run(lo, hi, du_t, v_t, acc_t, du, v, acc)
@@ -1003,14 +1018,17 @@ contains
     n = p%chain%n
     if (p%chain%xi /= 0.0_dp) ws%sum_du = total_displacement(du)   ! the mean matters
     mean = ws%sum_du/real(n, dp)
-    ! the involved sliders in increasing order (the tilt loop checks them)
-    ws%n_changed = 0
-    do i = ws%i_lo, ws%i_hi
-      if (ws%involved(i)) then
-        ws%n_changed = ws%n_changed + 1
-        ws%changed(ws%n_changed) = i
-      end if
-    end do
+    ! with xi = 0 only the involved sliders' forces changed: the tilt loop
+    ! checks them, in increasing order (with xi > 0 it checks every slider)
+    if (p%chain%xi == 0.0_dp) then
+      ws%n_changed = 0
+      do i = ws%i_lo, ws%i_hi
+        if (ws%involved(i)) then
+          ws%n_changed = ws%n_changed + 1
+          ws%changed(ws%n_changed) = i
+        end if
+      end do
+    end if
     !GCC$ novector
     do k = 1, ws%ni             ! only the involved sliders can have a new mu
       call cache_trig(ws, mu, ws%ilist(k))
