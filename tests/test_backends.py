@@ -146,40 +146,10 @@ def libm_reference(monkeypatch):
         ufunc = np.frompyfunc(f, nargs, 1)
         funcs[name] = lambda *a, u=ufunc: np.asarray(u(*a), dtype=np.float64)
 
-    def next_instability(elastic, mu, alpha):  # reference.next_instability, glibc
-        radius = funcs["hypot"](1.0, mu)
-        phi = funcs["atan"](mu)
-        ratio = -elastic / radius
-        inside = np.abs(ratio) <= 1.0
-        s = funcs["asin"](np.where(inside, ratio, 0.0))
-        down = np.where(inside & (elastic >= -1.0), phi + s, np.inf)
-        up = np.where(inside & (elastic <= -1.0), np.pi - phi - s, np.inf)
-        root = np.maximum(np.minimum(down, up), alpha)
-        angle = float(root.min())
-        triggers = np.flatnonzero(root <= angle + reference.TIE_TOL)
-        return angle, triggers, np.where(down[triggers] <= up[triggers], 1.0, -1.0)
-
-    def static_coefficient(seed, slider, count, mu_s_mean, sigma_mu, mu_d):
-        slider = np.asarray(slider, dtype=np.uint32)
-        count = np.broadcast_to(np.asarray(count, dtype=np.uint32), slider.shape)
-        out = np.full(slider.shape, np.nan)
-        pending = np.ones(slider.shape, dtype=bool)
-        for attempt in range(keyed_random.MAX_ATTEMPTS):
-            s, c = slider[pending], count[pending]
-            u1 = keyed_random.uniform(seed, s, c, 2 * attempt)
-            u2 = keyed_random.uniform(seed, s, c, 2 * attempt + 1)
-            z = np.sqrt(-2.0 * funcs["log"](u1)) * funcs["cos"](2.0 * np.pi * u2)
-            mu = mu_s_mean + sigma_mu * z
-            ok = mu > mu_d
-            idx = np.flatnonzero(pending)
-            out[idx[ok]] = mu[ok]
-            pending[idx[ok]] = False
-            if not pending.any():
-                return out
-        raise RuntimeError("static coefficient: attempts exhausted")
-
-    monkeypatch.setattr(reference, "next_instability", next_instability)
-    monkeypatch.setattr(keyed_random, "static_coefficient", static_coefficient)
+    for name in ("asin", "atan", "hypot"):
+        monkeypatch.setitem(reference.TRANSCENDENTALS, name, funcs[name])
+    for name in ("log", "cos"):
+        monkeypatch.setitem(keyed_random.TRANSCENDENTALS, name, funcs[name])
 
 
 # ------------------------------------------------------------ the kernel API

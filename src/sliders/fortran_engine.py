@@ -120,14 +120,14 @@ class FortranEngine:
             self._sparse_index[:m].copy(), self._sparse_value[:m].copy(),
             float(alpha_c) if code == status.AVALANCHE else math.nan,
             _message(sc, int(code), int(detail), state.alpha, float(event_time)),
-            _final_event(int(code), float(event_time), int(final_steps), int(final_slider_steps)),
+            _final_event(float(event_time), int(final_steps), int(final_slider_steps)),
         )
 
 
-def _final_event(code: int, duration: float, n_steps: int, slider_steps: int) -> dict:
-    """The work of the event that ended the run unfinished (empty between events)."""
-    if n_steps == 0 or code in (status.RUNNING, status.SPARSE_FULL, status.ALPHA_MAX,
-                                status.RELAXED):
+def _final_event(duration: float, n_steps: int, slider_steps: int) -> dict:
+    """The work of the event that ended the run unfinished (empty between
+    events: the kernel reports zero steps then)."""
+    if n_steps == 0:
         return {}
     return {"duration": duration, "n_steps": n_steps, "slider_steps": slider_steps}
 

@@ -24,6 +24,10 @@ import numpy as np
 MASK32 = 0xFFFFFFFF
 PREPARATION_STREAM = 0xFFFFFFFF
 MAX_ATTEMPTS = 1000  # rejection attempts for mu_s > mu_d before giving up
+# The transcendentals of the Box-Muller draw.  NumPy's own; a caller may put
+# the C library's here (tests/test_backends.py does, for bit-for-bit checks
+# against the Fortran kernel, which calls glibc).
+TRANSCENDENTALS = {"log": np.log, "cos": np.cos}
 
 _TWO_POW_26 = 67108864.0
 _TWO_POW_53 = 9007199254740992.0
@@ -72,7 +76,8 @@ def static_coefficient(seed, slider, count, mu_s_mean, sigma_mu, mu_d):
         s, c = slider[pending], count[pending]
         u1 = uniform(seed, s, c, 2 * attempt)
         u2 = uniform(seed, s, c, 2 * attempt + 1)
-        z = np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)
+        z = (np.sqrt(-2.0 * TRANSCENDENTALS["log"](u1))
+             * TRANSCENDENTALS["cos"](2.0 * np.pi * u2))
         mu = mu_s_mean + sigma_mu * z
         ok = mu > mu_d
         idx = np.flatnonzero(pending)

@@ -42,6 +42,9 @@ from .chain import ChainState, elastic_energy, elastic_force
 from .scene import Scene
 
 TIE_TOL = 1e-12  # sliders whose instability angles tie within this start together
+# The transcendentals of next_instability: NumPy's; a caller may put the C
+# library's here (as keyed_random.TRANSCENDENTALS).
+TRANSCENDENTALS = {"asin": np.arcsin, "atan": np.arctan, "hypot": np.hypot}
 
 
 @dataclass
@@ -81,13 +84,14 @@ def next_instability(elastic: np.ndarray, mu: np.ndarray, alpha: float):
     lies in [0, pi/2] only if E <= -1.
     Returns (angle, trigger indices, directions +1 down / -1 up).
     """
-    radius = np.hypot(1.0, mu)
-    phi = np.arctan(mu)
+    math_fn = TRANSCENDENTALS
+    radius = math_fn["hypot"](1.0, mu)
+    phi = math_fn["atan"](mu)
     ratio = -elastic / radius
     inside = np.abs(ratio) <= 1.0
-    safe = np.where(inside, ratio, 0.0)
-    down = np.where(inside & (elastic >= -1.0), phi + np.arcsin(safe), np.inf)
-    up = np.where(inside & (elastic <= -1.0), np.pi - phi - np.arcsin(safe), np.inf)
+    s = math_fn["asin"](np.where(inside, ratio, 0.0))
+    down = np.where(inside & (elastic >= -1.0), phi + s, np.inf)
+    up = np.where(inside & (elastic <= -1.0), np.pi - phi - s, np.inf)
     root = np.maximum(np.minimum(down, up), alpha)
     angle = float(root.min())
     triggers = np.flatnonzero(root <= angle + TIE_TOL)
