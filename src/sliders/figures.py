@@ -519,6 +519,17 @@ def fig_bin_heights(summary, out_dir="figures", name: str = "bin_heights",
 CUMUL_FIT = (0.1, 0.45)
 
 
+def _exponential_fit_line(ax, x, y, fit_range):
+    """Fit y = prefactor exp(rate x) on fit_range and draw it dashed (if the
+    fit succeeded); returns the fit (observables.exponential_fit)."""
+    fit = ob.exponential_fit(x, y, *fit_range)
+    if math.isfinite(fit["rate"]):
+        xx = np.linspace(*fit_range, 50)
+        ax.plot(xx, fit["prefactor"] * np.exp(fit["rate"] * xx), "k--", lw=1.0,
+                label=f"$\\propto e^{{k\\alpha}}$, $k={fit['rate']:.1f}\\pm{fit['rate_err']:.1f}$")
+    return fit
+
+
 def fig_cumulated_displacement(data, out_dir="figures", name: str = "cumulated",
                                fit_range=CUMUL_FIT, title_extra: str = ""):
     """(a) A(alpha) on a log scale, (b) <dx> per rearrangement vs alpha (paper Fig. cumul).
@@ -542,11 +553,7 @@ def fig_cumulated_displacement(data, out_dir="figures", name: str = "cumulated",
         sel = ok & (A > 0)
         ax0.errorbar(a[sel], A[sel], yerr=summary.cumulated_sem[sel], fmt="o", ms=3, capsize=1.5,
                      lw=0.8, color="tab:blue", label=r"$\langle A\rangle$ (mean $\pm$ s.e.)")
-        fa = ob.exponential_fit(a[sel], A[sel], *fit_range)
-        if math.isfinite(fa["rate"]):
-            xx = np.linspace(*fit_range, 50)
-            ax0.plot(xx, fa["prefactor"] * np.exp(fa["rate"] * xx), "k--", lw=1.0,
-                     label=f"$\\propto e^{{k\\alpha}}$, $k={fa['rate']:.1f}\\pm{fa['rate_err']:.1f}$")
+        fa = _exponential_fit_line(ax0, a[sel], A[sel], fit_range)
         ax0.set_yscale("log")
         ax0.set_ylabel(r"$A$")
         ax0.legend(loc="lower right")
@@ -565,11 +572,7 @@ def fig_cumulated_displacement(data, out_dir="figures", name: str = "cumulated",
             okm = np.isfinite(mdx) & (mdx > 0)
             ax1.plot(mid[okm], mdx[okm], "o", ms=3, color="tab:red",
                      label=r"$\langle\Delta\tilde x\rangle$ (mean per $\alpha$ bin)")
-            fb = ob.exponential_fit(mid[okm], mdx[okm], *fit_range)
-            if math.isfinite(fb["rate"]):
-                xx = np.linspace(*fit_range, 50)
-                ax1.plot(xx, fb["prefactor"] * np.exp(fb["rate"] * xx), "k--", lw=1.0,
-                         label=f"$\\propto e^{{k\\alpha}}$, $k={fb['rate']:.1f}\\pm{fb['rate_err']:.1f}$")
+            fb = _exponential_fit_line(ax1, mid[okm], mdx[okm], fit_range)
         ax1.set_yscale("log")
         ax1.set_xlabel(r"$\alpha$")
         ax1.set_ylabel(r"$\langle\Delta\tilde x\rangle$")
