@@ -431,8 +431,6 @@ BAD_CASES = {
     "unwritable_dir": (lambda d: SCENE_OPTS + ["-R", 2, "--out", d / "no" / "such" / "o.h5"],
                        "does not exist"),
     "out_is_dir": (lambda d: SCENE_OPTS + ["-R", 2, "--out", d], "directory"),
-    "summary_record": (lambda d: SCENE_OPTS + ["--record", "summary", "-R", 2, "--out", d / "o.h5"],
-                       "record='summary'"),
     "bad_option_value": (lambda d: SCENE_OPTS + ["-R", "many", "--out", d / "o.h5"], "invalid int"),
     "existing_output": (lambda d: SCENE_OPTS + ["-R", 2, "--out", _write(d / "o.h5", "x")],
                         "--overwrite"),

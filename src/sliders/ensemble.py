@@ -148,9 +148,6 @@ def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
     from .storage import StorageError, choose_storage
 
     scene = scene_from_args(args)
-    if scene.record == "summary":
-        raise SceneError("record='summary' keeps no displacements, which the ensemble statistics "
-                         "need; use record='displacements' (or 'forces')")
     if args.realisations is not None and args.realisations < 1:
         raise UsageError(f"--realisations={args.realisations} must be at least 1")
     if args.realisations is None and not args.resume:
@@ -231,8 +228,10 @@ def _plan_root(args, plan) -> dict[str, Any]:
         file_attrs = file_attributes(scene.to_dict(), scene.seed, R, args.backend)
         file_attrs["first_realisation"] = first
     seeds = np.array([realisation_seed(scene.seed, first + r) for r in range(R)], dtype=np.uint32)
-    layout = make_layout(R, seeds, grids, statistics_layout(default_grids(scene), scene.n_sliders),
-                         file_attrs)
+    # record = "summary": the per-realisation summary only (no displacements, no statistics)
+    stats = {} if scene.record == "summary" else statistics_layout(default_grids(scene),
+                                                                   scene.n_sliders)
+    layout = make_layout(R, seeds, grids, stats, file_attrs)
     if resume:
         cols = read_header(out)["columns"]
         for c in layout.columns:
@@ -268,7 +267,7 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
         raise RuntimeError(f"test hook SLIDERS_ENSEMBLE_TEST_FAIL: realisation {r} fails")
     result = tilt(scene.replace(seed=realisation_seed(scene.seed, first + r)), backend=backend,
                   progress=progress)
-    stats = realisation_statistics(result, grids)
+    stats = {} if scene.record == "summary" else realisation_statistics(result, grids)
     row: dict[str, Any] = {
         "status": STATUS_CODES.get(result.status, UNKNOWN_STATUS),
         "alpha_c": float(result.alpha_c),
@@ -754,6 +753,10 @@ def load_summary(path):
 
     head = read_header(path)
     rows = read_realisations(path)
+    if not rows["statistics"]:
+        raise ValueError(f"{os.fspath(path)!r} holds only the per-realisation summary (scene "
+                         "record='summary'): no statistics; read_realisations gives alpha_c, "
+                         "n_events and status per realisation")
     grids = StatisticsGrids.from_arrays(head["grids"])
     scene = Scene.from_dict(json.loads(head["attrs"]["scene"]))
     done = rows["done"]
