@@ -23,7 +23,9 @@ die() { echo "slurm_local.sh: $*" >&2; exit 1; }
 need_root() { [ "$(id -u)" -eq 0 ] || die "must run as root (slurmd runs as root)"; }
 
 pid_of() { cat "$DIR/$1.pid" 2>/dev/null || true; }
-alive() { local p; p=$(pid_of "$1"); [ -n "$p" ] && kill -0 "$p" 2>/dev/null; }
+# a zombie (state Z) has stopped: it only waits for a parent that may never reap it
+running() { [ -n "$1" ] && kill -0 "$1" 2>/dev/null && [ "$(awk '{print $3}' "/proc/$1/stat" 2>/dev/null)" != Z ]; }
+alive() { running "$(pid_of "$1")"; }
 
 free_port_pair() {  # two consecutive free TCP ports on localhost
   python3 - <<'EOF'
@@ -137,15 +139,10 @@ case "$cmd" in
     # by their pids, slurmd first (it reports to slurmctld), munged last
     for d in slurmd slurmctld munged; do
       p=$(pid_of "$d")
-      if [ -n "$p" ] && kill -0 "$p" 2>/dev/null; then
-        kill -TERM "$p"
-        for _ in $(seq 100); do kill -0 "$p" 2>/dev/null || break; sleep 0.1; done
-        if kill -0 "$p" 2>/dev/null; then
-          # a zombie (state Z) has stopped and only waits for its parent
-          [ "$(awk '{print $3}' "/proc/$p/stat" 2>/dev/null)" = Z ] \
-            || echo "slurm_local.sh: $d (pid $p) did not stop within 10 s" >&2
-        fi
-      fi
+      running "$p" || continue
+      kill -TERM "$p"
+      for _ in $(seq 100); do running "$p" || break; sleep 0.1; done
+      if running "$p"; then echo "slurm_local.sh: $d (pid $p) did not stop within 10 s" >&2; fi
     done
     ;;
   status)
