@@ -128,3 +128,18 @@ def test_under_mpirun_without_working_mpi4py_every_rank_exits(broken_mpi4py, tmp
     assert "MPI launcher" in lines[0] and "install" in lines[0]
     assert "Traceback" not in res.stderr
     assert not (tmp_path / "e.h5").exists()  # no rank ran the ensemble alone
+
+
+@pytest.mark.parametrize("env, launched, rank", [
+    ({}, False, 0),
+    ({"PMI_RANK": "1", "PMI_SIZE": "2"}, True, 1),  # MPICH Hydra, srun --mpi=pmi2
+    ({"HYDRA_CONTROL_FD": "5"}, True, 0),
+    ({"OMPI_COMM_WORLD_SIZE": "4", "OMPI_COMM_WORLD_RANK": "3"}, True, 3),
+    ({"PMIX_RANK": "2"}, True, 2),
+    ({"SLURM_STEP_NUM_TASKS": "4", "SLURM_PROCID": "1"}, True, 1),  # srun, no MPI plugin
+    ({"SLURM_STEP_NUM_TASKS": "1", "SLURM_PROCID": "0"}, False, 0),  # a serial job step
+])
+def test_launcher_detection(env, launched, rank):
+    from sliders.parallel import launcher_rank, under_mpi_launcher
+
+    assert under_mpi_launcher(env) is launched and launcher_rank(env) == rank

@@ -9,7 +9,7 @@ is handled in one of two ways, decided from the environment the launcher sets:
 * a plain process: one warning line (only when mpi4py is installed but
   broken), then serial;
 * under ``mpirun``/``srun`` (``PMI_RANK``, ``PMI_SIZE``, ``HYDRA_*``,
-  ``OMPI_COMM_WORLD_SIZE``, ``PMIX_RANK``): every rank would otherwise run
+  ``OMPI_COMM_WORLD_SIZE``, ``PMIX_RANK``, or ``SLURM_STEP_NUM_TASKS`` > 1): every rank would otherwise run
   the whole job alone and write the same file, so ``MPIUnavailable`` is raised;
   the caller prints one line (rank 0 of the launcher) and exits non-zero on
   every rank.  No rank calls MPI, so none can wait for another: never a hang.
@@ -24,7 +24,7 @@ import sys
 LAUNCHER_VARIABLES = ("PMI_RANK", "PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "OMPI_COMM_WORLD_RANK",
                       "PMIX_RANK")
 LAUNCHER_PREFIXES = ("HYDRA_",)
-RANK_VARIABLES = ("PMI_RANK", "OMPI_COMM_WORLD_RANK", "PMIX_RANK")
+RANK_VARIABLES = ("PMI_RANK", "OMPI_COMM_WORLD_RANK", "PMIX_RANK", "SLURM_PROCID")
 
 INSTALL_HINT = ('install an MPI library and an mpi4py built against it (Debian: '
                 '`bash scripts/setup.sh`, or `apt install mpich libmpich-dev` then '
@@ -57,8 +57,10 @@ class SerialComm:
 def under_mpi_launcher(environ=None) -> bool:
     """True when an MPI launcher started this process (one rank of several, or of one)."""
     env = os.environ if environ is None else environ
-    return any(v in env for v in LAUNCHER_VARIABLES) or any(
-        k.startswith(LAUNCHER_PREFIXES) for k in env)
+    srun_tasks = env.get("SLURM_STEP_NUM_TASKS", "")  # srun without an MPI plugin sets no PMI_*
+    return (any(v in env for v in LAUNCHER_VARIABLES)
+            or any(k.startswith(LAUNCHER_PREFIXES) for k in env)
+            or (srun_tasks.isdigit() and int(srun_tasks) > 1))
 
 
 def launcher_rank(environ=None) -> int:
