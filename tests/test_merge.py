@@ -87,6 +87,8 @@ def test_merge_refuses_what_is_not_one_ensemble(chunks, tmp_path):
                            "--chunk", "1/3", "--out", str(other)], capture_output=True).returncode == 0
     assert "differ in scene" in one_error_line(run_merge(tmp_path / "mix.h5", chunks[0], other, chunks[2]))
     assert "exists" in one_error_line(run_merge(chunks[1], chunks[0]))
+    assert "does not exist" in one_error_line(run_merge(tmp_path / "m.h5", tmp_path / "none.h5"))
+    assert "required" in one_error_line(run_merge())
 
 
 @pytest.mark.parametrize("chunk, message", [("3/3", "0 <= I < K"), ("1-3", "is not I/K"),

@@ -137,8 +137,14 @@ def merge(out, inputs, overwrite: bool = False) -> dict:
     return {"realisations": n_total, "done": n_done, "inputs": len(heads)}
 
 
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, not argparse's usage block
+        sys.stderr.write(f"error: {message} (see --help)\n")
+        sys.exit(2)
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="python -m sliders.merge",
         description="Join ensemble chunk files (python -m sliders.ensemble --chunk I/K) into one "
                     "ensemble file with the same rows as one run over all realisations.")
