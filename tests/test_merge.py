@@ -73,6 +73,9 @@ def test_merged_chunks_equal_one_run(chunks, one_run, tmp_path):
     assert res.returncode == 0, res.stderr
     assert f"{R}/{R} realisations done" in res.stderr
     assert_same_file(one_run, out)  # every dataset bit for bit (wall times aside), same attributes
+    with h5py.File(out) as f:  # CF history: each chunk's command, then the merge
+        history = f.attrs["history"].splitlines()
+    assert [ln.count("--chunk") for ln in history] == [1, 1, 1, 0] and "sliders.merge" in history[-1]
     summary, _, _, info = ensemble.load_summary(out)
     assert info["n_done"] == R and np.isfinite(summary.force_pdf).any()
 
