@@ -5,7 +5,7 @@
 #   bash scripts/setup.sh test [ARGS...]  set up, then python -m pytest -q ARGS
 #   bash scripts/setup.sh run  [ARGS...]  set up, then the main job below
 #
-# Steps: Debian packages -> .venv -> Python deps -> mpi4py/h5py against MPICH
+# Steps: Debian packages (+ SLURM for `test`) -> .venv -> Python deps -> mpi4py/h5py against MPICH
 # (wheels built once, kept in $SLIDERS_WHEEL_CACHE) -> editable install.
 set -euo pipefail
 
@@ -19,7 +19,7 @@ main_job() {
 # -----------------------------------------------------------------------------
 
 APT_PACKAGES=(gfortran mpich libmpich-dev libhdf5-mpich-dev pkg-config)
-PY_DEPS=(meson-python meson ninja numpy pytest matplotlib)
+PY_DEPS=(meson-python meson ninja numpy pytest matplotlib xarray h5netcdf)
 H5PY_BUILD_DEPS=(cython pkgconfig "setuptools>=77")
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -51,6 +51,13 @@ if ((${#missing[@]})); then
   step_done "apt: installed ${missing[*]}"
 else
   step_done "apt: all present"
+fi
+
+# SLURM (munge, slurmctld, slurmd, sbatch) for tests/test_slurm.py, which starts a
+# real one-node cluster of its own; only the test command needs it.
+if [ "${1:-}" = test ]; then
+  bash scripts/slurm_local.sh install
+  step_done "apt: SLURM for the tests (scripts/slurm_local.sh install)"
 fi
 
 # ---- b. virtual environment -------------------------------------------------

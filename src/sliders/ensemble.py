@@ -52,6 +52,8 @@ from typing import Any
 import numpy as np
 
 from . import status as status_codes
+from .merge import chunk_range, parse_chunk
+from .parallel import MPIUnavailable, SerialComm, get_comm, launcher_rank  # noqa: F401 - MPI optional
 from .scene import BACKENDS, Scene, SceneError
 
 TAG_MSG, TAG_REPLY, TAG_CTRL = 71, 72, 73
@@ -76,34 +78,6 @@ class _HelpExit(Exception):
 
 class Interrupted(Exception):
     """Raised at a safe point once the run has to stop (signal or abort from rank 0)."""
-
-
-# ---------------------------------------------------------------------------
-# MPI, or a stand-in for a single process without mpi4py
-# ---------------------------------------------------------------------------
-class SerialComm:
-    """The few communicator calls used here, for one process without mpi4py."""
-
-    rank = 0
-    size = 1
-
-    def bcast(self, obj, root=0):
-        return obj
-
-    def allgather(self, obj):
-        return [obj]
-
-    def Abort(self, code=1):  # noqa: N802 - MPI spelling
-        os._exit(code)
-
-
-def get_comm():
-    """(COMM_WORLD, True) with mpi4py, else (SerialComm(), False)."""
-    try:
-        from mpi4py import MPI
-    except ImportError:
-        return SerialComm(), False
-    return MPI.COMM_WORLD, True
 
 
 # ---------------------------------------------------------------------------
@@ -155,6 +129,10 @@ def build_parser(rank: int = 0) -> argparse.ArgumentParser:
     g.add_argument("--progress-interval", type=float, default=5.0, metavar="S",
                    help="seconds between progress lines on stderr (0: after every realisation)")
     g.add_argument("--quiet", action="store_true", help="no progress lines")
+    g.add_argument("--chunk", type=parse_chunk, metavar="I/K",
+                   help="compute only chunk I (0..K-1) of K of the R realisations (rows "
+                        "I*R//K to (I+1)*R//K - 1, same seeds as in the whole run), e.g. one task "
+                        "of a job array; `python -m sliders.merge` joins the chunk files")
     return p
 
 
@@ -170,15 +148,14 @@ def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
     from .storage import StorageError, choose_storage
 
     scene = scene_from_args(args)
-    if scene.record == "summary":
-        raise SceneError("record='summary' keeps no displacements, which the ensemble statistics "
-                         "need; use record='displacements' (or 'forces')")
     if args.realisations is not None and args.realisations < 1:
         raise UsageError(f"--realisations={args.realisations} must be at least 1")
     if args.realisations is None and not args.resume:
         raise UsageError("--realisations R is required (unless --resume)", code=2)
     if args.resume and args.overwrite:
         raise UsageError("--resume and --overwrite exclude each other", code=2)
+    if args.chunk is not None and args.realisations is None:
+        raise UsageError("--chunk I/K needs --realisations R (the whole ensemble's)", code=2)
     if args.progress_interval < 0:
         raise UsageError(f"--progress-interval={args.progress_interval} must be >= 0")
     try:
@@ -211,6 +188,9 @@ def _plan_root(args, plan) -> dict[str, Any]:
                          "to replace it")
     grids = default_grids(scene).to_arrays()
     R = args.realisations
+    first = 0  # index of the file's first realisation (a chunk of a larger ensemble)
+    if args.chunk is not None:
+        first, R = chunk_range(args.chunk, R)
     if R is None and not resume:
         raise UsageError(f"--resume: {out!r} does not exist; give --realisations R to start it")
     done = None
@@ -233,6 +213,11 @@ def _plan_root(args, plan) -> dict[str, Any]:
             raise UsageError(f"--resume: {out!r} was computed with --backend {attrs['backend']}, "
                              f"not {args.backend}; resume with the same backend")
         R = int(attrs["realisations"])
+        if args.chunk is not None and first != attrs.get("first_realisation", 0):
+            raise UsageError(f"--resume: {out!r} starts at realisation "
+                             f"{attrs.get('first_realisation', 0)}, chunk {args.chunk[0]}/"
+                             f"{args.chunk[1]} at {first}")
+        first = int(attrs.get("first_realisation", 0))
         for k, v in grids.items():
             if k not in head["grids"] or not np.array_equal(head["grids"][k], v):
                 raise UsageError(f"--resume: the statistics grid {k!r} of {out!r} differs from "
@@ -241,9 +226,12 @@ def _plan_root(args, plan) -> dict[str, Any]:
         file_attrs = attrs
     else:
         file_attrs = file_attributes(scene.to_dict(), scene.seed, R, args.backend)
-    seeds = np.array([realisation_seed(scene.seed, r) for r in range(R)], dtype=np.uint32)
-    layout = make_layout(R, seeds, grids, statistics_layout(default_grids(scene), scene.n_sliders),
-                         file_attrs)
+        file_attrs["first_realisation"] = first
+    seeds = np.array([realisation_seed(scene.seed, first + r) for r in range(R)], dtype=np.uint32)
+    # record = "summary": the per-realisation summary only (no displacements, no statistics)
+    stats = {} if scene.record == "summary" else statistics_layout(default_grids(scene),
+                                                                   scene.n_sliders)
+    layout = make_layout(R, seeds, grids, stats, file_attrs)
     if resume:
         cols = read_header(out)["columns"]
         for c in layout.columns:
@@ -260,8 +248,10 @@ def _plan_root(args, plan) -> dict[str, Any]:
 # ---------------------------------------------------------------------------
 # one realisation
 # ---------------------------------------------------------------------------
-def compute_row(scene: Scene, r: int, backend: str, grids, progress=None) -> dict[str, Any]:
-    """Realisation ``r`` of the scene: its file row (base columns + statistics/<key>)."""
+def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
+                first: int = 0) -> dict[str, Any]:
+    """Row ``r`` of a file starting at realisation ``first``: realisation ``first + r`` of the
+    scene (base columns + statistics/<key>)."""
     from .driver import tilt
     from .keyed_random import realisation_seed
     from .observables import realisation_statistics
@@ -275,9 +265,9 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None) -> dic
             progress(None)
     if os.environ.get("SLIDERS_ENSEMBLE_TEST_FAIL") == str(r):
         raise RuntimeError(f"test hook SLIDERS_ENSEMBLE_TEST_FAIL: realisation {r} fails")
-    result = tilt(scene.replace(seed=realisation_seed(scene.seed, r)), backend=backend,
+    result = tilt(scene.replace(seed=realisation_seed(scene.seed, first + r)), backend=backend,
                   progress=progress)
-    stats = realisation_statistics(result, grids)
+    stats = {} if scene.record == "summary" else realisation_statistics(result, grids)
     row: dict[str, Any] = {
         "status": STATUS_CODES.get(result.status, UNKNOWN_STATUS),
         "alpha_c": float(result.alpha_c),
@@ -458,7 +448,8 @@ class _Root:
             r = self.queue.popleft()
             t0 = time.perf_counter()
             try:
-                row = compute_row(ctx["scene"], r, ctx["backend"], ctx["grids"], self.poll)
+                row = compute_row(ctx["scene"], r, ctx["backend"], ctx["grids"], self.poll,
+                                  ctx["first"])
             except Interrupted:
                 break
             finally:
@@ -544,7 +535,7 @@ def _worker(comm, handler, ctx) -> dict[str, float]:
                 ask(ahead=True)
             t0 = time.perf_counter()
             try:
-                row = compute_row(ctx["scene"], r, ctx["backend"], ctx["grids"], check)
+                row = compute_row(ctx["scene"], r, ctx["backend"], ctx["grids"], check, ctx["first"])
             finally:
                 timing["compute"] += time.perf_counter() - t0
             handler.write_row(r, row)
@@ -575,7 +566,12 @@ def _error_line(message: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    comm, have_mpi = get_comm()
+    try:
+        comm, have_mpi = get_comm()
+    except MPIUnavailable as exc:  # under mpirun without a working mpi4py: stop every rank
+        if launcher_rank() == 0:
+            sys.stderr.write(_error_line(str(exc)) + "\n")
+        return 1
     rank = comm.rank
 
     # 1. validate (no collective before this point: every rank reaches the allgather)
@@ -606,7 +602,8 @@ def main(argv: list[str] | None = None) -> int:
 
     # 2. create or open the file (collective for mpio)
     from .observables import StatisticsGrids
-    from .storage import HANDLERS
+    from .conventions import describe_ensemble_file
+    from .storage import HANDLERS, StorageError
 
     layout = root_plan["layout"]
     scene: Scene = plan["scene"]
@@ -615,10 +612,14 @@ def main(argv: list[str] | None = None) -> int:
     err = None
     try:
         cls = HANDLERS[storage]
-        if root_plan["resume"]:
-            handler = cls.open_for_resume(args.out, layout, comm)
-        else:
-            handler = cls.create(args.out, layout, comm, overwrite=args.overwrite)
+        if not root_plan["resume"]:
+            cls.create(args.out, layout, comm, overwrite=args.overwrite).close()
+        # named dimensions, units, provenance (even if the run is cut short): dimension scales
+        # are serial HDF5, so rank 0 adds them between the collective create and open
+        described = describe_ensemble_file(args.out) if rank == 0 else None
+        if comm.bcast(described, root=0) is not True:
+            raise StorageError(f"cannot describe the file: {described}")
+        handler = cls.open_for_resume(args.out, layout, comm)
     except Exception as exc:  # noqa: BLE001
         err = f"cannot {'open' if root_plan['resume'] else 'create'} {args.out!r}: {exc}"
     errors = comm.allgather(err)
@@ -634,6 +635,7 @@ def main(argv: list[str] | None = None) -> int:
     pending = np.flatnonzero(~done)
     ctx = {
         "scene": scene, "backend": args.backend, "R": layout.n_realisations,
+        "first": int(layout.attrs.get("first_realisation", 0)),
         "grids": StatisticsGrids.from_arrays(layout.grids),
         "interval": args.progress_interval, "quiet": args.quiet,
     }
@@ -751,6 +753,10 @@ def load_summary(path):
 
     head = read_header(path)
     rows = read_realisations(path)
+    if not rows["statistics"]:
+        raise ValueError(f"{os.fspath(path)!r} holds only the per-realisation summary (scene "
+                         "record='summary'): no statistics; read_realisations gives alpha_c, "
+                         "n_events and status per realisation")
     grids = StatisticsGrids.from_arrays(head["grids"])
     scene = Scene.from_dict(json.loads(head["attrs"]["scene"]))
     done = rows["done"]

@@ -179,6 +179,9 @@ class TiltResult:
                              "lattice_position0", "mu_s", "displacement", "n_stops"):
                     g.create_dataset(name, data=getattr(st, name))
                 g.attrs["alpha"] = st.alpha
+            from .conventions import describe_tilt_file
+
+            describe_tilt_file(f, self)  # named dimensions, units, provenance
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> "TiltResult":

@@ -1,0 +1,317 @@
+"""Files that explain themselves: dimension scales, units, long names, provenance.
+
+Every HDF5 file the package writes is described after it is written:
+
+* each axis of each dataset is attached to a named HDF5 dimension scale
+  (``event``, ``slider``, ``realisation``, ``alpha``, ``force_bin``, ...), so
+  that netCDF readers (xarray with ``engine="h5netcdf"``) see named
+  dimensions instead of ``phony_dim_*``;
+* the scales are coordinate variables in the root group, holding the axis
+  values (angles, bin centres, realisation numbers), so a child group sees
+  them as inherited dimensions (``xarray.open_datatree`` inherits them as
+  coordinates);
+* every dataset gets ``units`` and ``long_name`` attributes (the model's
+  dimensionless units: forces in m g, lengths in g tau^2, times in tau);
+* the root group gets CF-style provenance: ``title``, ``source`` (package and
+  version), ``history`` (one line per command that wrote the file), creation
+  time, the git commit when the package runs from a checkout, the Python,
+  NumPy, h5py and HDF5 versions, and the scene as TOML.
+
+Dimension scales are a serial HDF5 API: for a parallel (mpio) ensemble file
+rank 0 describes the file after the collective close.  ``describe`` is
+idempotent (a resumed or re-described file only gains a history line).
+
+The variable tables below are the single place that says what every dataset
+is; a new kind of file adds its table and calls ``describe``.
+"""
+
+from __future__ import annotations
+
+import datetime
+import functools
+import json
+import os
+import shlex
+import subprocess
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+
+FORCE, LENGTH, TIME = "m g", "g tau^2", "tau"
+ENERGY = "m g^2 tau^2"
+
+
+@dataclass(frozen=True)
+class Variable:
+    dims: tuple[str, ...]
+    units: str
+    long_name: str
+
+
+# ---------------------------------------------------------------------------
+# tilt result file (TiltResult.save)
+# ---------------------------------------------------------------------------
+TILT_EVENT_VARIABLES = {
+    "alpha": ("rad", "tilt angle at which the rearrangement happened"),
+    "n_moved": ("1", "number of distinct sliders that moved"),
+    "n_stops": ("1", "number of stops (velocity zero crossings) during the event"),
+    "n_steps": ("1", "accepted integration steps"),
+    "slider_steps": ("1", "sum over integration steps of the number of moving sliders"),
+    "duration": (TIME, "duration of the rearrangement"),
+    "work_gravity": (ENERGY, "work of gravity during the event"),
+    "elastic_change": (ENERGY, "change of elastic energy (springs and cantilevers)"),
+    "dissipation": (ENERGY, "energy dissipated by dynamic friction"),
+}
+TILT_STATE_VARIABLES = {
+    "elastic_force0": (FORCE, "prepared elastic force (springs and cantilever) at alpha = 0"),
+    "spring_extension0": (LENGTH, "prepared extension of the spring to the next slider"),
+    "cantilever_stretch0": (LENGTH, "prepared stretch of the cantilever spring"),
+    "lattice_position0": (LENGTH, "prepared position u0_n + n l"),
+    "mu_s": ("1", "static friction coefficient"),
+    "displacement": (LENGTH, "displacement since preparation"),
+    "n_stops": ("1", "stops so far (key of the next static-coefficient draw)"),
+}
+
+
+def tilt_variables(h5file) -> dict[str, Variable]:
+    out = {f"events/{k}": Variable(("event",), u, ln) for k, (u, ln) in TILT_EVENT_VARIABLES.items()}
+    out["displacement/ptr"] = Variable(("event_boundary",), "1",
+                                       "start of each event's entries in index/value (CSR)")
+    out["displacement/index"] = Variable(("entry",), "1", "slider that moved (0-based)")
+    out["displacement/value"] = Variable(("entry",), LENGTH, "displacement of that slider in the event")
+    for label in ("initial", "final"):
+        for k, (u, ln) in TILT_STATE_VARIABLES.items():
+            out[f"{label}/{k}"] = Variable(("slider",), u, f"{ln} ({label} state)")
+    return out
+
+
+def tilt_coordinates(h5file) -> dict[str, tuple[np.ndarray, str, str]]:
+    k = h5file["events/alpha"].shape[0] if "events/alpha" in h5file else 0
+    n = h5file["initial/mu_s"].shape[0]
+    coords = {
+        "event": (np.arange(k), "1", "rearrangement number (0-based, in the order of alpha)"),
+        "slider": (np.arange(n), "1", "slider number (0-based, up the chain)"),
+    }
+    if "displacement" in h5file:
+        coords["event_boundary"] = (np.arange(k + 1), "1", "CSR boundary number")
+        coords["entry"] = (np.arange(h5file["displacement/index"].shape[0]), "1",
+                           "stored (event, slider) entry")
+    return coords
+
+
+# ---------------------------------------------------------------------------
+# ensemble file (storage.py layout)
+# ---------------------------------------------------------------------------
+ENSEMBLE_ROW_VARIABLES = {
+    "seed": ("1", "seed of the realisation (realisation_seed(scene seed, realisation))"),
+    "done": ("1", "1 when the row holds a completed realisation"),
+    "status": ("1", "how the run ended (codes in the attribute 'codes'; -1: not run)"),
+    "alpha_c": ("rad", "avalanche angle (NaN if the run ended otherwise)"),
+    "n_events": ("1", "number of rearrangements before the avalanche"),
+    "slider_steps": ("1", "integration work of the run (slider-steps)"),
+    "wall_time": ("s", "wall time of the realisation"),
+}
+ENSEMBLE_STATISTICS = {
+    "force_counts": (("alpha", "force_bin"), "1", "histogram of the N forces F_t at each angle"),
+    "valid_alpha": (("alpha",), "1", "1 where the chain is at rest at that angle"),
+    "model_bin_counts": (("alpha", "model_bin"), "1", "sliders in each model bin of width 2 dmu"),
+    "cumulated_displacement": (("alpha",), LENGTH, "A(alpha): sum of all displacements up to alpha"),
+    "stopped_ratio_counts": (("stop_alpha_bin", "ratio_bin"), "1",
+                             "histogram of F_t/F_t* of the sliders that moved, by event angle"),
+    "event_size_counts": (("event_size",), "1", "events in which s distinct sliders moved"),
+    "alpha_c": ((), "rad", "avalanche angle (NaN if the run ended otherwise)"),
+    "n_events": ((), "1", "number of completed rearrangements"),
+    "event_counts": (("alpha_interval",), "1", "events with angle in [alpha_g, alpha_g+1)"),
+    "event_mean_displacement_sum": (("alpha_interval",), LENGTH,
+                                    "sum over those events of the mean displacement of the movers"),
+}
+ENSEMBLE_GRIDS = {
+    "alpha": ("alpha", "rad", "angles at which the statistics are sampled"),
+    "force_edges": ("force_edge", FORCE, "edges of the force histogram"),
+    "ratio_edges": ("ratio_edge", "1", "edges of the F_t/F_t* histogram"),
+    "stop_alpha_edges": ("stop_alpha_edge", "rad", "angle bins of the stopped-force ratios"),
+    "n_model_bins": (None, "1", "nu(0): number of model bins"),
+    "mu_s_mean": (None, "1", "mean static friction coefficient"),
+    "mu_d": (None, "1", "dynamic friction coefficient"),
+}
+
+
+def _centres(edges: np.ndarray) -> np.ndarray:
+    return 0.5 * (edges[1:] + edges[:-1])
+
+
+def ensemble_variables(h5file) -> dict[str, Variable]:
+    out = {}
+    for k, (dim, u, ln) in ENSEMBLE_GRIDS.items():
+        out[f"grids/{k}"] = Variable((dim,) if dim else (), u, ln)
+    for k, (u, ln) in ENSEMBLE_ROW_VARIABLES.items():
+        out[f"realisations/{k}"] = Variable(("realisation",), u, ln)
+    stats = h5file["realisations/statistics"] if "realisations/statistics" in h5file else {}
+    for k in stats:
+        dims, u, ln = ENSEMBLE_STATISTICS.get(k, ((), "1", k.replace("_", " ")))
+        if len(dims) != stats[k].ndim - 1:  # a statistic this table does not know: index axes
+            dims = tuple(f"{k}_axis{i}" for i in range(1, stats[k].ndim))
+        out[f"realisations/statistics/{k}"] = Variable(("realisation",) + dims, u, ln)
+    return out
+
+
+def ensemble_coordinates(h5file) -> dict[str, tuple[np.ndarray, str, str]]:
+    g = h5file["grids"]
+    alpha = g["alpha"][()]
+    fe, re_, se = g["force_edges"][()], g["ratio_edges"][()], g["stop_alpha_edges"][()]
+    first = int(h5file.attrs.get("first_realisation", 0))
+    n_rows = h5file["realisations/done"].shape[0]
+    scene = json.loads(h5file.attrs["scene"])
+    return {
+        "realisation": (first + np.arange(n_rows), "1", "realisation number (its seed is "
+                        "realisation_seed(scene seed, realisation))"),
+        "alpha": (alpha, "rad", "tilt angle"),
+        "force_edge": (fe, FORCE, "edge of a force bin"),
+        "force_bin": (_centres(fe), FORCE, "tangential force F_t (bin centre)"),
+        "ratio_edge": (re_, "1", "edge of an F_t/F_t* bin"),
+        "ratio_bin": (_centres(re_), "1", "F_t/F_t* of a stopped slider (bin centre), "
+                      "F_t* = (2 mu_d - mu_s_mean) cos alpha"),
+        "stop_alpha_edge": (se, "rad", "edge of an event-angle bin"),
+        "stop_alpha_bin": (_centres(se), "rad", "event angle (bin centre)"),
+        "model_bin": (np.arange(1, int(g["n_model_bins"][()]) + 1), "1",
+                      "model bin i (width 2 dmu, counted down from mu_s_mean)"),
+        "event_size": (np.arange(1, int(scene["n_sliders"]) + 1), "1",
+                       "number of distinct sliders that moved in an event"),
+        "alpha_interval": (alpha[:-1], "rad", "lower end of the angle interval [alpha_g, alpha_g+1)"),
+    }
+
+
+# ---------------------------------------------------------------------------
+# provenance
+# ---------------------------------------------------------------------------
+@functools.lru_cache(maxsize=1)
+def git_commit() -> str | None:
+    """The commit of the checkout the package runs from ("+dirty" if changed), else None."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    try:
+        head = subprocess.run(["git", "-C", here, "rev-parse", "HEAD"], capture_output=True,
+                              text=True, timeout=5)
+        if head.returncode != 0:
+            return None
+        dirty = subprocess.run(["git", "-C", here, "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=5).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head.stdout.strip() + ("+dirty" if dirty else "")
+
+
+def command_line() -> str:
+    """The command that runs this process, as a shell line."""
+    argv = list(getattr(sys, "orig_argv", None) or [sys.executable] + sys.argv)
+    argv[0] = os.path.basename(argv[0])
+    return shlex.join(argv)
+
+
+def scene_toml(scene: dict) -> str:
+    """The scene as a TOML ``[scene]`` table (``Scene.from_toml`` reads it back)."""
+    lines = ["[scene]"]
+    for k in sorted(scene):
+        v = scene[k]
+        if v is None:
+            continue
+        if isinstance(v, bool):
+            text = "true" if v else "false"
+        elif isinstance(v, (int, np.integer)):
+            text = str(int(v))
+        elif isinstance(v, (float, np.floating)):
+            text = repr(float(v))  # TOML spells inf and nan the same way
+        else:
+            text = json.dumps(str(v))
+        lines.append(f"{k} = {text}")
+    return "\n".join(lines) + "\n"
+
+
+def provenance(title: str, scene: dict | None) -> dict[str, str]:
+    import h5py
+
+    from . import __version__
+
+    now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    out = {
+        "title": title,
+        "source": f"sliders {__version__} (chain of frictional sliders on an incline)",
+        "date_created": now,
+        "python_version": sys.version.split()[0],
+        "numpy_version": np.__version__,
+        "h5py_version": h5py.__version__,
+        "hdf5_version": h5py.version.hdf5_version,
+        "_history_line": f"{now}: {command_line()}",
+    }
+    commit = git_commit()
+    if commit:
+        out["git_commit"] = commit
+    if scene is not None:
+        out["scene_toml"] = scene_toml(scene)
+    return out
+
+
+# ---------------------------------------------------------------------------
+# writing the description
+# ---------------------------------------------------------------------------
+def describe(h5file, variables: dict[str, Variable], coordinates: dict, title: str,
+             scene: dict | None) -> None:
+    """Attach scales, units and long names, and add provenance, to an open (serial) h5py file."""
+    scales = {}
+    for name, (values, units, long_name) in coordinates.items():
+        if name not in h5file:
+            ds = h5file.create_dataset(name, data=np.asarray(values))
+            ds.make_scale(name)
+            ds.attrs["units"], ds.attrs["long_name"] = units, long_name
+        scales[name] = h5file[name]
+    for path, var in variables.items():
+        if path not in h5file:
+            continue
+        ds = h5file[path]
+        for axis, dim in enumerate(var.dims):
+            if dim not in scales:  # an axis the tables do not name: number its entries
+                ds_dim = h5file.create_dataset(dim, data=np.arange(ds.shape[axis]))
+                ds_dim.make_scale(dim)
+                scales[dim] = ds_dim
+            if len(ds.dims[axis]) == 0:
+                ds.dims[axis].attach_scale(scales[dim])
+        ds.attrs["units"], ds.attrs["long_name"] = var.units, var.long_name
+    prov = provenance(title, scene)
+    history_line = prov.pop("_history_line")
+    old = h5file.attrs.get("history", "")
+    old = old.decode() if isinstance(old, bytes) else str(old)
+    if "date_created" in h5file.attrs:  # keep the first creation time; note later writers
+        prov["date_modified"] = prov.pop("date_created")
+    for k, v in prov.items():
+        h5file.attrs[k] = v
+    h5file.attrs["history"] = (old + "\n" if old else "") + history_line
+
+
+def describe_tilt_file(h5file, result) -> None:
+    """Describe a tilt result file (called by ``TiltResult.save`` on its open file)."""
+    s = result.scene
+    describe(h5file, tilt_variables(h5file), tilt_coordinates(h5file),
+             f"sliders tilt run: N = {s.n_sliders}, xi = {s.xi:g}, seed = {s.seed} "
+             f"({result.backend}, {result.status})", s.to_dict())
+
+
+def describe_ensemble_file(path) -> bool | str:
+    """Describe an ensemble file (one process, no writer holding it): True, or why not."""
+    import h5py
+
+    try:
+        with h5py.File(os.fspath(path), "r+") as f:
+            _describe_ensemble(f)
+    except (OSError, KeyError, ValueError) as exc:
+        return " ".join(str(exc).split()) or type(exc).__name__
+    return True
+
+
+def _describe_ensemble(f) -> None:
+    scene = json.loads(f.attrs["scene"])
+    first = int(f.attrs.get("first_realisation", 0))
+    n = int(f.attrs["realisations"])
+    part = f" (realisations {first}..{first + n - 1})" if first else ""
+    describe(f, ensemble_variables(f), ensemble_coordinates(f),
+             f"sliders ensemble: {n} realisations{part} of N = {scene['n_sliders']}, "
+             f"xi = {scene['xi']:g}", scene)

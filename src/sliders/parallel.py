@@ -1,0 +1,102 @@
+"""MPI is optional: ``get_comm()`` gives COMM_WORLD with a working mpi4py, else a serial stand-in.
+
+``pip install sliders`` runs everything serially (tilt, ensembles through the
+gather writer, figures); ``pip install "sliders[mpi]"`` adds mpi4py.  An
+mpi4py that is absent or cannot load its MPI library (the PyPI wheel on a
+machine without libmpi: ``libmpi.so.12: cannot open shared object file``)
+is handled in one of two ways, decided from the environment the launcher sets:
+
+* a plain process: one warning line (only when mpi4py is installed but
+  broken), then serial;
+* under ``mpirun``/``srun`` (``PMI_RANK``, ``PMI_SIZE``, ``HYDRA_*``,
+  ``OMPI_COMM_WORLD_SIZE``, ``PMIX_RANK``, or ``SLURM_STEP_NUM_TASKS`` > 1): every rank would otherwise run
+  the whole job alone and write the same file, so ``MPIUnavailable`` is raised;
+  the caller prints one line (rank 0 of the launcher) and exits non-zero on
+  every rank.  No rank calls MPI, so none can wait for another: never a hang.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+# Variables that MPICH (Hydra, PMI), Open MPI and PMIx launchers set in every rank.
+LAUNCHER_VARIABLES = ("PMI_RANK", "PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "OMPI_COMM_WORLD_RANK",
+                      "PMIX_RANK")
+LAUNCHER_PREFIXES = ("HYDRA_",)
+RANK_VARIABLES = ("PMI_RANK", "OMPI_COMM_WORLD_RANK", "PMIX_RANK", "SLURM_PROCID")
+
+INSTALL_HINT = ('install an MPI library and an mpi4py built against it (Debian: '
+                '`bash scripts/setup.sh`, or `apt install mpich libmpich-dev` then '
+                '`pip install --no-binary mpi4py "sliders[mpi]"`), or run without mpirun (serial)')
+
+
+class MPIUnavailable(RuntimeError):
+    """Launched by an MPI launcher, but mpi4py cannot give this process an MPI communicator."""
+
+
+class SerialComm:
+    """The few communicator calls the package uses, for one process without MPI."""
+
+    rank = 0
+    size = 1
+
+    def bcast(self, obj, root=0):
+        return obj
+
+    def allgather(self, obj):
+        return [obj]
+
+    def gather(self, obj, root=0):
+        return [obj]
+
+    def Abort(self, code=1):  # noqa: N802 - MPI spelling
+        os._exit(code)
+
+
+def under_mpi_launcher(environ=None) -> bool:
+    """True when an MPI launcher started this process (one rank of several, or of one)."""
+    env = os.environ if environ is None else environ
+    srun_tasks = env.get("SLURM_STEP_NUM_TASKS", "")  # srun without an MPI plugin sets no PMI_*
+    return (any(v in env for v in LAUNCHER_VARIABLES)
+            or any(k.startswith(LAUNCHER_PREFIXES) for k in env)
+            or (srun_tasks.isdigit() and int(srun_tasks) > 1))
+
+
+def launcher_rank(environ=None) -> int:
+    """This process's rank as the launcher announces it (0 when it does not)."""
+    env = os.environ if environ is None else environ
+    for v in RANK_VARIABLES:
+        if env.get(v, "").isdigit():
+            return int(env[v])
+    return 0
+
+
+def get_comm():
+    """``(COMM_WORLD, True)`` with a working mpi4py, else ``(SerialComm(), False)``.
+
+    Raises ``MPIUnavailable`` under an MPI launcher when mpi4py is missing or broken.
+    """
+    try:
+        from mpi4py import MPI
+    except ModuleNotFoundError as exc:
+        if exc.name != "mpi4py":  # mpi4py is there but something it needs is not
+            return _broken(exc)
+        if under_mpi_launcher():
+            raise MPIUnavailable(f"started by an MPI launcher, but mpi4py is not installed; "
+                                 f"{INSTALL_HINT}") from None
+        return SerialComm(), False
+    except (ImportError, RuntimeError, OSError) as exc:  # e.g. libmpi.so.12 missing
+        return _broken(exc)
+    return MPI.COMM_WORLD, True
+
+
+def _broken(exc: BaseException):
+    reason = " ".join(str(exc).split()) or type(exc).__name__
+    if under_mpi_launcher():
+        raise MPIUnavailable(f"started by an MPI launcher, but mpi4py cannot load MPI ({reason}); "
+                             f"{INSTALL_HINT}") from None
+    sys.stderr.write(f"sliders: warning: mpi4py is installed but cannot load MPI ({reason}); "
+                     "running serially\n")
+    sys.stderr.flush()
+    return SerialComm(), False
