@@ -59,3 +59,22 @@ def test_matches_the_dense_map_of_a_real_run():
         assert e["total"][j] == pytest.approx(rows.sum())
         assert e["up"][j] == pytest.approx(rows[:, :3].sum())
         assert e["down"][j] == pytest.approx(rows[:, -3:].sum())
+
+
+def test_onset_of_a_region_spanning_half_the_chain():
+    """The reproduction's onset: from the first bin where the end region spans >= half of N
+    in every later bin with events, the avalanche's own bin excluded."""
+    from sliders.reproduction import extremity_profile
+
+    n = 8
+    events = [(0.11, {0: 0.1}),  # small activity at the up-slope end
+              (0.41, {4: 1.0, 5: 1.0, 6: 1.0, 7: 1.0}),  # down-slope half from bin 0.40
+              (0.45, {3: 1.0, 4: 1.0, 5: 1.0, 6: 1.0, 7: 1.0}),
+              (0.47, {7: 1.0}),  # the avalanche's bin (alpha_c = 0.475): not judged
+              ]
+    run = fake_run(n, events)
+    run.alpha_c = 0.475
+    p = extremity_profile([run])
+    assert p["onset_down"][0] == pytest.approx(0.40)
+    assert np.isnan(p["onset_up"][0])
+    assert p["overall_down"] == pytest.approx(5.0 / 10.1)  # sliders 7, 8: 2 + 2 + 1 of 10.1
