@@ -1,26 +1,30 @@
-"""The paper's figures, rebuilt from their captions (the images are missing).
+"""The paper's ten figures, rebuilt from their captions (the images are missing).
 
 One function per figure; each returns the matplotlib ``Figure`` and, unless
-``out_dir`` is None, writes ``<name>.png`` and ``<name>.pdf`` there.
+``out_dir`` is None, writes ``<name>.png`` (300 dpi) and ``<name>.pdf``
+there.  Every figure is laid out for print, one column (3.4 in) wide with
+fonts of 7-9 pt (``figure_style``).  ``PAPER_FIGURES`` names each one after
+the figure of the paper it redraws; ``python -m sliders.figures --list``
+prints that table:
 
-=============================  =============================================
-function                       paper figure
-=============================  =============================================
-``fig_scene``                  Figs. small / large_no / large_wc (scenes A,
-                               B, C): hot map of displacements and F_t vs
-                               alpha per slider
-``fig_single_slider``          Fig. schema_one: F_t vs alpha of one slider
-                               between walls, with the model's drop points
-``fig_force_pdf``              Fig. distrib1: PDF of F_t at several alpha
-``fig_stopped_force_ratio``    Fig. distrib3: PDF of F_t/F_t* of stopped
-                               sliders
-``fig_bin_heights``            Fig. distrib2: P_i vs alpha, model and crude
-                               model
-``fig_cumulated_displacement`` Fig. cumul: A(alpha) and <dx>(alpha)
-=============================  =============================================
+====  ==============  ===========================  ==================================
+Fig.  paper label     name                         function
+====  ==============  ===========================  ==================================
+1     fig:schema      ``fig01_sketch``             ``schematics.fig_sketch``
+2     fig:small       ``fig02_scene_A``            ``fig_scene`` (N = 10, xi = 0)
+3     fig:large_no    ``fig03_scene_B``            ``fig_scene`` (N = 400, xi = 0)
+4     fig:large_wc    ``fig04_scene_C``            ``fig_scene`` (N = 400, xi = 0.001)
+5     fig:schema_one  ``fig05_single_slider``      ``fig_single_slider``
+6     fig:distrib1    ``fig06_force_pdf``          ``fig_force_pdf``
+7     fig:distrib3    ``fig07_stopped_ratio``      ``fig_stopped_force_ratio``
+8     fig:sch_d       ``fig08_histogram_model``    ``schematics.fig_histogram_model``
+9     fig:distrib2    ``fig09_P_i``                ``fig_bin_heights``
+10    fig:cumul       ``fig10_cumulated``          ``fig_cumulated_displacement``
+====  ==============  ===========================  ==================================
 
-Command line: ``python -m sliders.figures [--out DIR] [--ensemble FILE.h5]
-[--paper-size] [--backend fortran|numpy] [--only NAME ...]``.
+The older names (``scene_A``, ``bin_heights`` ...) and the paper's labels
+(``distrib2`` ...) are accepted by ``--only`` as well.  ``--animate`` writes
+a GIF of a tilt instead (``animation.py``).
 """
 
 from __future__ import annotations
@@ -31,54 +35,78 @@ import math
 import os
 import sys
 import time
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
-import matplotlib
-
-if os.environ.get("MPLBACKEND") is None:
-    matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+from .figure_style import (COLUMN_WIDTH, DISPLACEMENT_CMAP, ORDER_CMAP, PNG_DPI,  # noqa: F401
+                           STYLE, panel_label, save_figure)
+import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib import colors as mcolors  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.legend_handler import HandlerTuple  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.ticker import NullFormatter  # noqa: E402
 
 from . import observables as ob  # noqa: E402
 
-FIGURE_NAMES = ("scene_A", "scene_B", "scene_C", "single_slider", "force_pdf",
-                "stopped_ratio", "bin_heights", "cumulated")
 
-PARAM_TEXT = (r"$l={l:g}$, $\mu_d={mu_d:g}$, $\bar\mu_s={mu_s:g}$, $\sigma_\mu={sigma:g}$")
+@dataclass(frozen=True)
+class PaperFigure:
+    """One figure of the paper: its number, its LaTeX label, what it shows, how it is made."""
 
-STYLE = {
-    "font.size": 9,
-    "axes.labelsize": 10,
-    "axes.titlesize": 9,
-    "legend.fontsize": 8,
-    "xtick.labelsize": 8,
-    "ytick.labelsize": 8,
-    "savefig.dpi": 200,
-    "figure.dpi": 100,
-    "pdf.fonttype": 42,
-}
+    name: str
+    number: int
+    label: str
+    shows: str
+    kind: str  # "schematic" (from the model), "scene" (one run), "single", "statistics"
+    aliases: tuple[str, ...] = ()
 
 
-def _params(scene) -> str:
-    return PARAM_TEXT.format(l=scene.spring_length, mu_d=scene.mu_d, mu_s=scene.mu_s_mean,
-                             sigma=scene.sigma_mu)
+PAPER_FIGURES = (
+    PaperFigure("fig01_sketch", 1, "fig:schema", "sketch of the system: sliders on the incline, "
+                "springs of length l, cantilever springs to the upper plate", "schematic",
+                ("sketch",)),
+    PaperFigure("fig02_scene_A", 2, "fig:small", "scene A (N = 10, xi = 0): hot map of the "
+                "displacements and F_t vs alpha", "scene", ("scene_A",)),
+    PaperFigure("fig03_scene_B", 3, "fig:large_no", "scene B (N = 400, xi = 0): hot map and "
+                "F_t vs alpha", "scene", ("scene_B",)),
+    PaperFigure("fig04_scene_C", 4, "fig:large_wc", "scene C (N = 400, xi = 0.001): hot map and "
+                "F_t vs alpha", "scene", ("scene_C",)),
+    PaperFigure("fig05_single_slider", 5, "fig:schema_one", "F_t vs alpha of one slider between "
+                "walls, with the model's rearrangement angles", "single", ("single_slider",)),
+    PaperFigure("fig06_force_pdf", 6, "fig:distrib1", "PDF of F_t at several alpha (N = 100)",
+                "statistics", ("force_pdf",)),
+    PaperFigure("fig07_stopped_ratio", 7, "fig:distrib3", "PDF of F_t/F_t* of the sliders that "
+                "moved, per alpha bin", "statistics", ("stopped_ratio",)),
+    PaperFigure("fig08_histogram_model", 8, "fig:sch_d", "schematic bar histogram of the model: "
+                "bins of 2 dmu, shift by one bin (red), return into bin 1 (blue)", "schematic",
+                ("histogram_model",)),
+    PaperFigure("fig09_P_i", 9, "fig:distrib2", "bin heights P_i(alpha) against the "
+                "master-equation model and the crude model", "statistics",
+                ("bin_heights", "P_i")),
+    PaperFigure("fig10_cumulated", 10, "fig:cumul", "cumulated displacement A(alpha) and "
+                "<dx> per rearrangement", "statistics", ("cumulated",)),
+)
+FIGURE_NAMES = tuple(f.name for f in PAPER_FIGURES)
+STATISTICS_NAMES = tuple(f.name for f in PAPER_FIGURES if f.kind == "statistics")
+SCENE_LETTERS = {"fig02_scene_A": "A", "fig03_scene_B": "B", "fig04_scene_C": "C"}
 
 
-def save_figure(fig, out_dir, name: str) -> list[str]:
-    """Write ``name``.png and ``name``.pdf in ``out_dir`` (created); returns the paths."""
-    if out_dir is None:
-        return []
-    os.makedirs(out_dir, exist_ok=True)
-    paths = []
-    for ext in ("png", "pdf"):
-        p = os.path.join(os.fspath(out_dir), f"{name}.{ext}")
-        fig.savefig(p, bbox_inches="tight")
-        paths.append(p)
-    return paths
+def figure_lookup() -> dict[str, str]:
+    """Every accepted spelling -> the figure's name (names, old names, the paper's labels)."""
+    out = {}
+    for f in PAPER_FIGURES:
+        for key in (f.name, f.label, f.label.split(":", 1)[1], f"fig{f.number}", *f.aliases):
+            out[key.lower()] = f.name
+    return out
+
+
+def figure_list() -> str:
+    """The table printed by ``--list``: name, figure of the paper, what it shows."""
+    rows = [f"{f.name:<23} Fig. {f.number:<2} ({f.label}): {f.shows}" for f in PAPER_FIGURES]
+    return "\n".join(rows)
 
 
 # -----------------------------------------------------------------------------
@@ -146,12 +174,13 @@ def force_curves(result, n_grid: int = 200):
 
 
 def fig_scene(result, name: str = "scene", label: str = "", out_dir="figures",
-              n_columns: int = 800, event_width: float | None = None,
-              cmap_map: str = "hot_r", cmap_sliders: str = "turbo"):
+              n_columns: int | None = None, event_width: float | None = None,
+              cmap_map: str = DISPLACEMENT_CMAP, cmap_sliders: str = ORDER_CMAP):
     """Hot map of displacements and F_t vs alpha for one run (paper Figs. small, large_no, large_wc).
 
     (a) |Delta x_i| of every slider (row) in every event, at the event angle,
-    log colour scale, darker = larger; vertical dashed line at alpha_c.
+    log colour scale, the darker the larger (a map whose lightness falls
+    monotonically, so this holds in greyscale); dashed line at alpha_c.
     (b) F_t of every slider vs alpha coloured by slider number, with the
     limits mu_s cos(alpha) and (2 mu_d - mu_s) cos(alpha) (dashed) and
     sin(alpha) (dash-dotted).
@@ -160,9 +189,12 @@ def fig_scene(result, name: str = "scene", label: str = "", out_dir="figures",
     n = sc.n_sliders
     with plt.rc_context(STYLE):
         big = n > 50
-        fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(6.4, 8.4 if big else 7.2), sharex=True,
-                                       gridspec_kw={"hspace": 0.08,
-                                                    "height_ratios": (1.35, 1) if big else (1, 1)})
+        fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(COLUMN_WIDTH, 5.2 if big else 4.9),
+                                       sharex=True,
+                                       gridspec_kw={"height_ratios": (1.2, 1) if big else (1, 1)})
+        if n_columns is None:
+            # about 3 printed pixels per column at 300 dpi: a 2-column stripe per event stays visible
+            n_columns = 250 if big else 800
         img, extent = hot_map_image(result, n_columns=n_columns, event_width=event_width)
         positive = img[img > 0]
         # colour range: 2nd to 97th percentile of the painted values (the
@@ -171,51 +203,59 @@ def fig_scene(result, name: str = "scene", label: str = "", out_dir="figures",
         vmin = float(np.percentile(positive, 2)) if positive.size else 1e-3
         vmin = min(max(vmin, 1e-4 * vmax), 0.5 * vmax)
         base = plt.get_cmap(cmap_map)
+        # the palest tenth of the map is left out: it would vanish on white paper
         cmap = mcolors.LinearSegmentedColormap.from_list(
-            cmap_map + "_trunc", base(np.linspace(0.25, 1.0, 256))).with_extremes(bad="white")
+            cmap_map + "_trunc", base(np.linspace(0.12, 1.0, 256))).with_extremes(bad="white")
         shown = np.where(img > 0, img, np.nan)
         im = ax0.imshow(shown, origin="lower", aspect="auto", extent=extent, cmap=cmap,
                         norm=mcolors.LogNorm(vmin=vmin, vmax=vmax), interpolation="nearest")
         im.set_rasterized(True)
-        if math.isfinite(result.alpha_c):
-            ax0.axvline(result.alpha_c, color="k", ls="--", lw=1.0)
-            ax1.axvline(result.alpha_c, color="k", ls="--", lw=1.0)
-            ax0.text(result.alpha_c, 1.005, r"$\alpha_c$", transform=ax0.get_xaxis_transform(),
-                     va="bottom", ha="center", fontsize=9)
+        has_ac = math.isfinite(result.alpha_c)
+        if has_ac:
+            for ax in (ax0, ax1):
+                ax.axvline(result.alpha_c, color="0.35", ls="-", lw=0.8)
+            ax0.text(result.alpha_c, 1.01, r"$\alpha_c$", transform=ax0.get_xaxis_transform(),
+                     va="bottom", ha="center", fontsize=8)
         ax0.set_ylabel(r"slider $i$")
         ax0.set_ylim(0.5, n + 0.5)
         if n <= 20:
-            ax0.set_yticks(np.arange(1, n + 1))
-        cb0 = fig.colorbar(im, ax=ax0, pad=0.015, fraction=0.05, extend="both")
-        cb0.set_label(r"$|\Delta\tilde x_i|$")
-        ax0.text(0.01, 0.97, "(a)", transform=ax0.transAxes, va="top", fontweight="bold")
+            ax0.set_yticks(np.arange(1, n + 1, 1 if n <= 10 else 2))
+        cb0 = fig.colorbar(im, ax=ax0, pad=0.02, fraction=0.06, aspect=15, extend="both")
+        cb0.set_label(r"$|\Delta\tilde x_i|$ (darker: larger)")
+        cb0.ax.yaxis.set_minor_formatter(NullFormatter())
+        panel_label(ax0, "(a)")
 
         x, y = force_curves(result)
         segs = [np.column_stack([x, y[:, j]]) for j in range(n)]
         norm = mcolors.Normalize(vmin=1, vmax=max(n, 2))
         lc = LineCollection(segs, cmap=cmap_sliders, norm=norm,
-                            linewidths=1.0 if n <= 20 else 0.35, alpha=1.0 if n <= 20 else 0.8)
+                            linewidths=0.9 if n <= 20 else 0.3, alpha=1.0 if n <= 20 else 0.7)
         lc.set_array(np.arange(1, n + 1))
         lc.set_rasterized(n > 20)
         ax1.add_collection(lc)
         aa = np.linspace(0.0, extent[1], 300)
-        ax1.plot(aa, sc.mu_s_mean * np.cos(aa), "k--", lw=1.0, label=r"$\bar\mu_s\cos\alpha$")
-        ax1.plot(aa, (2 * sc.mu_d - sc.mu_s_mean) * np.cos(aa), "k--", lw=1.0, dashes=(2, 2),
-                 label=r"$(2\mu_d-\bar\mu_s)\cos\alpha$")
-        ax1.plot(aa, np.sin(aa), "k-.", lw=1.0, label=r"$\sin\alpha$")
+        ax1.plot(aa, sc.mu_s_mean * np.cos(aa), "k--", lw=0.9,
+                 label=r"$\bar\mu_s\cos\alpha$ (stability)")
+        ax1.plot(aa, (2 * sc.mu_d - sc.mu_s_mean) * np.cos(aa), "k--", lw=0.9, dashes=(1.5, 1.5),
+                 label=r"$(2\mu_d-\bar\mu_s)\cos\alpha$ (arrest)")
+        ax1.plot(aa, np.sin(aa), "k-.", lw=0.9, label=r"$\sin\alpha$")
+        if has_ac:
+            ax1.plot([], [], "-", color="0.35", lw=0.8,
+                     label=rf"$\alpha_c={result.alpha_c:.3f}$ (avalanche)")
         ax1.set_xlim(0.0, extent[1])
         lo = min(float(np.nanmin(y)), -sc.mu_s_mean) - 0.05
         ax1.set_ylim(lo, max(float(np.nanmax(y)), sc.mu_s_mean) + 0.05)
         ax1.set_xlabel(r"$\alpha$")
         ax1.set_ylabel(r"$\tilde F_t$")
-        ax1.legend(loc="lower center", frameon=True, framealpha=0.9)
-        cb1 = fig.colorbar(lc, ax=ax1, pad=0.015, fraction=0.05)
-        cb1.set_label("slider number")
-        ax1.text(0.01, 0.97, "(b)", transform=ax1.transAxes, va="top", fontweight="bold")
-        ac = f"{result.alpha_c:.3f}" if math.isfinite(result.alpha_c) else "n/a"
-        title = (f"{label + ': ' if label else ''}$N={n}$, $\\xi={sc.xi:g}$, " + _params(sc)
-                 + f", seed {sc.seed}; {result.n_events} events, $\\alpha_c={ac}$")
-        ax0.set_title(title, pad=14)
+        # below the panel: the force curves fill the whole plane
+        fig.legend(*ax1.get_legend_handles_labels(), loc="outside lower center", ncol=2,
+                   frameon=False, columnspacing=1.0)
+        cb1 = fig.colorbar(lc, ax=ax1, pad=0.02, fraction=0.06, aspect=15)
+        cb1.set_label("slider number $i$")
+        panel_label(ax1, "(b)")
+        title = (f"{'Scene ' + label + ': ' if label else ''}$N={n}$, $\\xi={sc.xi:g}$, "
+                 f"seed {sc.seed}, {result.n_events} events")
+        ax0.set_title(title, pad=9)
     save_figure(fig, out_dir, name)
     return fig
 
@@ -303,31 +343,31 @@ def fig_single_slider(result=None, backend: str = "fortran", out_dir="figures",
         y = np.vstack([y, y[-1] + (math.sin(sc.alpha_max) - math.sin(x[-2]))])
     pred = model.single_slider_angles(float(result.start_force()[0]), mu_s, sc.mu_d, sc.alpha_max)
     with plt.rc_context(STYLE):
-        fig, ax = plt.subplots(figsize=(5.2, 3.8))
+        fig, ax = plt.subplots(figsize=(COLUMN_WIDTH, 2.9))
         aa = np.linspace(0.0, sc.alpha_max, 300)
-        ax.plot(aa, mu_s * np.cos(aa), "k--", lw=1.0, label=r"$\mu_s\cos\alpha$ (stability)")
-        ax.plot(aa, (2 * sc.mu_d - mu_s) * np.cos(aa), "k--", dashes=(2, 2), lw=1.0,
+        ax.plot(aa, mu_s * np.cos(aa), "k--", lw=0.9, label=r"$\mu_s\cos\alpha$ (stability)")
+        ax.plot(aa, (2 * sc.mu_d - mu_s) * np.cos(aa), "k--", dashes=(1.5, 1.5), lw=0.9,
                 label=r"$(2\mu_d-\mu_s)\cos\alpha$ (arrest)")
-        ax.plot(x, y[:, 0], "-", color="tab:blue", lw=1.3, label="simulation")
-        ax.plot(pred, mu_s * np.cos(pred), "o", mfc="none", mec="tab:red", ms=5,
-                label=f"model $\\alpha^{{(i)}}$ ({pred.size})")
-        ax.plot(pred, (2 * sc.mu_d - mu_s) * np.cos(pred), "x", color="tab:red", ms=4)
+        ax.plot(x, y[:, 0], "-", color="tab:blue", lw=1.1, label="simulation")
+        ax.plot(pred, mu_s * np.cos(pred), "o", mfc="none", mec="tab:red", ms=4, mew=0.8,
+                label=f"model: start of a slip ({pred.size})")
+        ax.plot(pred, (2 * sc.mu_d - mu_s) * np.cos(pred), "x", color="tab:red", ms=3.5, mew=0.8,
+                label="model: end of a slip")
         ax.set_xlim(0, sc.alpha_max)
         # room below the sawtooth for the legend and the sketch
         lowest = min(float(np.min(y[x > 0.02 * sc.alpha_max, 0])) if x.size else 0.0,
                      (2 * sc.mu_d - mu_s) * math.cos(sc.alpha_max))
-        ax.set_ylim(lowest - 0.13, max(float(np.max(y)), mu_s) + 0.01)
+        ax.set_ylim(lowest - 0.2, max(float(np.max(y)), mu_s) + 0.01)
         ax.set_xlabel(r"$\alpha$")
         ax.set_ylabel(r"$\tilde F_t$")
-        ax.legend(loc="lower left", frameon=True, framealpha=0.9)
+        ax.legend(loc="lower left", frameon=True, framealpha=0.9, fontsize=7)
         sim = np.asarray(result.alpha)
         m = min(sim.size, pred.size)
         dev = float(np.max(np.abs(sim[:m] - pred[:m]))) if m else math.nan
-        ax.set_title(f"one slider between walls, $\\mu_d={sc.mu_d:g}$, $\\mu_s={mu_s:g}$, "
-                     f"$\\sigma_\\mu=0$: {sim.size} events, max $|\\alpha_{{sim}}-\\alpha_{{model}}|"
-                     f"={dev:.1e}$")
+        ax.set_title(f"one slider between walls, $\\mu_d={sc.mu_d:g}$, $\\mu_s={mu_s:g}$: "
+                     f"{sim.size} slips,\nmax $|\\alpha_{{sim}}-\\alpha_{{model}}|$ = {dev:.1e}")
         if sketch:
-            ins = ax.inset_axes([0.6, 0.02, 0.38, 0.24])
+            ins = ax.inset_axes([0.62, 0.02, 0.37, 0.25])
             _draw_sketch(ins)
     save_figure(fig, out_dir, name)
     return fig
@@ -347,7 +387,7 @@ def _alpha_colours(values, vmax, cmap="viridis"):
 def _stats_title(summary, extra: str = "") -> str:
     g = summary.grids
     return (f"$N={summary.n_sliders}$, {summary.n_realisations} runs, $\\mu_d={g.mu_d:g}$, "
-            f"$\\bar\\mu_s={g.mu_s_mean:g}$" + (f", {extra}" if extra else ""))
+            f"$\\bar\\mu_s={g.mu_s_mean:g}$" + (f"\n{extra}" if extra else ""))
 
 
 def _pick_alphas(summary, step: float = 0.05, min_fraction: float = 0.5):
@@ -393,13 +433,13 @@ def fig_force_pdf(summary, out_dir="figures", name: str = "force_pdf", step: flo
     edges = edges[::rebin]
     pdfs = pdfs / np.diff(edges)[None, :]
     with plt.rc_context(STYLE):
-        fig, ax = plt.subplots(figsize=(5.6, 4.0))
+        fig, ax = plt.subplots(figsize=(COLUMN_WIDTH, 2.7))
         cols, sm = _alpha_colours(summary.alpha[idx], max(summary.alpha[idx[-1]], 1e-9) if idx else 1)
-        ins = ax.inset_axes([0.08, 0.45, 0.45, 0.45])
+        ins = ax.inset_axes([0.1, 0.42, 0.48, 0.5])
         for c, i in zip(cols, idx):
             pdf = pdfs[i]
-            ax.stairs(pdf, edges, color=c, lw=1.0)
-            ins.stairs(pdf, edges, color=c, lw=0.9)
+            ax.stairs(pdf, edges, color=c, lw=0.9)
+            ins.stairs(pdf, edges, color=c, lw=0.8)
         plateau = 1.0 / (2.0 * g.mu_s_mean)
         ax.axhline(plateau, color="0.4", lw=0.6, ls=":")
         ins.axhline(plateau, color="0.4", lw=0.6, ls=":")
@@ -410,13 +450,13 @@ def fig_force_pdf(summary, out_dir="figures", name: str = "force_pdf", step: flo
         ax.set_ylim(0, 1.05 * top)
         ins.set_xlim(edges[0], 0.4)
         ins.set_ylim(0, 1.6 * plateau)
-        ins.set_title(r"$\tilde F_t<0.4$", fontsize=7, pad=2)
-        ins.tick_params(labelsize=6)
-        ins.text(0.98, 0.9, r"$1/(2\bar\mu_s)$", transform=ins.transAxes, ha="right", fontsize=6,
-                 color="0.3")
+        ins.set_title(r"zoom: $\tilde F_t<0.4$", fontsize=7, pad=2)
+        ins.tick_params(labelsize=7, length=2, pad=1.5)
+        ax.plot([], [], color="0.4", lw=0.6, ls=":", label=r"$1/(2\bar\mu_s)$ (flat start)")
+        ax.legend(loc="center", bbox_to_anchor=(0.36, 0.27), frameon=False)
         cb = fig.colorbar(sm, ax=ax, pad=0.015)
         cb.set_label(r"$\alpha$")
-        ax.set_title(_stats_title(summary, (title_extra + "; " if title_extra else "")
+        ax.set_title(_stats_title(summary, (title_extra + ", " if title_extra else "")
                                   + f"bins of {np.diff(edges)[0]:.3g}"))
     save_figure(fig, out_dir, name)
     return fig
@@ -443,17 +483,16 @@ def fig_stopped_force_ratio(summary, out_dir="figures", name: str = "stopped_rat
     centers = g.stop_alpha_centers
     keep = [j for j in range(centers.size) if summary.stopped_counts[j] >= min_count]
     with plt.rc_context(STYLE):
-        fig, ax = plt.subplots(figsize=(5.6, 4.0))
+        fig, ax = plt.subplots(figsize=(COLUMN_WIDTH, 2.7))
         cols, sm = _alpha_colours(centers, g.stop_alpha_edges[-1])
         for j in keep:
-            ax.plot(rmid, pdfs[j], "-", color=cols[j], lw=1.1)
+            ax.plot(rmid, pdfs[j], "-", color=cols[j], lw=1.0)
         high = g.mu_d / (2 * g.mu_d - g.mu_s_mean)
         ax.axvline(1.0, color="k", ls="--", lw=0.9,
-                   label=r"1: $\tilde F_t=(2\mu_d-\bar\mu_s)\cos\alpha$ (single slider)")
+                   label="1: single slider")
         ax.axvline(high, color="k", ls=":", lw=0.9,
-                   label=f"$\\mu_d/(2\\mu_d-\\bar\\mu_s)={high:.2f}$: "
-                         r"$\tilde F_t=\mu_d\cos\alpha$")
-        ax.legend(loc="upper left", fontsize=7, frameon=True, framealpha=0.9)
+                   label=f"{high:.2f}: " r"$\tilde F_t=\mu_d\cos\alpha$")
+        ax.legend(loc="upper left", frameon=True, framealpha=0.9)
         ax.set_xlim(*xlim)
         ymax = np.nanmax(pdfs[keep]) if keep else 1.0
         ax.set_ylim(0, 1.12 * ymax)
@@ -475,7 +514,8 @@ def fig_bin_heights(summary, out_dir="figures", name: str = "bin_heights",
     shown where at least ``min_fraction`` of the runs are still at rest.
     Solid: closed form of Eq. (model) (``model.bin_heights``, nu(0) bins);
     dashed: crude model Eq. (crude); vertical solid line: alpha_t (Stirling,
-    Eq. cond); grey dash-dotted: the exact solution of Eq. (not_neg).
+    Eq. cond); grey dash-dotted: the exact solution of Eq. (not_neg).  Every
+    line has a legend entry: one legend for the bins, one for the line styles.
     """
     from . import model
 
@@ -492,26 +532,40 @@ def fig_bin_heights(summary, out_dir="figures", name: str = "bin_heights",
     at_e = model.transition_angle_exact(g.mu_s_mean, g.mu_d)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     with plt.rc_context(STYLE):
-        fig, ax = plt.subplots(figsize=(5.6, 4.2))
+        fig, ax = plt.subplots(figsize=(COLUMN_WIDTH, 3.6))
+        bin_handles = []
         for c, i in zip(colours, bins):
-            ax.errorbar(a, summary.p_mean[ok, i - 1], yerr=summary.p_sem[ok, i - 1], fmt="o", ms=3,
-                        color=c, capsize=1.5, lw=0.8, label=f"$P_{{{i}}}$")
-            ax.plot(aa, closed[:, i - 1], "-", color=c, lw=1.0)
-        ax.plot(aa, crude_p1, "--", color=colours[0], lw=1.0, label="crude model")
-        ax.axhline(plateau, color="0.3", ls="--", lw=0.8)
-        ax.axvline(at_s, color="k", ls="-", lw=1.0)
-        ax.axvline(at_e, color="0.45", ls="-.", lw=1.0)
-        ax.text(at_s, 0.99, f" $\\alpha_t={at_s:.3f}$\n (Stirling)", transform=ax.get_xaxis_transform(),
-                va="top", ha="left", fontsize=7)
-        ax.text(at_e, 0.99, f"exact $\\alpha_t={at_e:.3f}$ ", transform=ax.get_xaxis_transform(),
-                va="top", ha="right", fontsize=7)
+            ax.errorbar(a, summary.p_mean[ok, i - 1], yerr=summary.p_sem[ok, i - 1], fmt="o",
+                        ms=2.5, color=c, capsize=1.2, lw=0.7, mew=0)
+            ax.plot(aa, closed[:, i - 1], "-", color=c, lw=0.9)
+            bin_handles.append((Line2D([], [], marker="o", ms=2.5, ls="none", color=c),
+                                Line2D([], [], ls="-", lw=0.9, color=c)))
+        ax.plot(aa, crude_p1, "--", color="0.25", lw=0.9)
+        ax.axhline(plateau, color="0.25", ls="--", lw=0.9)
+        ax.axvline(at_s, color="k", ls="-", lw=0.9)
+        ax.axvline(at_e, color="0.45", ls="-.", lw=0.9)
         ax.set_xlabel(r"$\alpha$")
         ax.set_ylabel(r"$P_i$")
         ax.set_xlim(0, summary.alpha[-1])
         ax.set_ylim(0, None)
-        ax.legend(loc="center left", ncol=1, frameon=True, framealpha=0.9)
-        ax.set_title(_stats_title(summary, title_extra + ("; " if title_extra else "")
-                                  + "solid: model, dashed: crude model"))
+        first = ax.legend(bin_handles, [f"$P_{{{i}}}$" + (r" ($i=\nu$)" if i == nu else "")
+                                        for i in bins],
+                          loc="upper left", frameon=True, framealpha=0.9,
+                          handler_map={tuple: HandlerTuple(ndivide=1)}, title="bin: data, model",
+                          title_fontsize=7)
+        ax.add_artist(first)
+        style = [Line2D([], [], marker="o", ms=2.5, ls="none", color="0.3"),
+                 Line2D([], [], ls="-", lw=0.9, color="0.3"),
+                 Line2D([], [], ls="--", lw=0.9, color="0.25"),
+                 Line2D([], [], ls="-", lw=0.9, color="k"),
+                 Line2D([], [], ls="-.", lw=0.9, color="0.45")]
+        ax.legend(style, ["simulation (mean $\\pm$ s.e.)", "model, Eq. (model)",
+                          "crude model, Eq. (crude):\n$P_1$ and plateau $P_{i\\neq1}$",
+                          f"$\\alpha_t={at_s:.3f}$, Eq. (cond)\n(Stirling)",
+                          f"$\\alpha_t={at_e:.3f}$, exact\n(Eq. not_neg)"],
+                  loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False,
+                  columnspacing=1.0)
+        ax.set_title(_stats_title(summary, title_extra))
     save_figure(fig, out_dir, name)
     return fig
 
@@ -525,7 +579,7 @@ def _exponential_fit_line(ax, x, y, fit_range):
     fit = ob.exponential_fit(x, y, *fit_range)
     if math.isfinite(fit["rate"]):
         xx = np.linspace(*fit_range, 50)
-        ax.plot(xx, fit["prefactor"] * np.exp(fit["rate"] * xx), "k--", lw=1.0,
+        ax.plot(xx, fit["prefactor"] * np.exp(fit["rate"] * xx), "k--", lw=0.9,
                 label=f"$\\propto e^{{k\\alpha}}$, $k={fit['rate']:.1f}\\pm{fit['rate_err']:.1f}$")
     return fit
 
@@ -547,37 +601,36 @@ def fig_cumulated_displacement(data, out_dir="figures", name: str = "cumulated",
     a = summary.alpha
     ok = summary.n_valid >= max(1, 0.5 * summary.n_realisations)
     with plt.rc_context(STYLE):
-        fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(5.2, 6.2), sharex=True,
-                                       gridspec_kw={"hspace": 0.08})
+        fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(COLUMN_WIDTH, 4.4), sharex=True)
         A = summary.cumulated_mean
         sel = ok & (A > 0)
-        ax0.errorbar(a[sel], A[sel], yerr=summary.cumulated_sem[sel], fmt="o", ms=3, capsize=1.5,
-                     lw=0.8, color="tab:blue", label=r"$\langle A\rangle$ (mean $\pm$ s.e.)")
+        ax0.errorbar(a[sel], A[sel], yerr=summary.cumulated_sem[sel], fmt="o", ms=2.5,
+                     capsize=1.2, lw=0.7, mew=0, color="tab:blue", label=r"$\langle A\rangle$ (mean $\pm$ s.e.)")
         fa = _exponential_fit_line(ax0, a[sel], A[sel], fit_range)
         ax0.set_yscale("log")
         ax0.set_ylabel(r"$A$")
         ax0.legend(loc="lower right")
-        ax0.text(0.01, 0.97, "(a)", transform=ax0.transAxes, va="top", fontweight="bold")
+        panel_label(ax0, "(a)")
 
         if results is not None:
             ea = np.concatenate([np.asarray(r.alpha) for r in results])
             ed = np.concatenate([ob.mean_event_displacement(r) for r in results])
             pos = ed > 0
-            ax1.plot(ea[pos], ed[pos], ".", color="0.6", ms=2, label="single events",
+            ax1.plot(ea[pos], ed[pos], ".", color="0.65", ms=1.5, mew=0, label="single events",
                      rasterized=True)
         mid = summary.alpha_mid
         mdx = summary.event_mean_displacement
         fb = {"rate": math.nan}
         if mdx is not None:
             okm = np.isfinite(mdx) & (mdx > 0)
-            ax1.plot(mid[okm], mdx[okm], "o", ms=3, color="tab:red",
+            ax1.plot(mid[okm], mdx[okm], "o", ms=2.5, mew=0, color="tab:red",
                      label=r"$\langle\Delta\tilde x\rangle$ (mean per $\alpha$ bin)")
             fb = _exponential_fit_line(ax1, mid[okm], mdx[okm], fit_range)
         ax1.set_yscale("log")
         ax1.set_xlabel(r"$\alpha$")
         ax1.set_ylabel(r"$\langle\Delta\tilde x\rangle$")
-        ax1.legend(loc="upper left", bbox_to_anchor=(0.06, 1.0))
-        ax1.text(0.01, 0.97, "(b)", transform=ax1.transAxes, va="top", fontweight="bold")
+        ax1.legend(loc="upper left", bbox_to_anchor=(0.06, 1.0), frameon=True, framealpha=0.9)
+        panel_label(ax1, "(b)")
         ax1.set_xlim(0, a[ok][-1] if ok.any() else a[-1])
         ax0.set_title(_stats_title(summary, title_extra))
     fig.fits = {"cumulated": fa, "event_displacement": fb}
@@ -594,9 +647,9 @@ def scene_setups(paper_size: bool = False, backend: str = "fortran") -> dict[str
     """Scenes A, B, C of the paper (Sec. III).  Small chains unless paper-size or Fortran."""
     big = 400 if (paper_size or backend == "fortran") else 60
     return {
-        "scene_A": dict(n_sliders=10, xi=0.0, seed=1, label="A"),
-        "scene_B": dict(n_sliders=big, xi=0.0, seed=1, label="B"),
-        "scene_C": dict(n_sliders=big, xi=0.001, seed=1, label="C"),
+        "fig02_scene_A": dict(n_sliders=10, xi=0.0, seed=1, label="A"),
+        "fig03_scene_B": dict(n_sliders=big, xi=0.0, seed=1, label="B"),
+        "fig04_scene_C": dict(n_sliders=big, xi=0.001, seed=1, label="C"),
     }
 
 
@@ -627,6 +680,48 @@ def run_ensemble(n_sliders: int = 100, runs: int = 20, base_seed: int = 0, xi: f
     return summary, (results if keep_results else None)
 
 
+class FigureInputError(ValueError):
+    """A file or name given to the figures command that cannot be used (one-line message)."""
+
+
+def check_ensemble_file(path) -> None:
+    """Raise ``FigureInputError`` unless ``path`` is an HDF5 ensemble file.
+
+    Tells apart a missing file, a file that is not HDF5, a single-run file
+    (``TiltResult.save``: read it with ``TiltResult.load``) and an HDF5 file
+    of another kind.
+    """
+    import h5py
+
+    p = os.fspath(path)
+    if not os.path.exists(p):
+        raise FigureInputError(f"ensemble file {p!r} does not exist")
+    if os.path.isdir(p):
+        raise FigureInputError(f"ensemble file {p!r} is a directory")
+    try:
+        readable_hdf5 = h5py.is_hdf5(p)
+    except OSError as exc:
+        raise FigureInputError(f"ensemble file {p!r} cannot be read ({exc.strerror or exc})") \
+            from None
+    if not readable_hdf5:
+        raise FigureInputError(f"{p!r} is not an HDF5 file; --ensemble needs the file written by "
+                               "python -m sliders.ensemble")
+    try:
+        with h5py.File(p, "r") as f:
+            fmt = f.attrs.get("format")
+            fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
+            agreed_layout = "realisations/statistics" in f and "realisations/done" in f
+    except OSError as exc:
+        raise FigureInputError(f"{p!r} is not a readable HDF5 file ({exc})") from None
+    if fmt == "sliders.tilt":
+        raise FigureInputError(f"{p!r} holds a single run, not an ensemble: read it with "
+                               f"sliders.TiltResult.load({p!r}); --ensemble needs the file "
+                               "written by python -m sliders.ensemble")
+    if not agreed_layout:
+        raise FigureInputError(f"{p!r} is an HDF5 file but not a sliders ensemble file "
+                               f"(format attribute {fmt!r}, no /realisations/statistics)")
+
+
 def load_ensemble_summary(path, prefer_package: bool = True):
     """(EnsembleSummary, grids, scene dict) from an ensemble HDF5 file.
 
@@ -635,6 +730,7 @@ def load_ensemble_summary(path, prefer_package: bool = True):
     /realisations/statistics/<key>, done mask /realisations/done, scene JSON
     in the root attribute "scene".  Only rows with done = 1 are used.
     """
+    check_ensemble_file(path)
     load_summary = None
     if prefer_package:
         try:
@@ -642,7 +738,17 @@ def load_ensemble_summary(path, prefer_package: bool = True):
         except ImportError:
             pass
     if load_summary is not None:
-        out = load_summary(path)
+        from .storage import StorageError
+
+        try:
+            out = load_summary(path)
+        except (StorageError, KeyError, OSError) as exc:
+            raise FigureInputError(f"{os.fspath(path)!r}: cannot read the ensemble ({exc})") \
+                from None
+        except ValueError as exc:  # e.g. combine() of zero finished rows
+            raise FigureInputError(f"{os.fspath(path)!r}: {exc}") from None
+        if len(out) > 3 and out[3].get("n_done", 1) == 0:
+            raise FigureInputError(f"{os.fspath(path)!r}: no finished realisation yet")
         if isinstance(out, tuple) and len(out) >= 2:
             scene = out[2] if len(out) > 2 else None
             return out[0], out[1], (scene.to_dict() if hasattr(scene, "to_dict") else scene)
@@ -659,7 +765,7 @@ def load_ensemble_summary(path, prefer_package: bool = True):
 
             grids = ob.default_grids(Scene.from_dict(scene))
     if not done.any():
-        raise ValueError(f"{os.fspath(path)!r}: no finished realisation (done mask all 0)")
+        raise FigureInputError(f"{os.fspath(path)!r}: no finished realisation (done mask all 0)")
     n = int(scene.get("n_sliders", rows["event_size_counts"].shape[-1]))
     return ob.combine(rows, grids, n), grids, scene
 
@@ -669,83 +775,182 @@ def load_ensemble_summary(path, prefer_package: bool = True):
 # -----------------------------------------------------------------------------
 
 
+GALLERY_DIR = os.path.join("docs", "figures")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a bad option in one line (no usage block)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="python -m sliders.figures",
-        description="Rebuild the paper's figures (PNG + PDF). Fast defaults; --paper-size "
-                    "for the paper's sizes (scenes B, C: N=400; statistics: 20 runs of N=100).")
-    p.add_argument("--out", default="figures", metavar="DIR", help="output directory (figures/)")
+        description="Rebuild the paper's figures. Every figure is drawn for print: one column "
+                    f"({COLUMN_WIDTH} in) wide, fonts of 7-9 pt, written as a vector PDF and a "
+                    f"PNG at --dpi ({PNG_DPI}). --paper-size sets the paper's system sizes (scenes "
+                    "B, C: N = 400; statistics: 20 runs of N = 100). --list names the figure of "
+                    "the paper each one is.")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help=f"output directory (figures/; {GALLERY_DIR}/ with --gallery)")
     p.add_argument("--ensemble", metavar="FILE.h5",
-                   help="statistics figures from this ensemble file (python -m sliders.ensemble)")
-    p.add_argument("--paper-size", action="store_true", help="the paper's sizes")
+                   help="statistics figures from this ensemble file (python -m sliders.ensemble); "
+                        "scenes A, B, C are then drawn only if named in --only")
+    p.add_argument("--paper-size", action="store_true", help="the paper's system sizes")
     p.add_argument("--backend", choices=("fortran", "numpy"), default="fortran")
-    p.add_argument("--only", nargs="+", choices=FIGURE_NAMES, metavar="NAME",
-                   help=f"only these figures, among {', '.join(FIGURE_NAMES)}")
+    p.add_argument("--only", nargs="+", metavar="NAME",
+                   help="only these figures (see --list; old names such as bin_heights and the "
+                        "paper's labels such as distrib2 work too)")
+    p.add_argument("--list", action="store_true",
+                   help="print which figure of the paper each name is, and exit")
+    p.add_argument("--dpi", type=int, default=PNG_DPI, help=f"PNG resolution (default {PNG_DPI})")
     p.add_argument("--runs", type=int, default=None, help="realisations for the statistics "
                    "(default 20 with Fortran or --paper-size, 4 with numpy)")
     p.add_argument("--n-sliders", type=int, default=None, help="N for the statistics "
                    "(default 100 with Fortran or --paper-size, 30 with numpy)")
     p.add_argument("--seed", type=int, default=0, help="base seed of the statistics ensemble")
+    p.add_argument("--animate", action="store_true",
+                   help="write only a GIF of a tilt (scene A, or --scene): the forces against the "
+                        "stability limits as alpha grows, events flashing")
+    p.add_argument("--scene", metavar="FILE.toml", help="scene file for --animate (default: "
+                   "scene A, N = 10)")
+    p.add_argument("--gallery", action="store_true",
+                   help=f"rebuild the gallery: the ten figures at --paper-size plus the animation, "
+                        f"PNG only, into {GALLERY_DIR}/ (or --out)")
     return p
+
+
+def resolve_names(requested: Sequence[str] | None, ensemble: bool) -> list[str]:
+    """The figures to draw, in the paper's order.
+
+    Default: all ten; with an ensemble file, all but the three scenes (each
+    a fresh simulation) unless they are named.  Raises ``FigureInputError``
+    listing the valid names on an unknown one.
+    """
+    if not requested:
+        return [n for n in FIGURE_NAMES if not (ensemble and n in SCENE_LETTERS)]
+    lookup = figure_lookup()
+    unknown = [r for r in requested if r.lower() not in lookup]
+    if unknown:
+        raise FigureInputError(f"unknown figure name(s) {', '.join(unknown)}; valid names: "
+                               f"{', '.join(FIGURE_NAMES)} (see --list)")
+    wanted = {lookup[r.lower()] for r in requested}
+    return [n for n in FIGURE_NAMES if n in wanted]
+
+
+def _check_args(args) -> None:
+    for opt in ("runs", "n_sliders"):
+        v = getattr(args, opt)
+        if v is not None and v < (1 if opt == "runs" else 2):
+            raise FigureInputError(f"--{opt.replace('_', '-')} must be at least "
+                                   f"{1 if opt == 'runs' else 2}, got {v}")
+    if not 50 <= args.dpi <= 2400:
+        raise FigureInputError(f"--dpi must lie in [50, 2400], got {args.dpi}")
+    if args.scene and not args.animate:
+        raise FigureInputError("--scene is for --animate (the figures use the paper's scenes)")
+
+
+def draw_figures(names, out, args, formats=("png", "pdf"), palette_png: bool = False) -> None:
+    """Draw the named figures into ``out`` (progress on stdout)."""
+    from . import schematics
+
+    big = args.paper_size or args.backend == "fortran"
+    runs = args.runs if args.runs is not None else (20 if big else 4)
+    n_stats = args.n_sliders if args.n_sliders is not None else (100 if big else 30)
+
+    def save(fig, name, t0, note=""):
+        paths = save_figure(fig, out, name, formats=formats, dpi=args.dpi, palette_png=palette_png)
+        plt.close(fig)
+        print(f"{name}: {time.perf_counter() - t0:.1f} s{(' ' + note) if note else ''} -> "
+              f"{', '.join(paths)}", flush=True)
+
+    makers_without_data = {
+        "fig01_sketch": lambda: schematics.fig_sketch(out_dir=None),
+        "fig08_histogram_model": lambda: schematics.fig_histogram_model(out_dir=None),
+        "fig05_single_slider": lambda: fig_single_slider(backend=args.backend, out_dir=None),
+    }
+    setups = scene_setups(args.paper_size, args.backend)
+    for name in names:
+        t0 = time.perf_counter()
+        if name in makers_without_data:
+            save(makers_without_data[name](), name, t0)
+        elif name in setups:
+            s = dict(setups[name])
+            label = s.pop("label")
+            res = run_scene(backend=args.backend, **s)
+            save(fig_scene(res, name=name, label=label, out_dir=None), name, t0,
+                 f"(N={s['n_sliders']}, xi={s['xi']:g}, {res.n_events} events, "
+                 f"alpha_c={res.alpha_c:.4f})")
+
+    stats = [n for n in names if n in STATISTICS_NAMES]
+    if not stats:
+        return
+    t0 = time.perf_counter()
+    results = None
+    if args.ensemble:
+        summary, _, _ = load_ensemble_summary(args.ensemble)
+        extra = f"ensemble {os.path.basename(args.ensemble)}"
+    else:
+        def prog(i, total, res):
+            print(f"  statistics run {i}/{total}: alpha_c={res.alpha_c:.4f}, "
+                  f"{res.n_events} events", flush=True)
+
+        summary, results = run_ensemble(n_stats, runs, base_seed=args.seed, backend=args.backend,
+                                        keep_results=True, progress=prog)
+        extra = ""
+    print(f"statistics: {summary.n_realisations} runs of N={summary.n_sliders} "
+          f"({time.perf_counter() - t0:.1f} s)", flush=True)
+    makers = {
+        "fig06_force_pdf": lambda: fig_force_pdf(summary, out_dir=None, title_extra=extra),
+        "fig07_stopped_ratio": lambda: fig_stopped_force_ratio(summary, out_dir=None,
+                                                               title_extra=extra),
+        "fig09_P_i": lambda: fig_bin_heights(summary, out_dir=None, title_extra=extra),
+        "fig10_cumulated": lambda: fig_cumulated_displacement(results if results else summary,
+                                                              out_dir=None, title_extra=extra),
+    }
+    for name in stats:
+        t1 = time.perf_counter()
+        save(makers[name](), name, t1)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    names = list(args.only) if args.only else list(FIGURE_NAMES)
-    big = args.paper_size or args.backend == "fortran"
-    runs = args.runs if args.runs is not None else (20 if big else 4)
-    n_stats = args.n_sliders if args.n_sliders is not None else (100 if big else 30)
-    out = args.out
+    if args.list:
+        print(figure_list())
+        return 0
     t_all = time.perf_counter()
+    try:
+        _check_args(args)
+        if args.animate and not args.gallery:
+            from .animation import animate_tilt, animation_scene
 
-    def done(name, t0, note=""):
-        print(f"{name}: {time.perf_counter() - t0:.1f} s{(' ' + note) if note else ''} -> "
-              f"{os.path.join(out, name)}.png/.pdf", flush=True)
-
-    setups = scene_setups(args.paper_size, args.backend)
-    for name in names:
-        if name in setups:
-            t0 = time.perf_counter()
-            s = dict(setups[name])
-            label = s.pop("label")
-            res = run_scene(backend=args.backend, **s)
-            fig = fig_scene(res, name=name, label=label, out_dir=out)
-            plt.close(fig)
-            done(name, t0, f"(N={s['n_sliders']}, xi={s['xi']:g}, {res.n_events} events, "
-                           f"alpha_c={res.alpha_c:.4f})")
-    if "single_slider" in names:
-        t0 = time.perf_counter()
-        plt.close(fig_single_slider(backend=args.backend, out_dir=out))
-        done("single_slider", t0)
-
-    stats = [n for n in names if n in ("force_pdf", "stopped_ratio", "bin_heights", "cumulated")]
-    if stats:
-        t0 = time.perf_counter()
-        results = None
+            out = args.out or "figures"
+            path = animate_tilt(animation_scene(args.scene), out_dir=out, backend=args.backend)
+            print(f"animation -> {path} ({os.path.getsize(path) / 1e3:.0f} kB, "
+                  f"{time.perf_counter() - t_all:.1f} s)", flush=True)
+            return 0
         if args.ensemble:
-            summary, _, scene = load_ensemble_summary(args.ensemble)
-            extra = f"ensemble {os.path.basename(args.ensemble)}"
-        else:
-            def prog(i, total, res):
-                print(f"  statistics run {i}/{total}: alpha_c={res.alpha_c:.4f}, "
-                      f"{res.n_events} events", flush=True)
+            check_ensemble_file(args.ensemble)
+        names = resolve_names(args.only, bool(args.ensemble))
+        if args.gallery:
+            args.paper_size = True
+            out = args.out or GALLERY_DIR
+            draw_figures(names, out, args, formats=("png",), palette_png=True)
+            from .animation import animate_tilt, animation_scene
 
-            summary, results = run_ensemble(n_stats, runs, base_seed=args.seed, backend=args.backend,
-                                            keep_results=True, progress=prog)
-            extra = ""
-        print(f"statistics: {summary.n_realisations} runs of N={summary.n_sliders} "
-              f"({time.perf_counter() - t0:.1f} s)", flush=True)
-        makers = {
-            "force_pdf": lambda: fig_force_pdf(summary, out_dir=out, title_extra=extra),
-            "stopped_ratio": lambda: fig_stopped_force_ratio(summary, out_dir=out, title_extra=extra),
-            "bin_heights": lambda: fig_bin_heights(summary, out_dir=out, title_extra=extra),
-            "cumulated": lambda: fig_cumulated_displacement(results if results else summary,
-                                                            out_dir=out, title_extra=extra),
-        }
-        for name in stats:
-            t1 = time.perf_counter()
-            plt.close(makers[name]())
-            done(name, t1)
+            path = animate_tilt(animation_scene(None), out_dir=out, backend=args.backend)
+            print(f"animation -> {path} ({os.path.getsize(path) / 1e3:.0f} kB)", flush=True)
+        else:
+            draw_figures(names, args.out or "figures", args)
+    except (FigureInputError, ValueError) as exc:
+        # ValueError covers SceneError and the validation of the figure functions
+        print(f"python -m sliders.figures: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # e.g. an output directory that cannot be written
+        print(f"python -m sliders.figures: error: {exc}", file=sys.stderr)
+        return 2
     print(f"all figures: {time.perf_counter() - t_all:.1f} s", flush=True)
     return 0
 

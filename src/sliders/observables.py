@@ -45,7 +45,8 @@ __all__ = [
     "model_bin_index", "model_bin_counts", "event_total_displacement",
     "cumulated_displacement", "mean_event_displacement", "stopped_force_ratios",
     "stopped_force_ratio_histogram", "event_sizes", "event_size_counts",
-    "synchronisation", "moving_clusters", "realisation_statistics", "statistics_layout",
+    "synchronisation", "moving_clusters", "extremity_activity", "realisation_statistics",
+    "statistics_layout",
     "EnsembleSummary", "combine", "summary_from_results", "exponential_fit",
     "linear_fit",
 ]
@@ -410,6 +411,52 @@ def moving_clusters(result) -> np.ndarray:
         idx, _ = d.event(k)
         if idx.size:
             out[k] = 1 + int(np.count_nonzero(np.diff(np.sort(idx)) > 1))
+    return out
+
+
+def extremity_activity(result, edges, end_fraction: float = 0.25) -> dict[str, np.ndarray]:
+    """Where along the chain the rearrangements of each angle bin happen: at the ends or not.
+
+    For the events with ``edges[j] <= alpha_k < edges[j+1]`` (every recorded
+    event; the avalanche itself is not one):
+
+    * ``total[j]``: sum over events and sliders of |displacement|;
+    * ``up[j]``, ``down[j]``: the part of it carried by the first and the
+      last ``end_fraction`` of the chain (sliders n <= f N, up the slope, and
+      n > (1 - f) N, down the slope; x grows down the slope);
+    * ``extent_up[j]``, ``extent_down[j]``: the length, as a fraction of N,
+      of the run of adjacent sliders that all moved at least once in the bin,
+      starting from slider 1 (resp. N) - the size of the active region
+      attached to that end (0 when the end slider did not move);
+    * ``events[j]``: number of events.
+
+    With activity spread evenly along the chain the two ends would carry
+    ``2 end_fraction`` of the displacement.
+    """
+    d = _need(result, "extremity_activity")
+    edges = np.asarray(edges, dtype=float)
+    nb = edges.size - 1
+    n = result.scene.n_sliders
+    a = np.asarray(result.alpha, dtype=float)
+    event_bin = np.searchsorted(edges, a, side="right") - 1
+    entry_bin = event_bin[d.event_of_entry()]
+    keep = (entry_bin >= 0) & (entry_bin < nb)
+    b, idx = entry_bin[keep], d.index[keep]
+    mag = np.abs(d.value[keep])
+    n_end = max(1, int(round(end_fraction * n)))
+    out = {
+        "total": np.bincount(b, weights=mag, minlength=nb),
+        "up": np.bincount(b, weights=np.where(idx < n_end, mag, 0.0), minlength=nb),
+        "down": np.bincount(b, weights=np.where(idx >= n - n_end, mag, 0.0), minlength=nb),
+        "events": np.bincount(event_bin[(event_bin >= 0) & (event_bin < nb)], minlength=nb),
+        "extent_up": np.zeros(nb), "extent_down": np.zeros(nb),
+    }
+    moved = np.zeros((nb, n), dtype=bool)
+    moved[b, idx] = True
+    for j in range(nb):
+        still = np.flatnonzero(~moved[j])  # sliders that did not move in this bin
+        out["extent_up"][j] = (still[0] if still.size else n) / n
+        out["extent_down"][j] = ((n - 1 - still[-1]) if still.size else n) / n
     return out
 
 

@@ -26,6 +26,7 @@ import os
 import platform
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,6 +43,13 @@ CUMUL_FIT_RANGE = (0.1, 0.45)  # exponential fits of A and <dx>
 EARLY_ALPHA, LATE_ALPHA = 0.2, 0.4  # stopped-force ratio: early bins below, late above
 SYNC_BIN = 0.02  # angle bins of the synchronisation indicator
 SYNC_FRACTION = 0.5  # synchronised: at least half the events of a bin have >= 2 groups
+# Extremities of scene C (statement 14): decided before looking at the data.
+EXTREMITY_BIN = 0.02  # angle bins of the extremity indicator (as SYNC_BIN)
+END_FRACTION = 0.25  # "an extremity": the first / last quarter of the chain
+ENDS_SHARE = 2.0 / 3.0  # two end regions: the two quarters carry >= 2/3 of the displacement
+EACH_END_SHARE = 1.0 / 6.0  # ... and each of them >= 1/6 (both ends, not one)
+HALF_CHAIN = 0.5  # "more than half the size of the system"
+UPPER_ONSET = (0.37, 0.43)  # "from an angle of about 0.4" (+-0.03, as statements 7 and 11)
 
 
 @dataclass
@@ -198,6 +206,55 @@ def sync_profile(results, alpha_max: float = 0.56) -> dict:
             "weighted": weighted, "onset": onset,
             "overall": float(multi.sum() / max(total.sum(), 1)),
             "overall_weighted": float(disp_multi.sum() / max(disp_total.sum(), 1e-300))}
+
+
+def extremity_profile(results, alpha_max: float = 0.56) -> dict:
+    """The extremity indicator (``observables.extremity_activity``) pooled and per run.
+
+    Pooled over the runs, per bin of ``EXTREMITY_BIN``: displacement shares
+    of the up-slope and down-slope quarters; per run, the extent of the
+    active region attached to each end.  ``onset_up`` / ``onset_down`` (one
+    per run): first bin from which the region attached to that end spans at
+    least ``HALF_CHAIN`` of the chain in every bin holding events, up to the
+    avalanche (its own bin, cut short, excluded as in ``sync_profile``); NaN
+    if never.
+    """
+    edges = np.arange(0.0, alpha_max + EXTREMITY_BIN, EXTREMITY_BIN)
+    nb = edges.size - 1
+    tot, up, down = np.zeros(nb), np.zeros(nb), np.zeros(nb)
+    onsets = {"up": [], "down": []}
+    extents = {"up": [], "down": []}
+    for r in results:
+        e = ob.extremity_activity(r, edges, END_FRACTION)
+        tot += e["total"]
+        up += e["up"]
+        down += e["down"]
+        populated = np.flatnonzero(e["events"] > 0)
+        if math.isfinite(r.alpha_c) and populated.size:
+            last = np.searchsorted(edges, r.alpha_c, side="right") - 1
+            populated = populated[populated < last] if populated[-1] == last else populated
+        for end in ("up", "down"):
+            ext = e[f"extent_{end}"]
+            extents[end].append(np.where(e["events"] > 0, ext, np.nan))
+            onset = math.nan
+            for pos, j in enumerate(populated):
+                if np.all(ext[populated[pos:]] >= HALF_CHAIN):
+                    onset = float(edges[j])
+                    break
+            onsets[end].append(onset)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share_up, share_down = up / tot, down / tot
+    return {"edges": edges, "share_up": share_up, "share_down": share_down, "total": tot,
+            "overall_up": float(up.sum() / tot.sum()), "overall_down": float(down.sum() / tot.sum()),
+            "onset_up": np.array(onsets["up"]), "onset_down": np.array(onsets["down"]),
+            "extent_up": np.array(extents["up"]), "extent_down": np.array(extents["down"])}
+
+
+def _median_onset(onsets) -> float:
+    """Median over the runs, a run without an onset counting as "never" (later than any)."""
+    o = np.where(np.isfinite(onsets), onsets, np.inf)
+    m = float(np.median(o)) if o.size else math.nan
+    return m if math.isfinite(m) else math.nan
 
 
 def departure_angle(alpha, y, sem, fit_range, direction: int) -> tuple[float, dict]:
@@ -381,7 +438,83 @@ def analyse_large(rep: Report, res_b, res_c) -> None:
             f"{len(res_c)} + {len(res_b)} runs", "agrees" if bigger else "disagrees",
             "Event size: distinct sliders that moved; same seeds with and without coupling."
             + ("" if bigger else " The coupled chain does not give larger events here."))
+    extremities_statement(rep, res_b, res_c)
     rep.data["sync"] = {"b": sb, "c": scc}
+
+
+def _extremities_explanation(ec: dict, two_regions: bool, upper_ok: bool) -> str:
+    """Why statement 14 is not "agrees", in numbers."""
+    ends = ec["overall_up"] + ec["overall_down"]
+    per_bin = ec["share_up"] + ec["share_down"]
+    edges = ec["edges"]
+    pop = np.flatnonzero((ec["total"] > 0) & (edges[:-1] >= 0.3))  # the bins listed above
+    hi, lo = pop[np.argmax(per_bin[pop])], pop[np.argmin(per_bin[pop])]
+    text = (" The two end regions carry most of the displacement" if two_regions else
+            f" Over the whole tilt the two end quarters carry {ends:.2f} of the displacement, "
+            f"below {ENDS_SHARE:.2f}: per bin from 0.3 on the share ranges from {per_bin[lo]:.2f} (bin "
+            f"{edges[lo]:.2f}) to {per_bin[hi]:.2f} (bin {edges[hi]:.2f}), and the largest "
+            "rearrangements, just before the avalanche, carry most of it (see the extents above)")
+    runs = ec["onset_up"].size
+    n_up, n_down = int(np.isfinite(ec["onset_up"]).sum()), int(np.isfinite(ec["onset_down"]).sum())
+    if upper_ok:
+        return text + f"; the up-slope region spans half the chain from {_median_onset(ec['onset_up']):.2f}."
+    return (text + f". The region at the up-slope end spans half the chain until the avalanche in "
+            f"{n_up} of {runs} runs (median onset {_fmt(_median_onset(ec['onset_up']), 2)}), the "
+            f"one at the down-slope end in {n_down} of {runs} (median onset "
+            f"{_fmt(_median_onset(ec['onset_down']), 2)}), against the paper's α ≈ 0.4 for the "
+            "upper region.")
+
+
+def extremities_statement(rep: Report, res_b, res_c) -> None:
+    """Statement 14: two active regions at the two ends; the upper one > half the chain from ~0.4."""
+    sc = res_c[0].scene
+    ec, eb = extremity_profile(res_c), extremity_profile(res_b)
+    ends = ec["overall_up"] + ec["overall_down"]
+    two_regions = ends >= ENDS_SHARE and min(ec["overall_up"], ec["overall_down"]) >= EACH_END_SHARE
+    med_up, med_down = _median_onset(ec["onset_up"]), _median_onset(ec["onset_down"])
+    upper_ok = np.isfinite(med_up) and UPPER_ONSET[0] <= med_up <= UPPER_ONSET[1]
+    any_half = bool(np.any(np.isfinite(ec["onset_up"])) or np.any(np.isfinite(ec["onset_down"])))
+    if two_regions and upper_ok:
+        v = "agrees"
+    elif two_regions or upper_ok or any_half:
+        v = "partly"
+    else:
+        v = "disagrees"
+    rows = []
+    with warnings.catch_warnings():  # bins where no run has events: NaN, said "n/a"
+        warnings.simplefilter("ignore", RuntimeWarning)
+        ext_up = np.nanmedian(ec["extent_up"], axis=0)
+        ext_down = np.nanmedian(ec["extent_down"], axis=0)
+    for j, lo in enumerate(ec["edges"][:-1]):
+        if lo >= 0.3 and ec["total"][j] > 0:
+            rows.append(f"{lo:.2f}: {ec['share_up'][j] + ec['share_down'][j]:.2f} "
+                        f"({_fmt(ext_up[j], 2)}/{_fmt(ext_down[j], 2)})")
+    onsets = lambda o: ", ".join(_fmt(x, 2) for x in o)  # noqa: E731
+    q = f"{END_FRACTION:.0%}"
+    rep.add(f"14. Two active regions at the extremities (N = {sc.n_sliders}, xi = {sc.xi:g})",
+            "two main active regions involve the two extremities; from α ∼ 0.4 the upper region "
+            "extends over more than half the size of the system",
+            f"share of all displacement (events before the avalanche) in the end {q} of the "
+            f"chain: up-slope {ec['overall_up']:.2f} + down-slope {ec['overall_down']:.2f} = "
+            f"{ends:.2f} (an even spread gives {2 * END_FRACTION:.2f}; xi = 0: "
+            f"{eb['overall_up'] + eb['overall_down']:.2f}). Region attached to an end spanning "
+            f"≥ {HALF_CHAIN:.0%} of the chain in every {EXTREMITY_BIN}-wide bin from there to the "
+            f"avalanche: up-slope end (slider 1) from α = {onsets(ec['onset_up'])} (median "
+            f"{_fmt(med_up, 2)}), down-slope end (slider N) from α = {onsets(ec['onset_down'])} "
+            f"(median {_fmt(med_down, 2)}). Per bin from 0.3, pooled share of the two ends "
+            f"(median extent of the up-slope/down-slope region, fraction of N): {', '.join(rows)}",
+            f"{len(res_c)} + {len(res_b)} runs (same seeds)", v,
+            f"Indicator, fixed before the runs: (i) the share of the total |displacement| carried "
+            f"by the first and the last {q} of the sliders (two end regions: together "
+            f"≥ {ENDS_SHARE:.2f}, each ≥ {EACH_END_SHARE:.2f}); (ii) the active region attached to "
+            f"an end is the run of adjacent sliders, from the end slider on, that all moved in "
+            f"the same {EXTREMITY_BIN}-wide angle bin; its onset is the first bin from which it "
+            f"spans ≥ half of the chain in every bin with events until the avalanche (median over "
+            f"the runs, required within {UPPER_ONSET[0]}–{UPPER_ONSET[1]}). \"Upper\" is read as "
+            "up the slope (slider 1, smallest x); the paper does not say whether it means the top "
+            "of the incline or the top of its hot map, so both ends are given."
+            + ("" if v == "agrees" else _extremities_explanation(ec, two_regions, upper_ok)))
+    rep.data["extremities"] = {"c": ec, "b": eb}
 
 
 def analyse_statistics(rep: Report, summary) -> None:
