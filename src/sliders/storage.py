@@ -13,6 +13,21 @@ realisation ``r`` (the seed of row ``r`` is ``realisation_seed(base_seed, r)``):
                            attr "codes" = JSON {code: name}
     /realisations/alpha_c, n_events, slider_steps, wall_time   (R,)
     /realisations/statistics/<key>   (R, *shape): observables.realisation_statistics
+    /realisations/row_crc32  (R, C) uint32: CRC-32 of row r of each of the C columns
+                           named by its attr "columns", written before done[r]
+
+Integrity (``safeio``): the root attributes carry a CRC-32 (``attrs_crc32``),
+every grid and the seeds a CRC-32 attribute, every row its ``row_crc32``;
+``read_header`` and ``read_rows`` verify them (the rows marked done) and
+raise ``StorageError`` naming the damaged dataset.  A per-row digest rather
+than HDF5's Fletcher32 filter: filters need chunked datasets, and parallel
+HDF5 writes filtered datasets only collectively, while the ranks here write
+their rows independently, whenever a realisation finishes.
+
+Creation is atomic: the file is built (structure, seeds) under a temporary
+name beside ``--out``, flushed, then published (hard link: fails if the
+path appeared meanwhile; or rename over it for ``--overwrite``), so that an
+existing file is never destroyed by a creation that fails half-way.
 
 Every dataset is contiguous, allocated and filled when the file is created, so
 that writing a row never touches HDF5 metadata: a row is raw bytes written in
@@ -41,10 +56,11 @@ from typing import Any
 
 import numpy as np
 
-from . import status
+from . import safeio, status
 
 FORMAT = "sliders.ensemble"
 FORMAT_VERSION = 1
+ROW_DIGEST = "row_crc32"
 STORAGES = ("auto", "mpio", "gather")
 NOT_RUN = -1  # status code of a row that has not been computed
 
@@ -158,13 +174,18 @@ def _dcpl():
 def _create_structure(f, layout: Layout) -> None:
     for k, v in layout.attrs.items():
         f.attrs[k] = v
+    safeio.seal_attrs(f)
     g = f.create_group("grids")
     for name in sorted(layout.grids):
-        g.create_dataset(name, data=layout.grids[name])
+        safeio.seal_dataset(g.create_dataset(name, data=layout.grids[name]), layout.grids[name])
     rg = f.create_group("realisations")
     rg.create_group("statistics")
     R = layout.n_realisations
-    rg.create_dataset("seed", shape=(R,), dtype=np.uint32, dcpl=_dcpl())
+    seed = rg.create_dataset("seed", shape=(R,), dtype=np.uint32, dcpl=_dcpl())
+    safeio.seal_dataset(seed, layout.seeds)
+    digest = rg.create_dataset(ROW_DIGEST, shape=(R, len(layout.columns)), dtype=np.uint32,
+                               fillvalue=0, dcpl=_dcpl())
+    digest.attrs["columns"] = json.dumps([c.name for c in layout.columns])
     rg.create_dataset("done", shape=(R,), dtype=np.uint8, fillvalue=0, dcpl=_dcpl())
     for c in layout.columns:
         rg.create_dataset(c.name, shape=(R,) + c.shape, dtype=c.dtype, fillvalue=c.fill,
@@ -214,7 +235,26 @@ class EnsembleFile:
         exists = comm.bcast(os.path.exists(self.path) if comm.rank == 0 else None, root=0)
         if exists and not overwrite:
             raise StorageError(f"{self.path!r} exists; pass --overwrite to replace it")
-        self._create()
+        tmp = comm.bcast(safeio.temporary_beside(self.path) if comm.rank == 0 else None, root=0)
+        failure = None
+        try:
+            self._create(tmp)
+        except Exception as exc:  # noqa: BLE001 - reported below, on every rank
+            failure = safeio.os_reason(exc)
+        if comm.rank == 0 and failure is None:
+            try:
+                safeio.fsync_path(tmp)
+                safeio.publish(tmp, self.path, overwrite)
+            except FileExistsError:
+                failure = "it was created by another process meanwhile"
+            except OSError as exc:
+                failure = safeio.os_reason(exc)
+        if comm.rank == 0 and os.path.exists(tmp):
+            os.unlink(tmp)
+        failure = comm.bcast(failure, root=0) or failure
+        if failure is not None:
+            self.close()
+            raise StorageError(failure)
         return self
 
     @classmethod
@@ -270,13 +310,16 @@ class EnsembleFile:
         rg = self.file["realisations"]
         self._ds = {c.name: rg[c.name] for c in self.layout.columns}
         self._ds["done"] = rg["done"]
+        self._ds[ROW_DIGEST] = rg[ROW_DIGEST]
 
     def _write_local(self, r: int, row: dict[str, Any]) -> None:
         import time
 
         t = time.perf_counter()
-        for name, v in self._row_arrays(row).items():
+        values = self._row_arrays(row)
+        for name, v in values.items():
             self._ds[name][r] = v
+        self._ds[ROW_DIGEST][r] = [safeio.crc32_of(values[c.name]) for c in self.layout.columns]
         self.rows_written += 1
         self.write_seconds += time.perf_counter() - t
 
@@ -299,10 +342,10 @@ class MpioFile(EnsembleFile):
 
     kind = "mpio"
 
-    def _create(self) -> None:
+    def _create(self, tmp: str) -> None:
         import h5py
 
-        self.file = h5py.File(self.path, "w", driver="mpio", comm=self.comm)
+        self.file = h5py.File(tmp, "w", driver="mpio", comm=self.comm)
         _create_structure(self.file, self.layout)
         if self.comm.rank == 0:
             self.file["realisations"]["seed"][:] = self.layout.seeds
@@ -341,11 +384,11 @@ class GatherFile(EnsembleFile):
         super().__init__(path, layout, comm)
         self._queue: list = []
 
-    def _create(self) -> None:
+    def _create(self, tmp: str) -> None:
         if self.comm.rank == 0:
             import h5py
 
-            self.file = h5py.File(self.path, "w")
+            self.file = h5py.File(tmp, "w")
             _create_structure(self.file, self.layout)
             self.file["realisations"]["seed"][:] = self.layout.seeds
             self.file.flush()
@@ -405,8 +448,7 @@ HANDLERS = {"mpio": MpioFile, "gather": GatherFile}
 # ---------------------------------------------------------------------------
 # reading (serial, any process)
 # ---------------------------------------------------------------------------
-def read_header(path) -> dict[str, Any]:
-    """Attributes, grids, done mask and column shapes of an ensemble file."""
+def _open_for_reading(path):
     import h5py
 
     p = os.fspath(path)
@@ -415,30 +457,77 @@ def read_header(path) -> dict[str, Any]:
     try:
         f = h5py.File(p, "r")
     except OSError as exc:
-        raise StorageError(f"{p!r} is not a readable HDF5 file ({exc})") from None
-    with f:
-        if f.attrs.get("format") != FORMAT:
-            raise StorageError(f"{p!r} is not a sliders ensemble file")
-        attrs = {k: _plain(v) for k, v in f.attrs.items()}
-        grids = {k: ds[()] for k, ds in f["grids"].items()}
-        rg = f["realisations"]
-        columns = {}
-        rg.visititems(lambda name, obj: columns.__setitem__(name, (obj.shape[1:], obj.dtype))
-                      if isinstance(obj, h5py.Dataset) else None)
-        done = rg["done"][()].astype(bool)
-        seeds = rg["seed"][()]
+        raise StorageError(f"{p!r} is not a readable HDF5 file ({' '.join(str(exc).split())})") \
+            from None
+    return f
+
+
+def _damaged(path, exc: Exception) -> StorageError:
+    text = " ".join(str(exc).split())
+    if isinstance(exc, (StorageError, safeio.IntegrityError)):
+        return StorageError(text)
+    return StorageError(f"{os.fspath(path)!r} is damaged ({type(exc).__name__}: {text})")
+
+
+def read_header(path) -> dict[str, Any]:
+    """Attributes, grids, done mask and column shapes of an ensemble file (checksums verified)."""
+    import h5py
+
+    p = os.fspath(path)
+    where = repr(p)
+    f = _open_for_reading(p)
+    try:
+        with f:
+            if f.attrs.get("format") != FORMAT:
+                raise StorageError(f"{p!r} is not a sliders ensemble file")
+            safeio.check_attrs(f, where)
+            attrs = {k: _plain(v) for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
+            grids = {k: safeio.read_checked(ds, where) for k, ds in f["grids"].items()}
+            rg = f["realisations"]
+            columns = {}
+            rg.visititems(lambda name, obj: columns.__setitem__(name, (obj.shape[1:], obj.dtype))
+                          if isinstance(obj, h5py.Dataset) else None)
+            done = _done_mask(rg["done"][()], where)
+            seeds = safeio.read_checked(rg["seed"], where)
+    except Exception as exc:  # noqa: BLE001 - whatever HDF5 makes of a damaged file: one line
+        raise _damaged(p, exc) from None
     return {"attrs": attrs, "grids": grids, "columns": columns, "done": done, "seeds": seeds}
 
 
 def read_rows(path) -> dict[str, np.ndarray]:
-    """Every /realisations dataset as an array of R rows (``statistics/<key>`` names)."""
+    """Every /realisations dataset as an array of R rows (``statistics/<key>`` names).
+
+    The rows marked done are verified against ``row_crc32``: a damaged row
+    raises StorageError naming the realisation and the file.
+    """
     import h5py
 
+    p = os.fspath(path)
     out: dict[str, np.ndarray] = {}
-    with h5py.File(os.fspath(path), "r") as f:
-        f["realisations"].visititems(
-            lambda name, obj: out.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None)
+    f = _open_for_reading(p)
+    try:
+        with f:
+            rg = f["realisations"]
+            rg.visititems(lambda name, obj: out.__setitem__(name, obj[()])
+                          if isinstance(obj, h5py.Dataset) else None)
+            order = json.loads(rg[ROW_DIGEST].attrs["columns"])
+        done = _done_mask(out["done"], repr(p))
+        digests = out[ROW_DIGEST]
+        for r in np.flatnonzero(done):
+            for j, name in enumerate(order):
+                if safeio.crc32_of(out[name][r]) != int(digests[r, j]):
+                    raise StorageError(f"{p!r}: row {r} of dataset /realisations/{name} fails its "
+                                       "checksum (the file is damaged)")
+    except Exception as exc:  # noqa: BLE001
+        raise _damaged(p, exc) from None
     return out
+
+
+def _done_mask(done: np.ndarray, where: str) -> np.ndarray:
+    if done.dtype != np.uint8 or not np.isin(done, (0, 1)).all():
+        raise StorageError(f"{where}: /realisations/done holds values other than 0 and 1 "
+                           "(the file is damaged)")
+    return done.astype(bool)
 
 
 def _plain(v):
