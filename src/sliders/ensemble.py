@@ -678,7 +678,7 @@ def _run(args, comm, plan, root_plan) -> int:
     # 2. create or open the file (collective for mpio)
     from .observables import StatisticsGrids
     from .safeio import os_reason
-    from .storage import HANDLERS
+    from .storage import HANDLERS, CollectiveFailure
 
     layout = root_plan["layout"]
     scene: Scene = root_plan["scene"]
@@ -695,6 +695,10 @@ def _run(args, comm, plan, root_plan) -> int:
     except Exception as exc:  # noqa: BLE001
         err = (f"cannot {'open' if root_plan['resume'] else 'create'} {args.out!r}: "
                f"{os_reason(exc)}")
+        if isinstance(exc, CollectiveFailure):  # other ranks may be inside the failed call
+            sys.stderr.write(_error_line(f"rank {rank}: {err}") + "\n")
+            sys.stderr.flush()
+            comm.Abort(1)
     errors = comm.allgather(err)
     if any(errors):
         if rank == next(i for i, e in enumerate(errors) if e):  # one line, from one rank

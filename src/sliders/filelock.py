@@ -75,8 +75,11 @@ class OutputClaim:
                 os.close(fd)  # released and removed meanwhile: take the new one
                 continue
             self.previous_holder = _read(fd) or None
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, (holder_text() + "\n").encode(), 0)
+            try:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, (holder_text() + "\n").encode(), 0)
+            except OSError:  # a full disk: the lock holds all the same, unnamed
+                pass
             self.fd = fd
             return self
         raise ClaimError(f"cannot take the claim {self.lock_path!r}: it keeps being replaced")

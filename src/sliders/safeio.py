@@ -106,6 +106,7 @@ def read_checked(ds, where: str) -> np.ndarray:
 # errors
 # ---------------------------------------------------------------------------
 _ERRNO_IN_TEXT = re.compile(r"errno = (\d+)")
+_REASONS_IN_TEXT = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EIO, errno.EFBIG)
 
 
 def os_reason(exc: BaseException) -> str:
@@ -116,8 +117,11 @@ def os_reason(exc: BaseException) -> str:
         code = int(m.group(1)) if m else None
     if code:
         return os.strerror(code)
-    text = getattr(exc, "strerror", None) or str(exc)
-    return " ".join(text.split())
+    text = " ".join((getattr(exc, "strerror", None) or str(exc)).split())
+    for known in _REASONS_IN_TEXT:  # MPI-IO errors carry the reason as words only
+        if os.strerror(known) in text:
+            return os.strerror(known)
+    return text
 
 
 def describe_os_error(exc: BaseException, path) -> str:
@@ -142,8 +146,17 @@ def temporary_beside(path) -> str:
     target = os.path.abspath(os.fspath(path))
     fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".",
                                suffix=".tmp", dir=os.path.dirname(target))
-    os.close(fd)
+    try:
+        os.fchmod(fd, 0o666 & ~_umask())  # what open() would give, not mkstemp's 0600
+    finally:
+        os.close(fd)
     return tmp
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def publish(tmp: str, path, overwrite: bool) -> None:

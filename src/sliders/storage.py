@@ -69,6 +69,11 @@ class StorageError(RuntimeError):
     """The file cannot be created, opened or does not match the requested ensemble."""
 
 
+class CollectiveFailure(StorageError):
+    """A collective parallel-HDF5 call failed on this rank (e.g. disk full while creating
+    the file): the other ranks may wait in it for ever, so the caller must MPI_Abort."""
+
+
 @dataclass(frozen=True)
 class Column:
     """One per-realisation dataset: /realisations/<name>, shape (R, *shape)."""
@@ -232,15 +237,32 @@ class EnsembleFile:
         """Create the file (refuses an existing one unless ``overwrite``)."""
         self = cls(path, layout, comm)
         # decided on rank 0, raised on every rank (never a collective open on some ranks only)
-        exists = comm.bcast(os.path.exists(self.path) if comm.rank == 0 else None, root=0)
-        if exists and not overwrite:
-            raise StorageError(f"{self.path!r} exists; pass --overwrite to replace it")
-        tmp = comm.bcast(safeio.temporary_beside(self.path) if comm.rank == 0 else None, root=0)
+        start = None
+        if comm.rank == 0:
+            try:
+                if os.path.exists(self.path) and not overwrite:
+                    raise StorageError(f"{self.path!r} exists; pass --overwrite to replace it")
+                _check_space(self.path, layout)
+                start = ("ok", safeio.temporary_beside(self.path))
+            except StorageError as exc:
+                start = ("error", str(exc))
+            except OSError as exc:
+                start = ("error", safeio.describe_os_error(exc, self.path))
+        kind, tmp = comm.bcast(start, root=0)
+        if kind == "error":
+            raise StorageError(tmp)
         failure = None
         try:
             self._create(tmp)
         except Exception as exc:  # noqa: BLE001 - reported below, on every rank
             failure = safeio.os_reason(exc)
+            if self.kind == "mpio":
+                # the other ranks may be stuck in a collective call this rank left: no
+                # further collective can be made; the caller must MPI_Abort
+                self.abandon()
+                if comm.rank == 0:
+                    os.unlink(tmp)
+                raise CollectiveFailure(failure) from None
         if comm.rank == 0 and failure is None:
             try:
                 safeio.fsync_path(tmp)
@@ -253,7 +275,7 @@ class EnsembleFile:
             os.unlink(tmp)
         failure = comm.bcast(failure, root=0) or failure
         if failure is not None:
-            self.close()
+            self.abandon()
             raise StorageError(failure)
         return self
 
@@ -277,6 +299,24 @@ class EnsembleFile:
 
     def close(self) -> None:
         raise NotImplementedError
+
+    def abandon(self) -> None:
+        """After a failed creation: close what can be closed, never crash.
+
+        Parallel HDF5 1.10 segfaults when a file whose creation failed (disk
+        full) is closed or garbage-collected; such a file is kept referenced
+        (``ABANDONED``) until the process ends (by MPI_Abort: see CollectiveFailure)."""
+        if self.file is None:
+            return
+        self._ds = {}
+        if self.kind == "mpio":
+            ABANDONED.append(self.file)
+        else:
+            try:
+                self.file.close()
+            except Exception:  # noqa: BLE001 - the failure is already being reported
+                pass
+        self.file = None
 
     # gather transport hooks (no-ops for mpio)
     def outbox(self) -> list | None:
@@ -443,6 +483,27 @@ class GatherFile(EnsembleFile):
 
 
 HANDLERS = {"mpio": MpioFile, "gather": GatherFile}
+ABANDONED: list = []  # parallel files whose creation failed (see EnsembleFile.abandon)
+SPACE_MARGIN = 1 << 20  # bytes of HDF5 metadata and slack beyond the datasets
+
+
+def file_size_estimate(layout: Layout) -> int:
+    """Bytes of an ensemble file: every dataset is allocated when the file is created."""
+    R = layout.n_realisations
+    row = sum(int(np.prod(c.shape, dtype=np.int64)) * c.dtype.itemsize for c in layout.columns)
+    row += 4 + 1 + 4 * len(layout.columns)  # seed, done, row checksums
+    grids = sum(np.asarray(g).nbytes for g in layout.grids.values())
+    return R * row + grids + SPACE_MARGIN
+
+
+def _check_space(path: str, layout: Layout) -> None:
+    """Refuse up front a file that does not fit on its file system (not half-way)."""
+    need = file_size_estimate(layout)
+    st = os.statvfs(os.path.dirname(os.path.abspath(path)))
+    free = st.f_bavail * st.f_frsize
+    if need > free:
+        raise StorageError(f"it needs about {need / 1e6:.3g} MB and its file system has "
+                           f"{free / 1e6:.3g} MB free (No space left on device)")
 
 
 # ---------------------------------------------------------------------------
