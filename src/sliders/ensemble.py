@@ -199,8 +199,12 @@ def _claim_output(args):
     """Rank 0, before anything is created or read: the claim on --out (held to the end)."""
     from .cli import check_output
     from .filelock import OutputClaim
+    from .safeio import is_special
 
     check_output(args.out, overwrite=True)  # a writable file path (existence checked later)
+    if is_special(args.out):
+        raise UsageError(f"--out {args.out!r} is not a regular file (a device or a fifo): an "
+                         "ensemble file is written in place and resumed; give a file path")
     claim = OutputClaim(args.out).acquire()
     if not claim.locking:
         if args.overwrite:

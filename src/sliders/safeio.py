@@ -168,6 +168,8 @@ def publish(tmp: str, path, overwrite: bool) -> None:
     """
     target = os.fspath(path)
     try:
+        if is_special(target):  # never replace a device node (root could: /dev/full)
+            raise IsADirectoryError(errno.EINVAL, "not a regular file", target)
         if overwrite:
             os.replace(tmp, target)
             _fsync_dir(target)

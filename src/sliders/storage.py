@@ -484,7 +484,7 @@ class GatherFile(EnsembleFile):
 
 HANDLERS = {"mpio": MpioFile, "gather": GatherFile}
 ABANDONED: list = []  # parallel files whose creation failed (see EnsembleFile.abandon)
-SPACE_MARGIN = 1 << 20  # bytes of HDF5 metadata and slack beyond the datasets
+SPACE_MARGIN = 1 << 18  # bytes of HDF5 metadata and slack beyond the datasets (~50 kB measured)
 
 
 def file_size_estimate(layout: Layout) -> int:
