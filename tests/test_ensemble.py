@@ -7,6 +7,7 @@ whole if it outlives its timeout, so that nothing can hang the suite.
 
 from __future__ import annotations
 
+import atexit
 import json
 import math
 import os
@@ -90,6 +91,22 @@ def kill_tree(pid: int) -> None:
             pass
 
 
+_LIVE: "set[int]" = set()  # process trees started here and maybe still running
+
+
+@atexit.register
+def _kill_live() -> None:
+    """The runs live in sessions of their own (so that a kill reaches the whole tree):
+    a Ctrl-C or SIGTERM of the test run must take them down with it."""
+    for pid in sorted(_LIVE):
+        kill_tree(pid)
+    _LIVE.clear()
+
+
+if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:  # SIGTERM ends pytest like Ctrl-C
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
+
+
 class _Run:
     """A started run whose stderr is read by a thread (so that waits can time out)."""
 
@@ -97,6 +114,7 @@ class _Run:
         self.cmd = command(args, n)
         self.proc = subprocess.Popen(self.cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, env=env or _env(), start_new_session=True)
+        _LIVE.add(self.proc.pid)
         self.lines: "queue.Queue[str | None]" = queue.Queue()
         self.err: list[str] = []
         self.out: list[str] = []
@@ -134,6 +152,10 @@ class _Run:
             self.kill()
             pytest.fail(f"run did not finish within {timeout} s (hang?): {self.cmd}\n"
                         f"{''.join(self.err)}")
+        except KeyboardInterrupt:
+            self.kill()
+            raise
+        _LIVE.discard(self.proc.pid)
         while True:
             try:
                 line = self.lines.get(timeout=10)
@@ -147,6 +169,7 @@ class _Run:
 
     def kill(self) -> None:
         kill_tree(self.proc.pid)
+        _LIVE.discard(self.proc.pid)
 
 
 def run(args, n=None, env=None, timeout=TIMEOUT):
