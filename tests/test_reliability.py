@@ -531,3 +531,24 @@ def test_script_loop_without_handler_is_not_swallowed(tmp_path):
     res = subprocess.run([PY, str(script)], capture_output=True, text=True, timeout=60)
     assert res.returncode != 0 and "not reached" not in res.stdout
     assert "sliders.driver.Interrupted" in res.stderr
+
+
+def test_resume_recomputes_a_damaged_row(tmp_path, reference):
+    """A finished row whose bytes were flipped: reading names it; --resume recomputes it."""
+    out = tmp_path / "row.h5"
+    shutil.copy(reference, out)
+    with h5py.File(out, "r") as f:
+        ds = f["realisations/alpha_c"]
+        offset = ds.id.get_offset() + 3 * ds.dtype.itemsize  # row 3
+    with open(out, "r+b") as fh:
+        fh.seek(offset + 2)
+        byte = fh.read(1)
+        fh.seek(offset + 2)
+        fh.write(bytes([byte[0] ^ 0x01]))
+    with pytest.raises(storage.StorageError, match=r"row 3 of dataset /realisations/alpha_c fails"):
+        ensemble.read_realisations(out)
+    assert storage.damaged_rows(out) == [3]
+    res = run(ensemble_args(out, extra=["--resume"]), n=2)
+    assert res.returncode == 0, res.stderr
+    assert "1 finished row(s)" in res.stderr and "resuming 1 of" in res.stderr
+    assert_same_file(reference, out)

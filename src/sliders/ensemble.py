@@ -223,7 +223,7 @@ def _plan_root(args, plan) -> dict[str, Any]:
     from .cli import disagreements, given_scene_values
     from .keyed_random import realisation_seed
     from .observables import default_grids, statistics_layout
-    from .storage import StorageError, file_attributes, make_layout, read_header
+    from .storage import StorageError, damaged_rows, file_attributes, make_layout, read_header
 
     scene: Scene = plan["scene"]
     backend = args.backend or DEFAULT_BACKEND
@@ -269,6 +269,14 @@ def _plan_root(args, plan) -> dict[str, Any]:
                 raise UsageError(f"--resume: the statistics grid {k!r} of {out!r} differs from "
                                  "this version's; start a new file")
         done = head["done"]
+        try:
+            damaged = damaged_rows(out)
+        except StorageError as exc:
+            raise UsageError(f"--resume: {exc}") from None
+        if damaged:  # recomputed like the missing ones (keyed seeds: the same values)
+            done[damaged] = False
+            sys.stderr.write(f"ensemble: note: {len(damaged)} finished row(s) of {out} fail "
+                             f"their checksums (rows {damaged[:10]}); recomputing them\n")
         file_attrs = attrs
     else:
         file_attrs = file_attributes(scene.to_dict(), scene.seed, R, backend)

@@ -397,10 +397,14 @@ def check_writable(name: str, path: str | os.PathLike[str]) -> None:
         raise SceneError(f"{name}={p!r}: directory {parent!r} does not exist")
     existed = os.path.exists(p)
     try:  # the honest test (permission bits say nothing for root or read-only mounts)
-        with open(p, "ab"):
-            pass
+        if existed:
+            with open(p, "ab"):
+                pass
+        else:  # probe the folder, never the target: another run may be creating it
+            import tempfile
+
+            with tempfile.TemporaryFile(dir=parent):
+                pass
     except OSError as exc:
         what = "exists and is not writable" if existed else f"cannot be created in {parent!r}"
         raise SceneError(f"{name}={p!r} {what} ({exc.strerror})") from None
-    if not existed:
-        os.remove(p)

@@ -572,16 +572,35 @@ def read_rows(path) -> dict[str, np.ndarray]:
             rg.visititems(lambda name, obj: out.__setitem__(name, obj[()])
                           if isinstance(obj, h5py.Dataset) else None)
             order = json.loads(rg[ROW_DIGEST].attrs["columns"])
-        done = _done_mask(out["done"], repr(p))
-        digests = out[ROW_DIGEST]
-        for r in np.flatnonzero(done):
-            for j, name in enumerate(order):
-                if safeio.crc32_of(out[name][r]) != int(digests[r, j]):
-                    raise StorageError(f"{p!r}: row {r} of dataset /realisations/{name} fails its "
-                                       "checksum (the file is damaged)")
+        damage = _row_damage(out, order, _done_mask(out["done"], repr(p)))
+        if damage:
+            r, name = damage[0]
+            raise StorageError(f"{p!r}: row {r} of dataset /realisations/{name} fails its "
+                               "checksum (the file is damaged; --resume recomputes such rows)")
     except Exception as exc:  # noqa: BLE001
         raise _damaged(p, exc) from None
     return out
+
+
+def damaged_rows(path) -> list[int]:
+    """The rows marked done whose values fail their checksums (``--resume`` recomputes them)."""
+    p = os.fspath(path)
+    f = _open_for_reading(p)
+    try:
+        with f:
+            rg = f["realisations"]
+            order = json.loads(rg[ROW_DIGEST].attrs["columns"])
+            out = {name: rg[name][()] for name in order + ["done", ROW_DIGEST]}
+        return sorted({r for r, _ in _row_damage(out, order, _done_mask(out["done"], repr(p)))})
+    except Exception as exc:  # noqa: BLE001 - whatever HDF5 makes of a damaged file: one line
+        raise _damaged(p, exc) from None
+
+
+def _row_damage(out: dict, order: list[str], done: np.ndarray) -> list[tuple[int, str]]:
+    """(row, column) of every done row whose value fails its CRC-32 in ``row_crc32``."""
+    digests = out[ROW_DIGEST]
+    return [(int(r), name) for r in np.flatnonzero(done) for j, name in enumerate(order)
+            if safeio.crc32_of(out[name][r]) != int(digests[r, j])]
 
 
 def _done_mask(done: np.ndarray, where: str) -> np.ndarray:
