@@ -46,6 +46,9 @@ def main(argv: list[str] | None = None) -> int:
         if not claim.locking and args.overwrite:
             fail(f"--out {args.out!r}: this file system does not support file locks, so a "
                  "concurrent writer could not be detected; --overwrite is refused there", code=1)
+        if claim.previous_holder and not args.quiet:
+            print(f"note: {args.out} was held by {claim.previous_holder}, which is no longer "
+                  "running; its stale claim is taken over", file=sys.stderr)
         return _run(args, scene)
     finally:
         claim.release()

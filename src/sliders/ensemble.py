@@ -214,6 +214,9 @@ def _claim_output(args):
                              "refused there (delete the file first, or write elsewhere)")
         sys.stderr.write(f"ensemble: warning: no file locks on the file system of {args.out!r}; "
                          "a concurrent writer would not be detected\n")
+    elif claim.previous_holder and not args.quiet:
+        sys.stderr.write(f"ensemble: note: {args.out} was held by {claim.previous_holder}, which "
+                         "is no longer running; its stale claim is taken over\n")
     return claim
 
 
@@ -369,6 +372,10 @@ def _tilt_interruptibly(scene: Scene, backend: str, progress):
         if _Stop.signum is not None:  # arrived just before
             raise Interrupted()
         return tilt(scene, backend=backend, progress=callback)
+    except KeyboardInterrupt:  # also when the kernel caught the signal itself: stop the run
+        if _Stop.signum is None:
+            _Stop.signum = signal.SIGINT
+        raise
     finally:
         _Stop.computing = False
 
