@@ -38,7 +38,7 @@ BAD = [
                              r"\(at least 4 ulps of dt"),
     (dict(dt=1e-4, refine_tol=5e-20), r"refine_tol=5e-20 is out of range: allowed \[5.421010862e-20, 0.0001\]"),
     (dict(max_event_duration=1e13), r"max_event_duration=10000000000000.0 tau is out of range: allowed up "
-                                    r"to 1e\+09 tau at dt=0.001"),
+                                    r"to about 1.13e\+12 tau at dt=0.001"),
     (dict(n_sliders=True), r"n_sliders=True must be an integer"),
     (dict(xi=np.bool_(False)), r"xi=np.False_ must be a real number"),
     (dict(max_event_duration=0.01), r"max_event_duration=0.01 tau must be at least 100 time steps"),
