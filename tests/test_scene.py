@@ -33,6 +33,14 @@ BAD = [
     (dict(record="everything"), r"record='everything' must be one of"),
     (dict(seed=-1), r"seed=-1 is out of range"),
     (dict(refine_tol=1e-2), r"refine_tol=0.01 is out of range"),
+    # below what double precision resolves at dt = 1e-3 (ulp 2.2e-19): the bisection never ended
+    (dict(refine_tol=1e-20), r"refine_tol=1e-20 is out of range: allowed \[8.67361738e-19, 0.001\] "
+                             r"\(at least 4 ulps of dt"),
+    (dict(dt=1e-4, refine_tol=5e-20), r"refine_tol=5e-20 is out of range: allowed \[5.421010862e-20, 0.0001\]"),
+    (dict(max_event_duration=1e13), r"max_event_duration=10000000000000.0 tau is out of range: allowed up "
+                                    r"to about 1.13e\+12 tau at dt=0.001"),
+    (dict(n_sliders=True), r"n_sliders=True must be an integer"),
+    (dict(xi=np.bool_(False)), r"xi=np.False_ must be a real number"),
     (dict(max_event_duration=0.01), r"max_event_duration=0.01 tau must be at least 100 time steps"),
     (dict(alpha_max=2.0), r"alpha_max=2.0 is out of range"),
     (dict(output="/nonexistent-dir/run.h5"), r"output='/nonexistent-dir/run.h5': directory '/nonexistent-dir' does not exist"),
@@ -128,6 +136,71 @@ def test_unknown_key_in_scene_file(tmp_path):
     path.write_text("n_sliders = 10\nfrobnicate = 3\n")
     with pytest.raises(SceneError, match=r"unknown scene key\(s\) \['frobnicate'\]"):
         Scene.from_toml(path)
+
+
+@pytest.mark.parametrize("text, message", [
+    # a key above [scene] belongs to no table: it was silently ignored
+    ("n_sliders = 10\n[scene]\nxi = 0.001\n",
+     r"key 'n_sliders' stands outside the \[scene\] table"),
+    ("[scene]\nn_sliders = 10\n[output]\npath = 'x'\n", r"key 'output' stands outside"),
+    ("[scene]\nn_sliders = 10\n[scene.integrator]\ndt = 1e-3\n",
+     r"table 'integrator' is not a scene key"),
+    ("[scene]\nn_slider = 10\n", r"unknown scene key\(s\) \['n_slider'\] \(did you mean 'n_sliders'\?\)"),
+    ("[sliders]\nn_sliders = 10\n", r"table 'sliders' is not a scene key \(did you mean 'n_sliders'\?\)"),
+])
+def test_scene_file_refuses_keys_and_tables_it_does_not_know(tmp_path, text, message):
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    with pytest.raises(SceneError, match=message):
+        Scene.from_toml(path)
+
+
+def test_scene_file_key_above_scene_table_on_the_command_line(tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text("n_sliders = 10\n[scene]\nxi = 0.001\n")
+    proc = _cli("tilt", "--scene", str(path), "--out", str(tmp_path / "o.h5"))
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and "'n_sliders'" in proc.stderr
+
+
+def test_numpy_scalars_are_accepted_and_saved_as_plain_numbers(tmp_path):
+    scene = Scene(n_sliders=np.int64(10), seed=np.uint32(3), xi=np.float32(0.001),
+                  dt=np.float64(2e-3), max_events=np.int32(1000), mu_d=np.float16(0.5),
+                  ends=np.str_("free"))
+    assert scene == Scene(n_sliders=10, seed=3, xi=0.001, dt=2e-3, max_events=1000, mu_d=0.5)
+    plain = scene.to_dict()
+    assert type(plain["n_sliders"]) is int and type(plain["seed"]) is int
+    assert type(plain["xi"]) is float and plain["xi"] == 0.001  # what was written, not 0.0010000000474974513
+    assert type(plain["ends"]) is str
+    import json
+
+    assert Scene.from_dict(json.loads(json.dumps(plain))) == scene
+    out = tmp_path / "r.h5"
+    sliders.tilt(scene.replace(max_events=5)).save(out)
+    assert sliders.TiltResult.load(out).scene == scene.replace(max_events=5)
+
+
+def test_scene_beyond_available_memory_is_refused_up_front(monkeypatch):
+    from sliders import scene as scene_module
+
+    huge = Scene(n_sliders=10**10)
+    assert huge.memory_estimate() > 4e12
+    with pytest.raises(SceneError, match=r"n_sliders=10000000000 .* needs about .* GB, more than "
+                                         r"the .* GB available"):
+        sliders.tilt(huge)
+    # the estimate follows the record mode and max_events
+    big = Scene(n_sliders=10**6)
+    assert big.replace(record="summary").memory_estimate() < big.memory_estimate()
+    assert big.replace(max_events=10).memory_estimate() < big.memory_estimate()
+    monkeypatch.setattr(scene_module, "available_memory", lambda: 1000)
+    with pytest.raises(SceneError, match="available"):
+        scene_module.check_memory(Scene(n_sliders=10))
+
+
+def test_memory_refusal_on_the_command_line(tmp_path):
+    proc = _cli("tilt", "--n-sliders", str(10**10), "--out", str(tmp_path / "o.h5"))
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and "GB available" in proc.stderr
 
 
 def test_scene_round_trips_through_dict():

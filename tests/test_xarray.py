@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 import sys
@@ -9,6 +10,7 @@ import tomllib
 import warnings
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 
@@ -84,8 +86,6 @@ def test_tilt_file_provenance(tilt_file):
     assert a["source"].startswith(f"sliders {sliders.__version__}")
     assert f"N = {result.scene.n_sliders}" in a["title"]
     assert re.match(r"\d{4}-\d\d-\d\dT", a["history"]) and "pytest" in a["history"]
-    import h5py
-
     assert a["hdf5_version"] == h5py.version.hdf5_version and a["numpy_version"] == np.__version__
     assert a["python_version"] == sys.version.split()[0] and a["h5py_version"] == h5py.__version__
     scene = sliders.Scene.from_dict(tomllib.loads(a["scene_toml"])["scene"])
@@ -100,7 +100,9 @@ def test_tilt_file_provenance(tilt_file):
 def test_ensemble_file(tmp_path, n_ranks):
     path = ensemble_file(tmp_path, n_ranks)
     dims = all_dims(path, ["/", "grids", "realisations", "realisations/statistics"])
-    assert dims["realisations"] == {"realisation": R}
+    with h5py.File(path, "r") as f:  # one CRC-32 per row and column (storage.ROW_DIGEST)
+        n_columns = len(json.loads(f["realisations/row_crc32"].attrs["columns"]))
+    assert dims["realisations"] == {"realisation": R, "checksummed_column": n_columns}
     stats = dims["realisations/statistics"]
     assert stats["realisation"] == R and stats["force_bin"] == 120 and stats["alpha"] == 55
     tree = xr.open_datatree(path, engine="h5netcdf")

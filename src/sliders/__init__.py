@@ -13,12 +13,12 @@ public API:
 __version__ = "0.1.0"
 
 from .chain import ChainState
-from .driver import Progress, tilt
+from .driver import Interrupted, Progress, tilt
 from .preparation import prepare
 from .result import EventSparse, TiltResult
 from .scene import Scene, SceneError
 
 __all__ = [
-    "ChainState", "EventSparse", "Progress", "Scene", "SceneError", "TiltResult",
+    "ChainState", "EventSparse", "Interrupted", "Progress", "Scene", "SceneError", "TiltResult",
     "__version__", "prepare", "tilt",
 ]

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 
 from .cli import ProgressLine, add_scene_arguments, check_output, fail, scene_from_args
-from .scene import BACKENDS, SceneError
+from .filelock import ClaimError, OutputClaim
+from .safeio import describe_os_error
+from .scene import BACKENDS, SceneError, check_memory
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,9 +35,26 @@ def main(argv: list[str] | None = None) -> int:
     try:
         scene = scene_from_args(args)
         check_output(args.out, args.overwrite)
+        check_memory(scene)
     except SceneError as exc:
         fail(str(exc))
+    try:
+        claim = OutputClaim(args.out).acquire()
+    except ClaimError as exc:
+        fail(str(exc), code=1)
+    try:
+        if not claim.locking and args.overwrite:
+            fail(f"--out {args.out!r}: this file system does not support file locks, so a "
+                 "concurrent writer could not be detected; --overwrite is refused there", code=1)
+        if claim.previous_holder and not args.quiet:
+            print(f"note: {args.out} was held by {claim.previous_holder}, which is no longer "
+                  "running; its stale claim is taken over", file=sys.stderr)
+        return _run(args, scene)
+    finally:
+        claim.release()
 
+
+def _run(args, scene) -> int:
     from .driver import tilt
 
     line = None if args.quiet else ProgressLine()
@@ -44,20 +64,41 @@ def main(argv: list[str] | None = None) -> int:
             line.show(f"tilt N={scene.n_sliders}: alpha={p.alpha:.5f}  events={p.n_events}  "
                       f"slider-steps={p.slider_steps:.3g}  {p.elapsed:.1f} s")
 
+    received: list[int] = []
+
+    def interrupt(signum, frame):
+        received.append(signum)
+        raise KeyboardInterrupt
+
+    # SIGTERM (batch systems, kill) stops the run as Ctrl-C does: finished events are saved
+    old = {s: signal.signal(s, interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        result = tilt(scene, backend=args.backend, progress=progress)
+        result = tilt(scene, backend=args.backend, progress=progress, keep_partial=True)
     except ImportError as exc:
         fail(f"backend {args.backend!r} is not available: {exc}")
+    finally:
+        # the result is being saved: a second signal waits until the file is complete
+        for s in old:
+            signal.signal(s, lambda signum, frame: received.append(signum))
     if line is not None:
         line.close()
-    result.save(args.out)
+    try:
+        result.save(args.out, overwrite=args.overwrite)
+    except FileExistsError:
+        fail(f"--out {args.out!r} was created by another process during the run; "
+             "nothing was replaced (the result is lost: rerun with another --out)", code=1)
+    except OSError as exc:
+        fail(f"cannot write {describe_os_error(exc, args.out)}", code=1)
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
     alpha_c = "n/a" if math.isnan(result.alpha_c) else f"{result.alpha_c:.5f}"
     print(f"{result.status}: alpha_c={alpha_c}  events={result.n_events}  "
           f"wall={result.wall_time:.2f} s  -> {args.out}")
     if result.message:
         print(f"note: {result.message}", file=sys.stderr)
     if result.status == "interrupted":
-        return 130
+        return 128 + (received[0] if received else signal.SIGINT)
     return 0 if result.status in ("avalanche", "alpha_max", "max_events") else 1
 
 

@@ -42,8 +42,8 @@ def _typed(conv, name):
     return parse
 
 
-def scene_from_args(args: argparse.Namespace) -> Scene:
-    """The Scene given by ``--scene`` and the per-field options (validated)."""
+def given_scene_values(args: argparse.Namespace) -> dict:
+    """The scene values given on the command line: ``--scene`` file, then the options."""
     values: dict = {}
     if args.scene:
         values.update(toml_values(args.scene))
@@ -52,7 +52,22 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
         given = getattr(args, f.name, None)
         if f.name not in _SKIP and given is not None:
             values[f.name] = given
-    return Scene.from_dict(values)
+    return values
+
+
+def scene_from_args(args: argparse.Namespace) -> Scene:
+    """The Scene given by ``--scene`` and the per-field options (validated)."""
+    return Scene.from_dict(given_scene_values(args))
+
+
+def disagreements(stored: Scene, given: dict) -> str:
+    """The given scene values that differ from a stored scene ("" if they all agree).
+
+    A value agrees if the stored scene with it applied is the same scene
+    (``mode`` brings its settings as in ``Scene.replace``)."""
+    merged = stored.replace(**given)
+    a, b = stored.to_dict(), merged.to_dict()
+    return "; ".join(f"{k}={a[k]!r} in the file, {b[k]!r} given" for k in a if a[k] != b[k])
 
 
 def check_output(path: str, overwrite: bool) -> None:

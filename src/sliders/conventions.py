@@ -38,6 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .safeio import seal_dataset
+
 FORCE, LENGTH, TIME = "m g", "g tau^2", "tau"
 ENERGY = "m g^2 tau^2"
 
@@ -153,6 +155,10 @@ def ensemble_variables(h5file) -> dict[str, Variable]:
         if len(dims) != stats[k].ndim - 1:  # a statistic this table does not know: index axes
             dims = tuple(f"{k}_axis{i}" for i in range(1, stats[k].ndim))
         out[f"realisations/statistics/{k}"] = Variable(("realisation",) + dims, u, ln)
+    if "realisations/row_crc32" in h5file:
+        out["realisations/row_crc32"] = Variable(
+            ("realisation", "checksummed_column"), "1",
+            "CRC-32 of the row in each column (column names: attribute 'columns')")
     return out
 
 
@@ -179,6 +185,9 @@ def ensemble_coordinates(h5file) -> dict[str, tuple[np.ndarray, str, str]]:
         "event_size": (np.arange(1, int(scene["n_sliders"]) + 1), "1",
                        "number of distinct sliders that moved in an event"),
         "alpha_interval": (alpha[:-1], "rad", "lower end of the angle interval [alpha_g, alpha_g+1)"),
+        **({"checksummed_column": (np.arange(h5file["realisations/row_crc32"].shape[1]), "1",
+                                   "index into the attribute 'columns' of row_crc32")}
+           if "realisations/row_crc32" in h5file else {}),
     }
 
 
@@ -261,6 +270,7 @@ def describe(h5file, variables: dict[str, Variable], coordinates: dict, title: s
     for name, (values, units, long_name) in coordinates.items():
         if name not in h5file:
             ds = h5file.create_dataset(name, data=np.asarray(values))
+            seal_dataset(ds, np.asarray(values))  # checksummed like every dataset written
             ds.make_scale(name)
             ds.attrs["units"], ds.attrs["long_name"] = units, long_name
         scales[name] = h5file[name]
@@ -271,6 +281,7 @@ def describe(h5file, variables: dict[str, Variable], coordinates: dict, title: s
         for axis, dim in enumerate(var.dims):
             if dim not in scales:  # an axis the tables do not name: number its entries
                 ds_dim = h5file.create_dataset(dim, data=np.arange(ds.shape[axis]))
+                seal_dataset(ds_dim, np.arange(ds.shape[axis]))
                 ds_dim.make_scale(dim)
                 scales[dim] = ds_dim
             if len(ds.dims[axis]) == 0:
@@ -295,11 +306,23 @@ def describe_tilt_file(h5file, result) -> None:
              f"({result.backend}, {result.status})", s.to_dict())
 
 
+# Free space below which a resumed, already described file is left as it is: HDF5
+# 1.10 can crash while closing a file whose metadata write failed (a full disk),
+# and the finished rows matter more than one more history line.
+RESUME_HISTORY_MIN_FREE = 1 << 20
+
+
 def describe_ensemble_file(path) -> bool | str:
     """Describe an ensemble file (one process, no writer holding it): True, or why not."""
     import h5py
 
     try:
+        with h5py.File(os.fspath(path), "r") as f:
+            described = "title" in f.attrs
+        if described:
+            st = os.statvfs(os.path.dirname(os.path.abspath(path)))
+            if st.f_bavail * st.f_frsize < RESUME_HISTORY_MIN_FREE:
+                return True  # nearly full disk: keep the description, skip the history line
         with h5py.File(os.fspath(path), "r+") as f:
             _describe_ensemble(f)
     except (OSError, KeyError, ValueError) as exc:

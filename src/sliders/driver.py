@@ -19,7 +19,9 @@ from .chain import ChainState
 from .preparation import prepare
 from .reference import Chunk, NumpyEngine
 from .result import EventSparse, TiltResult
-from .scene import BACKENDS, Scene, SceneError
+from .scene import BACKENDS, Scene, SceneError, check_memory
+
+INTERRUPTED_MESSAGE = "interrupted by the user"
 
 CHUNK_EVENTS = {"numpy": 16, "fortran": 512}
 # A kernel call starts with O(N) set-up (forces, angles, min-tree): for long
@@ -42,6 +44,21 @@ class Progress:
     slider_steps: int
 
 
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C (or a SIGTERM the caller turned into KeyboardInterrupt) stopped ``tilt``.
+
+    A KeyboardInterrupt, so that a script looping over runs stops too, with a
+    non-zero exit, unless it catches this on purpose.  ``partial`` is the
+    ``TiltResult`` of the events completed before the interrupt (status
+    "interrupted"; its state is the one after the last completed event).
+    """
+
+    def __init__(self, partial: TiltResult):
+        super().__init__(f"tilt interrupted after {partial.n_events} completed events "
+                         "(their TiltResult is the exception's .partial)")
+        self.partial = partial
+
+
 def make_engine(scene: Scene, backend: str):
     """The engine of a backend name ("fortran" or "numpy")."""
     if backend == "numpy":
@@ -59,6 +76,7 @@ def tilt(
     *,
     state: ChainState | None = None,
     progress: Callable[[Progress], None] | None = None,
+    keep_partial: bool = False,
 ) -> TiltResult:
     """Tilt a prepared chain quasi-statically until the avalanche.
 
@@ -72,19 +90,37 @@ def tilt(
         Start from this state instead of preparing one (it is copied).
     progress : callable, optional
         Called with a ``Progress`` after every chunk of events.
+    keep_partial : bool
+        On Ctrl-C (KeyboardInterrupt, in the kernel or in ``progress``),
+        return the completed events as a result of status "interrupted"
+        instead of raising ``Interrupted`` (which carries them as
+        ``.partial``).  The default raises: a loop over runs must stop.
+
+    Raises
+    ------
+    Interrupted
+        On Ctrl-C, unless ``keep_partial``.
+    SceneError
+        If the run would need more memory than is available (``scene.memory_estimate``).
     """
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be a sliders.Scene, not {type(scene).__name__}")
+    check_memory(scene)
     engine = make_engine(scene, backend)
     started = time.perf_counter()
     state = prepare(scene) if state is None else state.copy()
 
     relaxation = {"n_events": 0, "n_moved": 0, "slider_steps": 0}
     # Relax at alpha = 0 first: with xi > 0 the coupling may destabilise sliders.
-    relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
+    try:
+        relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
+    except KeyboardInterrupt:
+        relax = Chunk(status.INTERRUPTED, {}, np.zeros(1, np.int64), np.zeros(0, np.int64),
+                      np.zeros(0), message=INTERRUPTED_MESSAGE)
     if relax.status != status.RELAXED:
-        return _finish(scene, backend, relax.status, relax.message, math.nan, [], state, state,
-                       relaxation, started, relax.final_event)
+        result = _finish(scene, backend, relax.status, relax.message, math.nan, [], state, state,
+                         relaxation, started, relax.final_event)
+        return _interrupt_or_return(result, keep_partial)
     relaxation = {
         "n_events": relax.n_events,
         "n_moved": int(np.count_nonzero(state.displacement)),
@@ -105,21 +141,36 @@ def tilt(
         try:
             chunk = engine.advance(state, max_events=min(budget, remaining))
         except KeyboardInterrupt:
-            # The chunk in flight is lost (its events were not returned); the
-            # state may be mid-event, so the completed events are what counts.
-            code, message, alpha_c = status.INTERRUPTED, "interrupted by the user", math.nan
+            # An engine that lets Ctrl-C through loses the chunk in flight (its
+            # events were not returned); the completed events are what counts.
+            code, message, alpha_c = status.INTERRUPTED, INTERRUPTED_MESSAGE, math.nan
             break
         chunks.append(chunk)
         n_events += chunk.n_events
         slider_steps += int(chunk.events["slider_steps"].sum())
         if progress is not None:
-            progress(Progress(state.alpha, n_events, time.perf_counter() - started, slider_steps))
+            try:
+                progress(Progress(state.alpha, n_events, time.perf_counter() - started,
+                                  slider_steps))
+            except KeyboardInterrupt:
+                code, message, alpha_c = status.INTERRUPTED, INTERRUPTED_MESSAGE, math.nan
+                break
         if chunk.status not in (status.RUNNING, status.SPARSE_FULL):
             code, message, alpha_c = chunk.status, chunk.message, chunk.alpha_c
             final_event = chunk.final_event
             break
-    return _finish(scene, backend, code, message, alpha_c, chunks, initial, state, relaxation,
-                   started, final_event)
+    result = _finish(scene, backend, code, message, alpha_c, chunks, initial, state, relaxation,
+                     started, final_event)
+    return _interrupt_or_return(result, keep_partial)
+
+
+def _interrupt_or_return(result: TiltResult, keep_partial: bool) -> TiltResult:
+    if result.status == status.NAMES[status.INTERRUPTED]:
+        if not result.message:
+            result.message = INTERRUPTED_MESSAGE
+        if not keep_partial:
+            raise Interrupted(result)
+    return result
 
 
 def _finish(scene, backend, code, message, alpha_c, chunks, initial, final, relaxation, started,

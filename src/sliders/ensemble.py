@@ -59,6 +59,7 @@ from .scene import BACKENDS, Scene, SceneError
 TAG_MSG, TAG_REPLY, TAG_CTRL = 71, 72, 73
 NO_MORE, DECLINED = -1, -2  # replies to a request for an index
 PREFETCH = 2  # indices a worker asks for ahead of the one it is computing
+DEFAULT_BACKEND = "fortran"
 STATUS_CODES = {name: code for code, name in status_codes.NAMES.items()}
 UNKNOWN_STATUS = -2
 
@@ -118,10 +119,11 @@ def build_parser(rank: int = 0) -> argparse.ArgumentParser:
     g.add_argument("--realisations", "-R", type=int, metavar="R",
                    help="number of realisations (required unless --resume, which takes the file's)")
     g.add_argument("--out", required=True, metavar="FILE.h5", help="output HDF5 file")
-    g.add_argument("--backend", choices=BACKENDS, default="fortran",
-                   help="tilt backend (default fortran)")
+    g.add_argument("--backend", choices=BACKENDS, default=None,
+                   help="tilt backend (default fortran; with --resume, the file's)")
     g.add_argument("--resume", action="store_true",
-                   help="complete the missing realisations of an existing file of the same scene")
+                   help="complete the missing realisations of an existing file: the scene, seed, "
+                        "count and backend come from the file (options given must agree with it)")
     g.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     g.add_argument("--storage", choices=STORAGES, default="auto",
                    help="file writer: parallel h5py (mpio), rows gathered to rank 0 (gather), or "
@@ -134,12 +136,6 @@ def build_parser(rank: int = 0) -> argparse.ArgumentParser:
                         "I*R//K to (I+1)*R//K - 1, same seeds as in the whole run), e.g. one task "
                         "of a job array; `python -m sliders.merge` joins the chunk files")
     return p
-
-
-def _scene_diff(a: Scene, b: Scene) -> str:
-    da, db = a.to_dict(), b.to_dict()
-    diffs = [f"{k}={da[k]!r} in file, {db[k]!r} requested" for k in da if da[k] != db.get(k)]
-    return "; ".join(diffs)
 
 
 def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
@@ -164,29 +160,58 @@ def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
         raise UsageError(str(exc)) from None
     from .driver import make_engine
 
+    backend = args.backend or DEFAULT_BACKEND
     try:
-        make_engine(scene, args.backend)
+        make_engine(scene, backend)
     except (ImportError, AttributeError) as exc:  # not built, or built from older sources
-        raise UsageError(f"backend {args.backend!r} is not available ({exc}); "
+        raise UsageError(f"backend {backend!r} is not available ({exc}); "
                          "build it (scripts/setup.sh) or use --backend numpy") from None
+    from .scene import check_memory
+
+    check_memory(scene)
     return {"scene": scene, "storage": storage}
 
 
-def _plan_root(args, plan) -> dict[str, Any]:
-    """Rank 0: output file checks, resume compatibility, the layout."""
+def _claim_output(args):
+    """Rank 0, before anything is created or read: the claim on --out (held to the end)."""
     from .cli import check_output
+    from .filelock import OutputClaim
+    from .safeio import is_special
+
+    check_output(args.out, overwrite=True)  # a writable file path (existence checked later)
+    if is_special(args.out):
+        raise UsageError(f"--out {args.out!r} is not a regular file (a device or a fifo): an "
+                         "ensemble file is written in place and resumed; give a file path")
+    claim = OutputClaim(args.out).acquire()
+    if not claim.locking:
+        if args.overwrite:
+            claim.release()
+            raise UsageError(f"--out {args.out!r}: this file system does not support file locks, "
+                             "so a concurrent writer could not be detected; --overwrite is "
+                             "refused there (delete the file first, or write elsewhere)")
+        sys.stderr.write(f"ensemble: warning: no file locks on the file system of {args.out!r}; "
+                         "a concurrent writer would not be detected\n")
+    elif claim.previous_holder and not args.quiet:
+        sys.stderr.write(f"ensemble: note: {args.out} was held by {claim.previous_holder}, which "
+                         "is no longer running; its stale claim is taken over\n")
+    return claim
+
+
+def _plan_root(args, plan) -> dict[str, Any]:
+    """Rank 0 (holding the claim on --out): output file checks, resume compatibility, the
+    scene and backend (the file's with --resume), the layout."""
+    from .cli import disagreements, given_scene_values
     from .keyed_random import realisation_seed
     from .observables import default_grids, statistics_layout
-    from .storage import StorageError, file_attributes, make_layout, read_header
+    from .storage import StorageError, damaged_rows, file_attributes, make_layout, read_header
 
     scene: Scene = plan["scene"]
+    backend = args.backend or DEFAULT_BACKEND
     out = args.out
-    check_output(out, overwrite=True)  # a writable file path (existence checked below)
     resume = args.resume and os.path.exists(out)
     if os.path.exists(out) and not (args.overwrite or resume):
         raise UsageError(f"--out {out!r} exists; pass --resume to complete it or --overwrite "
                          "to replace it")
-    grids = default_grids(scene).to_arrays()
     R = args.realisations
     first = 0  # index of the file's first realisation (a chunk of a larger ensemble)
     if args.chunk is not None:
@@ -204,28 +229,45 @@ def _plan_root(args, plan) -> dict[str, Any]:
             file_scene = Scene.from_dict(json.loads(attrs["scene"]))
         except (SceneError, ValueError, KeyError) as exc:
             raise UsageError(f"--resume: {out!r} holds an unreadable scene ({exc})") from None
-        if file_scene != scene:
-            raise UsageError(f"--resume: {out!r} holds a different scene ({_scene_diff(file_scene, scene)})")
+        try:
+            differ = disagreements(file_scene, given_scene_values(args))
+        except SceneError as exc:
+            raise UsageError(f"--resume: {exc}") from None
+        if differ:
+            raise UsageError(f"--resume: {out!r} holds a different scene ({differ}); give no "
+                             "scene options with --resume, or ones that agree with the file")
+        scene = file_scene
         if R is not None and R != attrs["realisations"]:
             raise UsageError(f"--resume: {out!r} has {attrs['realisations']} realisations, "
                              f"--realisations {R} requested")
-        if attrs["backend"] != args.backend:
+        if args.backend is not None and attrs["backend"] != args.backend:
             raise UsageError(f"--resume: {out!r} was computed with --backend {attrs['backend']}, "
                              f"not {args.backend}; resume with the same backend")
+        backend = attrs["backend"]
         R = int(attrs["realisations"])
         if args.chunk is not None and first != attrs.get("first_realisation", 0):
             raise UsageError(f"--resume: {out!r} starts at realisation "
                              f"{attrs.get('first_realisation', 0)}, chunk {args.chunk[0]}/"
                              f"{args.chunk[1]} at {first}")
         first = int(attrs.get("first_realisation", 0))
+    grids = default_grids(scene).to_arrays()
+    if resume:
         for k, v in grids.items():
             if k not in head["grids"] or not np.array_equal(head["grids"][k], v):
                 raise UsageError(f"--resume: the statistics grid {k!r} of {out!r} differs from "
                                  "this version's; start a new file")
         done = head["done"]
+        try:
+            damaged = damaged_rows(out)
+        except StorageError as exc:
+            raise UsageError(f"--resume: {exc}") from None
+        if damaged:  # recomputed like the missing ones (keyed seeds: the same values)
+            done[damaged] = False
+            sys.stderr.write(f"ensemble: note: {len(damaged)} finished row(s) of {out} fail "
+                             f"their checksums (rows {damaged[:10]}); recomputing them\n")
         file_attrs = attrs
     else:
-        file_attrs = file_attributes(scene.to_dict(), scene.seed, R, args.backend)
+        file_attrs = file_attributes(scene.to_dict(), scene.seed, R, backend)
         file_attrs["first_realisation"] = first
     seeds = np.array([realisation_seed(scene.seed, first + r) for r in range(R)], dtype=np.uint32)
     # record = "summary": the per-realisation summary only (no displacements, no statistics)
@@ -233,7 +275,7 @@ def _plan_root(args, plan) -> dict[str, Any]:
                                                                    scene.n_sliders)
     layout = make_layout(R, seeds, grids, stats, file_attrs)
     if resume:
-        cols = read_header(out)["columns"]
+        cols = head["columns"]
         for c in layout.columns:
             if c.name not in cols or tuple(cols[c.name][0]) != c.shape:
                 raise UsageError(f"--resume: {out!r} has no dataset /realisations/{c.name} of shape "
@@ -242,7 +284,7 @@ def _plan_root(args, plan) -> dict[str, Any]:
             raise UsageError(f"--resume: the seeds of {out!r} differ from this version's")
     if done is None:
         done = np.zeros(R, dtype=bool)
-    return {"layout": layout, "resume": resume, "done": done}
+    return {"layout": layout, "resume": resume, "done": done, "scene": scene, "backend": backend}
 
 
 # ---------------------------------------------------------------------------
@@ -252,7 +294,6 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
                 first: int = 0) -> dict[str, Any]:
     """Row ``r`` of a file starting at realisation ``first``: realisation ``first + r`` of the
     scene (base columns + statistics/<key>)."""
-    from .driver import tilt
     from .keyed_random import realisation_seed
     from .observables import realisation_statistics
     from .storage import STATISTICS
@@ -265,8 +306,8 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
             progress(None)
     if os.environ.get("SLIDERS_ENSEMBLE_TEST_FAIL") == str(r):
         raise RuntimeError(f"test hook SLIDERS_ENSEMBLE_TEST_FAIL: realisation {r} fails")
-    result = tilt(scene.replace(seed=realisation_seed(scene.seed, first + r)), backend=backend,
-                  progress=progress)
+    result = _tilt_interruptibly(scene.replace(seed=realisation_seed(scene.seed, first + r)),
+                                 backend, progress)
     stats = {} if scene.record == "summary" else realisation_statistics(result, grids)
     row: dict[str, Any] = {
         "status": STATUS_CODES.get(result.status, UNKNOWN_STATUS),
@@ -283,14 +324,50 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
 # the run: rank 0 (hands out indices, computes, reports) and the other ranks
 # ---------------------------------------------------------------------------
 class _Stop:
-    """Signal flag (set by the handler, acted on at safe points)."""
+    """Signal flag (set by the handler, acted on at safe points).
+
+    While a realisation is being computed (``computing``: inside ``tilt``,
+    outside the progress callbacks, which talk MPI) no file or message is in
+    flight, so the handler also raises KeyboardInterrupt there: the kernel
+    stops within its interrupt latency instead of at the end of its chunk,
+    and the unfinished realisation is dropped.
+    """
 
     signum: int | None = None
+    computing = False
 
     @classmethod
     def handler(cls, signum, frame):
         if cls.signum is None:
             cls.signum = signum
+        if cls.computing:
+            cls.computing = False
+            raise KeyboardInterrupt
+
+
+def _tilt_interruptibly(scene: Scene, backend: str, progress):
+    """``tilt`` with ``_Stop.computing`` set except inside the progress callback."""
+    from .driver import tilt
+
+    def callback(p):
+        _Stop.computing = False
+        try:
+            if progress is not None:
+                progress(p)
+        finally:
+            _Stop.computing = True
+
+    _Stop.computing = True
+    try:
+        if _Stop.signum is not None:  # arrived just before
+            raise Interrupted()
+        return tilt(scene, backend=backend, progress=callback)
+    except KeyboardInterrupt:  # also when the kernel caught the signal itself: stop the run
+        if _Stop.signum is None:
+            _Stop.signum = signal.SIGINT
+        raise
+    finally:
+        _Stop.computing = False
 
 
 def _fmt_time(s: float) -> str:
@@ -450,7 +527,7 @@ class _Root:
             try:
                 row = compute_row(ctx["scene"], r, ctx["backend"], ctx["grids"], self.poll,
                                   ctx["first"])
-            except Interrupted:
+            except (Interrupted, KeyboardInterrupt):  # the signal stops the run below
                 break
             finally:
                 self.timing["compute"] += time.perf_counter() - t0
@@ -544,7 +621,7 @@ def _worker(comm, handler, ctx) -> dict[str, float]:
             sends.append(comm.isend(("done", r, handler.outbox(), row["status"]), dest=0,
                                     tag=TAG_MSG))
             r = next_index()
-    except Interrupted:
+    except (Interrupted, KeyboardInterrupt):
         pass
     take(block=True)  # every request gets its answer before the end
     if _Stop.signum is not None:
@@ -576,12 +653,13 @@ def main(argv: list[str] | None = None) -> int:
 
     # 1. validate (no collective before this point: every rank reaches the allgather)
     err: tuple[int, str] | None = None
-    plan = root_plan = None
+    plan = root_plan = claim = None
     args = None
     try:
         args = build_parser(rank).parse_args(argv)
         plan = _plan(args, comm, have_mpi)
         if rank == 0:
+            claim = _claim_output(args)
             root_plan = _plan_root(args, plan)
     except _HelpExit as exc:
         err = (exc.code, "")
@@ -594,19 +672,33 @@ def main(argv: list[str] | None = None) -> int:
     errors = comm.allgather(err)
     first = next((e for e in errors if e is not None), None)
     if first is not None:
+        if claim is not None:
+            claim.release()
         code, message = first
         if rank == 0 and message:
             sys.stderr.write(_error_line(message) + "\n")
         return code
     root_plan = comm.bcast(root_plan, root=0)
+    try:
+        return _run(args, comm, plan, root_plan)
+    finally:
+        if claim is not None:
+            claim.release()  # after the file is closed: the next writer finds it complete
+
+
+def _run(args, comm, plan, root_plan) -> int:
+    """Steps 2-4 of ``main``, every rank, rank 0 holding the claim on --out."""
+    rank = comm.rank
 
     # 2. create or open the file (collective for mpio)
     from .observables import StatisticsGrids
     from .conventions import describe_ensemble_file
-    from .storage import HANDLERS, StorageError
+    from .safeio import os_reason
+    from .storage import HANDLERS, CollectiveFailure, StorageError
 
     layout = root_plan["layout"]
-    scene: Scene = plan["scene"]
+    scene: Scene = root_plan["scene"]
+    backend = root_plan["backend"]
     storage = plan["storage"]
     handler = None
     err = None
@@ -621,7 +713,12 @@ def main(argv: list[str] | None = None) -> int:
             raise StorageError(f"cannot describe the file: {described}")
         handler = cls.open_for_resume(args.out, layout, comm)
     except Exception as exc:  # noqa: BLE001
-        err = f"cannot {'open' if root_plan['resume'] else 'create'} {args.out!r}: {exc}"
+        err = (f"cannot {'open' if root_plan['resume'] else 'create'} {args.out!r}: "
+               f"{os_reason(exc)}")
+        if isinstance(exc, CollectiveFailure):  # other ranks may be inside the failed call
+            sys.stderr.write(_error_line(f"rank {rank}: {err}") + "\n")
+            sys.stderr.flush()
+            comm.Abort(1)
     errors = comm.allgather(err)
     if any(errors):
         if rank == next(i for i, e in enumerate(errors) if e):  # one line, from one rank
@@ -634,7 +731,7 @@ def main(argv: list[str] | None = None) -> int:
     done = root_plan["done"]
     pending = np.flatnonzero(~done)
     ctx = {
-        "scene": scene, "backend": args.backend, "R": layout.n_realisations,
+        "scene": scene, "backend": backend, "R": layout.n_realisations,
         "first": int(layout.attrs.get("first_realisation", 0)),
         "grids": StatisticsGrids.from_arrays(layout.grids),
         "interval": args.progress_interval, "quiet": args.quiet,
@@ -646,7 +743,7 @@ def main(argv: list[str] | None = None) -> int:
         verb = "resuming" if root_plan["resume"] else "starting"
         sys.stderr.write(
             f"ensemble: {verb} {pending.size} of {layout.n_realisations} realisations of "
-            f"N={scene.n_sliders} xi={scene.xi:g} (backend {args.backend}) on {comm.size} "
+            f"N={scene.n_sliders} xi={scene.xi:g} (backend {backend}) on {comm.size} "
             f"rank{'s' if comm.size > 1 else ''}, storage {storage} -> {args.out}\n")
         sys.stderr.flush()
 
@@ -662,7 +759,9 @@ def main(argv: list[str] | None = None) -> int:
         else:
             timing = _worker(comm, handler, ctx)
     except Exception as exc:  # noqa: BLE001 - a bug or a failed write: nothing may hang
-        sys.stderr.write(_error_line(f"rank {rank}: {type(exc).__name__}: {exc}") + "\n")
+        what = (f"cannot write {args.out!r}: {os_reason(exc)}" if isinstance(exc, OSError)
+                else f"{type(exc).__name__}: {exc}")
+        sys.stderr.write(_error_line(f"rank {rank}: {what}") + "\n")
         if os.environ.get("SLIDERS_DEBUG"):
             import traceback
 

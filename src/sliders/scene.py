@@ -26,6 +26,33 @@ DT_PERIOD_FRACTION = 1.0 / 30.0
 # displacement per event, (mu_s - mu_d) cos alpha, sinks below rounding.
 ALPHA_MAX_LIMIT = math.pi / 2 - 1e-6
 
+# What double precision can resolve (the integrator converges or is refused).
+# 1. The crossing bisection halves [lo, hi] within one step [0, dt] until
+#    hi - lo <= refine_tol.  Near dt neighbouring doubles are ulp(dt) apart;
+#    once the bracket is one ulp wide its midpoint rounds onto an end and the
+#    bracket stops shrinking: with refine_tol < ulp(dt) the loop never ends
+#    (``--refine-tol 1e-20`` at dt = 1e-3, ulp = 2.2e-19, did exactly that).
+#    refine_tol >= RESOLUTION_ULPS * ulp(dt) keeps at least that many
+#    representable midpoints in every bracket still to be halved.
+# 2. The event clock t (which max_event_duration caps) advances by dt per
+#    full step; t + dt == t once dt < ulp(t) / 2, and the cap would never be
+#    reached.  dt >= RESOLUTION_ULPS * ulp(max_event_duration) keeps every
+#    full step visible on the clock up to the cap.  (Refined steps, shorter
+#    than dt, only happen at crossings, each of which changes the moving set.)
+#    At dt = 1e-3 this allows caps up to 1.1e12 tau.
+RESOLUTION_ULPS = 4
+
+# Memory estimate (``Scene.memory_estimate``), measured on this code: arrays
+# per slider (state, forces, kernel work arrays, initial and final states),
+# bytes per event record, sparse displacement entries per event (index +
+# value) and the number of events of a run to its avalanche (about 2.4 N,
+# measured for N = 100 to 1000).
+BYTES_PER_SLIDER = 400
+BYTES_PER_EVENT = len(("alpha", "n_moved", "n_stops", "n_steps", "slider_steps", "duration",
+                       "work_gravity", "elastic_change", "dissipation")) * 8
+BYTES_PER_SPARSE_ENTRY = 16
+EVENTS_PER_SLIDER = 3.0
+
 
 # Speed modes: named integrator settings (dt, refine_tol, max_event_duration)
 # with the accuracy measured by benchmarks/accuracy.py (docs/accuracy.md).
@@ -108,6 +135,8 @@ class Scene:
     output: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
+        for f in fields(self):
+            object.__setattr__(self, f.name, _plain_value(f.name, f.type, getattr(self, f.name)))
         if self.mode not in SPEED_MODES:
             raise SceneError(f"mode={self.mode!r} must be one of {tuple(SPEED_MODES)}")
         from_mode = [name for name in SPEED_MODES[self.mode] if getattr(self, name) is None]
@@ -143,14 +172,22 @@ class Scene:
         _check_real("dt", self.dt, 0.0, dt_max, open_low=True,
                     why=f"a thirtieth of the fastest spring period 2*pi/sqrt(4+xi) = "
                         f"{fastest_period(self.xi):.4g} tau")
-        _check_real("refine_tol", self.refine_tol, 0.0, self.dt, open_low=True,
-                    why="the crossing bracket must close below one time step")
+        _check_real("refine_tol", self.refine_tol, RESOLUTION_ULPS * math.ulp(self.dt), self.dt,
+                    why="at least 4 ulps of dt (double precision cannot halve a narrower "
+                        "bracket) and at most one time step")
         _check_real("max_event_duration", self.max_event_duration, 0.0, None, open_low=True)
         if self.max_event_duration < 100 * self.dt:
             raise SceneError(
                 f"max_event_duration={self.max_event_duration!r} tau must be at least "
                 f"100 time steps ({100 * self.dt:g} tau); the last events before the "
                 "avalanche last hundreds of tau"
+            )
+        if self.dt < RESOLUTION_ULPS * math.ulp(self.max_event_duration):
+            longest = self.dt / (RESOLUTION_ULPS * math.ulp(1.0))
+            raise SceneError(
+                f"max_event_duration={self.max_event_duration!r} tau is out of range: allowed "
+                f"up to about {longest:.3g} tau at dt={self.dt!r} (beyond, a time step of dt is "
+                "below 4 ulps of the event clock, which would stop advancing before the cap)"
             )
         _check_int("max_events", self.max_events, 1, None)
         _check_real("alpha_max", self.alpha_max, 0.0, ALPHA_MAX_LIMIT, open_low=True,
@@ -187,6 +224,21 @@ class Scene:
                 changes.setdefault(name, None)
         return dataclasses.replace(self, **changes)
 
+    def memory_estimate(self) -> int:
+        """Bytes a run of this scene needs (an upper estimate; see BYTES_PER_* above).
+
+        Events: ``max_events`` or ~3 N (a run to its avalanche), whichever is
+        smaller; sparse displacements (record != "summary"): one entry per
+        slider and event in the worst case of system-spanning events, bounded
+        by 3 N events of N sliders only when N is small: min(N, 64) entries
+        per event (measured means: 4-30)."""
+        n = self.n_sliders
+        events = min(self.max_events, EVENTS_PER_SLIDER * n + 100)
+        total = BYTES_PER_SLIDER * n + BYTES_PER_EVENT * events
+        if self.record != "summary":
+            total += BYTES_PER_SPARSE_ENTRY * events * min(n, 64)
+        return int(total)
+
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
         d.pop("output")
@@ -197,9 +249,8 @@ class Scene:
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:
-            raise SceneError(
-                f"unknown scene key(s) {unknown}; allowed keys are {sorted(known - {'output'})}"
-            )
+            raise SceneError(f"unknown scene key(s) {unknown}{_hint(unknown[0], known)}; allowed "
+                             f"keys are {sorted(known - {'output'})}")
         return cls(**d)
 
     @classmethod
@@ -218,7 +269,85 @@ def toml_values(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise SceneError(f"scene file {str(path)!r} does not exist") from None
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"scene file {str(path)!r} is not valid TOML: {exc}") from None
-    return dict(data.get("scene", data))
+    except OSError as exc:
+        raise SceneError(f"scene file {str(path)!r} cannot be read ({exc.strerror})") from None
+    where = f"scene file {str(path)!r}"
+    known = {f.name for f in fields(Scene)} - {"output"}
+    if "scene" in data:
+        outside = [k for k in data if k != "scene"]
+        if outside:
+            raise SceneError(f"{where}: key {outside[0]!r} stands outside the [scene] table"
+                             f"{_hint(outside[0], known)}; with a [scene] table every key must be "
+                             "inside it")
+        values = data["scene"]
+        if not isinstance(values, dict):
+            raise SceneError(f"{where}: 'scene' must be a table ([scene])")
+    else:
+        values = data
+    for k, v in values.items():
+        if isinstance(v, (dict, list)) and not (isinstance(v, list) and k in known):
+            kind = "table" if isinstance(v, dict) else "array"
+            raise SceneError(f"{where}: {kind} {k!r} is not a scene key{_hint(k, known)}; "
+                             f"allowed keys are {sorted(known)}")
+    return dict(values)
+
+
+def _hint(key: str, known) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(key, sorted(known), n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def _plain_value(name: str, kind: str, value):
+    """Python and NumPy scalars alike, as plain Python numbers and strings.
+
+    A NumPy float becomes the shortest decimal that round-trips in its own
+    precision (np.float32(0.001) -> 0.001, not 0.0010000000474974513), which is
+    what was written.  Booleans are left for the checks to refuse.
+    """
+    try:
+        import numpy as np
+    except ImportError:  # pragma: no cover - numpy is a dependency
+        return value
+    if isinstance(value, (bool, np.bool_)) or value is None:
+        return value
+    if kind.startswith("int"):
+        if isinstance(value, np.integer):
+            return int(value)
+    elif kind.startswith("float"):
+        if isinstance(value, np.floating):
+            return float(str(value))
+        if isinstance(value, (int, np.integer)):
+            return float(value)
+    elif kind.startswith("str") and isinstance(value, np.str_):
+        return str(value)
+    return value
+
+
+def check_memory(scene: Scene) -> None:
+    """Refuse a scene whose run would need more memory than the machine has available."""
+    need = scene.memory_estimate()
+    available = available_memory()
+    if available is not None and need > available:
+        raise SceneError(
+            f"n_sliders={scene.n_sliders} with record={scene.record!r} and "
+            f"max_events={scene.max_events} needs about {need / 1e9:.3g} GB, more than the "
+            f"{available / 1e9:.3g} GB available (MemAvailable); use record='summary', fewer "
+            "sliders or a lower max_events"
+        )
+
+
+def available_memory() -> int | None:
+    """MemAvailable of /proc/meminfo in bytes (None where there is no such file)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
 
 
 def _check_real(name, value, low, high, *, open_low=False, why=None) -> None:
@@ -265,10 +394,14 @@ def check_writable(name: str, path: str | os.PathLike[str]) -> None:
         raise SceneError(f"{name}={p!r}: directory {parent!r} does not exist")
     existed = os.path.exists(p)
     try:  # the honest test (permission bits say nothing for root or read-only mounts)
-        with open(p, "ab"):
-            pass
+        if existed:
+            with open(p, "ab"):
+                pass
+        else:  # probe the folder, never the target: another run may be creating it
+            import tempfile
+
+            with tempfile.TemporaryFile(dir=parent):
+                pass
     except OSError as exc:
         what = "exists and is not writable" if existed else f"cannot be created in {parent!r}"
         raise SceneError(f"{name}={p!r} {what} ({exc.strerror})") from None
-    if not existed:
-        os.remove(p)

@@ -13,6 +13,21 @@ realisation ``r`` (the seed of row ``r`` is ``realisation_seed(base_seed, r)``):
                            attr "codes" = JSON {code: name}
     /realisations/alpha_c, n_events, slider_steps, wall_time   (R,)
     /realisations/statistics/<key>   (R, *shape): observables.realisation_statistics
+    /realisations/row_crc32  (R, C) uint32: CRC-32 of row r of each of the C columns
+                           named by its attr "columns", written before done[r]
+
+Integrity (``safeio``): the root attributes carry a CRC-32 (``attrs_crc32``),
+every grid and the seeds a CRC-32 attribute, every row its ``row_crc32``;
+``read_header`` and ``read_rows`` verify them (the rows marked done) and
+raise ``StorageError`` naming the damaged dataset.  A per-row digest rather
+than HDF5's Fletcher32 filter: filters need chunked datasets, and parallel
+HDF5 writes filtered datasets only collectively, while the ranks here write
+their rows independently, whenever a realisation finishes.
+
+Creation is atomic: the file is built (structure, seeds) under a temporary
+name beside ``--out``, flushed, then published (hard link: fails if the
+path appeared meanwhile; or rename over it for ``--overwrite``), so that an
+existing file is never destroyed by a creation that fails half-way.
 
 Every dataset is contiguous, allocated and filled when the file is created, so
 that writing a row never touches HDF5 metadata: a row is raw bytes written in
@@ -41,16 +56,22 @@ from typing import Any
 
 import numpy as np
 
-from . import status
+from . import safeio, status
 
 FORMAT = "sliders.ensemble"
 FORMAT_VERSION = 1
+ROW_DIGEST = "row_crc32"
 STORAGES = ("auto", "mpio", "gather")
 NOT_RUN = -1  # status code of a row that has not been computed
 
 
 class StorageError(RuntimeError):
     """The file cannot be created, opened or does not match the requested ensemble."""
+
+
+class CollectiveFailure(StorageError):
+    """A collective parallel-HDF5 call failed on this rank (e.g. disk full while creating
+    the file): the other ranks may wait in it for ever, so the caller must MPI_Abort."""
 
 
 @dataclass(frozen=True)
@@ -158,13 +179,18 @@ def _dcpl():
 def _create_structure(f, layout: Layout) -> None:
     for k, v in layout.attrs.items():
         f.attrs[k] = v
+    safeio.seal_attrs(f)
     g = f.create_group("grids")
     for name in sorted(layout.grids):
-        g.create_dataset(name, data=layout.grids[name])
+        safeio.seal_dataset(g.create_dataset(name, data=layout.grids[name]), layout.grids[name])
     rg = f.create_group("realisations")
     rg.create_group("statistics")
     R = layout.n_realisations
-    rg.create_dataset("seed", shape=(R,), dtype=np.uint32, dcpl=_dcpl())
+    seed = rg.create_dataset("seed", shape=(R,), dtype=np.uint32, dcpl=_dcpl())
+    safeio.seal_dataset(seed, layout.seeds)
+    digest = rg.create_dataset(ROW_DIGEST, shape=(R, len(layout.columns)), dtype=np.uint32,
+                               fillvalue=0, dcpl=_dcpl())
+    digest.attrs["columns"] = json.dumps([c.name for c in layout.columns])
     rg.create_dataset("done", shape=(R,), dtype=np.uint8, fillvalue=0, dcpl=_dcpl())
     for c in layout.columns:
         rg.create_dataset(c.name, shape=(R,) + c.shape, dtype=c.dtype, fillvalue=c.fill,
@@ -211,10 +237,46 @@ class EnsembleFile:
         """Create the file (refuses an existing one unless ``overwrite``)."""
         self = cls(path, layout, comm)
         # decided on rank 0, raised on every rank (never a collective open on some ranks only)
-        exists = comm.bcast(os.path.exists(self.path) if comm.rank == 0 else None, root=0)
-        if exists and not overwrite:
-            raise StorageError(f"{self.path!r} exists; pass --overwrite to replace it")
-        self._create()
+        start = None
+        if comm.rank == 0:
+            try:
+                if os.path.exists(self.path) and not overwrite:
+                    raise StorageError(f"{self.path!r} exists; pass --overwrite to replace it")
+                _check_space(self.path, layout)
+                start = ("ok", safeio.temporary_beside(self.path))
+            except StorageError as exc:
+                start = ("error", str(exc))
+            except OSError as exc:
+                start = ("error", safeio.describe_os_error(exc, self.path))
+        kind, tmp = comm.bcast(start, root=0)
+        if kind == "error":
+            raise StorageError(tmp)
+        failure = None
+        try:
+            self._create(tmp)
+        except Exception as exc:  # noqa: BLE001 - reported below, on every rank
+            failure = safeio.os_reason(exc)
+            if self.kind == "mpio":
+                # the other ranks may be stuck in a collective call this rank left: no
+                # further collective can be made; the caller must MPI_Abort
+                self.abandon()
+                if comm.rank == 0:
+                    os.unlink(tmp)
+                raise CollectiveFailure(failure) from None
+        if comm.rank == 0 and failure is None:
+            try:
+                safeio.fsync_path(tmp)
+                safeio.publish(tmp, self.path, overwrite)
+            except FileExistsError:
+                failure = "it was created by another process meanwhile"
+            except OSError as exc:
+                failure = safeio.os_reason(exc)
+        if comm.rank == 0 and os.path.exists(tmp):
+            os.unlink(tmp)
+        failure = comm.bcast(failure, root=0) or failure
+        if failure is not None:
+            self.abandon()
+            raise StorageError(failure)
         return self
 
     @classmethod
@@ -237,6 +299,24 @@ class EnsembleFile:
 
     def close(self) -> None:
         raise NotImplementedError
+
+    def abandon(self) -> None:
+        """After a failed creation: close what can be closed, never crash.
+
+        Parallel HDF5 1.10 segfaults when a file whose creation failed (disk
+        full) is closed or garbage-collected; such a file is kept referenced
+        (``ABANDONED``) until the process ends (by MPI_Abort: see CollectiveFailure)."""
+        if self.file is None:
+            return
+        self._ds = {}
+        if self.kind == "mpio":
+            ABANDONED.append(self.file)
+        else:
+            try:
+                self.file.close()
+            except Exception:  # noqa: BLE001 - the failure is already being reported
+                pass
+        self.file = None
 
     # gather transport hooks (no-ops for mpio)
     def outbox(self) -> list | None:
@@ -270,13 +350,16 @@ class EnsembleFile:
         rg = self.file["realisations"]
         self._ds = {c.name: rg[c.name] for c in self.layout.columns}
         self._ds["done"] = rg["done"]
+        self._ds[ROW_DIGEST] = rg[ROW_DIGEST]
 
     def _write_local(self, r: int, row: dict[str, Any]) -> None:
         import time
 
         t = time.perf_counter()
-        for name, v in self._row_arrays(row).items():
+        values = self._row_arrays(row)
+        for name, v in values.items():
             self._ds[name][r] = v
+        self._ds[ROW_DIGEST][r] = [safeio.crc32_of(values[c.name]) for c in self.layout.columns]
         self.rows_written += 1
         self.write_seconds += time.perf_counter() - t
 
@@ -299,10 +382,10 @@ class MpioFile(EnsembleFile):
 
     kind = "mpio"
 
-    def _create(self) -> None:
+    def _create(self, tmp: str) -> None:
         import h5py
 
-        self.file = h5py.File(self.path, "w", driver="mpio", comm=self.comm)
+        self.file = h5py.File(tmp, "w", driver="mpio", comm=self.comm)
         _create_structure(self.file, self.layout)
         if self.comm.rank == 0:
             self.file["realisations"]["seed"][:] = self.layout.seeds
@@ -341,11 +424,11 @@ class GatherFile(EnsembleFile):
         super().__init__(path, layout, comm)
         self._queue: list = []
 
-    def _create(self) -> None:
+    def _create(self, tmp: str) -> None:
         if self.comm.rank == 0:
             import h5py
 
-            self.file = h5py.File(self.path, "w")
+            self.file = h5py.File(tmp, "w")
             _create_structure(self.file, self.layout)
             self.file["realisations"]["seed"][:] = self.layout.seeds
             self.file.flush()
@@ -400,13 +483,33 @@ class GatherFile(EnsembleFile):
 
 
 HANDLERS = {"mpio": MpioFile, "gather": GatherFile}
+ABANDONED: list = []  # parallel files whose creation failed (see EnsembleFile.abandon)
+SPACE_MARGIN = 1 << 18  # bytes of HDF5 metadata and slack beyond the datasets (~50 kB measured)
+
+
+def file_size_estimate(layout: Layout) -> int:
+    """Bytes of an ensemble file: every dataset is allocated when the file is created."""
+    R = layout.n_realisations
+    row = sum(int(np.prod(c.shape, dtype=np.int64)) * c.dtype.itemsize for c in layout.columns)
+    row += 4 + 1 + 4 * len(layout.columns)  # seed, done, row checksums
+    grids = sum(np.asarray(g).nbytes for g in layout.grids.values())
+    return R * row + grids + SPACE_MARGIN
+
+
+def _check_space(path: str, layout: Layout) -> None:
+    """Refuse up front a file that does not fit on its file system (not half-way)."""
+    need = file_size_estimate(layout)
+    st = os.statvfs(os.path.dirname(os.path.abspath(path)))
+    free = st.f_bavail * st.f_frsize
+    if need > free:
+        raise StorageError(f"it needs about {need / 1e6:.3g} MB and its file system has "
+                           f"{free / 1e6:.3g} MB free (No space left on device)")
 
 
 # ---------------------------------------------------------------------------
 # reading (serial, any process)
 # ---------------------------------------------------------------------------
-def read_header(path) -> dict[str, Any]:
-    """Attributes, grids, done mask and column shapes of an ensemble file."""
+def _open_for_reading(path):
     import h5py
 
     p = os.fspath(path)
@@ -415,30 +518,97 @@ def read_header(path) -> dict[str, Any]:
     try:
         f = h5py.File(p, "r")
     except OSError as exc:
-        raise StorageError(f"{p!r} is not a readable HDF5 file ({exc})") from None
-    with f:
-        if f.attrs.get("format") != FORMAT:
-            raise StorageError(f"{p!r} is not a sliders ensemble file")
-        attrs = {k: _plain(v) for k, v in f.attrs.items()}
-        grids = {k: ds[()] for k, ds in f["grids"].items()}
-        rg = f["realisations"]
-        columns = {}
-        rg.visititems(lambda name, obj: columns.__setitem__(name, (obj.shape[1:], obj.dtype))
-                      if isinstance(obj, h5py.Dataset) else None)
-        done = rg["done"][()].astype(bool)
-        seeds = rg["seed"][()]
+        raise StorageError(f"{p!r} is not a readable HDF5 file ({' '.join(str(exc).split())})") \
+            from None
+    return f
+
+
+def _damaged(path, exc: Exception) -> StorageError:
+    text = " ".join(str(exc).split())
+    if isinstance(exc, (StorageError, safeio.IntegrityError)):
+        return StorageError(text)
+    return StorageError(f"{os.fspath(path)!r} is damaged ({type(exc).__name__}: {text})")
+
+
+def read_header(path) -> dict[str, Any]:
+    """Attributes, grids, done mask and column shapes of an ensemble file (checksums verified)."""
+    import h5py
+
+    p = os.fspath(path)
+    where = repr(p)
+    f = _open_for_reading(p)
+    try:
+        with f:
+            if f.attrs.get("format") != FORMAT:
+                raise StorageError(f"{p!r} is not a sliders ensemble file")
+            safeio.check_attrs(f, where)
+            safeio.check_coordinates(f, where)
+            attrs = {k: _plain(v) for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
+            grids = {k: safeio.read_checked(ds, where) for k, ds in f["grids"].items()}
+            rg = f["realisations"]
+            columns = {}
+            rg.visititems(lambda name, obj: columns.__setitem__(name, (obj.shape[1:], obj.dtype))
+                          if isinstance(obj, h5py.Dataset) else None)
+            done = _done_mask(rg["done"][()], where)
+            seeds = safeio.read_checked(rg["seed"], where)
+    except Exception as exc:  # noqa: BLE001 - whatever HDF5 makes of a damaged file: one line
+        raise _damaged(p, exc) from None
     return {"attrs": attrs, "grids": grids, "columns": columns, "done": done, "seeds": seeds}
 
 
 def read_rows(path) -> dict[str, np.ndarray]:
-    """Every /realisations dataset as an array of R rows (``statistics/<key>`` names)."""
+    """Every /realisations dataset as an array of R rows (``statistics/<key>`` names).
+
+    The rows marked done are verified against ``row_crc32``: a damaged row
+    raises StorageError naming the realisation and the file.
+    """
     import h5py
 
+    p = os.fspath(path)
     out: dict[str, np.ndarray] = {}
-    with h5py.File(os.fspath(path), "r") as f:
-        f["realisations"].visititems(
-            lambda name, obj: out.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None)
+    f = _open_for_reading(p)
+    try:
+        with f:
+            rg = f["realisations"]
+            rg.visititems(lambda name, obj: out.__setitem__(name, obj[()])
+                          if isinstance(obj, h5py.Dataset) else None)
+            order = json.loads(rg[ROW_DIGEST].attrs["columns"])
+        damage = _row_damage(out, order, _done_mask(out["done"], repr(p)))
+        if damage:
+            r, name = damage[0]
+            raise StorageError(f"{p!r}: row {r} of dataset /realisations/{name} fails its "
+                               "checksum (the file is damaged; --resume recomputes such rows)")
+    except Exception as exc:  # noqa: BLE001
+        raise _damaged(p, exc) from None
     return out
+
+
+def damaged_rows(path) -> list[int]:
+    """The rows marked done whose values fail their checksums (``--resume`` recomputes them)."""
+    p = os.fspath(path)
+    f = _open_for_reading(p)
+    try:
+        with f:
+            rg = f["realisations"]
+            order = json.loads(rg[ROW_DIGEST].attrs["columns"])
+            out = {name: rg[name][()] for name in order + ["done", ROW_DIGEST]}
+        return sorted({r for r, _ in _row_damage(out, order, _done_mask(out["done"], repr(p)))})
+    except Exception as exc:  # noqa: BLE001 - whatever HDF5 makes of a damaged file: one line
+        raise _damaged(p, exc) from None
+
+
+def _row_damage(out: dict, order: list[str], done: np.ndarray) -> list[tuple[int, str]]:
+    """(row, column) of every done row whose value fails its CRC-32 in ``row_crc32``."""
+    digests = out[ROW_DIGEST]
+    return [(int(r), name) for r in np.flatnonzero(done) for j, name in enumerate(order)
+            if safeio.crc32_of(out[name][r]) != int(digests[r, j])]
+
+
+def _done_mask(done: np.ndarray, where: str) -> np.ndarray:
+    if done.dtype != np.uint8 or not np.isin(done, (0, 1)).all():
+        raise StorageError(f"{where}: /realisations/done holds values other than 0 and 1 "
+                           "(the file is damaged)")
+    return done.astype(bool)
 
 
 def _plain(v):

@@ -1,0 +1,117 @@
+"""Ownership of an output file: one writer at a time, and a dead writer never blocks.
+
+``OutputClaim(path)`` is a context manager held by a run for as long as it
+writes ``path`` (``tilt --out``, an ensemble, anything writing later).  It
+takes an exclusive ``flock`` on the sidecar file ``<path>.lock``, which holds
+"pid PID on HOST" of the holder:
+
+* a second writer of the same path (new run, ``--overwrite`` or ``--resume``)
+  fails at once with ``ClaimError`` naming the holder;
+* the kernel drops a flock when its process dies (kill -9, crash, power loss
+  on a local disk), so a dead holder's claim is stale by construction: the
+  next run takes it (``previous_holder`` then names the dead one);
+* on a file system without working locks (ENOLCK, EOPNOTSUPP: some NFS and
+  FUSE mounts) ``locking`` is False: callers say so and refuse to replace an
+  existing file, since a concurrent writer could not be seen.
+
+The sidecar is removed on release.  A process that opened it just before
+that removal would lock an unlinked file, so ``acquire`` checks that the
+locked file is still the one at ``<path>.lock`` and retries otherwise.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+import socket
+
+LOCK_SUFFIX = ".lock"
+NO_LOCKING = (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL)
+
+
+class ClaimError(OSError):
+    """The output is held by another run, or its claim cannot be taken; one line."""
+
+
+def holder_text() -> str:
+    return f"pid {os.getpid()} on {socket.gethostname()}"
+
+
+class OutputClaim:
+    """Exclusive claim on an output path (see the module doc)."""
+
+    def __init__(self, path):
+        self.path = os.fspath(path)
+        self.lock_path = self.path + LOCK_SUFFIX
+        self.fd: int | None = None
+        self.locking = True
+        self.previous_holder: str | None = None  # a dead run's stale claim, taken over
+
+    def acquire(self) -> "OutputClaim":
+        from .safeio import is_special
+
+        if is_special(self.path):  # a device (/dev/full) or fifo: no file of ours to protect
+            return self
+        for _ in range(100):  # retried only when the sidecar was replaced under us
+            try:
+                fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            except OSError as exc:
+                raise ClaimError(f"cannot create the claim file {self.lock_path!r} for "
+                                 f"{self.path!r}: {exc.strerror}") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = _read(fd) or "another process"
+                os.close(fd)
+                raise ClaimError(f"{self.path!r} is being written by {holder}; wait for it to "
+                                 "finish, or stop it, or choose another output") from None
+            except OSError as exc:
+                if exc.errno not in NO_LOCKING:
+                    os.close(fd)
+                    raise ClaimError(f"cannot lock {self.lock_path!r}: {exc.strerror}") from None
+                self.locking = False
+            if self.locking and not _same_file(fd, self.lock_path):
+                os.close(fd)  # released and removed meanwhile: take the new one
+                continue
+            self.previous_holder = _read(fd) or None
+            try:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, (holder_text() + "\n").encode(), 0)
+            except OSError:  # a full disk: the lock holds all the same, unnamed
+                pass
+            self.fd = fd
+            return self
+        raise ClaimError(f"cannot take the claim {self.lock_path!r}: it keeps being replaced")
+
+    def release(self) -> None:
+        if self.fd is None:
+            return
+        try:
+            if _same_file(self.fd, self.lock_path):
+                os.unlink(self.lock_path)  # while still locked: nobody holds a stale copy
+        except OSError:
+            pass
+        os.close(self.fd)  # drops the lock
+        self.fd = None
+
+    def __enter__(self) -> "OutputClaim":
+        return self.acquire()
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def _read(fd: int) -> str:
+    try:
+        return os.pread(fd, 256, 0).decode(errors="replace").strip()
+    except OSError:
+        return ""
+
+
+def _same_file(fd: int, path: str) -> bool:
+    try:
+        a, b = os.fstat(fd), os.stat(path)
+    except OSError:
+        return False
+    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)

@@ -1,0 +1,248 @@
+"""Writing files so that nothing finished is ever lost, and I/O errors as one line.
+
+* ``publish_bytes(path, data, overwrite)``: a whole file goes to a temporary
+  file beside the target, is flushed to the disk (fsync), then renamed over
+  it.  An existing file is never truncated before its replacement is
+  complete; without ``overwrite`` the rename is a hard link, which fails
+  atomically if another process created the target in the meantime (no
+  check-then-create race).
+* ``describe_os_error(exc, path)``: "PATH: REASON" for an ``OSError``,
+  including the ones h5py raises for HDF5's own I/O failures (which carry the
+  errno only in their text).
+* ``crc32_of(array)`` and friends: the checksum every dataset of a sliders
+  file carries (``DIGEST_ATTR``), verified on load.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import re
+import stat
+import tempfile
+import zlib
+
+import numpy as np
+
+# Every dataset written by sliders carries this attribute: CRC-32 of its dtype,
+# shape and bytes (``crc32_of``).  The root group carries ATTRS_DIGEST over its
+# other attributes.
+DIGEST_ATTR = "crc32"
+ATTRS_DIGEST = "attrs_crc32"
+
+
+class IntegrityError(OSError):
+    """A file's content does not match its checksums (flipped bytes, truncation)."""
+
+
+# ---------------------------------------------------------------------------
+# checksums
+# ---------------------------------------------------------------------------
+def crc32_of(array) -> int:
+    """CRC-32 of an array's dtype, shape and bytes (C order)."""
+    a = np.ascontiguousarray(array)
+    return zlib.crc32(a.tobytes(), zlib.crc32(f"{a.dtype.str}{a.shape}".encode()))
+
+
+def crc32_of_attrs(attrs: dict, names) -> int:
+    """CRC-32 of the named attributes (names and values, in name order)."""
+    items = {k: _attr_text(attrs[k]) for k in names}
+    return zlib.crc32(json.dumps(items, sort_keys=True).encode())
+
+
+def _attr_text(v) -> str:
+    if isinstance(v, bytes):
+        v = v.decode(errors="replace")
+    if isinstance(v, np.ndarray):
+        return f"{v.dtype.str}{v.shape}{v.tobytes().hex()}"
+    if isinstance(v, (float, np.floating)):
+        return float(v).hex()
+    if isinstance(v, np.generic):
+        v = v.item()
+    return repr(v)
+
+
+def seal_attrs(group) -> None:
+    """Store the digest of a group's attributes present now (attributes added later by
+    other tools, such as provenance, are not covered and do not invalidate it)."""
+    attrs = dict(group.attrs)
+    names = sorted(k for k in attrs if k != ATTRS_DIGEST)
+    group.attrs[ATTRS_DIGEST] = json.dumps({"names": names, "crc32": crc32_of_attrs(attrs, names)})
+
+
+def check_attrs(group, where: str) -> None:
+    attrs = dict(group.attrs)
+    if ATTRS_DIGEST not in attrs:
+        raise IntegrityError(f"{where}: the attributes of {group.name} carry no checksum "
+                             "(written by an older sliders, or damaged)")
+    try:
+        sealed = json.loads(attrs[ATTRS_DIGEST])
+        ok = int(sealed["crc32"]) == crc32_of_attrs(attrs, sealed["names"])
+    except (ValueError, KeyError, TypeError):
+        ok = False
+    if not ok:
+        raise IntegrityError(f"{where}: the attributes of {group.name} fail their checksum "
+                             "(the file is damaged)")
+
+
+def seal_dataset(ds, data) -> None:
+    ds.attrs[DIGEST_ATTR] = np.uint32(crc32_of(data))
+
+
+def read_checked(ds, where: str) -> np.ndarray:
+    """A dataset's values, verified against its checksum attribute."""
+    values = ds[()]
+    stored = ds.attrs.get(DIGEST_ATTR)
+    if stored is None:
+        raise IntegrityError(f"{where}: dataset {ds.name} carries no checksum "
+                             "(written by an older sliders, or damaged)")
+    if int(stored) != crc32_of(values):
+        raise IntegrityError(f"{where}: dataset {ds.name} fails its checksum (the file is damaged)")
+    return values
+
+
+def check_coordinates(h5file, where: str) -> None:
+    """Verify the coordinate variables (the root group's datasets, written by
+    ``conventions.describe`` for xarray) against their checksums."""
+    import h5py
+
+    for ds in h5file.values():
+        if isinstance(ds, h5py.Dataset):
+            read_checked(ds, where)
+
+
+# ---------------------------------------------------------------------------
+# errors
+# ---------------------------------------------------------------------------
+_ERRNO_IN_TEXT = re.compile(r"errno = (\d+)")
+_REASONS_IN_TEXT = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EIO, errno.EFBIG)
+
+
+def os_reason(exc: BaseException) -> str:
+    """The operating system's reason for a failed I/O call, as words."""
+    code = getattr(exc, "errno", None)
+    if not code:
+        m = _ERRNO_IN_TEXT.search(str(exc))
+        code = int(m.group(1)) if m else None
+    if code:
+        return os.strerror(code)
+    text = " ".join((getattr(exc, "strerror", None) or str(exc)).split())
+    for known in _REASONS_IN_TEXT:  # MPI-IO errors carry the reason as words only
+        if os.strerror(known) in text:
+            return os.strerror(known)
+    return text
+
+
+def describe_os_error(exc: BaseException, path) -> str:
+    """One line: the path and the operating system's reason."""
+    return f"{os.fspath(path)!r}: {os_reason(exc)}"
+
+
+# ---------------------------------------------------------------------------
+# whole-file writes
+# ---------------------------------------------------------------------------
+def is_special(path) -> bool:
+    """True if ``path`` exists and is not a regular file (a device such as /dev/full, a fifo)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return False
+    return not stat.S_ISREG(mode) and not stat.S_ISDIR(mode)
+
+
+def temporary_beside(path) -> str:
+    """A new, empty temporary file in the target's directory (same file system: rename is atomic)."""
+    target = os.path.abspath(os.fspath(path))
+    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".",
+                               suffix=".tmp", dir=os.path.dirname(target))
+    try:
+        os.fchmod(fd, 0o666 & ~_umask())  # what open() would give, not mkstemp's 0600
+    finally:
+        os.close(fd)
+    return tmp
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def publish(tmp: str, path, overwrite: bool) -> None:
+    """Move a complete, flushed temporary file onto ``path``.
+
+    ``overwrite``: atomic replace.  Otherwise a hard link, which fails with
+    FileExistsError if ``path`` appeared meanwhile; the temporary file is then
+    removed and the existing file left as it was.
+    """
+    target = os.fspath(path)
+    try:
+        if is_special(target):  # never replace a device node (root could: /dev/full)
+            raise IsADirectoryError(errno.EINVAL, "not a regular file", target)
+        if overwrite:
+            os.replace(tmp, target)
+            _fsync_dir(target)
+            return
+        try:
+            os.link(tmp, target)
+        except OSError as exc:
+            if exc.errno not in (errno.EPERM, errno.EOPNOTSUPP, errno.ENOSYS):
+                raise
+            # no hard links here (some FUSE and SMB mounts): exclusive create then rename
+            fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            os.close(fd)
+            os.replace(tmp, target)
+        _fsync_dir(target)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def publish_bytes(path, data: bytes, overwrite: bool) -> None:
+    """Write a whole file: temporary file beside it, fsync, rename (see module doc).
+
+    A target that is a device or a fifo (``/dev/full``, ``/dev/stdout``) is
+    written in place: it cannot be replaced, and it holds no file to lose.
+    """
+    target = os.fspath(path)
+    if is_special(target):
+        with open(target, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+        return
+    if not overwrite and os.path.exists(target):
+        raise FileExistsError(errno.EEXIST, "File exists", target)
+    tmp = temporary_beside(target)
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+    except BaseException:
+        os.unlink(tmp)
+        raise
+    publish(tmp, target, overwrite)
+
+
+def fsync_path(path) -> None:
+    """Flush a file's data to the disk (through a descriptor of its own: any one will do)."""
+    fd = os.open(os.fspath(path), os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_dir(path: str) -> None:
+    """Flush the directory entry of a renamed file (the rename survives a power loss)."""
+    try:
+        fd = os.open(os.path.dirname(os.path.abspath(path)), os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # some file systems refuse fsync on directories; the data is synced
+        pass
+    finally:
+        os.close(fd)
