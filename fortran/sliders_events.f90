@@ -51,7 +51,8 @@ module sliders_events
   use sliders_kinds, only: dp, ip, i8
   use sliders_status, only: status_running, status_avalanche, status_alpha_max, &
                             status_event_duration_cap, status_non_finite, &
-                            status_random_failure, status_relaxed, status_sparse_full
+                            status_random_failure, status_relaxed, status_sparse_full, &
+                            status_interrupted, status_refine_limit
   use sliders_chain, only: chain_params, elastic_force, elastic_forces, total_displacement, &
                            spring_energy_change, cantilever_energy_change
   use sliders_random, only: static_coefficient
@@ -60,7 +61,7 @@ module sliders_events
 
   public :: tilt_params, tilt_run
   public :: instability_roots, next_instability
-  public :: tie_tol
+  public :: tie_tol, max_halvings, interrupt_check_steps
   public :: n_event_real, n_event_int
   public :: ev_alpha, ev_duration, ev_work_gravity, ev_elastic_change, ev_dissipation
   public :: ev_n_moved, ev_n_stops, ev_n_steps, ev_slider_steps
@@ -69,6 +70,13 @@ module sliders_events
   !> Sliders whose instability angles tie within this start together.
   real(dp), parameter :: tie_tol = 1.0e-12_dp
   real(dp), parameter :: pi = 3.141592653589793_dp   ! == numpy.pi
+  !> A crossing's bracket is halved at most this often (reference.MAX_HALVINGS):
+  !> a step of 1 tau closes to 3e-39 within it, so only a refine_tol below
+  !> what the step can resolve reaches it (status_refine_limit, never a hang).
+  integer(ip), parameter :: max_halvings = 128
+  !> The interrupt flag is read after this many slider-steps (~0.3 ms) and
+  !> before every event.
+  integer(i8), parameter :: interrupt_check_steps = 100000_i8
 
   !> Columns of the per-event buffers (status.EVENT_FIELDS, split by type).
   integer(ip), parameter :: n_event_real = 5, n_event_int = 4
@@ -88,8 +96,8 @@ module sliders_events
     integer(i8) :: seed = 0_i8
     real(dp) :: dt = 1.0e-3_dp
     real(dp) :: refine_tol = 1.0e-10_dp
-    real(dp) :: max_event_duration = 5000.0_dp
-    real(dp) :: alpha_max = 1.5707963267948966_dp
+    real(dp) :: max_event_duration = 1.0e5_dp             ! scene.py's modes
+    real(dp) :: alpha_max = 1.5707963267948966_dp - 1.0e-6_dp   ! scene.ALPHA_MAX_LIMIT
     real(dp) :: force_tol = 1.0e-12_dp
     logical :: record_sparse = .true.   !< store the moved sliders' displacements
     logical :: relax_only = .false.     !< only relax at the current angle
@@ -234,10 +242,14 @@ contains
   !> the event that ended the run unfinished (the avalanche, the duration
   !> cap, a non-finite state), `final_work` its integration steps and
   !> slider-steps (zero otherwise); `detail` says what a non-finite status
-  !> refers to.
+  !> refers to.  A nonzero interrupt(1) (set by another thread: VOLATILE)
+  !> ends the call with status_interrupted within interrupt_check_steps
+  !> slider-steps: the event in progress is undone entirely (du, mu, stop
+  !> counts, and alpha back to the last completed event), the completed
+  !> events are kept.
   subroutine tilt_run(p, e0, t0, w0, mu, n_stops, du, alpha, ev_real, ev_int, &
                       sp_ptr, sp_index, sp_value, n_events, n_sparse, status, &
-                      alpha_c, event_time, final_work, detail)
+                      alpha_c, event_time, final_work, detail, interrupt)
     type(tilt_params), intent(in) :: p
     real(dp), contiguous, intent(in) :: e0(:)
     real(dp), intent(in) :: t0(0:)
@@ -255,10 +267,11 @@ contains
     real(dp), intent(out) :: alpha_c, event_time
     integer(i8), intent(out) :: final_work(2)
     integer(ip), intent(out) :: detail
+    integer(ip), volatile, intent(inout) :: interrupt(:)   ! only read
     type(workspace) :: ws
     type(event_record) :: rec
     integer(ip) :: n, i, n_trig, j, n_bad, k
-    real(dp) :: sin_a, cos_a, f, angle
+    real(dp) :: sin_a, cos_a, f, angle, alpha_done
     logical :: coupled
 
     n = p%chain%n
@@ -291,6 +304,10 @@ contains
     final_work = 0_i8
     detail = detail_none
     do
+      if (interrupt(1) /= 0) then
+        status = status_interrupted
+        exit
+      end if
       ! A non-finite force stops the run; unstable sliders at the current
       ! angle start at once (relaxation).
       sin_a = sin(alpha)
@@ -338,9 +355,16 @@ contains
         status = status_sparse_full
         exit
       end if
+      alpha_done = alpha
       alpha = angle
 
-      call run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, rec)
+      call run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, interrupt, rec)
+      if (rec%status == status_interrupted) then
+        ! undone entirely: the state after the last completed event
+        status = status_interrupted
+        alpha = alpha_done
+        exit
+      end if
       if (rec%status /= status_running) then
         status = rec%status
         detail = rec%detail
@@ -413,7 +437,7 @@ contains
   !> On a normal end du holds the new displacements and ws%sorted the moved
   !> sliders; on an error du, mu and n_stops are restored to the event start
   !> (as in the reference); on an avalanche du is the state at detection.
-  subroutine run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, rec)
+  subroutine run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, interrupt, rec)
     type(tilt_params), intent(in) :: p
     type(workspace), intent(inout) :: ws
     real(dp), contiguous, intent(in) :: e0(:)
@@ -424,8 +448,10 @@ contains
     real(dp), contiguous, intent(inout) :: du(:)
     real(dp), intent(in) :: alpha
     integer(ip), intent(in) :: n_trig
+    integer(ip), volatile, intent(inout) :: interrupt(:)   ! only read
     type(event_record), intent(out) :: rec
-    integer(ip) :: n, i, j, k, r, n_moved, n_start, n_stop, draw_status
+    integer(ip) :: n, i, j, k, r, n_moved, n_start, n_stop, draw_status, halvings
+    integer(i8) :: unchecked_steps
     real(dp) :: sin_a, cos_a, friction, sum0, mean0, mean, t, h, lo, hi, mid
     real(dp) :: dsum_t, step, xi, shift, f
     integer(ip) :: n_cand
@@ -476,6 +502,7 @@ contains
     ws%path = 0.0_dp
     ws%dsum = 0.0_dp
     rec = event_record()
+    unchecked_steps = 0
     do while (ws%m > 0)
       ! ---- one step, cut back to the first crossing by bisection
       ! (the bisection tests only the sliders that crossed in the full step,
@@ -486,7 +513,15 @@ contains
         call crossing_candidates(ws, sum0 + dsum_t, mean0, xi, n, n_cand, pool_crossed)
         lo = 0.0_dp
         hi = h
+        halvings = 0
         do while (hi - lo > p%refine_tol)
+          if (halvings == max_halvings) then   ! refine_tol below the step's resolution
+            rec%status = status_refine_limit
+            rec%duration = t
+            call abort_event(ws, du, mu, n_stops)
+            return
+          end if
+          halvings = halvings + 1
           mid = 0.5_dp*(lo + hi)
           call candidate_trial(p, ws, e0, du, mid, sum0, mean0, sin_a, friction, n_cand, &
                                pool_crossed, crossed)
@@ -509,6 +544,15 @@ contains
       rec%n_steps = rec%n_steps + 1
       rec%slider_steps = rec%slider_steps + ws%m
       t = t + h
+      unchecked_steps = unchecked_steps + ws%m
+      if (unchecked_steps >= interrupt_check_steps) then
+        unchecked_steps = 0
+        if (interrupt(1) /= 0) then
+          rec%status = status_interrupted
+          call abort_event(ws, du, mu, n_stops)
+          return
+        end if
+      end if
 
       ! ---- NaN or infinity: checked before anything else can happen (a
       ! crossing, the duration cap), and every 1024 steps; in between
