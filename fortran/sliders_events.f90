@@ -115,7 +115,9 @@ module sliders_events
     real(dp), allocatable :: radius(:)       !< hypot(1, mu) (cache)
     real(dp), allocatable :: phi(:)          !< atan(mu) (cache)
     real(dp), allocatable :: du_start(:)     !< du at the start of the event
-    real(dp), allocatable :: du_t(:)         !< trial du (== du unless moving)
+    real(dp), allocatable :: du(:)           !< du during an event (the caller's du is
+                                             !< written at its end): accepted state
+    real(dp), allocatable :: du_t(:)         !< trial du (== du unless active)
     real(dp), allocatable :: du_phase(:)     !< du when the slider last started
     real(dp), allocatable :: v(:), acc(:), dir(:)
     real(dp), allocatable :: v_t(:), acc_t(:)
@@ -278,6 +280,7 @@ contains
     coupled = p%chain%xi /= 0.0_dp
     call allocate_workspace(ws, n)
     ws%du_start = du
+    ws%du = du
     ws%du_t = du
     ws%sum_du = total_displacement(du)
     do i = 1, n
@@ -405,6 +408,7 @@ contains
     integer(ip), intent(in) :: n
 
     allocate (ws%elastic(n), ws%root_down(n), ws%root_up(n), ws%du_start(n), ws%du_t(n))
+    allocate (ws%du(n))
     allocate (ws%radius(n), ws%phi(n))
     allocate (ws%du_phase(n))
     allocate (ws%v(n), ws%acc(n), ws%dir(n), ws%v_t(n), ws%acc_t(n), ws%f_t(n))
@@ -454,6 +458,7 @@ contains
     integer(i8) :: unchecked_steps
     real(dp) :: sin_a, cos_a, friction, sum0, mean0, mean, t, h, lo, hi, mid
     real(dp) :: dsum_t, step, xi, shift, f
+    real(dp), allocatable :: swap(:)
     integer(ip) :: n_cand
     logical :: crossed, pool_crossed, draws_ok, changed
 
@@ -487,7 +492,7 @@ contains
     ws%i_lo = n + 1
     ws%i_hi = 0
     do k = 1, n_trig
-      call start_slider(ws, ws%slist(k), ws%sdir(k), n, du, mu)
+      call start_slider(ws, ws%slist(k), ws%sdir(k), n, ws%du, mu)
     end do
     call find_runs(ws)
     do r = 1, ws%n_runs
@@ -508,7 +513,7 @@ contains
       ! (the bisection tests only the sliders that crossed in the full step,
       ! and the pool if it did: O(crossers) per trial, not O(active))
       h = p%dt
-      call trial_step(p, ws, e0, du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
+      call trial_step(p, ws, e0, ws%du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
       if (crossed) then
         call crossing_candidates(ws, sum0 + dsum_t, mean0, xi, n, n_cand, pool_crossed)
         lo = 0.0_dp
@@ -523,7 +528,7 @@ contains
           end if
           halvings = halvings + 1
           mid = 0.5_dp*(lo + hi)
-          call candidate_trial(p, ws, e0, du, mid, sum0, mean0, sin_a, friction, n_cand, &
+          call candidate_trial(p, ws, e0, ws%du, mid, sum0, mean0, sin_a, friction, n_cand, &
                                pool_crossed, crossed)
           if (crossed) then
             hi = mid
@@ -532,14 +537,22 @@ contains
           end if
         end do
         h = hi
-        call trial_step(p, ws, e0, du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
+        call trial_step(p, ws, e0, ws%du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
       end if
 
-      ! ---- accept the step (a resting active slider has du_t = du, v_t = 0)
-      do r = 1, ws%n_runs
-        call accept_run(ws%run_lo(r), ws%run_hi(r), ws%du_t, ws%v_t, ws%acc_t, du, ws%v, &
-                        ws%acc)
-      end do
+      ! ---- accept the step: the trial becomes the state by swapping the
+      ! arrays, no copy (outside the active runs both hold the same values:
+      ! a resting active slider has du_t = du, v_t = acc_t = 0; a slider
+      ! leaving the runs is synchronised by deactivate)
+      call move_alloc(ws%du, swap)
+      call move_alloc(ws%du_t, ws%du)
+      call move_alloc(swap, ws%du_t)
+      call move_alloc(ws%v, swap)
+      call move_alloc(ws%v_t, ws%v)
+      call move_alloc(swap, ws%v_t)
+      call move_alloc(ws%acc, swap)
+      call move_alloc(ws%acc_t, ws%acc)
+      call move_alloc(swap, ws%acc_t)
       ws%dsum = dsum_t
       rec%n_steps = rec%n_steps + 1
       rec%slider_steps = rec%slider_steps + ws%m
@@ -559,7 +572,7 @@ contains
       ! nothing but du and v (restored on abort) changes, so this is the
       ! reference's check at every step.
       if (crossed .or. t > p%max_event_duration .or. iand(rec%n_steps, 1023_i8) == 0) then
-        if (.not. all_finite(ws, du)) then
+        if (.not. all_finite(ws, ws%du)) then
           rec%status = status_non_finite
           rec%detail = detail_state
           rec%duration = t
@@ -589,7 +602,7 @@ contains
           draws_ok = .true.
           do k = 1, n_stop
             i = ws%stops(k)
-            call stop_slider(ws, i, n, du)
+            call stop_slider(ws, i, n, ws%du)
             if (.not. ws%redrawn(i)) then    ! keep the event-start draw for an abort
               ws%redrawn(i) = .true.
               ws%mu_start(i) = mu(i)
@@ -628,7 +641,7 @@ contains
           do i = 1, n        ! rare: a pool slider crossed, find it (O(n))
             if (ws%active(i)) cycle
             if (shift > ws%gap_plus(i) .or. -shift > ws%gap_minus(i)) then
-              ws%f_t(i) = elastic_force(p%chain, e0, du, i, mean) + sin_a
+              ws%f_t(i) = elastic_force(p%chain, e0, ws%du, i, mean) + sin_a
               n_start = n_start + 1
               ws%slist(n_start) = i
               ws%sdir(n_start) = sign(1.0_dp, ws%f_t(i))
@@ -637,7 +650,7 @@ contains
         end if
         do k = 1, n_start
           i = ws%slist(k)
-          call start_slider(ws, i, ws%sdir(k), n, du, mu)
+          call start_slider(ws, i, ws%sdir(k), n, ws%du, mu)
           ws%acc(i) = ws%f_t(i) - friction*ws%dir(i)
         end do
         ! sliders left with no moving neighbour go back to the pool
@@ -664,9 +677,11 @@ contains
       if (.not. p%chain%walls .and. ws%m == n .and. ws%n_down == n .and. sin_a > friction) then
         rec%status = status_avalanche
         rec%duration = t
+        call store_displacements(ws, du)
         return
       end if
     end do
+    call store_displacements(ws, du)
 
     ! ---- the event is over: record it
     n_moved = 0
@@ -885,20 +900,17 @@ contains
     crossed = shift > ws%min_plus .or. -shift > ws%min_minus
   end function pool_crosses
 
-  !> Takes the trial over one run.
-  pure subroutine accept_run(lo, hi, du_t, v_t, acc_t, du, v, acc)
-    integer(ip), intent(in) :: lo, hi
-    real(dp), contiguous, intent(in) :: du_t(:), v_t(:), acc_t(:)
-    real(dp), contiguous, intent(inout) :: du(:), v(:), acc(:)
+  !> The caller's du gets the event's displacements (the involved sliders:
+  !> no other slider moved).
+  subroutine store_displacements(ws, du)
+    type(workspace), intent(in) :: ws
+    real(dp), contiguous, intent(inout) :: du(:)
+    integer(ip) :: k
 
-    integer(ip) :: i
-
-    do i = lo, hi
-      du(i) = du_t(i)
-      v(i) = v_t(i)
-      acc(i) = acc_t(i)
+    do k = 1, ws%ni
+      du(ws%ilist(k)) = ws%du(ws%ilist(k))
     end do
-  end subroutine accept_run
+  end subroutine store_displacements
 
   !> Whether du and v of every active slider are finite.
   pure function all_finite(ws, du) result(finite)
@@ -984,6 +996,9 @@ contains
     real(dp), intent(in) :: shift
 
     ws%active(i) = .false.
+    ws%du_t(i) = ws%du(i)      ! outside the runs both buffers agree (run_event swaps them)
+    ws%v_t(i) = 0.0_dp
+    ws%acc_t(i) = 0.0_dp
     ws%gap_plus(i) = ws%thr(i) - (ws%f_t(i) - shift)
     ws%gap_minus(i) = ws%thr(i) + (ws%f_t(i) - shift)
     if (ws%arg_plus == 0 .or. ws%gap_plus(i) < ws%min_plus) then
@@ -1098,6 +1113,10 @@ contains
       ws%redrawn(i) = .false.
       ws%du_start(i) = du(i)
       ws%du_t(i) = du(i)
+      ws%v(i) = 0.0_dp
+      ws%v_t(i) = 0.0_dp
+      ws%acc(i) = 0.0_dp
+      ws%acc_t(i) = 0.0_dp
     end do
     ws%ni = 0
     ws%n_runs = 0
