@@ -53,7 +53,7 @@ module sliders_events
                             status_event_duration_cap, status_non_finite, &
                             status_random_failure, status_relaxed, status_sparse_full, &
                             status_interrupted, status_refine_limit
-  use sliders_chain, only: chain_params, elastic_force, elastic_forces, total_displacement, &
+  use sliders_chain, only: chain_params, elastic_force, total_displacement, &
                            spring_energy_change, cantilever_energy_change
   use sliders_random, only: static_coefficient
   implicit none
@@ -722,30 +722,30 @@ contains
     real(dp) :: mean_t, shift, excess
 
     dsum_t = ws%dsum
-    do r = 1, ws%n_runs
-      call predict_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t)
-    end do
     mean_t = mean0
     shift = 0.0_dp
     if (p%chain%xi /= 0.0_dp) then
       do r = 1, ws%n_runs
-        call add_increments(ws%run_lo(r), ws%run_hi(r), du, ws%du_t, dsum_t)
+        call predict_sum_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t, dsum_t)
       end do
       mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
       shift = p%chain%xi*(mean_t - mean0)
+    else
+      do r = 1, ws%n_runs
+        call predict_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t)
+      end do
     end if
     excess = -huge(1.0_dp)
     do r = 1, ws%n_runs
-      call elastic_forces(p%chain, e0, ws%du_t, ws%run_lo(r), ws%run_hi(r), mean_t, sin_a, &
-                          ws%f_t)
-      call correct_run(ws%run_lo(r), ws%run_hi(r), h, friction, ws%f_t, ws%dir, ws%v, &
-                       ws%acc, ws%thr, ws%acc_t, ws%v_t, excess)
+      call force_correct_run(p%chain, e0, ws%run_lo(r), ws%run_hi(r), mean_t, sin_a, h, &
+                             friction, ws%du_t, ws%dir, ws%v, ws%acc, ws%thr, ws%f_t, &
+                             ws%acc_t, ws%v_t, excess)
     end do
     crossed = excess > 0.0_dp .or. pool_crosses(ws, shift)
   end subroutine trial_step
 
   !> After a full trial step that crossed: the active sliders that crossed
-  !> (excess > 0, the test of correct_run) into ws%cand(1:n_cand), and
+  !> (excess > 0, the test of force_correct_run) into ws%cand(1:n_cand), and
   !> whether the pool crossed (its shift beyond a gap minimum) given the
   !> trial's total displacement `sum_t`.
   subroutine crossing_candidates(ws, sum_t, mean0, xi, n, n_cand, pool_crossed)
@@ -794,8 +794,7 @@ contains
     if (p%chain%xi /= 0.0_dp) then
       dsum_t = ws%dsum
       do r = 1, ws%n_runs
-        call predict_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t)
-        call add_increments(ws%run_lo(r), ws%run_hi(r), du, ws%du_t, dsum_t)
+        call predict_sum_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t, dsum_t)
       end do
       mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
       shift = p%chain%xi*(mean_t - mean0)
@@ -810,9 +809,8 @@ contains
     excess = -huge(1.0_dp)
     do k = 1, n_cand
       i = ws%cand(k)
-      call elastic_forces(p%chain, e0, ws%du_t, i, i, mean_t, sin_a, ws%f_t)
-      call correct_run(i, i, h, friction, ws%f_t, ws%dir, ws%v, ws%acc, ws%thr, ws%acc_t, &
-                       ws%v_t, excess)
+      call force_correct_run(p%chain, e0, i, i, mean_t, sin_a, h, friction, ws%du_t, ws%dir, &
+                             ws%v, ws%acc, ws%thr, ws%f_t, ws%acc_t, ws%v_t, excess)
     end do
     crossed = excess > 0.0_dp
     if (pool_crossed) crossed = crossed .or. pool_crosses(ws, shift)
@@ -831,11 +829,15 @@ contains
     end do
   end subroutine predict_run
 
-  !> dsum = dsum + sum of (du_t - du) over one run (four partial sums: the
-  !> order of the additions is free, the chain of dependent additions short).
-  pure subroutine add_increments(lo, hi, du, du_t, dsum)
+  !> predict_run fused with dsum = dsum + sum of (du_t - du) over the run
+  !> (xi > 0: the mean moves).  Four partial sums: the order of the
+  !> additions is free, the chain of dependent additions short; it is fixed
+  !> (slider lo + j goes to sum j mod 4), so every trial rounds alike.
+  pure subroutine predict_sum_run(lo, hi, h, du, v, acc, du_t, dsum)
     integer(ip), intent(in) :: lo, hi
-    real(dp), contiguous, intent(in) :: du(:), du_t(:)
+    real(dp), intent(in) :: h
+    real(dp), contiguous, intent(in) :: du(:), v(:), acc(:)
+    real(dp), contiguous, intent(inout) :: du_t(:)
     real(dp), intent(inout) :: dsum
     integer(ip) :: i, last
     real(dp) :: s1, s2, s3, s4
@@ -846,40 +848,78 @@ contains
     s4 = 0.0_dp
     last = lo + 4*((hi - lo + 1)/4) - 1
     do i = lo, last, 4
+      du_t(i) = du(i) + (v(i)*h + 0.5_dp*acc(i)*h*h)
+      du_t(i + 1) = du(i + 1) + (v(i + 1)*h + 0.5_dp*acc(i + 1)*h*h)
+      du_t(i + 2) = du(i + 2) + (v(i + 2)*h + 0.5_dp*acc(i + 2)*h*h)
+      du_t(i + 3) = du(i + 3) + (v(i + 3)*h + 0.5_dp*acc(i + 3)*h*h)
       s1 = s1 + (du_t(i) - du(i))
       s2 = s2 + (du_t(i + 1) - du(i + 1))
       s3 = s3 + (du_t(i + 2) - du(i + 2))
       s4 = s4 + (du_t(i + 3) - du(i + 3))
     end do
     do i = last + 1, hi
+      du_t(i) = du(i) + (v(i)*h + 0.5_dp*acc(i)*h*h)
       s1 = s1 + (du_t(i) - du(i))
     end do
     dsum = dsum + ((s1 + s2) + (s3 + s4))
-  end subroutine add_increments
+  end subroutine predict_sum_run
 
-  !> Velocity-Verlet velocities over one run from the trial forces f, and
-  !> the largest crossing excess: -dir v_t for a mover (its velocity turned
-  !> against its direction if > 0), |f| - thr for a resting slider (beyond
-  !> its threshold if > 0).  For a mover (dir = +-1, dir**2 = 1) acc_t is
-  !> f - friction dir exactly, for a resting one (dir = 0) it is 0, and v_t
-  !> stays 0; a crossing is excess > 0, exactly the reference's tests.
-  !> Branch-free, so that it vectorises.
-  pure subroutine correct_run(lo, hi, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+  !> The second half of a trial over one run, in one pass: the force
+  !> F = E + sin(a) from the trial positions (sliders_chain's formula and
+  !> rounding, written out here so that it fuses with the rest; the chain's
+  !> ends through elastic_force), then verlet_correct.  Vectorises.
+  pure subroutine force_correct_run(chain, e0, lo, hi, mean, sin_a, h, friction, du_t, dir, &
+                                    v, acc, thr, f, acc_t, v_t, excess)
+    type(chain_params), intent(in) :: chain
+    real(dp), contiguous, intent(in) :: e0(:)
     integer(ip), intent(in) :: lo, hi
+    real(dp), intent(in) :: mean, sin_a, h, friction
+    real(dp), contiguous, intent(in) :: du_t(:), dir(:), v(:), acc(:), thr(:)
+    real(dp), contiguous, intent(inout) :: f(:), acc_t(:), v_t(:)
+    real(dp), intent(inout) :: excess
+    integer(ip) :: i, first, last
+    real(dp) :: xi
+
+    first = max(lo, 2_ip)
+    last = min(hi, chain%n - 1_ip)
+    xi = chain%xi
+    if (lo == 1) then
+      f(1) = elastic_force(chain, e0, du_t, 1_ip, mean) + sin_a
+      call verlet_correct(1_ip, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+    end if
+    if (xi /= 0.0_dp) then
+      do i = first, last
+        f(i) = ((e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) &
+                - xi*(du_t(i) - mean)) + sin_a
+        call verlet_correct(i, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+      end do
+    else
+      do i = first, last
+        f(i) = (e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) + sin_a
+        call verlet_correct(i, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+      end do
+    end if
+    if (hi == chain%n .and. chain%n > 1) then
+      f(hi) = elastic_force(chain, e0, du_t, hi, mean) + sin_a
+      call verlet_correct(hi, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+    end if
+  end subroutine force_correct_run
+
+  !> Velocity-Verlet velocity of slider i from its trial force f(i), and the
+  !> largest crossing excess so far (crossing_excess).  For a mover (dir =
+  !> +-1, dir**2 = 1) acc_t is f - friction dir exactly, for a resting one
+  !> (dir = 0) it is 0 and v_t stays 0.  Branch-free.
+  pure subroutine verlet_correct(i, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+    integer(ip), intent(in) :: i
     real(dp), intent(in) :: h, friction
     real(dp), contiguous, intent(in) :: f(:), dir(:), v(:), acc(:), thr(:)
     real(dp), contiguous, intent(inout) :: acc_t(:), v_t(:)
     real(dp), intent(inout) :: excess
-    integer(ip) :: i
-    real(dp) :: moving
 
-    do i = lo, hi
-      moving = dir(i)*dir(i)
-      acc_t(i) = (f(i) - friction*dir(i))*moving
-      v_t(i) = v(i) + 0.5_dp*(acc(i) + acc_t(i))*h
-      excess = max(excess, crossing_excess(dir(i), v_t(i), f(i), thr(i)))
-    end do
-  end subroutine correct_run
+    acc_t(i) = (f(i) - friction*dir(i))*(dir(i)*dir(i))
+    v_t(i) = v(i) + 0.5_dp*(acc(i) + acc_t(i))*h
+    excess = max(excess, crossing_excess(dir(i), v_t(i), f(i), thr(i)))
+  end subroutine verlet_correct
 
   !> How far a slider is beyond a crossing (a crossing if > 0): -dir v_t for
   !> a mover (its velocity turned against its direction), |f| - thr for a
