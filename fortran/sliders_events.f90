@@ -60,7 +60,7 @@ module sliders_events
   private
 
   public :: tilt_params, tilt_run
-  public :: instability_roots, next_instability
+  public :: instability_roots
   public :: tie_tol, max_halvings, interrupt_check_steps
   public :: n_event_real, n_event_int
   public :: ev_alpha, ev_duration, ev_work_gravity, ev_elastic_change, ev_dissipation
@@ -70,6 +70,9 @@ module sliders_events
   !> Sliders whose instability angles tie within this start together.
   real(dp), parameter :: tie_tol = 1.0e-12_dp
   real(dp), parameter :: pi = 3.141592653589793_dp   ! == numpy.pi
+  !> Absolute widening of the asin bounds of coupled_next: far above the
+  !> rounding of angles <= pi (1e-15), far below the spread of the angles.
+  real(dp), parameter :: bound_slack = 1.0e-12_dp
   !> A crossing's bracket is halved at most this often (reference.MAX_HALVINGS):
   !> a step of 1 tau closes to 3e-39 within it, so only a refine_tol below
   !> what the step can resolve reaches it (status_refine_limit, never a hang).
@@ -140,6 +143,7 @@ module sliders_events
     integer(ip), allocatable :: run_lo(:), run_hi(:)  !< runs of active sliders
     integer(ip), allocatable :: changed(:)   !< sliders the tilt loop checks (increasing): all, or the last event's (xi = 0)
     real(dp), allocatable :: tree(:)         !< min-tree of min(root_down, root_up) (xi = 0)
+    real(dp), allocatable :: bound(:)        !< lower bounds of the angles (xi > 0)
     integer(ip) :: leaves = 0                !< its number of leaves (a power of 2 >= n)
     integer(ip) :: n_changed = 0
     real(dp) :: cos_a = 1.0_dp               !< cos(alpha) of the current event
@@ -199,36 +203,96 @@ contains
     end if
   end subroutine roots_from
 
-  !> Smallest angle >= alpha at which a resting slider destabilises, from the
-  !> cached roots; the sliders within tie_tol of it (increasing order) and
-  !> their directions (+1 down, -1 up).  A min scan, O(n) comparisons: kept
-  !> separate so that a tournament tree can replace it.
-  pure subroutine next_instability(root_down, root_up, alpha, angle, n_trig, trig, trig_dir)
-    real(dp), contiguous, intent(in) :: root_down(:), root_up(:)
+  !> Bounds of asin(x), |x| <= 1, without a transcendental: with y = |x|,
+  !> P(y) = y + y**3/6 + 3 y**5/40 <= asin(y) <= P(y) + 0.33 y**7 (the series
+  !> of asin has positive coefficients, and its tail beyond y**5 is at most
+  !> (pi/2 - P(1)) y**7 = 0.3291 y**7), widened by bound_slack for rounding.
+  elemental subroutine asin_bounds(x, lower, upper)
+    real(dp), intent(in) :: x
+    real(dp), intent(out) :: lower, upper
+    real(dp) :: y, y2, p, tail
+
+    y = abs(x)
+    y2 = y*y
+    p = y*(1.0_dp + y2*(1.0_dp/6.0_dp + y2*(3.0_dp/40.0_dp)))
+    tail = 0.33_dp*y*y2*y2*y2
+    if (x >= 0.0_dp) then
+      lower = p - bound_slack
+      upper = p + tail + bound_slack
+    else
+      lower = -(p + tail) - bound_slack
+      upper = -p + bound_slack
+    end if
+  end subroutine asin_bounds
+
+  !> A lower bound of max(min(down, up), alpha) of roots_from, without asin
+  !> (+inf where roots_from finds no root: the same tests).
+  elemental function root_lower_bound(elastic, radius, phi, alpha) result(bound)
+    real(dp), intent(in) :: elastic, radius, phi, alpha
+    real(dp) :: bound
+    real(dp) :: ratio, lower, upper
+
+    bound = ieee_value(bound, ieee_positive_inf)
+    ratio = -elastic/radius
+    if (abs(ratio) <= 1.0_dp) then
+      call asin_bounds(ratio, lower, upper)
+      if (elastic >= -1.0_dp) bound = phi + lower
+      if (elastic <= -1.0_dp) bound = min(bound, (pi - phi) - upper)
+      bound = max(bound, alpha) - bound_slack
+    end if
+  end function root_lower_bound
+
+  !> Smallest angle >= alpha at which a resting slider destabilises, and the
+  !> sliders within tie_tol of it (increasing order, into ws%slist, their
+  !> directions into ws%sdir), when every elastic force changed (xi > 0):
+  !> exactly min over i of max(min(root_down, root_up), alpha), with asin
+  !> evaluated only where it can matter.  A lower bound of every slider's
+  !> angle (root_lower_bound, a polynomial: vectorised) and one exact angle,
+  !> at the smallest bound, give a limit; only the sliders whose bound is
+  !> below it can be the minimum or tie with it, and only they get their
+  !> exact roots (roots_from).  Same angle, same triggers, as the full scan.
+  subroutine coupled_next(ws, n, alpha, angle, n_trig)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: n
     real(dp), intent(in) :: alpha
     real(dp), intent(out) :: angle
     integer(ip), intent(out) :: n_trig
-    integer(ip), contiguous, intent(inout) :: trig(:)
-    real(dp), contiguous, intent(inout) :: trig_dir(:)
-    integer(ip) :: i
+    integer(ip) :: i, k, n_cand
+    real(dp) :: limit
 
     angle = ieee_value(angle, ieee_positive_inf)
-    do i = 1, size(root_down, kind=ip)
-      angle = min(angle, max(min(root_down(i), root_up(i)), alpha))
-    end do
     n_trig = 0
-    do i = 1, size(root_down, kind=ip)
-      if (max(min(root_down(i), root_up(i)), alpha) <= angle + tie_tol) then
+    ws%bound(1:n) = root_lower_bound(ws%elastic(1:n), ws%radius(1:n), ws%phi(1:n), alpha)
+    i = minloc(ws%bound(1:n), 1)
+    if (.not. ws%bound(i) <= huge(1.0_dp)) return     ! no root in [0, pi/2]
+    call roots_from(ws%elastic(i), ws%radius(i), ws%phi(i), ws%root_down(i), ws%root_up(i))
+    limit = max(min(ws%root_down(i), ws%root_up(i)), alpha) + tie_tol
+    n_cand = 0
+    do i = 1, n
+      if (ws%bound(i) <= limit) then
+        n_cand = n_cand + 1
+        ws%cand(n_cand) = i
+      end if
+    end do
+    !GCC$ novector
+    do k = 1, n_cand     ! scalar asin: glibc's, as the reference's libm substitute
+      i = ws%cand(k)
+      call roots_from(ws%elastic(i), ws%radius(i), ws%phi(i), ws%root_down(i), ws%root_up(i))
+      angle = min(angle, max(min(ws%root_down(i), ws%root_up(i)), alpha))
+    end do
+    do k = 1, n_cand
+      i = ws%cand(k)
+      if (max(min(ws%root_down(i), ws%root_up(i)), alpha) <= angle + tie_tol) then
         n_trig = n_trig + 1
-        trig(n_trig) = i
-        if (root_down(i) <= root_up(i)) then
-          trig_dir(n_trig) = 1.0_dp
+        ws%slist(n_trig) = i
+        if (ws%root_down(i) <= ws%root_up(i)) then
+          ws%sdir(n_trig) = 1.0_dp
         else
-          trig_dir(n_trig) = -1.0_dp
+          ws%sdir(n_trig) = -1.0_dp
         end if
       end if
     end do
-  end subroutine next_instability
+  end subroutine coupled_next
 
   ! -------------------------------------------------------------- tilt loop
 
@@ -290,8 +354,10 @@ contains
     do i = 1, n
       call cache_trig(ws, mu, i)
     end do
-    call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
-    if (.not. coupled) call tree_build(ws, n)
+    if (.not. coupled) then     ! xi > 0: coupled_next computes the angles it needs
+      call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
+      call tree_build(ws, n)
+    end if
     ! the first check covers every slider; with xi = 0 the later ones only
     ! the sliders of the last event (end_event: no other force changed)
     ws%n_changed = n
@@ -343,8 +409,7 @@ contains
           exit
         end if
         if (coupled) then
-          call next_instability(ws%root_down, ws%root_up, alpha, angle, n_trig, &
-                                ws%slist, ws%sdir)
+          call coupled_next(ws, n, alpha, angle, n_trig)
         else
           call tree_next(ws, alpha, angle, n_trig)
         end if
@@ -408,7 +473,7 @@ contains
     integer(ip), intent(in) :: n
 
     allocate (ws%elastic(n), ws%root_down(n), ws%root_up(n), ws%du_start(n), ws%du_t(n))
-    allocate (ws%du(n))
+    allocate (ws%du(n), ws%bound(n))
     allocate (ws%radius(n), ws%phi(n))
     allocate (ws%du_phase(n))
     allocate (ws%v(n), ws%acc(n), ws%dir(n), ws%v_t(n), ws%acc_t(n), ws%f_t(n))
@@ -1140,11 +1205,10 @@ contains
                         ws%root_up(i))
         call tree_update(ws, i)
       end do
-    else
+    else      ! the angles: coupled_next, where they matter
       do i = 1, n
         ws%elastic(i) = elastic_force(p%chain, e0, du, i, mean)
       end do
-      call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
     end if
     do k = 1, ws%ni
       i = ws%ilist(k)
