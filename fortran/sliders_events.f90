@@ -159,6 +159,12 @@ module sliders_events
     real(dp) :: min_plus = 0.0_dp, min_minus = 0.0_dp  !< pool gap minima
     integer(ip) :: arg_plus = 0, arg_minus = 0         !< where (0: empty pool)
     logical :: stale = .false.               !< a minimum's slider left the pool
+    !> Sums over the active sliders at the start of a crossing step (xi > 0:
+    !> candidate_trial's enclosure of the trial mean): v, acc, |du|, |v|,
+    !> |acc|, and how many sliders.
+    real(dp) :: sum_v = 0.0_dp, sum_acc = 0.0_dp
+    real(dp) :: abs_du = 0.0_dp, abs_v = 0.0_dp, abs_acc = 0.0_dp
+    integer(ip) :: n_active = 0
   end type workspace
 
   !> What one event produced.
@@ -581,6 +587,7 @@ contains
       call trial_step(p, ws, e0, ws%du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
       if (crossed) then
         call crossing_candidates(ws, sum0 + dsum_t, mean0, xi, n, n_cand, pool_crossed)
+        if (xi /= 0.0_dp) call mean_sums(ws)
         lo = 0.0_dp
         hi = h
         halvings = 0
@@ -853,23 +860,29 @@ contains
     logical, intent(out) :: crossed
     integer(ip) :: r, k, i, lo, hi
     real(dp) :: mean_t, shift, excess, dsum_t
+    logical :: decided
 
+    do k = 1, n_cand
+      i = ws%cand(k)
+      lo = max(i - 1, 1_ip)
+      hi = min(i + 1, p%chain%n)
+      call predict_run(lo, hi, h, du, ws%v, ws%acc, ws%du_t)
+    end do
     mean_t = mean0
     shift = 0.0_dp
     if (p%chain%xi /= 0.0_dp) then
-      dsum_t = ws%dsum
+      ! almost always the crossing test is the same for every mean in a
+      ! rigorous enclosure of the trial mean, got in O(1): then the exact
+      ! mean (O(active)) is not needed
+      call enclosed_trial(p, ws, e0, h, sum0, mean0, sin_a, friction, n_cand, pool_crossed, &
+                          decided, crossed)
+      if (decided) return
+      dsum_t = ws%dsum        ! the exact mean (rare): every active slider's increment
       do r = 1, ws%n_runs
         call predict_sum_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t, dsum_t)
       end do
       mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
       shift = p%chain%xi*(mean_t - mean0)
-    else
-      do k = 1, n_cand
-        i = ws%cand(k)
-        lo = max(i - 1, 1_ip)
-        hi = min(i + 1, p%chain%n)
-        call predict_run(lo, hi, h, du, ws%v, ws%acc, ws%du_t)
-      end do
     end if
     excess = -huge(1.0_dp)
     do k = 1, n_cand
@@ -880,6 +893,92 @@ contains
     crossed = excess > 0.0_dp
     if (pool_crossed) crossed = crossed .or. pool_crosses(ws, shift)
   end subroutine candidate_trial
+
+  !> The bisection's crossing test when xi > 0, without the exact trial mean
+  !> when possible.  The trial mean the exact test uses, fl(fl(sum0 +
+  !> dsum_t)/n), has dsum_t = dsum + the sum of the active sliders' rounded
+  !> increments fl(fl(du + fl(v h + 0.5 acc h h)) - du), summed in four
+  !> lanes; it differs from dsum + h sum(v) + h**2/2 sum(acc) by at most
+  !> u [2 sum|du| + 4 (m + 4 runs + 8)(h sum|v| + h**2 sum|acc| + |dsum|)]
+  !> (u = 2**-53, m active sliders: the rounding of each increment and of the
+  !> sums), taken twice here.  Every floating-point operation of the test is
+  !> monotone in the mean (rounding is monotone): a mover's excess lies
+  !> between its values at the enclosure's ends, a resting slider's |F| -
+  !> thr is largest at an end and monotone if F keeps its sign, and so are
+  !> the pool's two tests.  `decided`: the test is the same over the whole
+  !> enclosure, and `crossed` is its result, the exact test's bit for bit.
+  subroutine enclosed_trial(p, ws, e0, h, sum0, mean0, sin_a, friction, n_cand, pool_crossed, &
+                            decided, crossed)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), intent(in) :: h, sum0, mean0, sin_a, friction
+    integer(ip), intent(in) :: n_cand
+    logical, intent(in) :: pool_crossed
+    logical, intent(out) :: decided, crossed
+    real(dp), parameter :: u = epsilon(1.0_dp)/2.0_dp
+    real(dp) :: dsum_a, err, mean_lo, mean_hi, e_lo, e_hi, f_lo, f_hi, s_lo, s_hi, xi
+    integer(ip) :: k, i
+    logical :: all_below
+
+    xi = p%chain%xi
+    dsum_a = ws%dsum + (h*ws%sum_v + 0.5_dp*h*h*ws%sum_acc)
+    err = 2.0_dp*u*(2.0_dp*ws%abs_du + 4.0_dp*real(ws%n_active + 4*ws%n_runs + 8, dp) &
+                    *(h*ws%abs_v + h*h*ws%abs_acc + abs(ws%dsum)) + abs(dsum_a)) + tiny(1.0_dp)
+    mean_lo = (sum0 + (dsum_a - err))/real(p%chain%n, dp)
+    mean_hi = (sum0 + (dsum_a + err))/real(p%chain%n, dp)
+    decided = .true.
+    crossed = .true.
+    all_below = .true.
+    do k = 1, n_cand
+      i = ws%cand(k)
+      e_lo = -huge(1.0_dp)
+      call force_correct_run(p%chain, e0, i, i, mean_lo, sin_a, h, friction, ws%du_t, ws%dir, &
+                             ws%v, ws%acc, ws%thr, ws%f_t, ws%acc_t, ws%v_t, e_lo)
+      f_lo = ws%f_t(i)
+      e_hi = -huge(1.0_dp)
+      call force_correct_run(p%chain, e0, i, i, mean_hi, sin_a, h, friction, ws%du_t, ws%dir, &
+                             ws%v, ws%acc, ws%thr, ws%f_t, ws%acc_t, ws%v_t, e_hi)
+      f_hi = ws%f_t(i)
+      if (e_lo > 0.0_dp .and. e_hi > 0.0_dp .and. (ws%dir(i) /= 0.0_dp .or. &
+          (f_lo > 0.0_dp .and. f_hi > 0.0_dp) .or. (f_lo < 0.0_dp .and. f_hi < 0.0_dp))) return
+      all_below = all_below .and. e_lo <= 0.0_dp .and. e_hi <= 0.0_dp
+    end do
+    if (pool_crossed) then      ! shift > min_plus rises with the mean, -shift > min_minus falls
+      s_lo = xi*(mean_lo - mean0)
+      s_hi = xi*(mean_hi - mean0)
+      if ((s_lo > ws%min_plus .and. s_hi > ws%min_plus) .or. &
+          (-s_lo > ws%min_minus .and. -s_hi > ws%min_minus)) return
+      all_below = all_below .and. .not. (s_lo > ws%min_plus .or. s_hi > ws%min_plus .or. &
+                                         -s_lo > ws%min_minus .or. -s_hi > ws%min_minus)
+    end if
+    crossed = .false.
+    decided = all_below
+  end subroutine enclosed_trial
+
+  !> The sums over the active sliders that enclosed_trial needs (once per
+  !> crossing step, at its start).
+  subroutine mean_sums(ws)
+    type(workspace), intent(inout) :: ws
+    integer(ip) :: r, i
+
+    ws%sum_v = 0.0_dp
+    ws%sum_acc = 0.0_dp
+    ws%abs_du = 0.0_dp
+    ws%abs_v = 0.0_dp
+    ws%abs_acc = 0.0_dp
+    ws%n_active = 0
+    do r = 1, ws%n_runs
+      ws%n_active = ws%n_active + (ws%run_hi(r) - ws%run_lo(r) + 1)
+      do i = ws%run_lo(r), ws%run_hi(r)
+        ws%sum_v = ws%sum_v + ws%v(i)
+        ws%sum_acc = ws%sum_acc + ws%acc(i)
+        ws%abs_v = ws%abs_v + abs(ws%v(i))
+        ws%abs_acc = ws%abs_acc + abs(ws%acc(i))
+        ws%abs_du = ws%abs_du + abs(ws%du(i))
+      end do
+    end do
+  end subroutine mean_sums
 
   !> Velocity-Verlet positions over one run: du_t = du + v h + acc h**2/2.
   pure subroutine predict_run(lo, hi, h, du, v, acc, du_t)
