@@ -141,6 +141,7 @@ module sliders_events
     integer(ip), allocatable :: stops(:)     !< stops of one step
     integer(ip), allocatable :: sorted(:)    !< moved sliders, increasing
     integer(ip), allocatable :: run_lo(:), run_hi(:)  !< runs of active sliders
+    integer(ip), allocatable :: seg_lo(:), seg_hi(:)  !< where update_runs looks
     integer(ip), allocatable :: changed(:)   !< sliders the tilt loop checks (increasing): all, or the last event's (xi = 0)
     real(dp), allocatable :: tree(:)         !< min-tree of min(root_down, root_up) (xi = 0)
     real(dp), allocatable :: bound(:)        !< lower bounds of the angles (xi > 0)
@@ -492,6 +493,7 @@ contains
     end do
     allocate (ws%tree(2*ws%leaves - 1))
     allocate (ws%cand(n), ws%slist(n), ws%sdir(n), ws%stops(n), ws%sorted(n), ws%run_lo(n), ws%run_hi(n))
+    allocate (ws%seg_lo(n + 2), ws%seg_hi(n + 2))
     ws%v = 0.0_dp
     ws%acc = 0.0_dp
     ws%dir = 0.0_dp
@@ -736,7 +738,7 @@ contains
             end if
           end do
         end do
-        if (changed) call find_runs(ws)
+        if (changed) call update_runs(ws, n, n_start)
         if (ws%stale) call far_minima(ws, n, xi /= 0.0_dp)
       end if
 
@@ -1236,6 +1238,83 @@ contains
       i = i + 1
     end do
   end subroutine find_runs
+
+  !> find_runs after a crossing step, in O(active + starts) instead of
+  !> O(range of the involved sliders) (a slip front leaves a range of
+  !> thousands behind it): every active slider now was active before (in an
+  !> old run) or is a neighbour of one of the n_start sliders in ws%slist
+  !> that started in this step, so the maximal runs are found by scanning
+  !> the old runs and the starts' neighbourhoods, widened by one and merged
+  !> where they overlap or touch (a run cannot cross the edge of such a
+  !> merged segment: the slider beyond it is not active).
+  subroutine update_runs(ws, n, n_start)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: n, n_start
+    integer(ip) :: k, j, i, n_seg, r, lo, hi, key
+
+    ! the starts' positions, increasing (insertion sort: there are few)
+    do k = 2, n_start
+      key = ws%slist(k)
+      j = k - 1
+      do while (j >= 1)
+        if (ws%slist(j) <= key) exit
+        ws%slist(j + 1) = ws%slist(j)
+        j = j - 1
+      end do
+      ws%slist(j + 1) = key
+    end do
+    ! merge the old runs and the starts, both increasing, into segments
+    n_seg = 0
+    r = 1
+    k = 1
+    do while (r <= ws%n_runs .or. k <= n_start)
+      if (k > n_start) then
+        lo = ws%run_lo(r) - 1
+        hi = ws%run_hi(r) + 1
+        r = r + 1
+      else if (r > ws%n_runs) then
+        lo = ws%slist(k) - 1
+        hi = ws%slist(k) + 1
+        k = k + 1
+      else if (ws%run_lo(r) <= ws%slist(k)) then
+        lo = ws%run_lo(r) - 1
+        hi = ws%run_hi(r) + 1
+        r = r + 1
+      else
+        lo = ws%slist(k) - 1
+        hi = ws%slist(k) + 1
+        k = k + 1
+      end if
+      lo = max(lo, 1_ip)
+      hi = min(hi, n)
+      if (n_seg > 0) then
+        if (lo <= ws%seg_hi(n_seg) + 1) then
+          ws%seg_hi(n_seg) = max(ws%seg_hi(n_seg), hi)
+          cycle
+        end if
+      end if
+      n_seg = n_seg + 1
+      ws%seg_lo(n_seg) = lo
+      ws%seg_hi(n_seg) = hi
+    end do
+    ! the maximal runs of active sliders inside the segments
+    ws%n_runs = 0
+    do k = 1, n_seg
+      i = ws%seg_lo(k)
+      do while (i <= ws%seg_hi(k))
+        if (ws%active(i)) then
+          ws%n_runs = ws%n_runs + 1
+          ws%run_lo(ws%n_runs) = i
+          do while (i < ws%seg_hi(k))
+            if (.not. ws%active(i + 1)) exit
+            i = i + 1
+          end do
+          ws%run_hi(ws%n_runs) = i
+        end if
+        i = i + 1
+      end do
+    end do
+  end subroutine update_runs
 
   !> Minima of gap_plus and gap_minus over the pool (+inf if it is empty),
   !> and where they are (0 if empty).  Without coupling (`pool` false) the
