@@ -1221,22 +1221,9 @@ contains
   !> range of the involved ones (the active sliders are involved).
   subroutine find_runs(ws)
     type(workspace), intent(inout) :: ws
-    integer(ip) :: i
 
     ws%n_runs = 0
-    i = ws%i_lo
-    do while (i <= ws%i_hi)
-      if (ws%active(i)) then
-        ws%n_runs = ws%n_runs + 1
-        ws%run_lo(ws%n_runs) = i
-        do while (i < ws%i_hi)
-          if (.not. ws%active(i + 1)) exit
-          i = i + 1
-        end do
-        ws%run_hi(ws%n_runs) = i
-      end if
-      i = i + 1
-    end do
+    call scan_runs(ws, ws%i_lo, ws%i_hi)
   end subroutine find_runs
 
   !> find_runs after a crossing step, in O(active + starts) instead of
@@ -1250,7 +1237,7 @@ contains
   subroutine update_runs(ws, n, n_start)
     type(workspace), intent(inout) :: ws
     integer(ip), intent(in) :: n, n_start
-    integer(ip) :: k, j, i, n_seg, r, lo, hi, key
+    integer(ip) :: k, j, n_seg, r, lo, hi, key
 
     ! the starts' positions, increasing (insertion sort: there are few)
     do k = 2, n_start
@@ -1300,21 +1287,31 @@ contains
     ! the maximal runs of active sliders inside the segments
     ws%n_runs = 0
     do k = 1, n_seg
-      i = ws%seg_lo(k)
-      do while (i <= ws%seg_hi(k))
-        if (ws%active(i)) then
-          ws%n_runs = ws%n_runs + 1
-          ws%run_lo(ws%n_runs) = i
-          do while (i < ws%seg_hi(k))
-            if (.not. ws%active(i + 1)) exit
-            i = i + 1
-          end do
-          ws%run_hi(ws%n_runs) = i
-        end if
-        i = i + 1
-      end do
+      call scan_runs(ws, ws%seg_lo(k), ws%seg_hi(k))
     end do
   end subroutine update_runs
+
+  !> Appends the maximal runs of active sliders within lo..hi to ws%run_lo,
+  !> ws%run_hi (the sliders just outside lo..hi are not active).
+  subroutine scan_runs(ws, lo, hi)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: lo, hi
+    integer(ip) :: i
+
+    i = lo
+    do while (i <= hi)
+      if (ws%active(i)) then
+        ws%n_runs = ws%n_runs + 1
+        ws%run_lo(ws%n_runs) = i
+        do while (i < hi)
+          if (.not. ws%active(i + 1)) exit
+          i = i + 1
+        end do
+        ws%run_hi(ws%n_runs) = i
+      end if
+      i = i + 1
+    end do
+  end subroutine scan_runs
 
   !> Minima of gap_plus and gap_minus over the pool (+inf if it is empty),
   !> and where they are (0 if empty).  Without coupling (`pool` false) the
