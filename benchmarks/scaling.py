@@ -10,8 +10,8 @@ Two end points:
 * ``alpha_stop``: tilt up to alpha_max = 0.3 (the precursor regime, events of
   a few sliders), N = 1e2 .. 1e5 (``--n-max 1000000``: 1e6, 90 s) for xi = 0
   and 1e2 .. 1e4 for xi = 0.001
-  (xi > 0 recomputes every instability angle after every event, O(N) per
-  event, and its relaxation at alpha = 0 sets the whole chain moving);
+  (xi > 0 shifts every elastic force in every event, O(N) per event, and
+  its relaxation at alpha = 0 sets the whole chain moving);
 * ``avalanche``: to the avalanche, N = 100, 300, 1000, 3000, with
   max_event_duration = 1e5 tau (the default of every speed mode; the events
   just before the avalanche of long chains last ~3 N tau).  The longest event
