@@ -32,7 +32,7 @@ ENDLESS = dict(n_sliders=10, seed=1, mu_d=0.0, ends="walls", alpha_max=1.0,
 SCENES = {  # (scene, events run before the interrupted call, seconds before SIGINT)
     ("fortran", "endless"): (ENDLESS, 2, 1.0),
     ("numpy", "endless"): (ENDLESS, 2, 1.0),
-    ("fortran", "tilt"): (dict(n_sliders=400, seed=0), 0, 0.6),
+    ("fortran", "tilt"): (dict(n_sliders=1000, seed=0, record="summary"), 0, 1.0),
     ("numpy", "tilt"): (dict(n_sliders=30, xi=0.001, seed=3, dt=0.01), 0, 1.5),
 }
 
