@@ -10,13 +10,16 @@ Two end points:
 * ``alpha_stop``: tilt up to alpha_max = 0.3 (the precursor regime, events of
   a few sliders), N = 1e2 .. 1e5 (``--n-max 1000000``: 1e6, 90 s) for xi = 0
   and 1e2 .. 1e4 for xi = 0.001
-  (xi > 0 recomputes every instability angle after every event, O(N) per
-  event, and its relaxation at alpha = 0 sets the whole chain moving);
+  (xi > 0 shifts every elastic force in every event, O(N) per event, and
+  its relaxation at alpha = 0 sets the whole chain moving);
 * ``avalanche``: to the avalanche, N = 100, 300, 1000, 3000, with
   max_event_duration = 1e5 tau (the default of every speed mode; the events
   just before the avalanche of long chains last ~3 N tau).  The longest event
   over N shows why the work grows as N^2: near the avalanche the events are
   slip fronts crossing the chain at the sound speed (one slider per tau).
+* ``explore_avalanche``: N = 1e4 (``--explore-n``) with the paper's disorder,
+  xi = 0 and 0.001, to the avalanche in the ``explore`` mode (dt = 1e-2).
+  ``--parts explore_avalanche`` runs this part alone.
 
 Measured per run: CPU time (process time of the child), wall time, events,
 integration steps and slider-steps (sum over steps of the moving sliders,
@@ -47,6 +50,7 @@ from pathlib import Path
 import numpy as np
 
 RESULTS = Path(__file__).parent / "results"
+EXPLORE_DT = 1e-2  # scene.py's explore mode
 OUT = io.StringIO()
 
 
@@ -254,6 +258,10 @@ def main(argv=None) -> dict:
     parser.add_argument("--alpha-stop", type=float, default=0.3)
     parser.add_argument("--avalanche-n", type=int, nargs="*", default=[100, 300, 1000, 3000])
     parser.add_argument("--dt", type=float, default=1e-3)
+    parser.add_argument("--explore-n", type=int, nargs="*", default=[10_000],
+                        help="N of the explore-mode runs to the avalanche")
+    parser.add_argument("--parts", nargs="+", default=["alpha_stop", "avalanche", "explore_avalanche"],
+                        choices=["alpha_stop", "avalanche", "explore_avalanche"])
     parser.add_argument("--timeout", type=float, default=900.0, help="per run, seconds")
     parser.add_argument("--quick", action="store_true", help="smoke run (N <= 1000)")
     parser.add_argument("--out-dir", default=str(RESULTS))
@@ -268,19 +276,22 @@ def main(argv=None) -> dict:
     report = {"machine": platform.processor() or platform.machine(), "python": platform.python_version(),
               "command": " ".join(["scaling.py"] + (argv if argv is not None else sys.argv[1:])),
               "dt": args.dt, "alpha_stop_value": args.alpha_stop}
-    for part in ("alpha_stop", "avalanche"):
-        say(f"\n=== {part}: " + (f"tilt to alpha_max={args.alpha_stop}" if part == "alpha_stop"
-                                 else "tilt to the avalanche (max_event_duration=1e5 tau)") + " ===")
+    titles = {"alpha_stop": f"tilt to alpha_max={args.alpha_stop}",
+              "avalanche": "tilt to the avalanche (max_event_duration=1e5 tau)",
+              "explore_avalanche": "tilt to the avalanche in the explore mode (dt = 1e-2)"}
+    for part in args.parts:
+        say(f"\n=== {part}: {titles[part]} ===")
         rows = []
+        dt = EXPLORE_DT if part == "explore_avalanche" else args.dt
         for xi in (0.0, 0.001):
             if part == "alpha_stop":
                 ns = [n for n in grid if n <= (args.n_max if xi == 0.0 else args.n_max_coupled)]
             else:
-                ns = args.avalanche_n
+                ns = args.avalanche_n if part == "avalanche" else args.explore_n
             for n in ns:
                 for seed in (range(3) if n <= 1000 else range(1)):
                     r = run_child(n, xi, seed, args.alpha_stop if part == "alpha_stop" else 10.0,
-                                  5000.0 if part == "alpha_stop" else 1e5, args.dt, args.timeout)
+                                  5000.0 if part == "alpha_stop" else 1e5, dt, args.timeout)
                     if r is not None:
                         rows.append(r)
                         say(f"  xi={xi:g} N={n} seed={seed}: {r['status']}, {r['events']} events, "
@@ -288,23 +299,32 @@ def main(argv=None) -> dict:
         agg = aggregate(rows)
         say("")
         table(agg)
-        if part == "avalanche":
+        if part != "alpha_stop":
             say("\nslip fronts: the longest event lasts ~c N tau, and one front crossing the chain "
                 "costs >= N^2 / (4 dt) slider-steps")
             for m in agg:
-                bound = m["n"] ** 2 / (4 * args.dt)
+                bound = m["n"] ** 2 / (4 * dt)
                 say(f"  xi={m['xi']:g} N={m['n']}: longest event {m['longest_tau_per_n']:.2f} N tau; "
                     f"slider-steps {m['slider_steps'] / bound:.1f} x N^2/(4 dt)")
         report[part] = {"rows": rows, "aggregate": agg, "fits": fits(agg)}
     report["total_wall_s"] = time.perf_counter() - started
-    say(f"\ntotal {report['total_wall_s']:.0f} s")
     out_dir = Path(args.out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     suffix = "_quick" if args.quick else ""
-    (out_dir / f"scaling{suffix}.json").write_text(json.dumps(report, indent=1))
+    if set(args.parts) != {"alpha_stop", "avalanche", "explore_avalanche"}:
+        # a partial run adds its parts to the stored report
+        stored_path = out_dir / f"scaling{suffix}.json"
+        stored = json.loads(stored_path.read_text()) if stored_path.exists() else {}
+        report = {**stored, **{k: v for k, v in report.items() if k in args.parts},
+                  "partial_command": report["command"]}
+        suffix += "_" + "_".join(args.parts)
+    say(f"\ntotal {time.perf_counter() - started:.0f} s")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    json_name = "scaling_quick.json" if args.quick else "scaling.json"
+    (out_dir / json_name).write_text(json.dumps(report, indent=1))
     (out_dir / f"scaling{suffix}.txt").write_text(OUT.getvalue())
-    figure(report, out_dir / f"scaling{suffix}.png")
-    print(f"written {out_dir}/scaling{suffix}.json, .txt, .png")
+    if "alpha_stop" in report and "avalanche" in report:
+        figure(report, out_dir / f"scaling{'_quick' if args.quick else ''}.png")
+    print(f"written {out_dir}/{json_name} and scaling{suffix}.txt")
     return report
 
 

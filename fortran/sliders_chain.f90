@@ -16,14 +16,15 @@
 !> with the missing neighbour term dropped at a free end and du = 0 for a
 !> wall.  `elastic_force` evaluates it with the same operations, in the same
 !> order, as the NumPy reference (so both round alike); the kernel's hot loop
-!> calls `elastic_forces` on runs of consecutive sliders (vectorised loop).
+!> (sliders_events, force_correct_run) writes the same formula out for the
+!> interior sliders so that it fuses with the Verlet update.
 module sliders_chain
   use sliders_kinds, only: dp, ip
   implicit none
   private
 
   public :: chain_params
-  public :: elastic_force, elastic_forces, total_displacement
+  public :: elastic_force, total_displacement
   public :: spring_energy_change, cantilever_energy_change
 
   !> What the force and energy formulas need to know about the chain.
@@ -78,38 +79,6 @@ contains
     e = e0(i) + (right - left)
     if (chain%xi /= 0.0_dp) e = e - chain%xi*(du(i) - mean)
   end function force_formula
-
-  !> out(i) = E_i + shift for the sliders i = lo..hi (other entries untouched).
-  !> The ends of the chain are peeled off so that the loop over the interior
-  !> vectorises; same operations, same rounding, as `elastic_force`.
-  pure subroutine elastic_forces(chain, e0, du, lo, hi, mean, shift, out)
-    type(chain_params), intent(in) :: chain
-    real(dp), contiguous, intent(in) :: e0(:)
-    real(dp), contiguous, intent(in) :: du(:)
-    integer(ip), intent(in) :: lo, hi
-    real(dp), intent(in) :: mean
-    real(dp), intent(in) :: shift
-    real(dp), contiguous, intent(inout) :: out(:)
-    integer(ip) :: i, first, last
-    real(dp) :: xi
-
-    first = max(lo, 2_ip)
-    last = min(hi, chain%n - 1_ip)
-    if (lo == 1) out(1) = force_formula(chain, e0, du, 1_ip, mean) + shift
-    xi = chain%xi
-    if (xi /= 0.0_dp) then
-      do i = first, last
-        out(i) = ((e0(i) + ((du(i + 1) - du(i)) - (du(i) - du(i - 1)))) &
-                  - xi*(du(i) - mean)) + shift
-      end do
-    else
-      do i = first, last
-        out(i) = (e0(i) + ((du(i + 1) - du(i)) - (du(i) - du(i - 1)))) + shift
-      end do
-    end if
-    if (hi == chain%n .and. chain%n > 1) &
-      out(chain%n) = force_formula(chain, e0, du, chain%n, mean) + shift
-  end subroutine elastic_forces
 
   !> Sum of du (plain left-to-right sum).
   pure function total_displacement(du) result(s)

@@ -6,9 +6,13 @@
 !>
 !> * Per integration step only the *active* sliders (the moving ones and
 !>   their neighbours) have their force computed and their threshold checked;
-!>   they are kept as runs of consecutive sliders, so that the step is a few
-!>   branch-free loops over contiguous memory (vectorised).  A resting active
-!>   slider has v = acc = 0, so the Verlet update leaves it in place.  The
+!>   they are kept as runs of consecutive sliders, so that the step is two
+!>   branch-free loops over contiguous memory (vectorised): predict (and the
+!>   mean's sums when xi > 0), then force + velocity + crossing test.  A
+!>   resting active slider has v = acc = 0, so the Verlet update leaves it in
+!>   place.  An accepted trial becomes the state by swapping the arrays
+!>   (ws%du, v, acc and their trial twins; both agree outside the runs), and
+!>   the caller's du is written at the end of the event.  The
 !>   *involved* sliders (every slider active at some point of the event) are
 !>   remembered for the bookkeeping at the end of the event.  The sum of du is
 !>   kept incrementally during an event (recomputed exactly between events).
@@ -28,20 +32,30 @@
 !>   O(log N) per changed slider); the stability check after an event covers
 !>   the involved sliders only, and the pool needs no thresholds (its forces
 !>   never change), so an event costs O(involved log N), not O(N).  With
-!>   xi > 0 every elastic force shifts in every event, so all angles are
-!>   recomputed: one asin per slider per event (hypot(1, mu) and atan(mu)
+!>   xi > 0 every elastic force shifts in every event, so every angle
+!>   changes: coupled_next bounds them all without asin and computes the
+!>   exact angles of the few that can be the next (hypot(1, mu) and atan(mu)
 !>   are cached, renewed only for the involved sliders, whose mu may change).
 !> * A step that crosses is cut back by bisection, whose trials test only the
 !>   sliders that crossed in the full step (and their neighbours' positions;
-!>   the mean as well when xi > 0): a crossing costs two full trials plus
-!>   O(crossers) per bisection trial, not O(active) per trial, which was
+!>   with xi > 0 the mean through a rigorous enclosure, exactly only when
+!>   the enclosure leaves the test open): a crossing costs two full trials
+!>   plus O(crossers) per bisection trial, not O(active) per trial, which was
 !>   quadratic in the number of moving sliders for the large late events.
+!>   The runs are then updated from the old runs and the starts
+!>   (update_runs), not rescanned over the event's whole range.
+!> * Every loop is bounded: the bisection by max_halvings
+!>   (status_refine_limit), an event by max_event_duration in tau
+!>   (every step advances by at least refine_tol/2), the call by max_events
+!>   and its buffers; and another thread can stop the call at once through
+!>   the VOLATILE interrupt flag (status_interrupted, the event undone).
 !> * The elastic energy change of an event is computed locally
 !>   (sliders_chain), exactly; the path length (dissipation) telescopes to
 !>   the sum over sliding phases of |du at stop - du at start|.
 !>
-!> With xi > 0 the O(N) work between events (threshold scan, min scan,
-!> exact sum) stays; per integration step no O(N) work is done.  Same operations in
+!> With xi > 0 some O(N) work between events (stability check, angle
+!> bounds, gaps, exact sum) stays: 4 % of N = 1e4 to the avalanche; per
+!> integration step no O(N) work is done.  Same operations in
 !> the same order as the reference wherever it matters for rounding (forces,
 !> Verlet update, crossing tests); the remaining differences (libm, order of
 !> sums) are at the last-bit level.
@@ -51,16 +65,17 @@ module sliders_events
   use sliders_kinds, only: dp, ip, i8
   use sliders_status, only: status_running, status_avalanche, status_alpha_max, &
                             status_event_duration_cap, status_non_finite, &
-                            status_random_failure, status_relaxed, status_sparse_full
-  use sliders_chain, only: chain_params, elastic_force, elastic_forces, total_displacement, &
+                            status_random_failure, status_relaxed, status_sparse_full, &
+                            status_interrupted, status_refine_limit
+  use sliders_chain, only: chain_params, elastic_force, total_displacement, &
                            spring_energy_change, cantilever_energy_change
   use sliders_random, only: static_coefficient
   implicit none
   private
 
   public :: tilt_params, tilt_run
-  public :: instability_roots, next_instability
-  public :: tie_tol
+  public :: instability_roots
+  public :: tie_tol, max_halvings, interrupt_check_steps
   public :: n_event_real, n_event_int
   public :: ev_alpha, ev_duration, ev_work_gravity, ev_elastic_change, ev_dissipation
   public :: ev_n_moved, ev_n_stops, ev_n_steps, ev_slider_steps
@@ -69,6 +84,16 @@ module sliders_events
   !> Sliders whose instability angles tie within this start together.
   real(dp), parameter :: tie_tol = 1.0e-12_dp
   real(dp), parameter :: pi = 3.141592653589793_dp   ! == numpy.pi
+  !> Absolute widening of the asin bounds of coupled_next: far above the
+  !> rounding of angles <= pi (1e-15), far below the spread of the angles.
+  real(dp), parameter :: bound_slack = 1.0e-12_dp
+  !> A crossing's bracket is halved at most this often (reference.MAX_HALVINGS):
+  !> a step of 1 tau closes to 3e-39 within it, so only a refine_tol below
+  !> what the step can resolve reaches it (status_refine_limit, never a hang).
+  integer(ip), parameter :: max_halvings = 128
+  !> The interrupt flag is read after this many slider-steps (~0.3 ms) and
+  !> before every event.
+  integer(i8), parameter :: interrupt_check_steps = 100000_i8
 
   !> Columns of the per-event buffers (status.EVENT_FIELDS, split by type).
   integer(ip), parameter :: n_event_real = 5, n_event_int = 4
@@ -88,8 +113,8 @@ module sliders_events
     integer(i8) :: seed = 0_i8
     real(dp) :: dt = 1.0e-3_dp
     real(dp) :: refine_tol = 1.0e-10_dp
-    real(dp) :: max_event_duration = 5000.0_dp
-    real(dp) :: alpha_max = 1.5707963267948966_dp
+    real(dp) :: max_event_duration = 1.0e5_dp             ! scene.py's modes
+    real(dp) :: alpha_max = 1.5707963267948966_dp - 1.0e-6_dp   ! scene.ALPHA_MAX_LIMIT
     real(dp) :: force_tol = 1.0e-12_dp
     logical :: record_sparse = .true.   !< store the moved sliders' displacements
     logical :: relax_only = .false.     !< only relax at the current angle
@@ -107,7 +132,9 @@ module sliders_events
     real(dp), allocatable :: radius(:)       !< hypot(1, mu) (cache)
     real(dp), allocatable :: phi(:)          !< atan(mu) (cache)
     real(dp), allocatable :: du_start(:)     !< du at the start of the event
-    real(dp), allocatable :: du_t(:)         !< trial du (== du unless moving)
+    real(dp), allocatable :: du(:)           !< du during an event (the caller's du is
+                                             !< written at its end): accepted state
+    real(dp), allocatable :: du_t(:)         !< trial du (== du unless active)
     real(dp), allocatable :: du_phase(:)     !< du when the slider last started
     real(dp), allocatable :: v(:), acc(:), dir(:)
     real(dp), allocatable :: v_t(:), acc_t(:)
@@ -128,8 +155,10 @@ module sliders_events
     integer(ip), allocatable :: stops(:)     !< stops of one step
     integer(ip), allocatable :: sorted(:)    !< moved sliders, increasing
     integer(ip), allocatable :: run_lo(:), run_hi(:)  !< runs of active sliders
+    integer(ip), allocatable :: seg_lo(:), seg_hi(:)  !< where update_runs looks
     integer(ip), allocatable :: changed(:)   !< sliders the tilt loop checks (increasing): all, or the last event's (xi = 0)
     real(dp), allocatable :: tree(:)         !< min-tree of min(root_down, root_up) (xi = 0)
+    real(dp), allocatable :: bound(:)        !< lower bounds of the angles (xi > 0)
     integer(ip) :: leaves = 0                !< its number of leaves (a power of 2 >= n)
     integer(ip) :: n_changed = 0
     real(dp) :: cos_a = 1.0_dp               !< cos(alpha) of the current event
@@ -145,6 +174,12 @@ module sliders_events
     real(dp) :: min_plus = 0.0_dp, min_minus = 0.0_dp  !< pool gap minima
     integer(ip) :: arg_plus = 0, arg_minus = 0         !< where (0: empty pool)
     logical :: stale = .false.               !< a minimum's slider left the pool
+    !> Sums over the active sliders at the start of a crossing step (xi > 0:
+    !> candidate_trial's enclosure of the trial mean): v, acc, |du|, |v|,
+    !> |acc|, and how many sliders.
+    real(dp) :: sum_v = 0.0_dp, sum_acc = 0.0_dp
+    real(dp) :: abs_du = 0.0_dp, abs_v = 0.0_dp, abs_acc = 0.0_dp
+    integer(ip) :: n_active = 0
   end type workspace
 
   !> What one event produced.
@@ -189,36 +224,96 @@ contains
     end if
   end subroutine roots_from
 
-  !> Smallest angle >= alpha at which a resting slider destabilises, from the
-  !> cached roots; the sliders within tie_tol of it (increasing order) and
-  !> their directions (+1 down, -1 up).  A min scan, O(n) comparisons: kept
-  !> separate so that a tournament tree can replace it.
-  pure subroutine next_instability(root_down, root_up, alpha, angle, n_trig, trig, trig_dir)
-    real(dp), contiguous, intent(in) :: root_down(:), root_up(:)
+  !> Bounds of asin(x), |x| <= 1, without a transcendental: with y = |x|,
+  !> P(y) = y + y**3/6 + 3 y**5/40 <= asin(y) <= P(y) + 0.33 y**7 (the series
+  !> of asin has positive coefficients, and its tail beyond y**5 is at most
+  !> (pi/2 - P(1)) y**7 = 0.3291 y**7), widened by bound_slack for rounding.
+  elemental subroutine asin_bounds(x, lower, upper)
+    real(dp), intent(in) :: x
+    real(dp), intent(out) :: lower, upper
+    real(dp) :: y, y2, p, tail
+
+    y = abs(x)
+    y2 = y*y
+    p = y*(1.0_dp + y2*(1.0_dp/6.0_dp + y2*(3.0_dp/40.0_dp)))
+    tail = 0.33_dp*y*y2*y2*y2
+    if (x >= 0.0_dp) then
+      lower = p - bound_slack
+      upper = p + tail + bound_slack
+    else
+      lower = -(p + tail) - bound_slack
+      upper = -p + bound_slack
+    end if
+  end subroutine asin_bounds
+
+  !> A lower bound of max(min(down, up), alpha) of roots_from, without asin
+  !> (+inf where roots_from finds no root: the same tests).
+  elemental function root_lower_bound(elastic, radius, phi, alpha) result(bound)
+    real(dp), intent(in) :: elastic, radius, phi, alpha
+    real(dp) :: bound
+    real(dp) :: ratio, lower, upper
+
+    bound = ieee_value(bound, ieee_positive_inf)
+    ratio = -elastic/radius
+    if (abs(ratio) <= 1.0_dp) then
+      call asin_bounds(ratio, lower, upper)
+      if (elastic >= -1.0_dp) bound = phi + lower
+      if (elastic <= -1.0_dp) bound = min(bound, (pi - phi) - upper)
+      bound = max(bound, alpha) - bound_slack
+    end if
+  end function root_lower_bound
+
+  !> Smallest angle >= alpha at which a resting slider destabilises, and the
+  !> sliders within tie_tol of it (increasing order, into ws%slist, their
+  !> directions into ws%sdir), when every elastic force changed (xi > 0):
+  !> exactly min over i of max(min(root_down, root_up), alpha), with asin
+  !> evaluated only where it can matter.  A lower bound of every slider's
+  !> angle (root_lower_bound, a polynomial: vectorised) and one exact angle,
+  !> at the smallest bound, give a limit; only the sliders whose bound is
+  !> below it can be the minimum or tie with it, and only they get their
+  !> exact roots (roots_from).  Same angle, same triggers, as the full scan.
+  subroutine coupled_next(ws, n, alpha, angle, n_trig)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: n
     real(dp), intent(in) :: alpha
     real(dp), intent(out) :: angle
     integer(ip), intent(out) :: n_trig
-    integer(ip), contiguous, intent(inout) :: trig(:)
-    real(dp), contiguous, intent(inout) :: trig_dir(:)
-    integer(ip) :: i
+    integer(ip) :: i, k, n_cand
+    real(dp) :: limit
 
     angle = ieee_value(angle, ieee_positive_inf)
-    do i = 1, size(root_down, kind=ip)
-      angle = min(angle, max(min(root_down(i), root_up(i)), alpha))
-    end do
     n_trig = 0
-    do i = 1, size(root_down, kind=ip)
-      if (max(min(root_down(i), root_up(i)), alpha) <= angle + tie_tol) then
+    ws%bound(1:n) = root_lower_bound(ws%elastic(1:n), ws%radius(1:n), ws%phi(1:n), alpha)
+    i = minloc(ws%bound(1:n), 1)
+    if (.not. ws%bound(i) <= huge(1.0_dp)) return     ! no root in [0, pi/2]
+    call roots_from(ws%elastic(i), ws%radius(i), ws%phi(i), ws%root_down(i), ws%root_up(i))
+    limit = max(min(ws%root_down(i), ws%root_up(i)), alpha) + tie_tol
+    n_cand = 0
+    do i = 1, n
+      if (ws%bound(i) <= limit) then
+        n_cand = n_cand + 1
+        ws%cand(n_cand) = i
+      end if
+    end do
+    !GCC$ novector
+    do k = 1, n_cand     ! scalar asin: glibc's, as the reference's libm substitute
+      i = ws%cand(k)
+      call roots_from(ws%elastic(i), ws%radius(i), ws%phi(i), ws%root_down(i), ws%root_up(i))
+      angle = min(angle, max(min(ws%root_down(i), ws%root_up(i)), alpha))
+    end do
+    do k = 1, n_cand
+      i = ws%cand(k)
+      if (max(min(ws%root_down(i), ws%root_up(i)), alpha) <= angle + tie_tol) then
         n_trig = n_trig + 1
-        trig(n_trig) = i
-        if (root_down(i) <= root_up(i)) then
-          trig_dir(n_trig) = 1.0_dp
+        ws%slist(n_trig) = i
+        if (ws%root_down(i) <= ws%root_up(i)) then
+          ws%sdir(n_trig) = 1.0_dp
         else
-          trig_dir(n_trig) = -1.0_dp
+          ws%sdir(n_trig) = -1.0_dp
         end if
       end if
     end do
-  end subroutine next_instability
+  end subroutine coupled_next
 
   ! -------------------------------------------------------------- tilt loop
 
@@ -234,10 +329,14 @@ contains
   !> the event that ended the run unfinished (the avalanche, the duration
   !> cap, a non-finite state), `final_work` its integration steps and
   !> slider-steps (zero otherwise); `detail` says what a non-finite status
-  !> refers to.
+  !> refers to.  A nonzero interrupt(1) (set by another thread: VOLATILE)
+  !> ends the call with status_interrupted within interrupt_check_steps
+  !> slider-steps: the event in progress is undone entirely (du, mu, stop
+  !> counts, and alpha back to the last completed event), the completed
+  !> events are kept.
   subroutine tilt_run(p, e0, t0, w0, mu, n_stops, du, alpha, ev_real, ev_int, &
                       sp_ptr, sp_index, sp_value, n_events, n_sparse, status, &
-                      alpha_c, event_time, final_work, detail)
+                      alpha_c, event_time, final_work, detail, interrupt)
     type(tilt_params), intent(in) :: p
     real(dp), contiguous, intent(in) :: e0(:)
     real(dp), intent(in) :: t0(0:)
@@ -255,16 +354,18 @@ contains
     real(dp), intent(out) :: alpha_c, event_time
     integer(i8), intent(out) :: final_work(2)
     integer(ip), intent(out) :: detail
+    integer(ip), volatile, intent(inout) :: interrupt(:)   ! only read
     type(workspace) :: ws
     type(event_record) :: rec
     integer(ip) :: n, i, n_trig, j, n_bad, k
-    real(dp) :: sin_a, cos_a, f, angle
+    real(dp) :: sin_a, cos_a, f, angle, alpha_done
     logical :: coupled
 
     n = p%chain%n
     coupled = p%chain%xi /= 0.0_dp
     call allocate_workspace(ws, n)
     ws%du_start = du
+    ws%du = du
     ws%du_t = du
     ws%sum_du = total_displacement(du)
     do i = 1, n
@@ -274,8 +375,10 @@ contains
     do i = 1, n
       call cache_trig(ws, mu, i)
     end do
-    call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
-    if (.not. coupled) call tree_build(ws, n)
+    if (.not. coupled) then     ! xi > 0: coupled_next computes the angles it needs
+      call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
+      call tree_build(ws, n)
+    end if
     ! the first check covers every slider; with xi = 0 the later ones only
     ! the sliders of the last event (end_event: no other force changed)
     ws%n_changed = n
@@ -291,6 +394,10 @@ contains
     final_work = 0_i8
     detail = detail_none
     do
+      if (interrupt(1) /= 0) then
+        status = status_interrupted
+        exit
+      end if
       ! A non-finite force stops the run; unstable sliders at the current
       ! angle start at once (relaxation).
       sin_a = sin(alpha)
@@ -323,8 +430,7 @@ contains
           exit
         end if
         if (coupled) then
-          call next_instability(ws%root_down, ws%root_up, alpha, angle, n_trig, &
-                                ws%slist, ws%sdir)
+          call coupled_next(ws, n, alpha, angle, n_trig)
         else
           call tree_next(ws, alpha, angle, n_trig)
         end if
@@ -338,9 +444,16 @@ contains
         status = status_sparse_full
         exit
       end if
+      alpha_done = alpha
       alpha = angle
 
-      call run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, rec)
+      call run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, interrupt, rec)
+      if (rec%status == status_interrupted) then
+        ! undone entirely: the state after the last completed event
+        status = status_interrupted
+        alpha = alpha_done
+        exit
+      end if
       if (rec%status /= status_running) then
         status = rec%status
         detail = rec%detail
@@ -381,6 +494,7 @@ contains
     integer(ip), intent(in) :: n
 
     allocate (ws%elastic(n), ws%root_down(n), ws%root_up(n), ws%du_start(n), ws%du_t(n))
+    allocate (ws%du(n), ws%bound(n))
     allocate (ws%radius(n), ws%phi(n))
     allocate (ws%du_phase(n))
     allocate (ws%v(n), ws%acc(n), ws%dir(n), ws%v_t(n), ws%acc_t(n), ws%f_t(n))
@@ -393,6 +507,7 @@ contains
     end do
     allocate (ws%tree(2*ws%leaves - 1))
     allocate (ws%cand(n), ws%slist(n), ws%sdir(n), ws%stops(n), ws%sorted(n), ws%run_lo(n), ws%run_hi(n))
+    allocate (ws%seg_lo(n + 2), ws%seg_hi(n + 2))
     ws%v = 0.0_dp
     ws%acc = 0.0_dp
     ws%dir = 0.0_dp
@@ -413,7 +528,7 @@ contains
   !> On a normal end du holds the new displacements and ws%sorted the moved
   !> sliders; on an error du, mu and n_stops are restored to the event start
   !> (as in the reference); on an avalanche du is the state at detection.
-  subroutine run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, rec)
+  subroutine run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, interrupt, rec)
     type(tilt_params), intent(in) :: p
     type(workspace), intent(inout) :: ws
     real(dp), contiguous, intent(in) :: e0(:)
@@ -424,10 +539,13 @@ contains
     real(dp), contiguous, intent(inout) :: du(:)
     real(dp), intent(in) :: alpha
     integer(ip), intent(in) :: n_trig
+    integer(ip), volatile, intent(inout) :: interrupt(:)   ! only read
     type(event_record), intent(out) :: rec
-    integer(ip) :: n, i, j, k, r, n_moved, n_start, n_stop, draw_status
+    integer(ip) :: n, i, j, k, r, n_moved, n_start, n_stop, draw_status, halvings
+    integer(i8) :: unchecked_steps
     real(dp) :: sin_a, cos_a, friction, sum0, mean0, mean, t, h, lo, hi, mid
     real(dp) :: dsum_t, step, xi, shift, f
+    real(dp), allocatable :: swap(:)
     integer(ip) :: n_cand
     logical :: crossed, pool_crossed, draws_ok, changed
 
@@ -461,7 +579,7 @@ contains
     ws%i_lo = n + 1
     ws%i_hi = 0
     do k = 1, n_trig
-      call start_slider(ws, ws%slist(k), ws%sdir(k), n, du, mu)
+      call start_slider(ws, ws%slist(k), ws%sdir(k), n, ws%du, mu)
     end do
     call find_runs(ws)
     do r = 1, ws%n_runs
@@ -476,19 +594,29 @@ contains
     ws%path = 0.0_dp
     ws%dsum = 0.0_dp
     rec = event_record()
+    unchecked_steps = 0
     do while (ws%m > 0)
       ! ---- one step, cut back to the first crossing by bisection
       ! (the bisection tests only the sliders that crossed in the full step,
       ! and the pool if it did: O(crossers) per trial, not O(active))
       h = p%dt
-      call trial_step(p, ws, e0, du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
+      call trial_step(p, ws, e0, ws%du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
       if (crossed) then
         call crossing_candidates(ws, sum0 + dsum_t, mean0, xi, n, n_cand, pool_crossed)
+        if (xi /= 0.0_dp) call mean_sums(ws)
         lo = 0.0_dp
         hi = h
+        halvings = 0
         do while (hi - lo > p%refine_tol)
+          if (halvings == max_halvings) then   ! refine_tol below the step's resolution
+            rec%status = status_refine_limit
+            rec%duration = t
+            call abort_event(ws, du, mu, n_stops)
+            return
+          end if
+          halvings = halvings + 1
           mid = 0.5_dp*(lo + hi)
-          call candidate_trial(p, ws, e0, du, mid, sum0, mean0, sin_a, friction, n_cand, &
+          call candidate_trial(p, ws, e0, ws%du, mid, sum0, mean0, sin_a, friction, n_cand, &
                                pool_crossed, crossed)
           if (crossed) then
             hi = mid
@@ -497,25 +625,42 @@ contains
           end if
         end do
         h = hi
-        call trial_step(p, ws, e0, du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
+        call trial_step(p, ws, e0, ws%du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
       end if
 
-      ! ---- accept the step (a resting active slider has du_t = du, v_t = 0)
-      do r = 1, ws%n_runs
-        call accept_run(ws%run_lo(r), ws%run_hi(r), ws%du_t, ws%v_t, ws%acc_t, du, ws%v, &
-                        ws%acc)
-      end do
+      ! ---- accept the step: the trial becomes the state by swapping the
+      ! arrays, no copy (outside the active runs both hold the same values:
+      ! a resting active slider has du_t = du, v_t = acc_t = 0; a slider
+      ! leaving the runs is synchronised by deactivate)
+      call move_alloc(ws%du, swap)
+      call move_alloc(ws%du_t, ws%du)
+      call move_alloc(swap, ws%du_t)
+      call move_alloc(ws%v, swap)
+      call move_alloc(ws%v_t, ws%v)
+      call move_alloc(swap, ws%v_t)
+      call move_alloc(ws%acc, swap)
+      call move_alloc(ws%acc_t, ws%acc)
+      call move_alloc(swap, ws%acc_t)
       ws%dsum = dsum_t
       rec%n_steps = rec%n_steps + 1
       rec%slider_steps = rec%slider_steps + ws%m
       t = t + h
+      unchecked_steps = unchecked_steps + ws%m
+      if (unchecked_steps >= interrupt_check_steps) then
+        unchecked_steps = 0
+        if (interrupt(1) /= 0) then
+          rec%status = status_interrupted
+          call abort_event(ws, du, mu, n_stops)
+          return
+        end if
+      end if
 
       ! ---- NaN or infinity: checked before anything else can happen (a
       ! crossing, the duration cap), and every 1024 steps; in between
       ! nothing but du and v (restored on abort) changes, so this is the
       ! reference's check at every step.
       if (crossed .or. t > p%max_event_duration .or. iand(rec%n_steps, 1023_i8) == 0) then
-        if (.not. all_finite(ws, du)) then
+        if (.not. all_finite(ws, ws%du)) then
           rec%status = status_non_finite
           rec%detail = detail_state
           rec%duration = t
@@ -545,7 +690,7 @@ contains
           draws_ok = .true.
           do k = 1, n_stop
             i = ws%stops(k)
-            call stop_slider(ws, i, n, du)
+            call stop_slider(ws, i, n, ws%du)
             if (.not. ws%redrawn(i)) then    ! keep the event-start draw for an abort
               ws%redrawn(i) = .true.
               ws%mu_start(i) = mu(i)
@@ -584,7 +729,7 @@ contains
           do i = 1, n        ! rare: a pool slider crossed, find it (O(n))
             if (ws%active(i)) cycle
             if (shift > ws%gap_plus(i) .or. -shift > ws%gap_minus(i)) then
-              ws%f_t(i) = elastic_force(p%chain, e0, du, i, mean) + sin_a
+              ws%f_t(i) = elastic_force(p%chain, e0, ws%du, i, mean) + sin_a
               n_start = n_start + 1
               ws%slist(n_start) = i
               ws%sdir(n_start) = sign(1.0_dp, ws%f_t(i))
@@ -593,7 +738,7 @@ contains
         end if
         do k = 1, n_start
           i = ws%slist(k)
-          call start_slider(ws, i, ws%sdir(k), n, du, mu)
+          call start_slider(ws, i, ws%sdir(k), n, ws%du, mu)
           ws%acc(i) = ws%f_t(i) - friction*ws%dir(i)
         end do
         ! sliders left with no moving neighbour go back to the pool
@@ -607,7 +752,7 @@ contains
             end if
           end do
         end do
-        if (changed) call find_runs(ws)
+        if (changed) call update_runs(ws, n, n_start)
         if (ws%stale) call far_minima(ws, n, xi /= 0.0_dp)
       end if
 
@@ -620,9 +765,11 @@ contains
       if (.not. p%chain%walls .and. ws%m == n .and. ws%n_down == n .and. sin_a > friction) then
         rec%status = status_avalanche
         rec%duration = t
+        call store_displacements(ws, du)
         return
       end if
     end do
+    call store_displacements(ws, du)
 
     ! ---- the event is over: record it
     n_moved = 0
@@ -663,30 +810,30 @@ contains
     real(dp) :: mean_t, shift, excess
 
     dsum_t = ws%dsum
-    do r = 1, ws%n_runs
-      call predict_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t)
-    end do
     mean_t = mean0
     shift = 0.0_dp
     if (p%chain%xi /= 0.0_dp) then
       do r = 1, ws%n_runs
-        call add_increments(ws%run_lo(r), ws%run_hi(r), du, ws%du_t, dsum_t)
+        call predict_sum_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t, dsum_t)
       end do
       mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
       shift = p%chain%xi*(mean_t - mean0)
+    else
+      do r = 1, ws%n_runs
+        call predict_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t)
+      end do
     end if
     excess = -huge(1.0_dp)
     do r = 1, ws%n_runs
-      call elastic_forces(p%chain, e0, ws%du_t, ws%run_lo(r), ws%run_hi(r), mean_t, sin_a, &
-                          ws%f_t)
-      call correct_run(ws%run_lo(r), ws%run_hi(r), h, friction, ws%f_t, ws%dir, ws%v, &
-                       ws%acc, ws%thr, ws%acc_t, ws%v_t, excess)
+      call force_correct_run(p%chain, e0, ws%run_lo(r), ws%run_hi(r), mean_t, sin_a, h, &
+                             friction, ws%du_t, ws%dir, ws%v, ws%acc, ws%thr, ws%f_t, &
+                             ws%acc_t, ws%v_t, excess)
     end do
     crossed = excess > 0.0_dp .or. pool_crosses(ws, shift)
   end subroutine trial_step
 
   !> After a full trial step that crossed: the active sliders that crossed
-  !> (excess > 0, the test of correct_run) into ws%cand(1:n_cand), and
+  !> (excess > 0, the test of force_correct_run) into ws%cand(1:n_cand), and
   !> whether the pool crossed (its shift beyond a gap minimum) given the
   !> trial's total displacement `sum_t`.
   subroutine crossing_candidates(ws, sum_t, mean0, xi, n, n_cand, pool_crossed)
@@ -729,35 +876,125 @@ contains
     logical, intent(out) :: crossed
     integer(ip) :: r, k, i, lo, hi
     real(dp) :: mean_t, shift, excess, dsum_t
+    logical :: decided
 
+    do k = 1, n_cand
+      i = ws%cand(k)
+      lo = max(i - 1, 1_ip)
+      hi = min(i + 1, p%chain%n)
+      call predict_run(lo, hi, h, du, ws%v, ws%acc, ws%du_t)
+    end do
     mean_t = mean0
     shift = 0.0_dp
     if (p%chain%xi /= 0.0_dp) then
-      dsum_t = ws%dsum
+      ! almost always the crossing test is the same for every mean in a
+      ! rigorous enclosure of the trial mean, got in O(1): then the exact
+      ! mean (O(active)) is not needed
+      call enclosed_trial(p, ws, e0, h, sum0, mean0, sin_a, friction, n_cand, pool_crossed, &
+                          decided, crossed)
+      if (decided) return
+      dsum_t = ws%dsum        ! the exact mean (rare): every active slider's increment
       do r = 1, ws%n_runs
-        call predict_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t)
-        call add_increments(ws%run_lo(r), ws%run_hi(r), du, ws%du_t, dsum_t)
+        call predict_sum_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t, dsum_t)
       end do
       mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
       shift = p%chain%xi*(mean_t - mean0)
-    else
-      do k = 1, n_cand
-        i = ws%cand(k)
-        lo = max(i - 1, 1_ip)
-        hi = min(i + 1, p%chain%n)
-        call predict_run(lo, hi, h, du, ws%v, ws%acc, ws%du_t)
-      end do
     end if
     excess = -huge(1.0_dp)
     do k = 1, n_cand
       i = ws%cand(k)
-      call elastic_forces(p%chain, e0, ws%du_t, i, i, mean_t, sin_a, ws%f_t)
-      call correct_run(i, i, h, friction, ws%f_t, ws%dir, ws%v, ws%acc, ws%thr, ws%acc_t, &
-                       ws%v_t, excess)
+      call force_correct_run(p%chain, e0, i, i, mean_t, sin_a, h, friction, ws%du_t, ws%dir, &
+                             ws%v, ws%acc, ws%thr, ws%f_t, ws%acc_t, ws%v_t, excess)
     end do
     crossed = excess > 0.0_dp
     if (pool_crossed) crossed = crossed .or. pool_crosses(ws, shift)
   end subroutine candidate_trial
+
+  !> The bisection's crossing test when xi > 0, without the exact trial mean
+  !> when possible.  The trial mean the exact test uses, fl(fl(sum0 +
+  !> dsum_t)/n), has dsum_t = dsum + the sum of the active sliders' rounded
+  !> increments fl(fl(du + fl(v h + 0.5 acc h h)) - du), summed in four
+  !> lanes; it differs from dsum + h sum(v) + h**2/2 sum(acc) by at most
+  !> u [2 sum|du| + 4 (m + 4 runs + 8)(h sum|v| + h**2 sum|acc| + |dsum|)]
+  !> (u = 2**-53, m active sliders: the rounding of each increment and of the
+  !> sums), taken twice here.  Every floating-point operation of the test is
+  !> monotone in the mean (rounding is monotone): a mover's excess lies
+  !> between its values at the enclosure's ends, a resting slider's |F| -
+  !> thr is largest at an end and monotone if F keeps its sign, and so are
+  !> the pool's two tests.  `decided`: the test is the same over the whole
+  !> enclosure, and `crossed` is its result, the exact test's bit for bit.
+  subroutine enclosed_trial(p, ws, e0, h, sum0, mean0, sin_a, friction, n_cand, pool_crossed, &
+                            decided, crossed)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), intent(in) :: h, sum0, mean0, sin_a, friction
+    integer(ip), intent(in) :: n_cand
+    logical, intent(in) :: pool_crossed
+    logical, intent(out) :: decided, crossed
+    real(dp), parameter :: u = epsilon(1.0_dp)/2.0_dp
+    real(dp) :: dsum_a, err, mean_lo, mean_hi, e_lo, e_hi, f_lo, f_hi, s_lo, s_hi, xi
+    integer(ip) :: k, i
+    logical :: all_below
+
+    xi = p%chain%xi
+    dsum_a = ws%dsum + (h*ws%sum_v + 0.5_dp*h*h*ws%sum_acc)
+    err = 2.0_dp*u*(2.0_dp*ws%abs_du + 4.0_dp*real(ws%n_active + 4*ws%n_runs + 8, dp) &
+                    *(h*ws%abs_v + h*h*ws%abs_acc + abs(ws%dsum)) + abs(dsum_a)) + tiny(1.0_dp)
+    mean_lo = (sum0 + (dsum_a - err))/real(p%chain%n, dp)
+    mean_hi = (sum0 + (dsum_a + err))/real(p%chain%n, dp)
+    decided = .true.
+    crossed = .true.
+    all_below = .true.
+    do k = 1, n_cand
+      i = ws%cand(k)
+      e_lo = -huge(1.0_dp)
+      call force_correct_run(p%chain, e0, i, i, mean_lo, sin_a, h, friction, ws%du_t, ws%dir, &
+                             ws%v, ws%acc, ws%thr, ws%f_t, ws%acc_t, ws%v_t, e_lo)
+      f_lo = ws%f_t(i)
+      e_hi = -huge(1.0_dp)
+      call force_correct_run(p%chain, e0, i, i, mean_hi, sin_a, h, friction, ws%du_t, ws%dir, &
+                             ws%v, ws%acc, ws%thr, ws%f_t, ws%acc_t, ws%v_t, e_hi)
+      f_hi = ws%f_t(i)
+      if (e_lo > 0.0_dp .and. e_hi > 0.0_dp .and. (ws%dir(i) /= 0.0_dp .or. &
+          (f_lo > 0.0_dp .and. f_hi > 0.0_dp) .or. (f_lo < 0.0_dp .and. f_hi < 0.0_dp))) return
+      all_below = all_below .and. e_lo <= 0.0_dp .and. e_hi <= 0.0_dp
+    end do
+    if (pool_crossed) then      ! shift > min_plus rises with the mean, -shift > min_minus falls
+      s_lo = xi*(mean_lo - mean0)
+      s_hi = xi*(mean_hi - mean0)
+      if ((s_lo > ws%min_plus .and. s_hi > ws%min_plus) .or. &
+          (-s_lo > ws%min_minus .and. -s_hi > ws%min_minus)) return
+      all_below = all_below .and. .not. (s_lo > ws%min_plus .or. s_hi > ws%min_plus .or. &
+                                         -s_lo > ws%min_minus .or. -s_hi > ws%min_minus)
+    end if
+    crossed = .false.
+    decided = all_below
+  end subroutine enclosed_trial
+
+  !> The sums over the active sliders that enclosed_trial needs (once per
+  !> crossing step, at its start).
+  subroutine mean_sums(ws)
+    type(workspace), intent(inout) :: ws
+    integer(ip) :: r, i
+
+    ws%sum_v = 0.0_dp
+    ws%sum_acc = 0.0_dp
+    ws%abs_du = 0.0_dp
+    ws%abs_v = 0.0_dp
+    ws%abs_acc = 0.0_dp
+    ws%n_active = 0
+    do r = 1, ws%n_runs
+      ws%n_active = ws%n_active + (ws%run_hi(r) - ws%run_lo(r) + 1)
+      do i = ws%run_lo(r), ws%run_hi(r)
+        ws%sum_v = ws%sum_v + ws%v(i)
+        ws%sum_acc = ws%sum_acc + ws%acc(i)
+        ws%abs_v = ws%abs_v + abs(ws%v(i))
+        ws%abs_acc = ws%abs_acc + abs(ws%acc(i))
+        ws%abs_du = ws%abs_du + abs(ws%du(i))
+      end do
+    end do
+  end subroutine mean_sums
 
   !> Velocity-Verlet positions over one run: du_t = du + v h + acc h**2/2.
   pure subroutine predict_run(lo, hi, h, du, v, acc, du_t)
@@ -772,11 +1009,15 @@ contains
     end do
   end subroutine predict_run
 
-  !> dsum = dsum + sum of (du_t - du) over one run (four partial sums: the
-  !> order of the additions is free, the chain of dependent additions short).
-  pure subroutine add_increments(lo, hi, du, du_t, dsum)
+  !> predict_run fused with dsum = dsum + sum of (du_t - du) over the run
+  !> (xi > 0: the mean moves).  Four partial sums: the order of the
+  !> additions is free, the chain of dependent additions short; it is fixed
+  !> (slider lo + j goes to sum j mod 4), so every trial rounds alike.
+  pure subroutine predict_sum_run(lo, hi, h, du, v, acc, du_t, dsum)
     integer(ip), intent(in) :: lo, hi
-    real(dp), contiguous, intent(in) :: du(:), du_t(:)
+    real(dp), intent(in) :: h
+    real(dp), contiguous, intent(in) :: du(:), v(:), acc(:)
+    real(dp), contiguous, intent(inout) :: du_t(:)
     real(dp), intent(inout) :: dsum
     integer(ip) :: i, last
     real(dp) :: s1, s2, s3, s4
@@ -787,40 +1028,78 @@ contains
     s4 = 0.0_dp
     last = lo + 4*((hi - lo + 1)/4) - 1
     do i = lo, last, 4
+      du_t(i) = du(i) + (v(i)*h + 0.5_dp*acc(i)*h*h)
+      du_t(i + 1) = du(i + 1) + (v(i + 1)*h + 0.5_dp*acc(i + 1)*h*h)
+      du_t(i + 2) = du(i + 2) + (v(i + 2)*h + 0.5_dp*acc(i + 2)*h*h)
+      du_t(i + 3) = du(i + 3) + (v(i + 3)*h + 0.5_dp*acc(i + 3)*h*h)
       s1 = s1 + (du_t(i) - du(i))
       s2 = s2 + (du_t(i + 1) - du(i + 1))
       s3 = s3 + (du_t(i + 2) - du(i + 2))
       s4 = s4 + (du_t(i + 3) - du(i + 3))
     end do
     do i = last + 1, hi
+      du_t(i) = du(i) + (v(i)*h + 0.5_dp*acc(i)*h*h)
       s1 = s1 + (du_t(i) - du(i))
     end do
     dsum = dsum + ((s1 + s2) + (s3 + s4))
-  end subroutine add_increments
+  end subroutine predict_sum_run
 
-  !> Velocity-Verlet velocities over one run from the trial forces f, and
-  !> the largest crossing excess: -dir v_t for a mover (its velocity turned
-  !> against its direction if > 0), |f| - thr for a resting slider (beyond
-  !> its threshold if > 0).  For a mover (dir = +-1, dir**2 = 1) acc_t is
-  !> f - friction dir exactly, for a resting one (dir = 0) it is 0, and v_t
-  !> stays 0; a crossing is excess > 0, exactly the reference's tests.
-  !> Branch-free, so that it vectorises.
-  pure subroutine correct_run(lo, hi, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+  !> The second half of a trial over one run, in one pass: the force
+  !> F = E + sin(a) from the trial positions (sliders_chain's formula and
+  !> rounding, written out here so that it fuses with the rest; the chain's
+  !> ends through elastic_force), then verlet_correct.  Vectorises.
+  pure subroutine force_correct_run(chain, e0, lo, hi, mean, sin_a, h, friction, du_t, dir, &
+                                    v, acc, thr, f, acc_t, v_t, excess)
+    type(chain_params), intent(in) :: chain
+    real(dp), contiguous, intent(in) :: e0(:)
     integer(ip), intent(in) :: lo, hi
+    real(dp), intent(in) :: mean, sin_a, h, friction
+    real(dp), contiguous, intent(in) :: du_t(:), dir(:), v(:), acc(:), thr(:)
+    real(dp), contiguous, intent(inout) :: f(:), acc_t(:), v_t(:)
+    real(dp), intent(inout) :: excess
+    integer(ip) :: i, first, last
+    real(dp) :: xi
+
+    first = max(lo, 2_ip)
+    last = min(hi, chain%n - 1_ip)
+    xi = chain%xi
+    if (lo == 1) then
+      f(1) = elastic_force(chain, e0, du_t, 1_ip, mean) + sin_a
+      call verlet_correct(1_ip, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+    end if
+    if (xi /= 0.0_dp) then
+      do i = first, last
+        f(i) = ((e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) &
+                - xi*(du_t(i) - mean)) + sin_a
+        call verlet_correct(i, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+      end do
+    else
+      do i = first, last
+        f(i) = (e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) + sin_a
+        call verlet_correct(i, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+      end do
+    end if
+    if (hi == chain%n .and. chain%n > 1) then
+      f(hi) = elastic_force(chain, e0, du_t, hi, mean) + sin_a
+      call verlet_correct(hi, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+    end if
+  end subroutine force_correct_run
+
+  !> Velocity-Verlet velocity of slider i from its trial force f(i), and the
+  !> largest crossing excess so far (crossing_excess).  For a mover (dir =
+  !> +-1, dir**2 = 1) acc_t is f - friction dir exactly, for a resting one
+  !> (dir = 0) it is 0 and v_t stays 0.  Branch-free.
+  pure subroutine verlet_correct(i, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+    integer(ip), intent(in) :: i
     real(dp), intent(in) :: h, friction
     real(dp), contiguous, intent(in) :: f(:), dir(:), v(:), acc(:), thr(:)
     real(dp), contiguous, intent(inout) :: acc_t(:), v_t(:)
     real(dp), intent(inout) :: excess
-    integer(ip) :: i
-    real(dp) :: moving
 
-    do i = lo, hi
-      moving = dir(i)*dir(i)
-      acc_t(i) = (f(i) - friction*dir(i))*moving
-      v_t(i) = v(i) + 0.5_dp*(acc(i) + acc_t(i))*h
-      excess = max(excess, crossing_excess(dir(i), v_t(i), f(i), thr(i)))
-    end do
-  end subroutine correct_run
+    acc_t(i) = (f(i) - friction*dir(i))*(dir(i)*dir(i))
+    v_t(i) = v(i) + 0.5_dp*(acc(i) + acc_t(i))*h
+    excess = max(excess, crossing_excess(dir(i), v_t(i), f(i), thr(i)))
+  end subroutine verlet_correct
 
   !> How far a slider is beyond a crossing (a crossing if > 0): -dir v_t for
   !> a mover (its velocity turned against its direction), |f| - thr for a
@@ -841,20 +1120,17 @@ contains
     crossed = shift > ws%min_plus .or. -shift > ws%min_minus
   end function pool_crosses
 
-  !> Takes the trial over one run.
-  pure subroutine accept_run(lo, hi, du_t, v_t, acc_t, du, v, acc)
-    integer(ip), intent(in) :: lo, hi
-    real(dp), contiguous, intent(in) :: du_t(:), v_t(:), acc_t(:)
-    real(dp), contiguous, intent(inout) :: du(:), v(:), acc(:)
+  !> The caller's du gets the event's displacements (the involved sliders:
+  !> no other slider moved).
+  subroutine store_displacements(ws, du)
+    type(workspace), intent(in) :: ws
+    real(dp), contiguous, intent(inout) :: du(:)
+    integer(ip) :: k
 
-    integer(ip) :: i
-
-    do i = lo, hi
-      du(i) = du_t(i)
-      v(i) = v_t(i)
-      acc(i) = acc_t(i)
+    do k = 1, ws%ni
+      du(ws%ilist(k)) = ws%du(ws%ilist(k))
     end do
-  end subroutine accept_run
+  end subroutine store_displacements
 
   !> Whether du and v of every active slider are finite.
   pure function all_finite(ws, du) result(finite)
@@ -940,6 +1216,9 @@ contains
     real(dp), intent(in) :: shift
 
     ws%active(i) = .false.
+    ws%du_t(i) = ws%du(i)      ! outside the runs both buffers agree (run_event swaps them)
+    ws%v_t(i) = 0.0_dp
+    ws%acc_t(i) = 0.0_dp
     ws%gap_plus(i) = ws%thr(i) - (ws%f_t(i) - shift)
     ws%gap_minus(i) = ws%thr(i) + (ws%f_t(i) - shift)
     if (ws%arg_plus == 0 .or. ws%gap_plus(i) < ws%min_plus) then
@@ -956,15 +1235,89 @@ contains
   !> range of the involved ones (the active sliders are involved).
   subroutine find_runs(ws)
     type(workspace), intent(inout) :: ws
-    integer(ip) :: i
 
     ws%n_runs = 0
-    i = ws%i_lo
-    do while (i <= ws%i_hi)
+    call scan_runs(ws, ws%i_lo, ws%i_hi)
+  end subroutine find_runs
+
+  !> find_runs after a crossing step, in O(active + starts) instead of
+  !> O(range of the involved sliders) (a slip front leaves a range of
+  !> thousands behind it): every active slider now was active before (in an
+  !> old run) or is a neighbour of one of the n_start sliders in ws%slist
+  !> that started in this step, so the maximal runs are found by scanning
+  !> the old runs and the starts' neighbourhoods, widened by one and merged
+  !> where they overlap or touch (a run cannot cross the edge of such a
+  !> merged segment: the slider beyond it is not active).
+  subroutine update_runs(ws, n, n_start)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: n, n_start
+    integer(ip) :: k, j, n_seg, r, lo, hi, key
+
+    ! the starts' positions, increasing (insertion sort: there are few)
+    do k = 2, n_start
+      key = ws%slist(k)
+      j = k - 1
+      do while (j >= 1)
+        if (ws%slist(j) <= key) exit
+        ws%slist(j + 1) = ws%slist(j)
+        j = j - 1
+      end do
+      ws%slist(j + 1) = key
+    end do
+    ! merge the old runs and the starts, both increasing, into segments
+    n_seg = 0
+    r = 1
+    k = 1
+    do while (r <= ws%n_runs .or. k <= n_start)
+      if (k > n_start) then
+        lo = ws%run_lo(r) - 1
+        hi = ws%run_hi(r) + 1
+        r = r + 1
+      else if (r > ws%n_runs) then
+        lo = ws%slist(k) - 1
+        hi = ws%slist(k) + 1
+        k = k + 1
+      else if (ws%run_lo(r) <= ws%slist(k)) then
+        lo = ws%run_lo(r) - 1
+        hi = ws%run_hi(r) + 1
+        r = r + 1
+      else
+        lo = ws%slist(k) - 1
+        hi = ws%slist(k) + 1
+        k = k + 1
+      end if
+      lo = max(lo, 1_ip)
+      hi = min(hi, n)
+      if (n_seg > 0) then
+        if (lo <= ws%seg_hi(n_seg) + 1) then
+          ws%seg_hi(n_seg) = max(ws%seg_hi(n_seg), hi)
+          cycle
+        end if
+      end if
+      n_seg = n_seg + 1
+      ws%seg_lo(n_seg) = lo
+      ws%seg_hi(n_seg) = hi
+    end do
+    ! the maximal runs of active sliders inside the segments
+    ws%n_runs = 0
+    do k = 1, n_seg
+      call scan_runs(ws, ws%seg_lo(k), ws%seg_hi(k))
+    end do
+  end subroutine update_runs
+
+  !> Appends the maximal runs of active sliders within lo..hi to ws%run_lo,
+  !> ws%run_hi (the sliders just outside lo..hi are not active).
+  subroutine scan_runs(ws, lo, hi)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: lo, hi
+    integer(ip) :: i
+
+    i = lo
+    do while (i <= hi)
       if (ws%active(i)) then
         ws%n_runs = ws%n_runs + 1
         ws%run_lo(ws%n_runs) = i
-        do while (i < ws%i_hi)
+        do while (i < hi)
           if (.not. ws%active(i + 1)) exit
           i = i + 1
         end do
@@ -972,7 +1325,7 @@ contains
       end if
       i = i + 1
     end do
-  end subroutine find_runs
+  end subroutine scan_runs
 
   !> Minima of gap_plus and gap_minus over the pool (+inf if it is empty),
   !> and where they are (0 if empty).  Without coupling (`pool` false) the
@@ -1041,11 +1394,10 @@ contains
                         ws%root_up(i))
         call tree_update(ws, i)
       end do
-    else
+    else      ! the angles: coupled_next, where they matter
       do i = 1, n
         ws%elastic(i) = elastic_force(p%chain, e0, du, i, mean)
       end do
-      call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
     end if
     do k = 1, ws%ni
       i = ws%ilist(k)
@@ -1054,6 +1406,10 @@ contains
       ws%redrawn(i) = .false.
       ws%du_start(i) = du(i)
       ws%du_t(i) = du(i)
+      ws%v(i) = 0.0_dp
+      ws%v_t(i) = 0.0_dp
+      ws%acc(i) = 0.0_dp
+      ws%acc_t(i) = 0.0_dp
     end do
     ws%ni = 0
     ws%n_runs = 0

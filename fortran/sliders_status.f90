@@ -9,7 +9,7 @@ module sliders_status
 
   public :: status_running, status_avalanche, status_alpha_max, status_max_events
   public :: status_event_duration_cap, status_non_finite, status_random_failure
-  public :: status_relaxed, status_sparse_full
+  public :: status_relaxed, status_sparse_full, status_interrupted, status_refine_limit
 
   !> The chunk's event budget is used up; call again.
   integer(ip), parameter :: status_running = 0
@@ -29,5 +29,11 @@ module sliders_status
   integer(ip), parameter :: status_relaxed = 7
   !> The event or displacement buffer is full (call again).
   integer(ip), parameter :: status_sparse_full = 8
+  !> The caller raised the interrupt flag (Ctrl-C): the event in progress is
+  !> undone, the completed events are kept.
+  integer(ip), parameter :: status_interrupted = 9
+  !> A crossing's bracket was still wider than refine_tol after the bounded
+  !> number of halvings (refine_tol below what the step can resolve).
+  integer(ip), parameter :: status_refine_limit = 10
 
 end module sliders_status

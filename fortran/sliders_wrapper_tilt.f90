@@ -17,6 +17,11 @@
 ! final_steps and final_slider_steps describe the event that ended the run
 ! unfinished (avalanche, cap, error; zero otherwise); detail tells what a
 ! non-finite status refers to (1: the resting chain, 2: the moving state).
+!
+! The call releases the GIL (threadsafe), so that Python can run it in a
+! worker thread and stay responsive to Ctrl-C: setting interrupt(1) /= 0 from
+! the main thread ends the call with status 9 (interrupted) within ~1e5
+! slider-steps, the event in progress undone (fortran_engine.py).
 
 subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigma_mu, &
                         seed, dt, refine_tol, max_event_duration, alpha_max, force_tol, &
@@ -25,11 +30,12 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigm
                         mu_s, n_stops, displacement, alpha, &
                         event_real, event_int, sparse_ptr, sparse_index, sparse_value, &
                         alpha_out, n_events, n_sparse, status, alpha_c, event_time, &
-                        final_steps, final_slider_steps, detail)
+                        final_steps, final_slider_steps, detail, interrupt)
   use iso_c_binding, only: c_double, c_int, c_int64_t
   use sliders_events, only: tilt_params, tilt_run
   implicit none
   integer(c_int), intent(in) :: n
+  !f2py threadsafe
   !f2py integer(c_int) intent(hide), depend(elastic_force0) :: n = len(elastic_force0)
   integer(c_int), intent(in) :: n_cap
   !f2py integer(c_int) intent(hide), depend(event_real) :: n_cap = shape(event_real, 0)
@@ -53,6 +59,7 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigm
   real(c_double), intent(out) :: alpha_out, alpha_c, event_time
   integer(c_int64_t), intent(out) :: final_steps, final_slider_steps
   integer(c_int), intent(out) :: n_events, n_sparse, status, detail
+  integer(c_int), intent(inout) :: interrupt(1)
   type(tilt_params) :: p
   integer(c_int64_t) :: final_work(2)
 
@@ -75,7 +82,7 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, walls, xi, mu_d, mu_s_mean, sigm
   call tilt_run(p, elastic_force0, spring_extension0, cantilever_stretch0, mu_s, n_stops, &
                 displacement, alpha_out, event_real, event_int, sparse_ptr, sparse_index, &
                 sparse_value, n_events, n_sparse, status, alpha_c, event_time, final_work, &
-                detail)
+                detail, interrupt)
   final_steps = final_work(1)
   final_slider_steps = final_work(2)
 end subroutine tilt_advance

@@ -11,17 +11,28 @@ calls).  It stops before starting an event when the event buffer is full or,
 when displacements are recorded, fewer than N sparse entries are free, and
 returns ``SPARSE_FULL``; the driver calls again.  A relax-only call must end
 ``RELAXED``, so there the engine calls again itself and joins the pieces.
+
+Interruption.  The kernel call releases the GIL and runs in a worker thread;
+the calling thread waits in short waits, so Ctrl-C reaches it at once.  On
+``KeyboardInterrupt`` the engine raises the kernel's interrupt flag, waits for
+the kernel (it reads the flag every 1e5 slider-steps, well under a
+millisecond) and returns a ``Chunk`` with status ``INTERRUPTED``: the events
+completed in the call, the event in progress undone entirely (displacements,
+draws, stop counts, alpha), exactly as ``reference.NumpyEngine`` does.  Any
+other exception arriving while it waits also stops the kernel first (the
+state is then consistent) and is raised again.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
 from . import keyed_random, status
 from .chain import ChainState
-from .reference import Chunk
+from .reference import Chunk, refine_limit_message
 from .scene import Scene
 
 EVENT_CAPACITY = 4096  # event buffer of a relax-only call
@@ -29,6 +40,7 @@ MAX_EVENT_CAPACITY = 1 << 16  # events per kernel call, at most (4.7 MB of buffe
 _REAL_FIELDS = ("alpha", "duration", "work_gravity", "elastic_change", "dissipation")
 _INT_FIELDS = ("n_moved", "n_stops", "n_steps", "slider_steps")
 _DETAIL_RESTING, _DETAIL_STATE = 1, 2  # sliders_events: detail_resting, detail_state
+_WAIT_SECONDS = 0.05  # the waiting thread wakes this often (signals reach it at once anyway)
 
 
 def sparse_capacity(n_sliders: int) -> int:
@@ -52,6 +64,7 @@ class FortranEngine:
         self._sparse_value = np.zeros(self._sparse_index.size)
         self._capacity = 0
         self._event_real = self._event_int = self._sparse_ptr = None
+        self._interrupt = np.zeros(1, dtype=np.int32)  # read by the kernel (VOLATILE)
 
     def _buffers(self, capacity: int) -> None:
         if capacity > self._capacity:
@@ -91,13 +104,13 @@ class FortranEngine:
             raise ValueError("inconsistent ChainState array sizes")
 
         (alpha, n_events, n_sparse, code, alpha_c, event_time, final_steps, final_slider_steps,
-         detail) = self._tilt_advance(
+         detail) = self._interruptible(
             int(sc.walls), float(sc.xi), float(sc.mu_d), float(sc.mu_s_mean), float(sc.sigma_mu),
             int(sc.seed), float(sc.dt), float(sc.refine_tol), float(sc.max_event_duration),
             float(sc.alpha_max), float(sc.force_tol), int(self._record_sparse), int(relax_only),
             max_events, e0, t0, w0, mu, stops, du, float(state.alpha),
             self._event_real, self._event_int, self._sparse_ptr,
-            self._sparse_index, self._sparse_value,
+            self._sparse_index, self._sparse_value, self._interrupt,
         )
         # write back (no-ops when the state arrays were passed themselves)
         state.mu_s[:] = mu
@@ -124,6 +137,47 @@ class FortranEngine:
         )
 
 
+    def _interruptible(self, *args):
+        """The kernel call in a worker thread; Ctrl-C raises the interrupt flag.
+
+        Returns the kernel's outputs.  After a KeyboardInterrupt the status is
+        INTERRUPTED unless the kernel had already ended the run (avalanche,
+        alpha_max, an error): a finished run is not thrown away.
+        """
+        self._interrupt[0] = 0
+        outcome: dict = {}
+        finished = threading.Event()
+
+        def kernel():
+            try:
+                outcome["value"] = self._tilt_advance(*args)
+            except BaseException as exc:  # handed to the calling thread
+                outcome["error"] = exc
+            finally:
+                finished.set()
+
+        worker = threading.Thread(target=kernel, name="sliders-kernel", daemon=True)
+        worker.start()
+        pending = None
+        # An Event, not Thread.join: a join interrupted by KeyboardInterrupt
+        # can leave is_alive() False while the thread still runs.
+        while not finished.is_set():
+            try:
+                finished.wait(_WAIT_SECONDS)
+            except BaseException as exc:  # Ctrl-C (or a signal handler's exception)
+                self._interrupt[0] = 1
+                pending = pending or exc
+        worker.join()
+        if "error" in outcome:
+            raise outcome["error"]
+        if pending is not None and not isinstance(pending, KeyboardInterrupt):
+            raise pending
+        value = list(outcome["value"])
+        if pending is not None and value[3] in (status.RUNNING, status.SPARSE_FULL):
+            value[3] = status.INTERRUPTED  # it returned before it saw the flag
+        return value
+
+
 def _final_event(duration: float, n_steps: int, slider_steps: int) -> dict:
     """The work of the event that ended the run unfinished (empty between
     events: the kernel reports zero steps then)."""
@@ -141,6 +195,10 @@ def _message(sc: Scene, code: int, detail: int, alpha: float, event_time: float)
     if code == status.EVENT_DURATION_CAP:
         return (f"rearrangement at alpha={alpha:.6f} still moving after "
                 f"{event_time:.1f} tau (max_event_duration={sc.max_event_duration} tau)")
+    if code == status.INTERRUPTED:
+        return "interrupted by the user"
+    if code == status.REFINE_LIMIT:
+        return refine_limit_message(sc, alpha)
     if code == status.RANDOM_FAILURE:
         return (f"static coefficient: no draw above mu_d={sc.mu_d} in "
                 f"{keyed_random.MAX_ATTEMPTS} attempts "

@@ -24,6 +24,12 @@ Algorithm (MODEL.md sections 3-5):
 * A stopping slider comes to rest (v = 0), increments its stop count k and
   draws mu_s(seed, n, k); if |F| still exceeds the new threshold it restarts
   at once in the direction of F.
+* The bracket is halved at most ``MAX_HALVINGS`` times: a ``refine_tol``
+  below what the step can resolve ends the run with ``REFINE_LIMIT`` (the
+  event undone, as for the cap) instead of looping for ever.
+* Ctrl-C (KeyboardInterrupt) inside ``advance`` undoes the event in progress
+  entirely (displacements, draws, stop counts, alpha) and returns the events
+  completed so far with status ``INTERRUPTED``.
 * The event ends when every slider is at rest.  The avalanche is the paper's
   criterion: every slider is moving, all downwards, with tan(alpha) > mu_d so
   that the centre of mass accelerates.  An event longer than
@@ -42,6 +48,10 @@ from .chain import ChainState, elastic_energy, elastic_force
 from .scene import Scene
 
 TIE_TOL = 1e-12  # sliders whose instability angles tie within this start together
+# Halvings of a crossing bracket, at most (sliders_events.max_halvings): a step
+# of 1 tau closes to 3e-39 within them, so only a refine_tol below what the
+# step can resolve reaches the bound.
+MAX_HALVINGS = 128
 # The transcendentals of next_instability: NumPy's; a caller may put the C
 # library's here (as keyed_random.TRANSCENDENTALS).
 TRANSCENDENTALS = {"asin": np.arcsin, "atan": np.arctan, "hypot": np.hypot}
@@ -99,6 +109,13 @@ def next_instability(elastic: np.ndarray, mu: np.ndarray, alpha: float):
     return angle, triggers, directions
 
 
+def refine_limit_message(scene: Scene, alpha: float) -> str:
+    """What a run ended by the bisection bound says (both backends)."""
+    return (f"crossing refinement at alpha={alpha:.6f}: bracket still wider than "
+            f"refine_tol={scene.refine_tol} tau after {MAX_HALVINGS} halvings of dt={scene.dt} "
+            f"(below double precision; use a larger refine_tol)")
+
+
 class NumpyEngine:
     """The reference backend: same interface as the Fortran one."""
 
@@ -126,37 +143,56 @@ class NumpyEngine:
             )
 
         while True:
-            elastic = elastic_force(state, sc.xi, sc.walls)
-            if not np.all(np.isfinite(elastic)):
-                return chunk(status.NON_FINITE, message="non-finite force in the resting chain")
-            force = elastic + math.sin(state.alpha)
-            unstable = np.abs(force) > state.mu_s * math.cos(state.alpha) + sc.force_tol
-            if unstable.any():  # relaxation (preparation with coupling)
-                triggers = np.flatnonzero(unstable)
-                directions = np.sign(force[triggers])
-            elif relax_only:
-                return chunk(status.RELAXED)
-            else:
-                if len(records) >= max_events:
-                    return chunk(status.RUNNING)
-                angle, triggers, directions = next_instability(elastic, state.mu_s, state.alpha)
-                if angle > sc.alpha_max:
-                    return chunk(status.ALPHA_MAX)
-                state.alpha = angle
-            outcome = self._event(state, triggers, directions)
-            if outcome.status != status.RUNNING:
-                work = {k: outcome.record[k] for k in ("duration", "n_steps", "slider_steps")}
-                if outcome.status == status.AVALANCHE:
-                    return chunk(status.AVALANCHE, alpha_c=state.alpha, final_event=work)
-                return chunk(outcome.status, message=outcome.record.get("message", ""),
-                             final_event=work)
-            records.append(outcome.record)
-            if sc.record != "summary":
-                index.append(outcome.moved_index)
-                disp.append(outcome.moved_displacement)
-                ptr.append(ptr[-1] + outcome.moved_index.size)
-            else:
-                ptr.append(0)
+            # everything one iteration may change, to undo it on Ctrl-C
+            undo = (state.alpha, state.displacement.copy(), state.mu_s.copy(),
+                    state.n_stops.copy(), len(records), len(ptr), len(index))
+            try:
+                done = self._one_event(state, max_events, relax_only, records, ptr, index,
+                                       disp, chunk)
+            except KeyboardInterrupt:
+                alpha, du, mu, stops, n_records, n_ptr, n_index = undo
+                state.alpha = alpha
+                state.displacement[:], state.mu_s[:], state.n_stops[:] = du, mu, stops
+                del records[n_records:], ptr[n_ptr:], index[n_index:], disp[n_index:]
+                return chunk(status.INTERRUPTED, message="interrupted by the user")
+            if done is not None:
+                return done
+
+    def _one_event(self, state, max_events, relax_only, records, ptr, index, disp, chunk):
+        """One iteration of advance: a Chunk if the call ends, else None."""
+        sc = self.scene
+        elastic = elastic_force(state, sc.xi, sc.walls)
+        if not np.all(np.isfinite(elastic)):
+            return chunk(status.NON_FINITE, message="non-finite force in the resting chain")
+        force = elastic + math.sin(state.alpha)
+        unstable = np.abs(force) > state.mu_s * math.cos(state.alpha) + sc.force_tol
+        if unstable.any():  # relaxation (preparation with coupling)
+            triggers = np.flatnonzero(unstable)
+            directions = np.sign(force[triggers])
+        elif relax_only:
+            return chunk(status.RELAXED)
+        else:
+            if len(records) >= max_events:
+                return chunk(status.RUNNING)
+            angle, triggers, directions = next_instability(elastic, state.mu_s, state.alpha)
+            if angle > sc.alpha_max:
+                return chunk(status.ALPHA_MAX)
+            state.alpha = angle
+        outcome = self._event(state, triggers, directions)
+        if outcome.status != status.RUNNING:
+            work = {k: outcome.record[k] for k in ("duration", "n_steps", "slider_steps")}
+            if outcome.status == status.AVALANCHE:
+                return chunk(status.AVALANCHE, alpha_c=state.alpha, final_event=work)
+            return chunk(outcome.status, message=outcome.record.get("message", ""),
+                         final_event=work)
+        records.append(outcome.record)
+        if sc.record != "summary":
+            index.append(outcome.moved_index)
+            disp.append(outcome.moved_displacement)
+            ptr.append(ptr[-1] + outcome.moved_index.size)
+        else:
+            ptr.append(0)
+        return None
 
     # -- one rearrangement ------------------------------------------------
     def _event(self, state: ChainState, triggers, directions) -> _EventOutcome:
@@ -214,7 +250,12 @@ class NumpyEngine:
             candidates = crossings(trial)
             if candidates.any():
                 lo, hi = 0.0, h
+                halvings = 0
                 while hi - lo > sc.refine_tol:
+                    if halvings == MAX_HALVINGS:  # refine_tol below the step's resolution
+                        return unfinished(status.REFINE_LIMIT,
+                                          refine_limit_message(sc, state.alpha))
+                    halvings += 1
                     mid = 0.5 * (lo + hi)
                     trial_mid = substep(mid)
                     if crossings(trial_mid)[candidates].any():

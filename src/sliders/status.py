@@ -11,7 +11,8 @@ NON_FINITE = 5  # a NaN or infinity appeared in the state
 RANDOM_FAILURE = 6  # no static coefficient above mu_d could be drawn
 RELAXED = 7  # relax-only call: the chain is at rest at the current angle
 SPARSE_FULL = 8  # the displacement buffer filled mid-chunk (call again)
-INTERRUPTED = 9  # Python only: Ctrl-C/SIGTERM; the completed events are kept
+INTERRUPTED = 9  # Ctrl-C/SIGTERM; the event in progress is undone, the completed ones kept
+REFINE_LIMIT = 10  # a crossing bracket stayed wider than refine_tol after MAX_HALVINGS halvings
 
 NAMES = {
     RUNNING: "running",
@@ -24,10 +25,11 @@ NAMES = {
     RELAXED: "relaxed",
     SPARSE_FULL: "sparse_full",
     INTERRUPTED: "interrupted",
+    REFINE_LIMIT: "refine_limit",
 }
 
 FINAL_OK = {AVALANCHE, ALPHA_MAX, MAX_EVENTS}
-ERRORS = {EVENT_DURATION_CAP, NON_FINITE, RANDOM_FAILURE}
+ERRORS = {EVENT_DURATION_CAP, NON_FINITE, RANDOM_FAILURE, REFINE_LIMIT}
 
 # Per-event scalar records, in this order in both backends.
 EVENT_FIELDS = (

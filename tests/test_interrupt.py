@@ -1,0 +1,119 @@
+"""Ctrl-C inside ``engine.advance`` (issue 16, "No hang, ever"; kernel side).
+
+A real SIGINT is sent to a child process while ``advance`` runs (for the
+Fortran kernel: inside the kernel call, in the middle of an event).  The call
+must return within 2 s a chunk with status INTERRUPTED holding the events
+completed in the call, and leave the state of the uninterrupted run after the
+same number of events: the event in progress undone entirely (displacements,
+draws, stop counts, alpha).  Also here: the bisection's bound on both backends.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+import sliders
+from sliders import Scene, prepare, status
+from sliders.driver import make_engine
+
+# An event that never ends (no dynamic friction between walls: nothing
+# dissipates; its sliders stop, redraw and restart) after two ordinary ones,
+# run before the signal's call; and ordinary tilts, interrupted mid-run.
+ENDLESS = dict(n_sliders=10, seed=1, mu_d=0.0, ends="walls", alpha_max=1.0,
+               max_event_duration=1e12)
+SCENES = {  # (scene, events run before the interrupted call, seconds before SIGINT)
+    ("fortran", "endless"): (ENDLESS, 2, 1.0),
+    ("numpy", "endless"): (ENDLESS, 2, 1.0),
+    ("fortran", "tilt"): (dict(n_sliders=1000, seed=0, record="summary"), 0, 1.0),
+    ("numpy", "tilt"): (dict(n_sliders=30, xi=0.001, seed=3, dt=0.01), 0, 1.5),
+}
+
+CHILD = r"""
+import json, sys
+from sliders import Scene, prepare
+from sliders.driver import make_engine
+backend, scene, before = sys.argv[1], Scene(**json.loads(sys.argv[2])), int(sys.argv[3])
+engine = make_engine(scene, backend)
+state = prepare(scene)
+engine.advance(state, max_events=scene.max_events, relax_only=True)
+assert engine.advance(state, max_events=before).n_events == before
+print("ready", flush=True)
+chunk = engine.advance(state, max_events=10**6)
+print(json.dumps({"status": chunk.status, "message": chunk.message,
+                  "n_events": chunk.n_events, "final_event": chunk.final_event,
+                  "alpha": state.alpha.hex(),
+                  "state": [a.tobytes().hex() for a in (state.displacement, state.mu_s,
+                                                         state.n_stops)]}), flush=True)
+"""
+
+
+def relaxed(scene: Scene, backend: str):
+    engine = make_engine(scene, backend)
+    state = prepare(scene)
+    engine.advance(state, max_events=scene.max_events, relax_only=True)
+    return engine, state
+
+
+@pytest.mark.parametrize("backend, kind", sorted(SCENES))
+def test_sigint_returns_the_completed_events_and_undoes_the_current_one(backend, kind):
+    params, before, delay = SCENES[backend, kind]
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    child = subprocess.Popen([sys.executable, "-c", CHILD, backend, json.dumps(params), str(before)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert child.stdout.readline().strip() == "ready", child.stderr.read()
+        time.sleep(delay)
+        assert child.poll() is None, "the run ended before the signal"
+        sent = time.perf_counter()
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=30)
+        took = time.perf_counter() - sent
+    finally:
+        child.kill()
+    assert child.returncode == 0, err
+    assert took < 2.0, f"stopped {took:.2f} s after SIGINT"
+    report = json.loads(out)
+    assert report["status"] == status.INTERRUPTED
+    assert report["message"] == "interrupted by the user"
+    assert report["final_event"] == {}
+    k = report["n_events"]  # completed in the interrupted call
+    assert k == 0 if kind == "endless" else k >= 1
+
+    scene = Scene(**params)
+    engine, state = relaxed(scene, backend)
+    chunk = engine.advance(state, max_events=before + k)
+    assert chunk.n_events == before + k and chunk.status == status.RUNNING
+    assert float.fromhex(report["alpha"]) == state.alpha
+    expected = [a.tobytes().hex() for a in (state.displacement, state.mu_s, state.n_stops)]
+    for name, got, want in zip(("displacement", "mu_s", "n_stops"), report["state"], expected):
+        assert got == want, name
+
+
+@pytest.mark.parametrize("backend", ["fortran", "numpy"])
+def test_an_unreachable_refine_tol_ends_with_its_status(backend):
+    """1e-20 tau cannot be resolved within a step of 1e-3: bounded halvings,
+    a clear status and message, the event undone (as for the duration cap)."""
+    scene = Scene(n_sliders=10, seed=0, refine_tol=1e-20)
+    run = sliders.tilt(scene, backend=backend)
+    assert run.status == "refine_limit"
+    assert "refine_tol=1e-20" in run.message and "128 halvings" in run.message
+    assert run.final_event["n_steps"] >= 1
+    untouched = prepare(scene)
+    np.testing.assert_array_equal(run.final.displacement, untouched.displacement)
+    np.testing.assert_array_equal(run.final.n_stops, untouched.n_stops)
+    np.testing.assert_array_equal(run.final.mu_s, untouched.mu_s)
+
+
+def test_a_resolvable_refine_tol_is_unaffected_by_the_bound():
+    """The bound never cuts a refinement that converges: 1e-15 at dt = 1e-2
+    needs 44 halvings and runs to the avalanche."""
+    run = sliders.tilt(Scene(n_sliders=10, seed=0, dt=1e-2, refine_tol=1e-15))
+    assert run.status == "avalanche"
