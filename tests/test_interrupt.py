@@ -23,6 +23,7 @@ import pytest
 import sliders
 from sliders import Scene, prepare, status
 from sliders.driver import make_engine
+from sliders.scene import SceneError
 
 # An event that never ends (no dynamic friction between walls: nothing
 # dissipates; its sliders stop, redraw and restart) after two ordinary ones,
@@ -100,8 +101,13 @@ def test_sigint_returns_the_completed_events_and_undoes_the_current_one(backend,
 @pytest.mark.parametrize("backend", ["fortran", "numpy"])
 def test_an_unreachable_refine_tol_ends_with_its_status(backend):
     """1e-20 tau cannot be resolved within a step of 1e-3: bounded halvings,
-    a clear status and message, the event undone (as for the duration cap)."""
-    scene = Scene(n_sliders=10, seed=0, refine_tol=1e-20)
+    a clear status and message, the event undone (as for the duration cap).
+    Scene refuses such a value up front; the kernel's own bound is the second
+    line of defence, tested here by setting the value past the validation."""
+    with pytest.raises(SceneError, match="refine_tol=1e-20 is out of range"):
+        Scene(n_sliders=10, seed=0, refine_tol=1e-20)
+    scene = Scene(n_sliders=10, seed=0)
+    object.__setattr__(scene, "refine_tol", 1e-20)
     run = sliders.tilt(scene, backend=backend)
     assert run.status == "refine_limit"
     assert "refine_tol=1e-20" in run.message and "128 halvings" in run.message
@@ -117,3 +123,26 @@ def test_a_resolvable_refine_tol_is_unaffected_by_the_bound():
     needs 44 halvings and runs to the avalanche."""
     run = sliders.tilt(Scene(n_sliders=10, seed=0, dt=1e-2, refine_tol=1e-15))
     assert run.status == "avalanche"
+
+
+def test_ctrl_c_as_the_run_ends_is_not_swallowed(monkeypatch):
+    """Ctrl-C that lands while the kernel returns its avalanche: the finished run
+    is kept (attached to the exception), and the interrupt still reaches the caller."""
+    from sliders import _kernel
+
+    real = _kernel.tilt_advance
+    whole = sliders.tilt(Scene(n_sliders=10, seed=0, mode="explore"))
+
+    def ends_then_ctrl_c(*args):
+        out = real(*args)
+        if out[3] == status.AVALANCHE:  # the call that ends the run
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.5)  # the main thread handles it while it waits for us
+        return out
+
+    monkeypatch.setattr(_kernel, "tilt_advance", ends_then_ctrl_c)
+    with pytest.raises(sliders.Interrupted) as caught:
+        sliders.tilt(Scene(n_sliders=10, seed=0, mode="explore"))
+    assert caught.value.partial.status == "avalanche"
+    assert caught.value.partial.alpha_c == whole.alpha_c
+    assert caught.value.partial.n_events == whole.n_events

@@ -161,6 +161,8 @@ def tilt(
             break
     result = _finish(scene, backend, code, message, alpha_c, chunks, initial, state, relaxation,
                      started, final_event)
+    if getattr(engine, "interrupted_late", False) and not keep_partial:
+        raise Interrupted(result)  # Ctrl-C as the run ended: the whole run, never swallowed
     return _interrupt_or_return(result, keep_partial)
 
 

@@ -145,6 +145,7 @@ class FortranEngine:
         alpha_max, an error): a finished run is not thrown away.
         """
         self._interrupt[0] = 0
+        self.interrupted_late = False
         outcome: dict = {}
         finished = threading.Event()
 
@@ -175,6 +176,10 @@ class FortranEngine:
         value = list(outcome["value"])
         if pending is not None and value[3] in (status.RUNNING, status.SPARSE_FULL):
             value[3] = status.INTERRUPTED  # it returned before it saw the flag
+        elif pending is not None and value[3] != status.INTERRUPTED:
+            # the run had ended (avalanche, alpha_max, an error) as Ctrl-C came:
+            # the result is kept, and the driver still raises the interrupt
+            self.interrupted_late = True
         return value
 
 
