@@ -21,7 +21,7 @@ time step) and in CPU seconds (this process; noisy on a shared machine).
 
 Rows are cached in ``--rows`` (JSON lines, one per realisation and cap) so a
 long scan can be run in pieces.  Prints its table and writes
-``benchmarks/results/slip_pulses_<scene>.json``.
+``benchmarks/results/slip_pulses_<scene>.{json,txt}``.
 
 Usage: python benchmarks/slip_pulses.py --scene mpi_runs/scenes/study_n400_xi0.toml \
            --realisations 1000 [--sample 40 --include 3 29 ...] [--rows rows.jsonl]
@@ -87,6 +87,9 @@ def main(argv=None) -> dict:
     parser.add_argument("--old-cap", type=float, default=OLD_CAP)
     parser.add_argument("--new-cap", type=float, default=None)
     parser.add_argument("--rows", default=None, help="JSON-lines cache of finished runs")
+    parser.add_argument("--study-realisations", type=int, default=None,
+                        help="size of the whole study when --realisations runs only its first R "
+                             "(seeds are hashed: the first R are a random sample)")
     parser.add_argument("--out", default=None)
     args = parser.parse_args(argv)
 
@@ -126,26 +129,36 @@ def main(argv=None) -> dict:
         extra = sum(new[r][unit] - old[r][unit] for r in pulses)
         totals[unit] = {"today": today, "extra": extra, "extra_fraction": extra / today}
 
-    print(f"{name}: {len(todo)} of {R} realisations run ({'all' if not args.sample else f'random sample of {len(sample)} + {len(args.include)} included'}); "
+    lines = []
+
+    def say(text):
+        print(text)
+        lines.append(text)
+
+    say(f"{name}: {len(todo)} of {R} realisations run ({'all' if not args.sample else f'random sample of {len(sample)} + {len(args.include)} included'}); "
           f"old cap {args.old_cap:g} tau, new cap {new_cap:g} tau")
-    print(f"{'r':>5} {'seed':>11} {'tan a - mu_d':>13} {'longest event':>14} {'status today':>20} "
+    say(f"{'r':>5} {'seed':>11} {'tan a - mu_d':>13} {'longest event':>14} {'status today':>20} "
           f"{'alpha_c new':>12} {'CPU today':>9} {'CPU new':>8} {'steps today':>12} {'steps new':>12}")
     for r in pulses:
         o, n = old[r], new[r]
-        print(f"{r:5d} {n['seed']:11d} {math.tan(n['longest_event_alpha']) - base.mu_d:13.2e} "
-              f"{n['longest_event']:12.4g} t {o['status']:>20} {n['alpha_c']:12.6f} "
+        say(f"{r:5d} {n['seed']:11d} {math.tan(n['longest_event_alpha']) - base.mu_d:13.2e} "
+              f"{n['longest_event']:10.4g} tau {o['status']:>20} {n['alpha_c']:12.6f} "
               f"{o['cpu']:9.2f} {n['cpu']:8.2f} {o['slider_steps']:12.4g} {n['slider_steps']:12.4g}")
     for unit, t in totals.items():
         how = "sum over all" if not args.sample else f"{scale:g} x sum over the random sample"
-        print(f"{unit:>12}: today {t['today']:.4g} ({how}), extra {t['extra']:.4g} "
+        say(f"{unit:>12}: today {t['today']:.4g} ({how}), extra {t['extra']:.4g} "
               f"(pulse realisations) = {100 * t['extra_fraction']:+.1f} %")
-    print(f"capped today: {len(capped_today)} {capped_today}; still unresolved with the new cap: "
+    if args.study_realisations:
+        say(f"the first {R} of the {args.study_realisations} realisations of the study: a random "
+            f"sample, so the extra fraction above is the estimate for the whole study")
+    say(f"capped today: {len(capped_today)} {capped_today}; still unresolved with the new cap: "
           f"{len(unresolved)} {unresolved}")
     if missed:
-        print(f"warning: pulse realisations of the random sample not in --include: {missed}")
+        say(f"warning: pulse realisations of the random sample not in --include: {missed}")
 
     report = {
-        "scene": args.scene, "realisations": R, "sample": sample if args.sample else "all",
+        "scene": args.scene, "realisations": R,
+        "study_realisations": args.study_realisations or R, "sample": sample if args.sample else "all",
         "include": args.include, "old_cap": args.old_cap, "new_cap": new_cap,
         "pulses": [{"new": new[r], "old": old[r]} for r in pulses],
         "capped_today": capped_today, "unresolved": unresolved, "totals": totals,
@@ -155,7 +168,8 @@ def main(argv=None) -> dict:
     out = Path(args.out) if args.out else RESULTS / f"slip_pulses_{name}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(report, indent=1) + "\n")
-    print(f"-> {out}")
+    out.with_suffix(".txt").write_text("\n".join(lines) + "\n")
+    print(f"-> {out}, {out.with_suffix('.txt')}")
     return report
 
 
