@@ -60,17 +60,17 @@ EVENTS_PER_SLIDER = 3.0
 SPEED_MODES: dict[str, dict[str, float]] = {
     # quick looks: no bias detected by 200 paired N = 100 runs; N = 10 event
     # angles to ~1e-3, same events; 7x cheaper than trajectory
-    "sketch": {"dt": 3e-2, "refine_tol": 1e-10, "max_event_duration": 1e5},
+    "sketch": {"dt": 3e-2, "refine_tol": 1e-10, "max_event_duration": 1e7},
     # ensembles of 20 to a few hundred runs: no bias resolved by 200 paired
     # N = 100 runs (alpha_c +4e-4 +- 2e-4, below the 20-run noise); 5x cheaper
-    "explore": {"dt": 1e-2, "refine_tol": 1e-10, "max_event_duration": 1e5},
+    "explore": {"dt": 1e-2, "refine_tol": 1e-10, "max_event_duration": 1e7},
     # statistics of any ensemble (1000 runs and more): 11x smaller local
     # error than explore, no bias resolved on alpha_c, P_i, event sizes
-    "statistics": {"dt": 3e-3, "refine_tol": 1e-10, "max_event_duration": 1e5},
+    "statistics": {"dt": 3e-3, "refine_tol": 1e-10, "max_event_duration": 1e7},
     # one trajectory: event angles to ~1e-6 for N = 10, same event sequence
-    "trajectory": {"dt": 1e-3, "refine_tol": 1e-10, "max_event_duration": 1e5},
+    "trajectory": {"dt": 1e-3, "refine_tol": 1e-10, "max_event_duration": 1e7},
     # reference-quality trajectory: angles to ~1e-8
-    "reference": {"dt": 1e-4, "refine_tol": 1e-12, "max_event_duration": 1e5},
+    "reference": {"dt": 1e-4, "refine_tol": 1e-12, "max_event_duration": 1e7},
 }
 DEFAULT_MODE = "trajectory"
 
