@@ -577,8 +577,16 @@ class EnsembleSummary:
     event_mean_displacement: np.ndarray | None = None  # (G-1,) mean <dx> of those events
     extra: dict = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        """One line: N, the realisations, the avalanches and alpha_c; not the arrays."""
+        return (f"<EnsembleSummary N={self.n_sliders}: {self.n_realisations} realisations, "
+                f"{self.n_avalanche} avalanches, alpha_c = {self.alpha_c_mean:.4f} +- "
+                f"{self.alpha_c_sem:.4f} rad (spread {self.alpha_c_std:.4f}), "
+                f"{self.grids.alpha.size} angles in [{self.grids.alpha[0]:g}, {self.grids.alpha[-1]:g}]>")
+
     @property
     def alpha(self) -> np.ndarray:
+        """(G,) angles of the statistics grid, radians."""
         return self.grids.alpha
 
     @property

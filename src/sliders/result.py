@@ -31,9 +31,11 @@ class EventSparse:
 
     @property
     def n_events(self) -> int:
+        """Number of events K."""
         return self.ptr.size - 1
 
     def event(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Slider numbers (0-based) and displacements (g tau^2) of the sliders that moved in event k."""
         a, b = self.ptr[k], self.ptr[k + 1]
         return self.index[a:b], self.value[a:b]
 
@@ -77,6 +79,13 @@ class TiltResult:
     wall_time: float = math.nan
     final_event: dict[str, float] = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        """One line: the scene, how the run ended, alpha_c, the events and what was recorded."""
+        end = (f"alpha_c={self.alpha_c:.4f} rad" if math.isfinite(self.alpha_c)
+               else f"last event at alpha={self.alpha[-1]:.4f} rad" if self.n_events else "no event")
+        return (f"<TiltResult {self.scene!r}: {self.status}, {end}, {self.n_events} events, "
+                f"recorded {self.scene.record}, backend {self.backend}>")
+
     def __getattr__(self, name):
         events = self.__dict__.get("events", {})
         if name in events:
@@ -85,6 +94,7 @@ class TiltResult:
 
     @property
     def n_events(self) -> int:
+        """Number of completed rearrangements (the avalanche event is not one)."""
         return int(self.events["alpha"].size)
 
     @property

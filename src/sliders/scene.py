@@ -100,7 +100,7 @@ class Scene:
     spring at rest: with sigma_mu = 0 a scene without any disorder).
     Integrator: ``mode`` names a speed/accuracy setting (``SPEED_MODES``:
     "sketch", "explore", "statistics", "trajectory" (default), "reference";
-    README "Speed modes") that gives
+    docs/howto/speed_modes.md) that gives
     ``dt`` (velocity-Verlet step), ``refine_tol`` (width in tau to which a
     crossing is bracketed) and ``max_event_duration`` (cap on the duration of
     one rearrangement, in tau; hitting it ends the run with status
@@ -133,6 +133,15 @@ class Scene:
     avalanche: str = "sliding"
     record: str = "displacements"
     output: str | None = field(default=None, compare=False)
+
+    def __repr__(self) -> str:
+        """Only what differs from the defaults (integrator values: from the mode's),
+        so that ``eval(repr(scene)) == scene``."""
+        defaults = {f.name: f.default for f in fields(self)}
+        defaults.update(SPEED_MODES[self.mode])
+        changed = [f"{f.name}={getattr(self, f.name)!r}" for f in fields(self)
+                   if f.name != "output" and getattr(self, f.name) != defaults[f.name]]
+        return f"Scene({', '.join(changed)})"
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -209,11 +218,13 @@ class Scene:
 
     @property
     def walls(self) -> bool:
+        """True between two immobile walls (``ends="walls"``), False for a free chain."""
         return self.ends == "walls"
 
     @property
     def alpha_c_bounds(self) -> tuple[float, float]:
-        """MODEL.md section 4 bounds with the mean static coefficient, atan(mu_d) and atan(mu_s_mean)."""
+        """Bounds of the avalanche angle in radians, atan(mu_d) and atan(mu_s_mean)
+        (docs/model.md, "The avalanche"; the upper one holds with the mean static coefficient)."""
         return math.atan(self.mu_d), math.atan(self.mu_s_mean)
 
     def replace(self, **changes: Any) -> "Scene":
@@ -240,12 +251,14 @@ class Scene:
         return int(total)
 
     def to_dict(self) -> dict[str, Any]:
+        """Every field but ``output`` as plain Python values (the scene files' keys)."""
         d = dataclasses.asdict(self)
         d.pop("output")
         return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "Scene":
+        """The scene of ``to_dict``'s keys; an unknown key raises SceneError with a close match."""
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:
@@ -255,6 +268,7 @@ class Scene:
 
     @classmethod
     def from_toml(cls, path: str | os.PathLike[str]) -> "Scene":
+        """The scene of a TOML file (keys of ``to_dict``, at top level or under ``[scene]``)."""
         return cls.from_dict(toml_values(path))
 
 
