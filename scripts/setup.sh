@@ -81,7 +81,7 @@ pip() { "$PY" -m pip "$@" 2> >(grep -v "^WARNING: Location 'file:" >&2); }
 pip install -q "${PY_DEPS[@]}"
 step_done "pip: ${PY_DEPS[*]}"
 
-# ---- d. MPI stack: MODEL.md section 9, wheels cached -------------------------
+# ---- d. MPI stack against Debian's MPICH (-O1: the default flags take 15+ min), wheels cached
 mpi_ok() { "$PY" -c 'from mpi4py import MPI; import h5py; assert h5py.get_config().mpi' 2>/dev/null; }
 cached() { pip install -q --no-index --no-deps --find-links "$WHEELS" "$1" 2>/dev/null; }
 if mpi_ok; then

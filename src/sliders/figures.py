@@ -116,7 +116,7 @@ def figure_list() -> str:
 
 def hot_map_image(result, n_columns: int = 800, alpha_max: float | None = None,
                   event_width: float | None = None):
-    """(N, n_columns) image of |displacement| per slider and angle pixel, and its extent.
+    """(N, n_columns) image of abs(displacement) per slider and angle pixel, and its extent.
 
     Each event paints a stripe of width ``event_width`` (in alpha) centred on
     its angle; where stripes overlap the larger displacement wins.  Auto
@@ -178,7 +178,7 @@ def fig_scene(result, name: str = "scene", label: str = "", out_dir="figures",
               cmap_map: str = DISPLACEMENT_CMAP, cmap_sliders: str = ORDER_CMAP):
     """Hot map of displacements and F_t vs alpha for one run (paper Figs. small, large_no, large_wc).
 
-    (a) |Delta x_i| of every slider (row) in every event, at the event angle,
+    (a) abs(Delta x_i) of every slider (row) in every event, at the event angle,
     log colour scale, the darker the larger (a map whose lightness falls
     monotonically, so this holds in greyscale); dashed line at alpha_c.
     (b) F_t of every slider vs alpha coloured by slider number, with the

@@ -26,7 +26,7 @@ Conventions (decided here, the paper is silent):
   only the runs valid at each angle (``EnsembleSummary.n_valid``).
 * **Histogram range.**  Values outside the outer edges are counted in the end
   bins (``np.clip``), so that every row of a force histogram sums to N.  The
-  default edges contain every possible value (|F_t| <= mu_s cos(alpha)).
+  default edges contain every possible value (abs(F_t) <= mu_s cos(alpha)).
 * **Displacement sums are signed** (the paper's A(alpha) sums
   x^(i+1) - x^(i)); a slider pushed uphill counts negatively.
 """
@@ -149,7 +149,7 @@ def default_grids(scene, n_alpha: int = 55, n_force_bins: int = 120,
     * ``force_edges``: ``n_force_bins`` equal bins on [-b, b], b = mu_s_mean +
       6 sigma_mu rounded up to 0.1 (121 edges on [-0.7, 0.7] by default).
     * ``ratio_edges``: steps of ``ratio_step`` covering every possible
-      F_t/F_t*, i.e. +-(mu_s_mean + 6 sigma_mu)/|2 mu_d - mu_s_mean| rounded up
+      F_t/F_t*, i.e. +-(mu_s_mean + 6 sigma_mu)/abs(2 mu_d - mu_s_mean) rounded up
       to 0.1 (+-1.3 by default, 520 bins); figures show 0.5..1.3.
     * ``stop_alpha_edges``: steps of ``stop_alpha_step`` from 0 to beyond
       atan(mu_s_mean) (0, 0.05, ..., 0.55).
@@ -420,7 +420,7 @@ def extremity_activity(result, edges, end_fraction: float = 0.25) -> dict[str, n
     For the events with ``edges[j] <= alpha_k < edges[j+1]`` (every recorded
     event; the avalanche itself is not one):
 
-    * ``total[j]``: sum over events and sliders of |displacement|;
+    * ``total[j]``: sum over events and sliders of abs(displacement);
     * ``up[j]``, ``down[j]``: the part of it carried by the first and the
       last ``end_fraction`` of the chain (sliders n <= f N, up the slope, and
       n > (1 - f) N, down the slope; x grows down the slope);

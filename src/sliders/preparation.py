@@ -5,7 +5,7 @@ Steps, and the choices made where the paper is silent:
 1. Static coefficients mu_{s,n}: keyed Gaussian draws (stop count 0), redrawn
    until above mu_d.
 2. Tangential forces f_n uniform in ]-mu_s_mean, mu_s_mean[.  *Own threshold*:
-   a force with |f_n| >= mu_{s,n} would be unstable for its own slider, so it is
+   a force with abs(f_n) >= mu_{s,n} would be unstable for its own slider, so it is
    redrawn (keyed rejection); the forces stay uniform on
    ]-a_n, a_n[ with a_n = min(mu_s_mean, mu_{s,n}).
 3. *Zero sum* (free chain only): the internal forces of a free chain sum to

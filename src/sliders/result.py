@@ -29,6 +29,11 @@ class EventSparse:
     value: np.ndarray
     n_sliders: int
 
+    def __repr__(self) -> str:
+        """One line: the events, the sliders and the stored entries, not the arrays."""
+        return (f"<EventSparse {self.n_events} events x {self.n_sliders} sliders, "
+                f"{self.index.size} entries>")
+
     @property
     def n_events(self) -> int:
         """Number of events K."""

@@ -76,7 +76,7 @@ class CollectiveFailure(StorageError):
 
 @dataclass(frozen=True)
 class Column:
-    """One per-realisation dataset: /realisations/<name>, shape (R, *shape)."""
+    """One per-realisation dataset: ``/realisations/<name>``, shape ``(R, *shape)``."""
 
     name: str
     shape: tuple[int, ...]
