@@ -2,7 +2,7 @@
 # One idempotent set-up of sliders; fast (seconds) once it has run before.
 #
 #   bash scripts/setup.sh                 set up only
-#   bash scripts/setup.sh test [ARGS...]  set up, then python -m pytest -q ARGS
+#   bash scripts/setup.sh test [ARGS...]  set up, then python -m pytest -q ARGS (docs build included)
 #   bash scripts/setup.sh run  [ARGS...]  set up, then the main job below
 #
 # Steps: Debian packages (+ SLURM for `test`) -> .venv -> Python deps -> mpi4py/h5py against MPICH
@@ -19,7 +19,9 @@ main_job() {
 # -----------------------------------------------------------------------------
 
 APT_PACKAGES=(gfortran mpich libmpich-dev libhdf5-mpich-dev pkg-config)
-PY_DEPS=(meson-python meson ninja numpy pytest matplotlib xarray h5netcdf)
+# sphinx, numpydoc, myst-nb (+ ipykernel to execute the tutorial): tests/test_docs.py builds the
+# documentation with warnings as errors
+PY_DEPS=(meson-python meson ninja numpy pytest matplotlib xarray h5netcdf sphinx numpydoc myst-nb ipykernel)
 H5PY_BUILD_DEPS=(cython pkgconfig "setuptools>=77")
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)

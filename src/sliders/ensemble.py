@@ -103,6 +103,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser(rank: int = 0) -> argparse.ArgumentParser:
+    """The command line of ``python -m sliders.ensemble`` (only ``rank`` 0 prints help and errors)."""
     from .cli import add_scene_arguments
     from .storage import STORAGES
 
@@ -643,6 +644,7 @@ def _error_line(message: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``python -m sliders.ensemble`` with ``argv``; returns the exit code (0: every realisation done)."""
     try:
         comm, have_mpi = get_comm()
     except MPIUnavailable as exc:  # under mpirun without a working mpi4py: stop every rank

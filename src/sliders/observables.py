@@ -99,18 +99,22 @@ class StatisticsGrids:
 
     @property
     def delta_mu(self) -> float:
+        """Delta mu = mu_s_mean - mu_d, half the width of a model bin."""
         return self.mu_s_mean - self.mu_d
 
     @property
     def force_centers(self) -> np.ndarray:
+        """(B,) centres of the force bins, m g."""
         return 0.5 * (self.force_edges[1:] + self.force_edges[:-1])
 
     @property
     def ratio_centers(self) -> np.ndarray:
+        """Centres of the stopped-force ratio bins (dimensionless)."""
         return 0.5 * (self.ratio_edges[1:] + self.ratio_edges[:-1])
 
     @property
     def stop_alpha_centers(self) -> np.ndarray:
+        """Centres of the angle bins of the stopped-force ratio, radians."""
         return 0.5 * (self.stop_alpha_edges[1:] + self.stop_alpha_edges[:-1])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
@@ -119,6 +123,7 @@ class StatisticsGrids:
 
     @classmethod
     def from_arrays(cls, d: Mapping[str, object]) -> "StatisticsGrids":
+        """The grids stored by ``to_arrays`` (as read from a file)."""
         return cls(
             alpha=np.asarray(d["alpha"], dtype=float),
             force_edges=np.asarray(d["force_edges"], dtype=float),

@@ -1,4 +1,4 @@
-"""Preparation of the chain at alpha = 0 (paper Sec. II-C-1, MODEL.md section 2).
+"""Preparation of the chain at alpha = 0 (paper Sec. II-C-1; docs/model.md, "Preparation").
 
 Steps, and the choices made where the paper is silent:
 

@@ -4,7 +4,7 @@ This is the executable specification that the Fortran kernel
 (``fortran/sliders_events.f90``) must reproduce event by event.  It favours
 obviousness over speed: every step recomputes the force on every slider.
 
-Algorithm (MODEL.md sections 3-5):
+Algorithm (docs/model.md: the quasi-static tilt, keyed randomness, the avalanche):
 
 * Between events nothing moves, so E_n = F_n - sin(alpha) is fixed and slider n
   destabilises at the smallest alpha' >= alpha with abs(E_n + sin a') = mu_n cos a'
@@ -72,6 +72,7 @@ class Chunk:
 
     @property
     def n_events(self) -> int:
+        """Number of events in this chunk."""
         return len(self.events["alpha"])
 
 

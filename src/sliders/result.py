@@ -349,5 +349,6 @@ def whole_file_problem(path) -> str | None:
 
 
 def empty_events() -> dict[str, np.ndarray]:
+    """Per-event arrays of length 0, one per field of ``status.EVENT_FIELDS``."""
     return {f: np.zeros(0, dtype=np.int64 if f in ("n_moved", "n_stops", "n_steps", "slider_steps")
                         else float) for f in status.EVENT_FIELDS}
