@@ -55,6 +55,20 @@ def test_documented_outputs_are_current(page, tmp_path, monkeypatch):
     assert result.failed == 0, "".join(report)
 
 
+def test_docstring_examples_are_current(tmp_path, monkeypatch):
+    """The ``>>>`` examples in the package's docstrings give what they print."""
+    monkeypatch.chdir(tmp_path)
+    finder = doctest.DocTestFinder(exclude_empty=True)
+    runner = doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE | doctest.ELLIPSIS)
+    report: list[str] = []
+    for modname in public_modules():
+        for test in finder.find(importlib.import_module(modname)):
+            runner.run(test, out=report.append)
+    result = runner.summarize(verbose=False)
+    assert result.attempted >= 2  # Scene and TiltResult have examples
+    assert result.failed == 0, "".join(report)
+
+
 def public_modules() -> list[str]:
     """Every module of the package whose dotted name has no part starting with '_'."""
     names = ["sliders"]

@@ -99,7 +99,21 @@ def remove_net_force(forces: np.ndarray, bound: np.ndarray) -> np.ndarray:
 
 
 def prepare(scene: Scene) -> ChainState:
-    """The prepared chain at alpha = 0, before any coupling relaxation."""
+    """The prepared chain at alpha = 0, before any coupling relaxation.
+
+    Parameters
+    ----------
+    scene : Scene
+        Its ``n_sliders``, friction coefficients, ``seed``, ``ends`` and
+        ``initial_forces`` are used.
+
+    Returns
+    -------
+    ChainState
+        Static coefficients drawn with key (seed, n, 0); elastic forces (m g)
+        uniform in ]-mu_s_mean, mu_s_mean[, each stable for its own slider and,
+        for a free chain, summing to zero (docs/model.md, "Preparation").
+    """
     n = scene.n_sliders
     sliders = np.arange(n)
     mu_s = keyed_random.static_coefficient(

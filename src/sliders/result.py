@@ -69,6 +69,42 @@ class TiltResult:
     event that ended the run unfinished (the avalanche, the duration cap, an
     error): ``duration`` (tau), ``n_steps``, ``slider_steps``; empty if the
     run ended between events.
+
+    Attributes
+    ----------
+    scene : Scene
+        The run's scene.
+    backend : str
+        "fortran" or "numpy".
+    status : str
+        How the run ended: "avalanche", "alpha_max", "max_events",
+        "event_duration_cap", "interrupted", ... (``sliders.status``).
+    message : str
+        The same in words.
+    alpha_c : float
+        Avalanche angle, radians (NaN unless ``status == "avalanche"``).
+    events : dict of str to ndarray
+        Per-event arrays of length K, also readable as attributes:
+        ``alpha`` (radians), ``n_moved``, ``n_stops``, ``n_steps``,
+        ``slider_steps``, ``duration`` (tau), ``work_gravity``,
+        ``elastic_change``, ``dissipation`` (m g x g tau^2).
+    displacement : EventSparse or None
+        Displacement (g tau^2) of every slider that moved, per event.
+    initial, final : ChainState
+        The chain at the start of the tilt and at its end.
+    relaxation : dict
+        The relaxation at alpha = 0 when xi > 0: ``n_events``, ``n_moved``,
+        ``slider_steps``.
+    wall_time : float
+        Seconds the run took.
+    final_event : dict
+        Work of the unfinished last event (see above).
+
+    Examples
+    --------
+    >>> import sliders
+    >>> sliders.tilt(sliders.Scene(n_sliders=10, seed=3))
+    <TiltResult Scene(n_sliders=10, seed=3): avalanche, alpha_c=0.5163 rad, 31 events, recorded displacements, backend fortran>
     """
 
     scene: Scene
