@@ -1,8 +1,8 @@
 !> Keyed random numbers, bit for bit the same as src/sliders/keyed_random.py.
 !>
 !> A counter-based generator: every number is a pure function of the key
-!> (seed, slider, count, draw), hashed with Wellons' "lowbias32" (MODEL.md
-!> section 5).  Unsigned 32-bit values are held in integer(i8) in [0, 2**32);
+!> (seed, slider, count, draw), hashed with Wellons' "lowbias32" (docs/model.md,
+!> "Keyed randomness").  Unsigned 32-bit values are held in integer(i8) in [0, 2**32);
 !> keys outside that range are reduced modulo 2**32, like NumPy's uint32 cast.
 module sliders_random
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan

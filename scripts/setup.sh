@@ -2,7 +2,7 @@
 # One idempotent set-up of sliders; fast (seconds) once it has run before.
 #
 #   bash scripts/setup.sh                 set up only
-#   bash scripts/setup.sh test [ARGS...]  set up, then python -m pytest -q ARGS
+#   bash scripts/setup.sh test [ARGS...]  set up, then python -m pytest -q ARGS (docs build included)
 #   bash scripts/setup.sh run  [ARGS...]  set up, then the main job below
 #
 # Steps: Debian packages (+ SLURM for `test`) -> .venv -> Python deps -> mpi4py/h5py against MPICH
@@ -19,7 +19,9 @@ main_job() {
 # -----------------------------------------------------------------------------
 
 APT_PACKAGES=(gfortran mpich libmpich-dev libhdf5-mpich-dev pkg-config)
-PY_DEPS=(meson-python meson ninja numpy pytest matplotlib xarray h5netcdf)
+# sphinx, numpydoc, myst-nb (+ ipykernel to execute the tutorial): tests/test_docs.py builds the
+# documentation with warnings as errors
+PY_DEPS=(meson-python meson ninja numpy pytest matplotlib xarray h5netcdf sphinx numpydoc myst-nb ipykernel)
 H5PY_BUILD_DEPS=(cython pkgconfig "setuptools>=77")
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -81,7 +83,7 @@ pip() { "$PY" -m pip "$@" 2> >(grep -v "^WARNING: Location 'file:" >&2); }
 pip install -q "${PY_DEPS[@]}"
 step_done "pip: ${PY_DEPS[*]}"
 
-# ---- d. MPI stack: MODEL.md section 9, wheels cached -------------------------
+# ---- d. MPI stack against Debian's MPICH (-O1: the default flags take 15+ min), wheels cached
 mpi_ok() { "$PY" -c 'from mpi4py import MPI; import h5py; assert h5py.get_config().mpi' 2>/dev/null; }
 cached() { pip install -q --no-index --no-deps --find-links "$WHEELS" "$1" 2>/dev/null; }
 if mpi_ok; then

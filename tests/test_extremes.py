@@ -2,7 +2,7 @@
 
 Issue "Speed against accuracy, numerical extremes and scaling, measured".
 Each extreme scene must either give physically correct results (the facts of
-MODEL.md section 6: every slider stable after every event, sum of forces
+docs/model.md, "Facts the tests check": every slider stable after every event, sum of forces
 N sin(alpha) for a free chain, energy balance per event, the closed forms
 where they exist) and end with a clear status, or be refused by ``Scene``
 with a message naming the parameter before anything runs.  No hang, no
@@ -45,7 +45,7 @@ def tilt(scene: Scene, backend: str = "fortran"):
 
 
 def stepped(scene: Scene, backend: str = "fortran", max_events: int = 100_000) -> dict:
-    """Event by event: the MODEL.md section 6 facts after every completed event."""
+    """Event by event: the facts of docs/model.md ("Facts the tests check") after every completed event."""
     engine = make_engine(scene, backend)
     state = prepare(scene)
     relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
@@ -84,7 +84,7 @@ def stepped(scene: Scene, backend: str = "fortran", max_events: int = 100_000) -
 
 
 def assert_facts(run: dict, scene: Scene, expect=("avalanche",)) -> None:
-    """MODEL.md section 6 on a stepped run, and a clear end."""
+    """The facts of docs/model.md on a stepped run, and a clear end."""
     assert run["finite"], "a recorded number is not finite"
     assert run["status"] in expect, f"status {run['status']!r} ({run['message']})"
     if run["n_events"]:
@@ -335,7 +335,7 @@ def test_no_disorder_free_chain_avalanches_at_atan_mu_s_without_precursor(backen
     seen on the first step, up to N = 1e5 (the one N = 1e5 scene that reaches
     its avalanche within a test: with disorder the last events are slip fronts
     crossing the chain at the sound speed, >= N^2 / (4 dt) slider-steps, see
-    README "Scaling")."""
+    docs/performance.md, "Scaling with N")."""
     for n in ((10, 1000, 100_000) if backend == "fortran" else (10,)):
         scene = Scene(n_sliders=n, seed=1, initial_forces="zero", sigma_mu=0.0, record="summary")
         result = isolated(tilt, scene, backend)

@@ -1,4 +1,4 @@
-"""The facts of MODEL.md section 6 that any correct run satisfies, on both backends."""
+"""The facts of docs/model.md ("Facts the tests check") that any correct run satisfies, on both backends."""
 
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ writers, flipped bytes and truncations.  After each ensemble fault the file
 is readable, every finished row is bit-for-bit the row of an uninterrupted
 run, and ``--resume`` completes exactly the rest.
 
-The counts (trials, faults survived, rows lost) are in README "Reliability".
+The counts (trials, faults survived, rows lost) are in docs/reliability.md.
 """
 
 from __future__ import annotations

@@ -14,6 +14,7 @@ from .scene import BACKENDS, SceneError, check_memory
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m sliders`` (``tilt``)."""
     parser = argparse.ArgumentParser(
         prog="python -m sliders",
         description="Tilt a chain of frictional sliders quasi-statically to the avalanche.",
@@ -31,6 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``python -m sliders`` with ``argv``; returns the exit code."""
     args = build_parser().parse_args(argv)
     try:
         scene = scene_from_args(args)

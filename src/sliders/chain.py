@@ -52,9 +52,11 @@ class ChainState:
 
     @property
     def n_sliders(self) -> int:
+        """Number of sliders N."""
         return self.mu_s.size
 
     def copy(self) -> "ChainState":
+        """An independent copy (every array copied)."""
         return ChainState(
             self.elastic_force0.copy(), self.spring_extension0.copy(),
             self.cantilever_stretch0.copy(), self.lattice_position0.copy(),

@@ -87,6 +87,7 @@ class ProgressLine:
         self.tty = self.stream.isatty()
 
     def show(self, text: str, force: bool = False) -> None:
+        """Show ``text`` as the progress line, at most once per interval unless ``force``."""
         now = time.monotonic()
         if force or now - self.last >= self.interval:
             self.last = now
@@ -95,6 +96,7 @@ class ProgressLine:
             self.stream.flush()
 
     def close(self) -> None:
+        """End the progress line (a newline on a terminal)."""
         if self.tty:
             self.stream.write("\n")
             self.stream.flush()

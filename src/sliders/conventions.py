@@ -46,6 +46,7 @@ ENERGY = "m g^2 tau^2"
 
 @dataclass(frozen=True)
 class Variable:
+    """How one dataset is described in a file: named dimensions, units, long name."""
     dims: tuple[str, ...]
     units: str
     long_name: str
@@ -77,6 +78,7 @@ TILT_STATE_VARIABLES = {
 
 
 def tilt_variables(h5file) -> dict[str, Variable]:
+    """Dimensions, units and long name of every dataset of a tilt-result file (path: Variable)."""
     out = {f"events/{k}": Variable(("event",), u, ln) for k, (u, ln) in TILT_EVENT_VARIABLES.items()}
     out["displacement/ptr"] = Variable(("event_boundary",), "1",
                                        "start of each event's entries in index/value (CSR)")
@@ -89,6 +91,7 @@ def tilt_variables(h5file) -> dict[str, Variable]:
 
 
 def tilt_coordinates(h5file) -> dict[str, tuple[np.ndarray, str, str]]:
+    """Coordinates of a tilt-result file's dimensions: name -> (values, units, long name)."""
     k = h5file["events/alpha"].shape[0] if "events/alpha" in h5file else 0
     n = h5file["initial/mu_s"].shape[0]
     coords = {
@@ -144,6 +147,7 @@ def _centres(edges: np.ndarray) -> np.ndarray:
 
 
 def ensemble_variables(h5file) -> dict[str, Variable]:
+    """Dimensions, units and long name of every dataset of an ensemble file (path: Variable)."""
     out = {}
     for k, (dim, u, ln) in ENSEMBLE_GRIDS.items():
         out[f"grids/{k}"] = Variable((dim,) if dim else (), u, ln)
@@ -163,6 +167,7 @@ def ensemble_variables(h5file) -> dict[str, Variable]:
 
 
 def ensemble_coordinates(h5file) -> dict[str, tuple[np.ndarray, str, str]]:
+    """Coordinates of an ensemble file's dimensions (alpha in radians, force bins in m g, ...): name -> (values, units, long name)."""
     g = h5file["grids"]
     alpha = g["alpha"][()]
     fe, re_, se = g["force_edges"][()], g["ratio_edges"][()], g["stop_alpha_edges"][()]
@@ -237,6 +242,7 @@ def scene_toml(scene: dict) -> str:
 
 
 def provenance(title: str, scene: dict | None) -> dict[str, str]:
+    """Root attributes every file carries: title, source, history (this command), date, git commit, versions, the scene as TOML."""
     import h5py
 
     from . import __version__

@@ -96,6 +96,13 @@ def tilt(
         instead of raising ``Interrupted`` (which carries them as
         ``.partial``).  The default raises: a loop over runs must stop.
 
+    Returns
+    -------
+    TiltResult
+        Every completed rearrangement (angles in radians, displacements in
+        g tau^2, durations in tau), how the run ended (``status``) and the
+        avalanche angle ``alpha_c`` (NaN unless it ended in the avalanche).
+
     Raises
     ------
     Interrupted

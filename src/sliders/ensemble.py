@@ -103,6 +103,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser(rank: int = 0) -> argparse.ArgumentParser:
+    """The command line of ``python -m sliders.ensemble`` (only ``rank`` 0 prints help and errors)."""
     from .cli import add_scene_arguments
     from .storage import STORAGES
 
@@ -643,6 +644,7 @@ def _error_line(message: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``python -m sliders.ensemble`` with ``argv``; returns the exit code (0: every realisation done)."""
     try:
         comm, have_mpi = get_comm()
     except MPIUnavailable as exc:  # under mpirun without a working mpi4py: stop every rank
@@ -841,11 +843,26 @@ def read_realisations(path) -> dict[str, Any]:
 
 
 def load_summary(path):
-    """``(EnsembleSummary, grids, scene, info)`` of an ensemble file, over its done rows.
+    """The ensemble statistics of a file, over its rows marked done.
 
-    ``info``: the file attributes plus ``n_done``, ``n_realisations``,
-    ``done`` (mask), ``statuses`` ({name: count} over done rows) and
-    ``wall_time`` (sum over done rows, seconds of computing).
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An ensemble file (``python -m sliders.ensemble``, ``python -m sliders.merge``).
+
+    Returns
+    -------
+    summary : observables.EnsembleSummary
+        Means over the realisations at rest at each angle: force PDF (per m g),
+        P_i(alpha), A(alpha) (g tau^2), alpha_c (radians), event sizes.
+    grids : observables.StatisticsGrids
+        The angles (radians) and bin edges the rows were computed on.
+    scene : Scene
+        The ensemble's scene (realisation r has seed ``realisation_seed(scene.seed, r)``).
+    info : dict
+        The file attributes plus ``n_done``, ``n_realisations``, ``done``
+        (mask), ``statuses`` ({name: count} over done rows) and ``wall_time``
+        (sum over done rows, seconds of computing).
     """
     from .observables import StatisticsGrids, combine
     from .storage import read_header

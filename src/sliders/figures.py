@@ -116,7 +116,7 @@ def figure_list() -> str:
 
 def hot_map_image(result, n_columns: int = 800, alpha_max: float | None = None,
                   event_width: float | None = None):
-    """(N, n_columns) image of |displacement| per slider and angle pixel, and its extent.
+    """(N, n_columns) image of abs(displacement) per slider and angle pixel, and its extent.
 
     Each event paints a stripe of width ``event_width`` (in alpha) centred on
     its angle; where stripes overlap the larger displacement wins.  Auto
@@ -178,7 +178,7 @@ def fig_scene(result, name: str = "scene", label: str = "", out_dir="figures",
               cmap_map: str = DISPLACEMENT_CMAP, cmap_sliders: str = ORDER_CMAP):
     """Hot map of displacements and F_t vs alpha for one run (paper Figs. small, large_no, large_wc).
 
-    (a) |Delta x_i| of every slider (row) in every event, at the event angle,
+    (a) abs(Delta x_i) of every slider (row) in every event, at the event angle,
     log colour scale, the darker the larger (a map whose lightness falls
     monotonically, so this holds in greyscale); dashed line at alpha_c.
     (b) F_t of every slider vs alpha coloured by slider number, with the
@@ -267,6 +267,7 @@ def fig_scene(result, name: str = "scene", label: str = "", out_dir="figures",
 
 def single_slider_scene(seed: int = 3, alpha_max: float = 0.6, mu_s: float = 0.6,
                         mu_d: float = 0.55, dt: float = 1e-3):
+    """The paper's single slider (N = 1 between walls) tilted to ``alpha_max`` (radians), time step ``dt`` (tau)."""
     from .scene import Scene
 
     return Scene(n_sliders=1, ends="walls", sigma_mu=0.0, mu_s_mean=mu_s, mu_d=mu_d, seed=seed,
@@ -654,6 +655,7 @@ def scene_setups(paper_size: bool = False, backend: str = "fortran") -> dict[str
 
 
 def run_scene(n_sliders: int, xi: float, seed: int, backend: str = "fortran", **kw):
+    """Tilt one scene of N sliders to the avalanche; ``kw`` are further Scene fields.  Returns the TiltResult."""
     from .driver import tilt
     from .scene import Scene
 
@@ -786,6 +788,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m sliders.figures``."""
     p = _Parser(
         prog="python -m sliders.figures",
         description="Rebuild the paper's figures. Every figure is drawn for print: one column "
@@ -916,6 +919,7 @@ def draw_figures(names, out, args, formats=("png", "pdf"), palette_png: bool = F
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``python -m sliders.figures`` with ``argv``; returns the exit code."""
     args = build_parser().parse_args(argv)
     if args.list:
         print(figure_list())

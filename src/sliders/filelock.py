@@ -35,6 +35,7 @@ class ClaimError(OSError):
 
 
 def holder_text() -> str:
+    """This process as a claim names it: ``pid P on HOST``."""
     return f"pid {os.getpid()} on {socket.gethostname()}"
 
 
@@ -49,6 +50,7 @@ class OutputClaim:
         self.previous_holder: str | None = None  # a dead run's stale claim, taken over
 
     def acquire(self) -> "OutputClaim":
+        """Take the claim (an exclusive lock of ``<path>.lock``) or raise naming its holder; returns self."""
         from .safeio import is_special
 
         if is_special(self.path):  # a device (/dev/full) or fifo: no file of ours to protect
@@ -85,6 +87,7 @@ class OutputClaim:
         raise ClaimError(f"cannot take the claim {self.lock_path!r}: it keeps being replaced")
 
     def release(self) -> None:
+        """Give the claim up (unlock and close; the lock file stays)."""
         if self.fd is None:
             return
         try:

@@ -1,6 +1,6 @@
 """Random numbers keyed by (seed, slider, stop count), not by a shared stream.
 
-MODEL.md section 5: the order in which sliders stop inside an event depends on
+docs/model.md, "Keyed randomness": the order in which sliders stop inside an event depends on
 the time step, the backend and rounding.  If every draw came from one shared
 stream, two runs of the same scene would diverge after a few events.  Here the
 static coefficient that slider ``n`` draws at its ``k``-th stop is a pure

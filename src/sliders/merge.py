@@ -149,6 +149,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``python -m sliders.merge`` (join the chunk files of one ensemble); returns the exit code."""
     p = _Parser(
         prog="python -m sliders.merge",
         description="Join ensemble chunk files (python -m sliders.ensemble --chunk I/K) into one "

@@ -1,6 +1,6 @@
 """Analytical model of the paper, Sec. IV (pure NumPy + ``math``, no simulation).
 
-Dimensionless units throughout (MODEL.md section 1).  Two parts:
+Dimensionless units throughout (docs/model.md): time tau, length g tau^2, force m g, angles in radians.  Two parts:
 
 * **A single slider** between two immobile walls (paper Sec. IV-A): event
   displacement, force drop, first-order angle increment and the exact

@@ -26,7 +26,7 @@ Conventions (decided here, the paper is silent):
   only the runs valid at each angle (``EnsembleSummary.n_valid``).
 * **Histogram range.**  Values outside the outer edges are counted in the end
   bins (``np.clip``), so that every row of a force histogram sums to N.  The
-  default edges contain every possible value (|F_t| <= mu_s cos(alpha)).
+  default edges contain every possible value (abs(F_t) <= mu_s cos(alpha)).
 * **Displacement sums are signed** (the paper's A(alpha) sums
   x^(i+1) - x^(i)); a slider pushed uphill counts negatively.
 """
@@ -99,18 +99,22 @@ class StatisticsGrids:
 
     @property
     def delta_mu(self) -> float:
+        """Delta mu = mu_s_mean - mu_d, half the width of a model bin."""
         return self.mu_s_mean - self.mu_d
 
     @property
     def force_centers(self) -> np.ndarray:
+        """(B,) centres of the force bins, m g."""
         return 0.5 * (self.force_edges[1:] + self.force_edges[:-1])
 
     @property
     def ratio_centers(self) -> np.ndarray:
+        """Centres of the stopped-force ratio bins (dimensionless)."""
         return 0.5 * (self.ratio_edges[1:] + self.ratio_edges[:-1])
 
     @property
     def stop_alpha_centers(self) -> np.ndarray:
+        """Centres of the angle bins of the stopped-force ratio, radians."""
         return 0.5 * (self.stop_alpha_edges[1:] + self.stop_alpha_edges[:-1])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
@@ -119,6 +123,7 @@ class StatisticsGrids:
 
     @classmethod
     def from_arrays(cls, d: Mapping[str, object]) -> "StatisticsGrids":
+        """The grids stored by ``to_arrays`` (as read from a file)."""
         return cls(
             alpha=np.asarray(d["alpha"], dtype=float),
             force_edges=np.asarray(d["force_edges"], dtype=float),
@@ -149,7 +154,7 @@ def default_grids(scene, n_alpha: int = 55, n_force_bins: int = 120,
     * ``force_edges``: ``n_force_bins`` equal bins on [-b, b], b = mu_s_mean +
       6 sigma_mu rounded up to 0.1 (121 edges on [-0.7, 0.7] by default).
     * ``ratio_edges``: steps of ``ratio_step`` covering every possible
-      F_t/F_t*, i.e. +-(mu_s_mean + 6 sigma_mu)/|2 mu_d - mu_s_mean| rounded up
+      F_t/F_t*, i.e. +-(mu_s_mean + 6 sigma_mu)/abs(2 mu_d - mu_s_mean) rounded up
       to 0.1 (+-1.3 by default, 520 bins); figures show 0.5..1.3.
     * ``stop_alpha_edges``: steps of ``stop_alpha_step`` from 0 to beyond
       atan(mu_s_mean) (0, 0.05, ..., 0.55).
@@ -420,7 +425,7 @@ def extremity_activity(result, edges, end_fraction: float = 0.25) -> dict[str, n
     For the events with ``edges[j] <= alpha_k < edges[j+1]`` (every recorded
     event; the avalanche itself is not one):
 
-    * ``total[j]``: sum over events and sliders of |displacement|;
+    * ``total[j]``: sum over events and sliders of abs(displacement);
     * ``up[j]``, ``down[j]``: the part of it carried by the first and the
       last ``end_fraction`` of the chain (sliders n <= f N, up the slope, and
       n > (1 - f) N, down the slope; x grows down the slope);
@@ -577,8 +582,16 @@ class EnsembleSummary:
     event_mean_displacement: np.ndarray | None = None  # (G-1,) mean <dx> of those events
     extra: dict = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        """One line: N, the realisations, the avalanches and alpha_c; not the arrays."""
+        return (f"<EnsembleSummary N={self.n_sliders}: {self.n_realisations} realisations, "
+                f"{self.n_avalanche} avalanches, alpha_c = {self.alpha_c_mean:.4f} +- "
+                f"{self.alpha_c_sem:.4f} rad (spread {self.alpha_c_std:.4f}), "
+                f"{self.grids.alpha.size} angles in [{self.grids.alpha[0]:g}, {self.grids.alpha[-1]:g}]>")
+
     @property
     def alpha(self) -> np.ndarray:
+        """(G,) angles of the statistics grid, radians."""
         return self.grids.alpha
 
     @property

@@ -42,15 +42,19 @@ class SerialComm:
     size = 1
 
     def bcast(self, obj, root=0):
+        """``obj`` itself (one process)."""
         return obj
 
     def allgather(self, obj):
+        """``[obj]`` (one process)."""
         return [obj]
 
     def gather(self, obj, root=0):
+        """``[obj]`` (one process)."""
         return [obj]
 
     def Abort(self, code=1):  # noqa: N802 - MPI spelling
+        """End the process at once with ``code``, as MPI_Abort would."""
         os._exit(code)
 
 

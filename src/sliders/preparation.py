@@ -1,11 +1,11 @@
-"""Preparation of the chain at alpha = 0 (paper Sec. II-C-1, MODEL.md section 2).
+"""Preparation of the chain at alpha = 0 (paper Sec. II-C-1; docs/model.md, "Preparation").
 
 Steps, and the choices made where the paper is silent:
 
 1. Static coefficients mu_{s,n}: keyed Gaussian draws (stop count 0), redrawn
    until above mu_d.
 2. Tangential forces f_n uniform in ]-mu_s_mean, mu_s_mean[.  *Own threshold*:
-   a force with |f_n| >= mu_{s,n} would be unstable for its own slider, so it is
+   a force with abs(f_n) >= mu_{s,n} would be unstable for its own slider, so it is
    redrawn (keyed rejection); the forces stay uniform on
    ]-a_n, a_n[ with a_n = min(mu_s_mean, mu_{s,n}).
 3. *Zero sum* (free chain only): the internal forces of a free chain sum to
@@ -99,7 +99,21 @@ def remove_net_force(forces: np.ndarray, bound: np.ndarray) -> np.ndarray:
 
 
 def prepare(scene: Scene) -> ChainState:
-    """The prepared chain at alpha = 0, before any coupling relaxation."""
+    """The prepared chain at alpha = 0, before any coupling relaxation.
+
+    Parameters
+    ----------
+    scene : Scene
+        Its ``n_sliders``, friction coefficients, ``seed``, ``ends`` and
+        ``initial_forces`` are used.
+
+    Returns
+    -------
+    ChainState
+        Static coefficients drawn with key (seed, n, 0); elastic forces (m g)
+        uniform in ]-mu_s_mean, mu_s_mean[, each stable for its own slider and,
+        for a free chain, summing to zero (docs/model.md, "Preparation").
+    """
     n = scene.n_sliders
     sliders = np.arange(n)
     mu_s = keyed_random.static_coefficient(

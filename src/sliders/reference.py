@@ -4,16 +4,16 @@ This is the executable specification that the Fortran kernel
 (``fortran/sliders_events.f90``) must reproduce event by event.  It favours
 obviousness over speed: every step recomputes the force on every slider.
 
-Algorithm (MODEL.md sections 3-5):
+Algorithm (docs/model.md: the quasi-static tilt, keyed randomness, the avalanche):
 
 * Between events nothing moves, so E_n = F_n - sin(alpha) is fixed and slider n
-  destabilises at the smallest alpha' >= alpha with |E_n + sin a'| = mu_n cos a'
+  destabilises at the smallest alpha' >= alpha with abs(E_n + sin a') = mu_n cos a'
   (closed form, ``next_instability``).  Tilt jumps there; every slider whose
   angle ties within ``TIE_TOL`` starts with it.
 * An event integrates the moving sliders at fixed alpha with velocity Verlet.
   A moving slider has a fixed direction d = sign(F) while it runs, so its
   friction is -mu_d cos(alpha) d.  Crossings inside a step are a resting slider
-  exceeding its threshold, |F| > mu cos(alpha) + force_tol, or a moving slider
+  exceeding its threshold, abs(F) > mu cos(alpha) + force_tol, or a moving slider
   whose velocity changes sign, d v < 0.  When a step of size h crosses, the
   crossing is bracketed in [0, h] and the bracket is closed by bisection on
   the step size (each trial restarts from the start of the step) until its
@@ -22,7 +22,7 @@ Algorithm (MODEL.md sections 3-5):
   slider that crosses and uncrosses within one step is not a crossing), so
   that the kernel's refinement costs O(crossers), not O(moving sliders).
 * A stopping slider comes to rest (v = 0), increments its stop count k and
-  draws mu_s(seed, n, k); if |F| still exceeds the new threshold it restarts
+  draws mu_s(seed, n, k); if abs(F) still exceeds the new threshold it restarts
   at once in the direction of F.
 * The bracket is halved at most ``MAX_HALVINGS`` times: a ``refine_tol``
   below what the step can resolve ends the run with ``REFINE_LIMIT`` (the
@@ -72,6 +72,7 @@ class Chunk:
 
     @property
     def n_events(self) -> int:
+        """Number of events in this chunk."""
         return len(self.events["alpha"])
 
 

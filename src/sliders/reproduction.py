@@ -1,7 +1,7 @@
 """``python -m sliders.reproduction``: compare this package with every statement of the paper.
 
-Writes REPRODUCTION.md: for each numbered statement of the paper (MODEL.md
-section 8 and the avalanche bounds of section 4), what the paper reports,
+Writes REPRODUCTION.md: for each numbered statement of the paper (docs/model.md,
+"What the paper reports", and the avalanche bounds of "The avalanche"), what the paper reports,
 what this package measures, on how many runs and with which uncertainty, and
 a verdict (agrees / partly / disagrees) with an explanation where it does
 not agree.  The model is never tuned: the analysis choices (fit ranges,
@@ -54,6 +54,7 @@ UPPER_ONSET = (0.37, 0.43)  # "from an angle of about 0.4" (+-0.03, as statement
 
 @dataclass
 class Statement:
+    """One statement of the paper, what was measured, on what sample, and the verdict."""
     key: str
     paper: str
     measured: str
@@ -64,12 +65,14 @@ class Statement:
 
 @dataclass
 class Report:
+    """The statements judged, notes, timings and the data behind the figures."""
     statements: list[Statement] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
     data: dict = field(default_factory=dict)
 
     def add(self, *args, **kw) -> Statement:
+        """Append a Statement made of these arguments and return it."""
         s = Statement(*args, **kw)
         self.statements.append(s)
         return s
@@ -90,6 +93,7 @@ def _pm(mean, err, nd=3) -> str:
 
 def run_many(n_sliders: int, xi: float, runs: int, base_seed: int, backend: str, log=None,
              label: str = ""):
+    """Tilt ``runs`` realisations of the paper's chain (seeds ``realisation_seed(base_seed, r)``); returns the TiltResults."""
     from .driver import tilt
     from .keyed_random import realisation_seed
     from .scene import Scene
@@ -325,6 +329,7 @@ def verdict_close(values, target, tol) -> str:
 
 
 def analyse_small(rep: Report, results) -> None:
+    """Judge the statements on the small chain (N = 10) from its runs."""
     sc = results[0].scene
     first = np.array([r.alpha[0] for r in results if r.n_events])
     ac = np.array([r.alpha_c for r in results])
@@ -373,6 +378,7 @@ def analyse_small(rep: Report, results) -> None:
 
 
 def analyse_large(rep: Report, res_b, res_c) -> None:
+    """Judge the statements on the large chains: scene B (xi = 0) and scene C (xi = 0.001) runs."""
     sc = res_c[0].scene
     ac = np.array([r.alpha_c for r in res_c])
     fin = ac[np.isfinite(ac)]
@@ -389,7 +395,7 @@ def analyse_large(rep: Report, res_b, res_c) -> None:
                f"paper's rounding interval [0.505, 0.515) while the run-to-run sd is "
                f"{_fmt(sd, 4)}; {int(np.sum(np.abs(fin - 0.51) <= 0.005))} of {fin.size} runs fall "
                "inside it. Both α_c lie in the bounds [0.5028, 0.5404]; the difference may come from "
-               "the preparation (which the paper leaves open, see MODEL.md §2) or from the paper's "
+               "the preparation (which the paper leaves open, see docs/model.md) or from the paper's "
                "single run."))
     sb, scc = sync_profile(res_b), sync_profile(res_c)
     onsets = np.array([sync_profile([r])["onset"] for r in res_c])
@@ -518,6 +524,7 @@ def extremities_statement(rep: Report, res_b, res_c) -> None:
 
 
 def analyse_statistics(rep: Report, summary) -> None:
+    """Judge the statistics statements (P_i, stopped forces, A(alpha)) from an EnsembleSummary."""
     g = summary.grids
     a = summary.alpha
     ok = summary.n_valid >= max(2, 0.5 * summary.n_realisations)
@@ -669,6 +676,7 @@ def analyse_statistics(rep: Report, summary) -> None:
 
 
 def bounds_statement(rep: Report, groups: dict[str, list], ensemble_ac=None) -> None:
+    """Judge atan(mu_d) <= alpha_c <= atan(mean mu_s) on every group of runs (and ensemble alpha_c values)."""
     parts, all_ok, total, other = [], True, 0, 0
     for name, results in groups.items():
         if not results:
@@ -689,7 +697,7 @@ def bounds_statement(rep: Report, groups: dict[str, list], ensemble_ac=None) -> 
         parts.append(f"ensemble: {int(np.sum((fin >= lo) & (fin <= hi)))}/{ac.size} within "
                      f"[{lo:.4f}, {hi:.4f}], range {_fmt(fin.min(), 4)}–{_fmt(fin.max(), 4)}")
         all_ok &= fin.size == ac.size and bool(np.all(fin >= lo))
-    rep.add("12. Bounds of the avalanche angle (MODEL.md §4)",
+    rep.add("12. Bounds of the avalanche angle (docs/model.md)",
             "atan μ_d ≤ α_c ≤ atan(mean μ_s) (here [0.5028, 0.5404] with the mean μ_s of the scene)",
             "; ".join(parts), f"{total} runs that avalanched"
             + (f" ({other} other run(s) did not end in an avalanche, see the notes)" if other else ""),
@@ -701,6 +709,7 @@ def bounds_statement(rep: Report, groups: dict[str, list], ensemble_ac=None) -> 
 
 
 def write_markdown(rep: Report, path, meta: dict) -> str:
+    """Write REPRODUCTION.md from the report to ``path``; returns the text."""
     lines = ["# Reproduction of \"Avalanche precursors in a frictional model\"", "",
              f"Generated by `python -m sliders.reproduction` on {meta['date']} "
              f"(sliders {meta['version']}, backend `{meta['backend']}`, Python {meta['python']}, "
@@ -733,6 +742,7 @@ def write_markdown(rep: Report, path, meta: dict) -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m sliders.reproduction``."""
     p = argparse.ArgumentParser(prog="python -m sliders.reproduction",
                                 description="Compare the package with the paper's statements; "
                                             "writes REPRODUCTION.md.")
@@ -752,6 +762,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``python -m sliders.reproduction`` with ``argv``; returns the exit code."""
     args = build_parser().parse_args(argv)
     for name in ("runs", "large_runs", "n_large", "n_stats"):
         if getattr(args, name) < (1 if name == "large_runs" else 2):
@@ -797,7 +808,7 @@ def main(argv: list[str] | None = None) -> int:
     if bad:
         rep.notes.append(f"{len(bad)} run(s) did not end in an avalanche: "
                          + ", ".join(f"seed {r.scene.seed}: {r.status} {r.message}" for r in bad))
-    rep.notes.append("Paper typos met on the way (MODEL.md): the caption of the coupled large "
+    rep.notes.append("Paper typos met on the way (docs/model.md): the caption of the coupled large "
                      "system says N = 10 where the text says 400; the printed P_1 of Eq. (model) "
                      "lacks a term 1/(2 μ_s) (sliders.model.bin_heights uses the corrected form); "
                      "the caption of the single-slider figure writes μ_d = 0.6 for μ_s.")

@@ -29,11 +29,18 @@ class EventSparse:
     value: np.ndarray
     n_sliders: int
 
+    def __repr__(self) -> str:
+        """One line: the events, the sliders and the stored entries, not the arrays."""
+        return (f"<EventSparse {self.n_events} events x {self.n_sliders} sliders, "
+                f"{self.index.size} entries>")
+
     @property
     def n_events(self) -> int:
+        """Number of events K."""
         return self.ptr.size - 1
 
     def event(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Slider numbers (0-based) and displacements (g tau^2) of the sliders that moved in event k."""
         a, b = self.ptr[k], self.ptr[k + 1]
         return self.index[a:b], self.value[a:b]
 
@@ -62,6 +69,42 @@ class TiltResult:
     event that ended the run unfinished (the avalanche, the duration cap, an
     error): ``duration`` (tau), ``n_steps``, ``slider_steps``; empty if the
     run ended between events.
+
+    Attributes
+    ----------
+    scene : Scene
+        The run's scene.
+    backend : str
+        "fortran" or "numpy".
+    status : str
+        How the run ended: "avalanche", "alpha_max", "max_events",
+        "event_duration_cap", "interrupted", ... (``sliders.status``).
+    message : str
+        The same in words.
+    alpha_c : float
+        Avalanche angle, radians (NaN unless ``status == "avalanche"``).
+    events : dict of str to ndarray
+        Per-event arrays of length K, also readable as attributes:
+        ``alpha`` (radians), ``n_moved``, ``n_stops``, ``n_steps``,
+        ``slider_steps``, ``duration`` (tau), ``work_gravity``,
+        ``elastic_change``, ``dissipation`` (m g x g tau^2).
+    displacement : EventSparse or None
+        Displacement (g tau^2) of every slider that moved, per event.
+    initial, final : ChainState
+        The chain at the start of the tilt and at its end.
+    relaxation : dict
+        The relaxation at alpha = 0 when xi > 0: ``n_events``, ``n_moved``,
+        ``slider_steps``.
+    wall_time : float
+        Seconds the run took.
+    final_event : dict
+        Work of the unfinished last event (see above).
+
+    Examples
+    --------
+    >>> import sliders
+    >>> sliders.tilt(sliders.Scene(n_sliders=10, seed=3))
+    <TiltResult Scene(n_sliders=10, seed=3): avalanche, alpha_c=0.5163 rad, 31 events, recorded displacements, backend fortran>
     """
 
     scene: Scene
@@ -77,6 +120,13 @@ class TiltResult:
     wall_time: float = math.nan
     final_event: dict[str, float] = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        """One line: the scene, how the run ended, alpha_c, the events and what was recorded."""
+        end = (f"alpha_c={self.alpha_c:.4f} rad" if math.isfinite(self.alpha_c)
+               else f"last event at alpha={self.alpha[-1]:.4f} rad" if self.n_events else "no event")
+        return (f"<TiltResult {self.scene!r}: {self.status}, {end}, {self.n_events} events, "
+                f"recorded {self.scene.record}, backend {self.backend}>")
+
     def __getattr__(self, name):
         events = self.__dict__.get("events", {})
         if name in events:
@@ -85,6 +135,7 @@ class TiltResult:
 
     @property
     def n_events(self) -> int:
+        """Number of completed rearrangements (the avalanche event is not one)."""
         return int(self.events["alpha"].size)
 
     @property
@@ -334,5 +385,6 @@ def whole_file_problem(path) -> str | None:
 
 
 def empty_events() -> dict[str, np.ndarray]:
+    """Per-event arrays of length 0, one per field of ``status.EVENT_FIELDS``."""
     return {f: np.zeros(0, dtype=np.int64 if f in ("n_moved", "n_stops", "n_steps", "slider_steps")
                         else float) for f in status.EVENT_FIELDS}

@@ -72,6 +72,7 @@ def seal_attrs(group) -> None:
 
 
 def check_attrs(group, where: str) -> None:
+    """Raise IntegrityError (naming ``where``) if the attributes of ``group`` fail their CRC-32."""
     attrs = dict(group.attrs)
     if ATTRS_DIGEST not in attrs:
         raise IntegrityError(f"{where}: the attributes of {group.name} carry no checksum "
@@ -87,6 +88,7 @@ def check_attrs(group, where: str) -> None:
 
 
 def seal_dataset(ds, data) -> None:
+    """Store the CRC-32 of ``data`` as an attribute of dataset ``ds`` (checked on load)."""
     ds.attrs[DIGEST_ATTR] = np.uint32(crc32_of(data))
 
 

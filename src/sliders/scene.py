@@ -91,27 +91,64 @@ def max_time_step(xi: float) -> float:
 
 @dataclass(frozen=True)
 class Scene:
-    """One configured tilt run.
+    """One configured tilt run, validated on construction.
 
-    System: ``n_sliders`` (N), ``xi`` (cantilever/neighbour stiffness ratio),
-    ``spring_length`` (l), ``mu_d``, ``mu_s_mean``, ``sigma_mu``, ``seed``,
-    ``ends`` ("free" chain or between two immobile "walls").
-    ``initial_forces`` is the paper's "uniform" preparation or "zero" (every
-    spring at rest: with sigma_mu = 0 a scene without any disorder).
-    Integrator: ``mode`` names a speed/accuracy setting (``SPEED_MODES``:
-    "sketch", "explore", "statistics", "trajectory" (default), "reference";
-    README "Speed modes") that gives
-    ``dt`` (velocity-Verlet step), ``refine_tol`` (width in tau to which a
-    crossing is bracketed) and ``max_event_duration`` (cap on the duration of
-    one rearrangement, in tau; hitting it ends the run with status
-    ``"event_duration_cap"``, never taken for the avalanche) unless they are
-    given explicitly.  ``max_events``
-    and ``alpha_max`` (stop tilting there; needed for walls, which never
-    avalanche).
-    Recording: ``record`` is "summary" (per-event scalars only),
-    "displacements" (plus the displacement of every slider that moved, stored
-    sparsely) or "forces" (same storage; the tangential force after each
-    event is reconstructed from it on demand).
+    Units: time tau = sqrt(m/k), length g tau^2, force m g, angles in radians.
+    The defaults are the paper's values.  An invalid value raises
+    ``SceneError`` naming it and its allowed range.
+
+    Parameters
+    ----------
+    n_sliders : int
+        N, the number of sliders.
+    xi : float
+        Stiffness of the cantilever springs to the upper plate, in units of
+        the springs between neighbours (paper: 0 or 0.001).
+    spring_length : float
+        Natural length l of the springs between neighbours, g tau^2.
+    mu_d, mu_s_mean, sigma_mu : float
+        Dynamic friction coefficient; mean and width of the Gaussian static
+        coefficients (each drawn above ``mu_d``).
+    seed : int
+        Key of every random draw (0 to 2**32 - 1).
+    ends : {"free", "walls"}
+        A free chain, or a chain between two immobile walls.
+    initial_forces : {"uniform", "zero"}
+        The paper's preparation (forces uniform in ]-mu_s_mean, mu_s_mean[),
+        or every spring at rest (with sigma_mu = 0: a scene without disorder).
+    mode : {"sketch", "explore", "statistics", "trajectory", "reference"}
+        Named speed/accuracy setting (``SPEED_MODES``, docs/howto/speed_modes.md)
+        that gives ``dt``, ``refine_tol`` and ``max_event_duration`` unless
+        they are given.
+    dt : float, optional
+        Velocity-Verlet time step, tau.
+    refine_tol : float, optional
+        Width, in tau, to which a crossing (a slider starting or stopping) is
+        bracketed within a step.
+    max_event_duration : float, optional
+        Cap on the duration of one rearrangement, tau; hitting it ends the
+        run with status ``"event_duration_cap"``, never taken for the avalanche.
+    max_events : int
+        Stop after this many rearrangements.
+    alpha_max : float
+        Stop tilting at this angle, radians (needed between walls, which
+        never avalanche); at most pi/2 - 1e-6.
+    force_tol : float
+        Tolerance, m g, of the stability test of a resting slider.
+    avalanche : str
+        Avalanche criterion ("sliding": every slider moving downwards with
+        tan(alpha) > mu_d).
+    record : {"summary", "displacements", "forces"}
+        Per-event scalars only; plus the displacement of every slider that
+        moved, stored sparsely; or the same storage with the tangential force
+        after each event reconstructed from it on demand.
+    output : str, optional
+        Where a command-line run writes its result (not part of the scene).
+
+    Examples
+    --------
+    >>> Scene(n_sliders=400, xi=0.001, seed=1).replace(mode="explore")
+    Scene(n_sliders=400, xi=0.001, seed=1, mode='explore')
     """
 
     n_sliders: int = 100
@@ -133,6 +170,15 @@ class Scene:
     avalanche: str = "sliding"
     record: str = "displacements"
     output: str | None = field(default=None, compare=False)
+
+    def __repr__(self) -> str:
+        """Only what differs from the defaults (integrator values: from the mode's),
+        so that ``eval(repr(scene)) == scene``."""
+        defaults = {f.name: f.default for f in fields(self)}
+        defaults.update(SPEED_MODES[self.mode])
+        changed = [f"{f.name}={getattr(self, f.name)!r}" for f in fields(self)
+                   if f.name != "output" and getattr(self, f.name) != defaults[f.name]]
+        return f"Scene({', '.join(changed)})"
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -209,11 +255,13 @@ class Scene:
 
     @property
     def walls(self) -> bool:
+        """True between two immobile walls (``ends="walls"``), False for a free chain."""
         return self.ends == "walls"
 
     @property
     def alpha_c_bounds(self) -> tuple[float, float]:
-        """MODEL.md section 4 bounds with the mean static coefficient, atan(mu_d) and atan(mu_s_mean)."""
+        """Bounds of the avalanche angle in radians, atan(mu_d) and atan(mu_s_mean)
+        (docs/model.md, "The avalanche"; the upper one holds with the mean static coefficient)."""
         return math.atan(self.mu_d), math.atan(self.mu_s_mean)
 
     def replace(self, **changes: Any) -> "Scene":
@@ -240,12 +288,14 @@ class Scene:
         return int(total)
 
     def to_dict(self) -> dict[str, Any]:
+        """Every field but ``output`` as plain Python values (the scene files' keys)."""
         d = dataclasses.asdict(self)
         d.pop("output")
         return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "Scene":
+        """The scene of ``to_dict``'s keys; an unknown key raises SceneError with a close match."""
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:
@@ -255,6 +305,7 @@ class Scene:
 
     @classmethod
     def from_toml(cls, path: str | os.PathLike[str]) -> "Scene":
+        """The scene of a TOML file (keys of ``to_dict``, at top level or under ``[scene]``)."""
         return cls.from_dict(toml_values(path))
 
 

@@ -76,7 +76,7 @@ class CollectiveFailure(StorageError):
 
 @dataclass(frozen=True)
 class Column:
-    """One per-realisation dataset: /realisations/<name>, shape (R, *shape)."""
+    """One per-realisation dataset: ``/realisations/<name>``, shape ``(R, *shape)``."""
 
     name: str
     shape: tuple[int, ...]
@@ -95,6 +95,7 @@ class Layout:
     attrs: dict[str, Any] = field(default_factory=dict)
 
     def column(self, name: str) -> Column:
+        """The column called ``name``."""
         for c in self.columns:
             if c.name == name:
                 return c
@@ -126,6 +127,7 @@ def make_layout(n_realisations: int, seeds, grids: dict[str, np.ndarray],
 
 
 def file_attributes(scene_dict: dict, base_seed: int, n_realisations: int, backend: str) -> dict:
+    """Root attributes of a new ensemble file: format, scene (JSON), seeds, count, backend, versions."""
     from . import __version__
 
     return {
@@ -141,6 +143,7 @@ def file_attributes(scene_dict: dict, base_seed: int, n_realisations: int, backe
 
 
 def h5py_has_mpi() -> bool:
+    """True if h5py was built against parallel HDF5 (``driver='mpio'`` available)."""
     try:
         import h5py
     except ImportError:  # pragma: no cover - h5py is a dependency
@@ -292,12 +295,15 @@ class EnsembleFile:
         raise NotImplementedError
 
     def mark_done(self, r: int) -> None:
+        """Set row ``r``'s ``done`` flag (after its data and checksums are written)."""
         raise NotImplementedError
 
     def flush(self) -> None:
+        """Push written rows to the file."""
         raise NotImplementedError
 
     def close(self) -> None:
+        """Close the file (collective over the ranks)."""
         raise NotImplementedError
 
     def abandon(self) -> None:
