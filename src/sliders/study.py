@@ -91,7 +91,8 @@ class Study:
 
     @property
     def digest(self) -> str:
-        return hashlib.sha256(json.dumps(self.spec, sort_keys=True).encode()).hexdigest()[:16]
+        # axis order matters (it orders the points and the dimensions): no sort_keys
+        return hashlib.sha256(json.dumps(self.spec).encode()).hexdigest()[:16]
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -261,7 +262,7 @@ def study_attributes(study: Study, backend: str) -> dict[str, Any]:
 
     return {
         "format": FORMAT, "format_version": FORMAT_VERSION,
-        "study": json.dumps(study.spec, sort_keys=True), "study_digest": study.digest,
+        "study": json.dumps(study.spec), "study_digest": study.digest,
         "dims": json.dumps(study.dims), "n_points": len(study.points),
         "realisations": study.realisations, "base_seed": study.base_seed, "backend": backend,
         "common_random_numbers": CRN_TEXT, "software_version": __version__,
