@@ -148,3 +148,49 @@ def test_xarray_view_has_the_axes_as_dimensions(spec, tmp_path):
     assert ds["alpha_c"].sel(xi=0.001, mu_d=0.5).values.tolist() == \
         r["p002/realisations/alpha_c"].tolist()
     assert bool(ds["done"].all())
+
+
+def test_most_expensive_points_are_queued_first(tmp_path):
+    from types import SimpleNamespace
+
+    from sliders.study import _plan_root, parse_study
+
+    st = parse_study({"study": {"realisations": 2}, "scene": {"mode": "explore"},
+                      "axes": {"n_sliders": [10, 40, 20]}})
+    args = SimpleNamespace(out=str(tmp_path / "o.h5"), backend=None, resume=False,
+                           overwrite=False, study="s.toml")
+    plan = _plan_root(args, st)
+    # rows t = point * R + realisation: N = 40 (point 1), then N = 20 (point 2), then N = 10
+    assert plan["pending"].tolist() == [2, 3, 4, 5, 0, 1]
+
+
+def test_paired_difference_uses_the_pairs():
+    from sliders.study_analysis import paired_difference
+
+    common = np.array([0.50, 0.52, 0.48, 0.51])  # the realisations' shared disorder
+    a = {"done": np.ones(4, bool), "alpha_c": common}
+    b = {"done": np.array([True, True, True, False]), "alpha_c": common + 0.01 + [0, 1e-4, -1e-4, 9]}
+    d = paired_difference(a, b, "alpha_c")
+    assert d["n"] == 3 and d["mean"] == pytest.approx(0.01)
+    assert d["sem"] == pytest.approx(1e-4 / np.sqrt(3))  # the spread of the differences only
+    assert d["sem_unpaired"] > 50 * d["sem"]
+
+
+def test_figures_and_table_of_a_study(spec, tmp_path):
+    out = tmp_path / "f.h5"
+    assert study([spec, "--out", out, "--quiet"]).returncode == 0
+    from sliders.study_analysis import markdown_table, study_table
+
+    st, table = study_table(out)
+    assert [t["mu_d"] for t in table] == [0.5, 0.55, 0.5, 0.55]
+    assert all(t["bound_low"] < t["alpha_c_mean"] < t["bound_high"] for t in table)
+    assert len(markdown_table(out).splitlines()) == 2 + 4
+    res = subprocess.run([sys.executable, "-m", "sliders.figures", "--study", out, "--out",
+                          tmp_path / "figs"], capture_output=True, text=True, timeout=TIMEOUT)
+    assert res.returncode == 0, res.stderr
+    pngs = sorted(p.name for p in (tmp_path / "figs").glob("*.png"))
+    assert pngs == sorted(f"study_f_{n}.png" for n in ("alpha_c", "event_sizes", "transition",
+                                                       "bursts", "sync", "alpha_c_paired"))
+    bad = subprocess.run([sys.executable, "-m", "sliders.figures", "--study", spec],
+                         capture_output=True, text=True, timeout=TIMEOUT)
+    assert bad.returncode == 2 and "not a readable HDF5 file" in bad.stderr

@@ -129,3 +129,36 @@ def paired_differences(path, column: str, reference: int = 0) -> list[dict[str, 
     """``paired_difference`` of every point against point ``reference``."""
     _, rows = load_study_file(path)
     return [paired_difference(rows[reference], r, column) for r in rows]
+
+
+TABLE_COLUMNS = (  # (header, key, digits): the docs/studies.md tables
+    ("runs", "n_done", 0), ("α_c mean", "alpha_c_mean", 4), ("sd", "alpha_c_std", 4),
+    ("atan μ_d", "bound_low", 4), ("atan μ̄_s", "bound_high", 4),
+    ("α_t obs.", "alpha_t_observed", 2), ("2μ̄_s/(1+e)", "alpha_t_stirling", 3),
+    ("α_t P₃", "alpha_t_p3", 3), ("early Δα", "early_period", 4),
+    ("2Δμ/(1+μ_s tan α)", "early_pred", 4), ("late Δα", "late_period", 4), ("Δμ", "late_pred", 3),
+    ("sync share", "sync_share", 3), ("⟨s⟩", "mean_event_size", 2))
+
+
+def markdown_table(path) -> str:
+    """One Markdown row per point, plus the paired α_c differences to the first point."""
+    study, table = study_table(path)
+    _, rows = load_study_file(path)
+    names = [n for d in study.dims for n in d]
+    head = names + [h for h, _, _ in TABLE_COLUMNS] + ["Δα_c vs first (paired s.e.; unpaired)"]
+    lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+    for p, t in enumerate(table):
+        d = paired_difference(rows[0], rows[p], "alpha_c")
+        cells = [f"{t[n]:g}" for n in names]
+        cells += ["n/a" if isinstance(t[k], float) and not math.isfinite(t[k]) else
+                  f"{t[k]:.{nd}f}" for _, k, nd in TABLE_COLUMNS]
+        cells.append(f"{d['mean']:+.4f} ± {d['sem']:.4f}; ± {d['sem_unpaired']:.4f}")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    import sys
+
+    for arg in sys.argv[1:]:
+        print(f"\n{arg}\n\n{markdown_table(arg)}")

@@ -54,6 +54,13 @@ def _xscale(ax, study, xs) -> None:
         ax.set_xscale("log")
     elif name == "xi" and positive and max(positive) / min(positive) > 50:
         ax.set_xscale("symlog", linthresh=min(positive), linscale=0.5)
+    else:
+        return
+    from matplotlib.ticker import NullFormatter, NullLocator
+
+    ax.xaxis.set_minor_locator(NullLocator())  # one labelled tick per point, nothing between
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xticks(list(xs), [f"{x:g}" for x in xs])
 
 
 def draw_study(path, out_dir, formats=("png", "pdf"), dpi: int = PNG_DPI,
