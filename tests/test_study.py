@@ -61,10 +61,11 @@ def spec(tmp_path):
     return p
 
 
-def test_two_ranks_same_bits_as_serial_and_same_seeds_at_every_point(spec, tmp_path):
+@pytest.mark.parametrize("storage", ["auto", "gather"])  # auto: parallel HDF5 (mpio) here
+def test_two_ranks_same_bits_as_serial_and_same_seeds_at_every_point(spec, tmp_path, storage):
     serial, par = tmp_path / "serial.h5", tmp_path / "par.h5"
     a = study([spec, "--out", serial, "--quiet"])
-    b = study([spec, "--out", par, "--quiet"], n=2)
+    b = study([spec, "--out", par, "--quiet", "--storage", storage], n=2)
     assert a.returncode == 0 and b.returncode == 0, a.stderr + b.stderr
     ra, rb = rows(serial), rows(par)
     assert set(ra) == set(rb)
