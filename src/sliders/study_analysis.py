@@ -72,6 +72,8 @@ def point_summary(study: Study, p: int, rows: dict[str, np.ndarray]) -> dict[str
     fin = ac[np.isfinite(ac)]
     out["alpha_c_mean"], out["alpha_c_sem"], out["n_avalanche"] = _mean_sem(fin)
     out["alpha_c_std"] = float(np.std(fin, ddof=1)) if fin.size > 1 else math.nan
+    out["alpha_c_min"] = float(fin.min()) if fin.size else math.nan
+    out["alpha_c_max"] = float(fin.max()) if fin.size else math.nan
     out["bound_low"], out["bound_high"] = math.atan(scene.mu_d), math.atan(scene.mu_s_mean)
     stats = {k[len(STATISTICS):]: v[done] for k, v in rows.items() if k.startswith(STATISTICS)}
     out["mean_event_size"] = math.nan
@@ -113,7 +115,10 @@ def paired_difference(rows_a: dict, rows_b: dict, column: str) -> dict[str, floa
     the standard error of the paired differences; ``sem_unpaired`` what two independent
     ensembles of the same size would give (for comparison).
     """
-    key = column if column in rows_a else STATISTICS + column
+    key = next((k for k in (column, STATISTICS + column, STATISTICS + STUDY_PREFIX + column)
+                if k in rows_a), None)
+    if key is None:
+        raise KeyError(f"no per-realisation column {column!r} in the study")
     a, b = np.asarray(rows_a[key], float), np.asarray(rows_b[key], float)
     both = rows_a["done"] & rows_b["done"] & np.isfinite(a) & np.isfinite(b)
     d = b[both] - a[both]
@@ -133,6 +138,7 @@ def paired_differences(path, column: str, reference: int = 0) -> list[dict[str, 
 
 TABLE_COLUMNS = (  # (header, key, digits): the docs/studies.md tables
     ("runs", "n_done", 0), ("α_c mean", "alpha_c_mean", 4), ("sd", "alpha_c_std", 4),
+    ("min", "alpha_c_min", 4), ("max", "alpha_c_max", 4),
     ("atan μ_d", "bound_low", 4), ("atan μ̄_s", "bound_high", 4),
     ("α_t obs.", "alpha_t_observed", 2), ("2μ̄_s/(1+e)", "alpha_t_stirling", 3),
     ("α_t P₃", "alpha_t_p3", 3), ("early Δα", "early_period", 4),

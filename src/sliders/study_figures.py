@@ -52,8 +52,11 @@ def _xscale(ax, study, xs) -> None:
     positive = [x for x in xs if x > 0]
     if name == "n_sliders":
         ax.set_xscale("log")
+        ax.set_xlim(min(xs) / 1.3, max(xs) * 1.3)
     elif name == "xi" and positive and max(positive) / min(positive) > 50:
         ax.set_xscale("symlog", linthresh=min(positive), linscale=0.5)
+        ax.set_xlim(-0.4 * min(positive) if min(xs) <= 0 else min(positive) / 1.5,
+                    max(xs) * 1.5)  # autoscaling pads in linear units: half the plot empty
     else:
         return
     from matplotlib.ticker import NullFormatter, NullLocator
