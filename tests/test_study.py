@@ -195,3 +195,27 @@ def test_figures_and_table_of_a_study(spec, tmp_path):
     bad = subprocess.run([sys.executable, "-m", "sliders.figures", "--study", spec],
                          capture_output=True, text=True, timeout=TIMEOUT)
     assert bad.returncode == 2 and "not a readable HDF5 file" in bad.stderr
+
+
+def test_zipped_axes_vary_together(tmp_path):
+    from sliders.study import StudyError, parse_study
+
+    data = {"study": {"realisations": 1, "zip": [["mu_d", "sigma_mu"]]}, "scene": {"n_sliders": 12},
+            "axes": {"mu_d": [0.5, 0.55], "sigma_mu": [0.01, 0.02], "xi": [0.0, 0.001]}}
+    st = parse_study(data)
+    assert st.dims == [["mu_d", "sigma_mu"], ["xi"]] and st.shape == (2, 2)
+    assert [(p["mu_d"], p["sigma_mu"]) for p in st.points] == [(0.5, 0.01)] * 2 + [(0.55, 0.02)] * 2
+    data["axes"]["sigma_mu"] = [0.01]
+    with pytest.raises(StudyError, match="zipped axes need equal lengths"):
+        parse_study(data)
+    xr = pytest.importorskip("xarray", reason="xarray is an optional reader (pip install xarray)")
+    spec = tmp_path / "z.toml"
+    spec.write_text('[study]\nrealisations = 2\nzip = [["mu_d", "sigma_mu"]]\n[scene]\n'
+                    'n_sliders = 12\nmode = "explore"\n[axes]\nmu_d = [0.5, 0.55]\n'
+                    'sigma_mu = [0.01, 0.02]\n')
+    out = tmp_path / "z.h5"
+    res = study([spec, "--out", out, "--quiet"])
+    assert res.returncode == 0, res.stderr
+    ds = xr.open_dataset(out, engine="h5netcdf")
+    assert ds["alpha_c"].dims == ("mu_d", "realisation")
+    assert ds["sigma_mu"].dims == ("mu_d",) and list(ds["sigma_mu"].values) == [0.01, 0.02]

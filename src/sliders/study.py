@@ -464,7 +464,8 @@ def write_view(path, study: Study) -> None:
                 ds = f.create_dataset(name, data=np.asarray(study.axes[name]))
                 ds.make_scale(name)
                 for other in d[1:]:  # zipped axes: values along the first one's dimension
-                    f.create_dataset(other, data=np.asarray(study.axes[other]))
+                    f.create_dataset(other, data=np.asarray(study.axes[other])) \
+                        .dims[0].attach_scale(ds)
             scales.append(f[name])
         if "realisation" not in f:
             f.create_dataset("realisation", data=np.arange(study.realisations)).make_scale(
@@ -672,7 +673,11 @@ def _run(args, comm, study, plan, storage, _Root, _worker, _Stop, compute_row) -
             signal.signal(s, h)
     final = None
     if rank == 0:
-        write_view(args.out, study)
+        try:
+            write_view(args.out, study)
+        except (OSError, KeyError, ValueError) as exc:  # the rows are safe; only the view is missing
+            sys.stderr.write(f"study: warning: the xarray view of {args.out} was not written "
+                             f"({' '.join(str(exc).split())}); rerun with --resume to add it\n")
         final = {"stop": root.stop_reason, "signum": root.signum}
         elapsed = time.monotonic() - root.started
         n_done = root.done_before + root.done_now
