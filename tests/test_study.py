@@ -111,6 +111,7 @@ def test_resume_completes_only_the_missing_rows(spec, tmp_path):
     ("n_slider = [10, 12]", "axis 'n_slider' is not a scene parameter (did you mean 'n_sliders'?)"),
     ("xi = []", "axis 'xi' is empty"),
     ("mu_d = [0.5, 0.7]", "axis 'mu_d' at point 1 (mu_d=0.7)"),
+    ("xi = [0.0, 0.001]\nmu_d = [0.5, 0.7]", "axis 'mu_d' at point 1 (xi=0.0, mu_d=0.7)"),
     ("seed = [1, 2]", "axis 'seed' cannot vary"),
 ])
 def test_bad_study_is_one_line_before_anything_runs(tmp_path, axes, expected):

@@ -186,8 +186,9 @@ def parse_study(data: dict, where: str = "study") -> Study:
                                  "'displacements' or 'forces'")
             default_grids(scene)
         except (SceneError, ValueError, TypeError) as exc:
-            first = next(iter(values))
-            raise StudyError(f"{where}: axis {first!r} at point {p} ({_point_text(values)}): "
+            text = str(exc)  # the axis the scene's message names, else the first one
+            culprit = next((n for n in values if n in text), next(iter(values)))
+            raise StudyError(f"{where}: axis {culprit!r} at point {p} ({_point_text(values)}): "
                              f"{' '.join(str(exc).split())}") from None
         study.points.append(values)
         study.scenes.append(scene)
