@@ -184,7 +184,9 @@ def draw_study(path, out_dir, formats=("png", "pdf"), dpi: int = PNG_DPI,
                         capsize=1, label="unpaired s.e. (independent runs)" if i == 0 else None)
         ax.axhline(0, color="k", lw=0.5)
         first = _x(study, table, series[0][1][0])
-        ax.set_ylabel(rf"$\alpha_c - \alpha_c$({xlabel.split('=')[0].strip()} = {first:g})")
+        symbol = (r"$\Delta\mu$" if xlabel.startswith(r"$\Delta\mu") else
+                  LABELS.get(study.dims[0][0], study.dims[0][0]))
+        ax.set_ylabel(rf"$\alpha_c - \alpha_c$({symbol} = {first:g})")
         finish(fig, ax, "alpha_c_paired", x)
     return paths
 
