@@ -292,9 +292,10 @@ def _plan_root(args, plan) -> dict[str, Any]:
 # one realisation
 # ---------------------------------------------------------------------------
 def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
-                first: int = 0) -> dict[str, Any]:
+                first: int = 0, extra_statistics=None) -> dict[str, Any]:
     """Row ``r`` of a file starting at realisation ``first``: realisation ``first + r`` of the
-    scene (base columns + statistics/<key>)."""
+    scene (base columns + statistics/<key>).  ``extra_statistics(result)`` -> {key: value}
+    adds statistics of the caller's own (a study's burst periods and synchronisation)."""
     from .keyed_random import realisation_seed
     from .observables import realisation_statistics
     from .storage import STATISTICS
@@ -310,6 +311,8 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
     result = _tilt_interruptibly(scene.replace(seed=realisation_seed(scene.seed, first + r)),
                                  backend, progress)
     stats = {} if scene.record == "summary" else realisation_statistics(result, grids)
+    if extra_statistics is not None:
+        stats.update(extra_statistics(result))
     row: dict[str, Any] = {
         "status": STATUS_CODES.get(result.status, UNKNOWN_STATUS),
         "alpha_c": float(result.alpha_c),
@@ -319,6 +322,15 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
     row.update({STATISTICS + k: v for k, v in stats.items()})
     row["wall_time"] = time.perf_counter() - started
     return row
+
+
+def _compute(ctx: dict, r: int, progress) -> dict[str, Any]:
+    """Row ``r`` of the run: ``ctx["compute_row"](r, progress)`` when the caller schedules its
+    own tasks (a study: row = one (point, realisation) pair), else realisation r of the scene."""
+    task = ctx.get("compute_row")
+    if task is not None:
+        return task(r, progress)
+    return compute_row(ctx["scene"], r, ctx["backend"], ctx["grids"], progress, ctx["first"])
 
 
 # ---------------------------------------------------------------------------
@@ -493,7 +505,8 @@ class _Root:
         rate = self.done_now / elapsed if elapsed > 0 else math.nan
         left = self.total - done
         eta = left / rate if rate > 0 else math.inf
-        sys.stderr.write(f"ensemble: {done}/{self.total} realisations done, "
+        label, unit = self.ctx.get("label", ("ensemble", "realisations"))  # a study: its rows
+        sys.stderr.write(f"{label}: {done}/{self.total} {unit} done, "
                          f"{rate:.3g}/s, elapsed {_fmt_time(elapsed)}, ETA {_fmt_time(eta)}\n")
         sys.stderr.flush()
 
@@ -526,8 +539,7 @@ class _Root:
             r = self.queue.popleft()
             t0 = time.perf_counter()
             try:
-                row = compute_row(ctx["scene"], r, ctx["backend"], ctx["grids"], self.poll,
-                                  ctx["first"])
+                row = _compute(ctx, r, self.poll)
             except (Interrupted, KeyboardInterrupt):  # the signal stops the run below
                 break
             finally:
@@ -613,7 +625,7 @@ def _worker(comm, handler, ctx) -> dict[str, float]:
                 ask(ahead=True)
             t0 = time.perf_counter()
             try:
-                row = compute_row(ctx["scene"], r, ctx["backend"], ctx["grids"], check, ctx["first"])
+                row = _compute(ctx, r, check)
             finally:
                 timing["compute"] += time.perf_counter() - t0
             handler.write_row(r, row)

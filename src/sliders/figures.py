@@ -801,6 +801,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ensemble", metavar="FILE.h5",
                    help="statistics figures from this ensemble file (python -m sliders.ensemble); "
                         "scenes A, B, C are then drawn only if named in --only")
+    p.add_argument("--study", metavar="FILE.h5",
+                   help="the figures of a study file (python -m sliders.study) against its axes")
     p.add_argument("--paper-size", action="store_true", help="the paper's system sizes")
     p.add_argument("--backend", choices=("fortran", "numpy"), default="fortran")
     p.add_argument("--only", nargs="+", metavar="NAME",
@@ -934,6 +936,13 @@ def main(argv: list[str] | None = None) -> int:
             path = animate_tilt(animation_scene(args.scene), out_dir=out, backend=args.backend)
             print(f"animation -> {path} ({os.path.getsize(path) / 1e3:.0f} kB, "
                   f"{time.perf_counter() - t_all:.1f} s)", flush=True)
+            return 0
+        if args.study:
+            from .study_figures import check_study_file, draw_study
+
+            check_study_file(args.study)
+            for path in draw_study(args.study, args.out or "figures", dpi=args.dpi):
+                print(path, flush=True)
             return 0
         if args.ensemble:
             check_ensemble_file(args.ensemble)

@@ -1,0 +1,713 @@
+"""``python -m sliders.study STUDY.toml --out FILE.h5``: a sweep over scene parameters.
+
+    mpirun -n 2 python -m sliders.study mpi_runs/scenes/study_dmu.toml --out dmu.h5
+
+A study file holds the base scene, the axes and the number of realisations::
+
+    [study]
+    realisations = 8          # R per point
+    zip = [["mu_d", "sigma_mu"]]   # optional: axes that vary together (equal lengths)
+    [scene]                   # the base scene (keys of sliders.Scene)
+    n_sliders = 100
+    [axes]                    # scene parameter -> list of values; points = their product
+    xi = [0, 1e-4, 1e-3]
+    mu_d = [0.5, 0.55]
+
+Common random numbers: realisation r has the seed ``realisation_seed(seed, r)``
+at every point, so that two points differ only by their parameters and their
+difference is measured on pairs (``study_analysis``).  ``seed`` cannot be an
+axis for that reason.
+
+Scheduling is the ensemble's (``ensemble._Root`` / ``ensemble._worker``, dynamic,
+one file): row t of the run is realisation ``t % R`` of point ``t // R``; the
+queue holds the rows of the most expensive points first (cost ~ N^2 / dt), so
+that the last rows to finish are short ones.  A row depends only on its point
+and realisation, so the file is the same with any number of ranks.
+
+File::
+
+    /                     attrs: format = "sliders.study", study (JSON: scene, axes, zip,
+                          realisations), study_digest, dims, n_points, common_random_numbers, ...
+    /points/p000/...      the ensemble layout (storage module) of point 0: grids,
+                          realisations/{seed, done, status, alpha_c, ..., statistics/, row_crc32}
+    /<axis>, /realisation coordinates (HDF5 dimension scales) of
+    /alpha_c, /status, /n_events, /done   (dims..., realisation): written by rank 0 at the end
+                          of every run, so that xarray opens the study as one dataset
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import difflib
+import hashlib
+import itertools
+import json
+import math
+import os
+import signal
+import sys
+import time
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from . import safeio
+from .scene import Scene, SceneError
+from .storage import ROW_DIGEST, GatherFile, Layout, MpioFile, _create_structure
+
+FORMAT = "sliders.study"
+FORMAT_VERSION = 1
+STUDY_PREFIX = "study_"  # extra per-realisation statistics (burst periods, synchronisation)
+CRN_TEXT = ("common random numbers: realisation r has seed realisation_seed(base_seed, r) at "
+            "every point (the same disorder draws); differences between points are paired")
+NOT_AXES = ("seed", "output", "record")  # seed: common random numbers; record: statistics needed
+
+
+class StudyError(ValueError):
+    """A bad study file or command line: one line, nothing is run."""
+
+
+# ---------------------------------------------------------------------------
+# the study file
+# ---------------------------------------------------------------------------
+@dataclass
+class Study:
+    """A validated study: base scene, axes, and every point's scene."""
+
+    base: dict[str, Any]
+    axes: dict[str, list]
+    zipped: list[list[str]]
+    realisations: int
+    dims: list[list[str]] = field(default_factory=list)  # per dimension: its axis names
+    points: list[dict[str, Any]] = field(default_factory=list)  # axis values per point
+    scenes: list[Scene] = field(default_factory=list)
+
+    @property
+    def spec(self) -> dict[str, Any]:
+        """The study as plain data: base scene, axes, zipped axes, realisations per point."""
+        return {"scene": self.base, "axes": self.axes, "zip": self.zipped,
+                "realisations": self.realisations}
+
+    @property
+    def digest(self) -> str:
+        """A 16-hex-digit SHA-256 of ``spec``: a resumed file must carry the same one."""
+        # axis order matters (it orders the points and the dimensions): no sort_keys
+        return hashlib.sha256(json.dumps(self.spec).encode()).hexdigest()[:16]
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Number of values along each dimension of the study (zipped axes share one)."""
+        return tuple(len(self.axes[d[0]]) for d in self.dims)
+
+    @property
+    def base_seed(self) -> int:
+        """The scene seed; realisation r uses ``realisation_seed(base_seed, r)`` at every point."""
+        return int(self.scenes[0].seed)
+
+    def cost(self, p: int) -> float:
+        """Relative cost of one realisation of point p (time steps x sliders ~ N^2 / dt)."""
+        s = self.scenes[p]
+        return float(s.n_sliders) ** 2 / float(s.dt or 1.0)
+
+
+def _hint(key: str, known) -> str:
+    close = difflib.get_close_matches(key, sorted(known), n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def _point_text(values: dict[str, Any]) -> str:
+    return ", ".join(f"{k}={v!r}" for k, v in values.items())
+
+
+def parse_study(data: dict, where: str = "study") -> Study:
+    """Validate a study (the parsed TOML); every point's scene is built, nothing is run."""
+    from .observables import default_grids
+
+    known = {f.name for f in fields(Scene)} - {"output"}
+    for k in data:
+        if k not in ("study", "scene", "axes"):
+            raise StudyError(f"{where}: unknown table or key {k!r}{_hint(k, ['study', 'scene', 'axes'])}; "
+                             "a study has [study], [scene] and [axes]")
+    opts = data.get("study", {})
+    base = data.get("scene", {})
+    axes = data.get("axes")
+    if not isinstance(opts, dict) or not isinstance(base, dict):
+        raise StudyError(f"{where}: [study] and [scene] must be tables")
+    for k in opts:
+        if k not in ("realisations", "zip"):
+            raise StudyError(f"{where}: unknown key {k!r} in [study]{_hint(k, ['realisations', 'zip'])}"
+                             "; allowed: realisations, zip")
+    R = opts.get("realisations")
+    if not isinstance(R, int) or isinstance(R, bool) or R < 1:
+        raise StudyError(f"{where}: [study] realisations must be an integer >= 1, got {R!r}")
+    for k in base:
+        if k not in known:
+            raise StudyError(f"{where}: [scene] has unknown parameter {k!r}{_hint(k, known)}")
+    if not isinstance(axes, dict) or not axes:
+        raise StudyError(f"{where}: an [axes] table with at least one axis is required")
+    for name, values in axes.items():
+        if name not in known:
+            raise StudyError(f"{where}: axis {name!r} is not a scene parameter{_hint(name, known)}")
+        if name in NOT_AXES:
+            why = ("realisations share their seeds across points (common random numbers); vary "
+                   "[study] realisations instead" if name == "seed" else
+                   "every point needs its statistics (record = 'displacements' or 'forces')")
+            raise StudyError(f"{where}: axis {name!r} cannot vary: {why}")
+        if not isinstance(values, list):
+            raise StudyError(f"{where}: axis {name!r} must be a list of values, got {values!r}")
+        if not values:
+            raise StudyError(f"{where}: axis {name!r} is empty (give at least one value)")
+        if name in base:
+            raise StudyError(f"{where}: {name!r} is both in [scene] and an axis; keep one")
+    zipped = opts.get("zip", [])
+    if not (isinstance(zipped, list) and all(isinstance(g, list) and len(g) >= 2 for g in zipped)):
+        raise StudyError(f"{where}: [study] zip must be a list of lists of >= 2 axis names")
+    seen: set[str] = set()
+    for g in zipped:
+        for name in g:
+            if name not in axes:
+                raise StudyError(f"{where}: zip names {name!r}, which is not an axis"
+                                 f"{_hint(str(name), axes)}")
+            if name in seen:
+                raise StudyError(f"{where}: axis {name!r} is zipped twice")
+            seen.add(name)
+        lengths = {n: len(axes[n]) for n in g}
+        if len(set(lengths.values())) != 1:
+            raise StudyError(f"{where}: zipped axes need equal lengths, got {lengths}")
+    dims = [list(g) for g in zipped] + [[n] for n in axes if n not in seen]
+    dims.sort(key=lambda d: list(axes).index(d[0]))  # in the order the axes are written
+    study = Study(dict(base), {k: list(v) for k, v in axes.items()}, [list(g) for g in zipped],
+                  int(R), dims)
+    for idx in itertools.product(*(range(len(axes[d[0]])) for d in dims)):
+        values = {n: axes[n][i] for d, i in zip(dims, idx) for n in d}
+        p = len(study.points)
+        try:
+            scene = Scene.from_dict({**base, **values})
+            if scene.record == "summary":
+                raise SceneError("record = 'summary' keeps no statistics; a study needs "
+                                 "'displacements' or 'forces'")
+            default_grids(scene)
+        except (SceneError, ValueError, TypeError) as exc:
+            text = str(exc)  # the axis the scene's message names, else the first one
+            culprit = next((n for n in values if n in text), next(iter(values)))
+            raise StudyError(f"{where}: axis {culprit!r} at point {p} ({_point_text(values)}): "
+                             f"{' '.join(str(exc).split())}") from None
+        study.points.append(values)
+        study.scenes.append(scene)
+    return study
+
+
+def load_study(path) -> Study:
+    """Read and validate a study file (TOML: ``[study]``, ``[scene]``, ``[axes]``).
+
+    Every point's scene is built before anything runs; a bad key, an empty
+    axis or a value invalid at one point raises ``StudyError`` naming the axis
+    and the point.
+    """
+    import tomllib
+
+    where = f"study file {os.fspath(path)!r}"
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError:
+        raise StudyError(f"{where} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise StudyError(f"{where} is not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise StudyError(f"{where} cannot be read ({exc.strerror})") from None
+    return parse_study(data, where)
+
+
+# ---------------------------------------------------------------------------
+# the rows: one (point, realisation) pair each
+# ---------------------------------------------------------------------------
+def extra_statistics(result) -> dict[str, np.ndarray]:
+    """Burst periods and the synchronisation share of one run (REPRODUCTION.md definitions)."""
+    from .reproduction import burst_periods, sync_profile
+
+    sc = result.scene
+    bp = burst_periods([result], sc.delta_mu, sc.mu_s_mean)
+    sy = sync_profile([result])
+    return {
+        STUDY_PREFIX + "early_period": np.float64(bp["early_median"]),
+        STUDY_PREFIX + "early_pred": np.float64(bp["early_pred"]),
+        STUDY_PREFIX + "early_n": np.int64(bp["early_n"]),
+        STUDY_PREFIX + "late_period": np.float64(bp["late_median"]),
+        STUDY_PREFIX + "late_n": np.int64(bp["late_n"]),
+        STUDY_PREFIX + "sync_share": np.float64(sy["overall_weighted"]),
+        STUDY_PREFIX + "sync_event_share": np.float64(sy["overall"]),
+    }
+
+
+EXTRA_LAYOUT = {STUDY_PREFIX + k: ((), t) for k, t in (
+    ("early_period", np.float64), ("early_pred", np.float64), ("early_n", np.int64),
+    ("late_period", np.float64), ("late_n", np.int64), ("sync_share", np.float64),
+    ("sync_event_share", np.float64))}
+
+
+def point_name(p: int) -> str:
+    """The HDF5 group name of point ``p`` under ``/points`` (``p000``, ``p001``, ...)."""
+    return f"p{p:03d}"
+
+
+def _point_layout(study: Study, p: int, backend: str):
+    from .keyed_random import realisation_seed
+    from .observables import default_grids, statistics_layout
+    from .storage import file_attributes, make_layout
+
+    scene = study.scenes[p]
+    R = study.realisations
+    seeds = [realisation_seed(study.base_seed, r) for r in range(R)]  # the same at every point
+    grids = default_grids(scene)
+    stats = dict(statistics_layout(grids, scene.n_sliders))
+    stats.update(EXTRA_LAYOUT)
+    attrs = file_attributes(scene.to_dict(), study.base_seed, R, backend)
+    attrs.update({"point": p, "point_values": json.dumps(study.points[p])})
+    return make_layout(R, seeds, grids.to_arrays(), stats, attrs)
+
+
+def study_attributes(study: Study, backend: str) -> dict[str, Any]:
+    """The root attributes of a study file: the study, its digest, the dimensions, the backend."""
+    from . import __version__
+
+    return {
+        "format": FORMAT, "format_version": FORMAT_VERSION,
+        "study": json.dumps(study.spec), "study_digest": study.digest,
+        "dims": json.dumps(study.dims), "n_points": len(study.points),
+        "realisations": study.realisations, "base_seed": study.base_seed, "backend": backend,
+        "common_random_numbers": CRN_TEXT, "software_version": __version__,
+        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+    }
+
+
+def make_study_layout(study: Study, backend: str, attrs: dict | None = None):
+    """The file's layout: one ensemble layout per point (``points``) under study attributes."""
+    layouts = [_point_layout(study, p, backend) for p in range(len(study.points))]
+    biggest = max(layouts, key=lambda lay: sum(int(np.prod(c.shape)) for c in lay.columns))
+    # n_realisations and columns only size the free-space check (an upper bound)
+    return StudyLayout(len(layouts) * study.realisations, biggest.columns, np.zeros(0, np.uint32),
+                       {}, attrs or study_attributes(study, backend), points=layouts,
+                       names=[point_name(p) for p in range(len(layouts))],
+                       per_point=study.realisations)
+
+
+# ---------------------------------------------------------------------------
+# the file: the ensemble writers, one group per point
+# ---------------------------------------------------------------------------
+@dataclass
+class StudyLayout(Layout):
+    """The study file: one ensemble ``Layout`` per point, in group points/<name>."""
+
+    points: list = field(default_factory=list)
+    names: list = field(default_factory=list)
+    per_point: int = 0
+
+
+class _StudyRows:
+    """Row t of the run = realisation t % R of point t // R (group points/<name>)."""
+
+    def __init__(self, path, layout, comm):
+        super().__init__(path, layout, comm)
+        self.study = layout
+        self._point_ds: list = []
+
+    def _structure(self, f) -> None:
+        study = self.study
+        for k, v in study.attrs.items():
+            f.attrs[k] = v
+        safeio.seal_attrs(f)
+        pts = f.create_group("points")
+        for name, lay in zip(study.names, study.points):
+            _create_structure(pts.create_group(name), lay)
+
+    def _write_seeds(self) -> None:
+        for name, lay in zip(self.study.names, self.study.points):
+            self.file["points"][name]["realisations"]["seed"][:] = lay.seeds
+
+    def _bind(self) -> None:
+        self._point_ds = []
+        for name, lay in zip(self.study.names, self.study.points):  # same order, every rank
+            rg = self.file["points"][name]["realisations"]
+            ds = {c.name: rg[c.name] for c in lay.columns}
+            ds["done"], ds[ROW_DIGEST] = rg["done"], rg[ROW_DIGEST]
+            self._point_ds.append(ds)
+
+    def _select(self, t: int) -> int:
+        p, r = divmod(int(t), self.study.per_point)
+        self.layout = self.study.points[p]
+        if self._point_ds:
+            self._ds = self._point_ds[p]
+        return r
+
+    def write_row(self, t, row):
+        self._select(t)
+        super().write_row(t, row)
+
+    def _write_local(self, t, row):
+        super()._write_local(self._select(t), row)
+
+    def _done_local(self, t):
+        super()._done_local(self._select(t))
+
+    def close(self):
+        self._point_ds = []
+        super().close()
+
+
+class StudyMpioFile(_StudyRows, MpioFile):
+    """Parallel h5py: every rank writes its own rows into the points' groups."""
+
+    def _create(self, tmp):
+        import h5py
+
+        self.file = h5py.File(tmp, "w", driver="mpio", comm=self.comm)
+        self._structure(self.file)
+        if self.comm.rank == 0:
+            self._write_seeds()
+        self.file.flush()
+        self._bind()
+
+    def _open(self):
+        import h5py
+
+        self.file = h5py.File(self.path, "r+", driver="mpio", comm=self.comm)
+        self._bind()
+
+
+class StudyGatherFile(_StudyRows, GatherFile):
+    """Rank 0 writes every row (shipped by the others with their "done" message)."""
+
+    def _create(self, tmp):
+        if self.comm.rank == 0:
+            import h5py
+
+            self.file = h5py.File(tmp, "w")
+            self._structure(self.file)
+            self._write_seeds()
+            self.file.flush()
+            self._bind()
+
+    def _open(self):
+        if self.comm.rank == 0:
+            import h5py
+
+            self.file = h5py.File(self.path, "r+")
+            self._bind()
+
+
+HANDLERS = {"mpio": StudyMpioFile, "gather": StudyGatherFile}
+
+
+# ---------------------------------------------------------------------------
+# reading
+# ---------------------------------------------------------------------------
+def read_study_header(path) -> dict[str, Any]:
+    """Root attributes and, per point, its done mask (checksums of the rows verified)."""
+    import h5py
+
+    from .storage import StorageError, _row_damage
+
+    p = os.fspath(path)
+    if not os.path.exists(p):
+        raise StorageError(f"{p!r} does not exist")
+    try:
+        with h5py.File(p, "r") as f:
+            if f.attrs.get("format") != FORMAT:
+                raise StorageError(f"{p!r} is not a sliders study file")
+            safeio.check_attrs(f, repr(p))
+            attrs = {k: (v.decode() if isinstance(v, bytes) else
+                         v.item() if isinstance(v, np.generic) else v)
+                     for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
+            done, damaged = [], []
+            for name in sorted(f["points"]):
+                rg = f["points"][name]["realisations"]
+                order = json.loads(rg[ROW_DIGEST].attrs["columns"])
+                out = {n: rg[n][()] for n in order + ["done", ROW_DIGEST]}
+                d = out["done"].astype(bool)
+                bad = sorted({r for r, _ in _row_damage(out, order, d)})
+                d[bad] = False
+                done.append(d)
+                damaged.append(bad)
+    except StorageError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - whatever HDF5 makes of a damaged file: one line
+        raise StorageError(f"{p!r} is damaged ({type(exc).__name__}: "
+                           f"{' '.join(str(exc).split())})") from None
+    return {"attrs": attrs, "done": done, "damaged": damaged}
+
+
+def read_point_rows(path, p: int) -> dict[str, np.ndarray]:
+    """Every /points/<p>/realisations dataset (``statistics/<key>`` names), R rows."""
+    import h5py
+
+    out: dict[str, np.ndarray] = {}
+    with h5py.File(os.fspath(path), "r") as f:
+        rg = f["points"][point_name(p)]["realisations"]
+        rg.visititems(lambda name, obj: out.__setitem__(name, obj[()])
+                      if isinstance(obj, h5py.Dataset) else None)
+    out["done"] = out["done"].astype(bool)
+    return out
+
+
+VIEW_COLUMNS = ("alpha_c", "n_events", "status", "done")
+
+
+def write_view(path, study: Study) -> None:
+    """Rank 0, file closed by the writers: root datasets (dims..., realisation) with named
+    dimension scales, so that ``xr.open_dataset(path, engine="h5netcdf")`` shows the axes
+    as dimensions (derived from the checksummed rows, rewritten at the end of every run)."""
+    import h5py
+
+    from .conventions import provenance
+
+    shape = study.shape + (study.realisations,)
+    with h5py.File(os.fspath(path), "r+") as f:
+        values = {c: [] for c in VIEW_COLUMNS}
+        for p in range(len(study.points)):
+            rg = f["points"][point_name(p)]["realisations"]
+            for c in VIEW_COLUMNS:
+                values[c].append(rg[c][()])
+        scales = []
+        for d in study.dims:
+            name = d[0]
+            if name not in f:
+                ds = f.create_dataset(name, data=np.asarray(study.axes[name]))
+                ds.make_scale(name)
+                for other in d[1:]:  # zipped axes: values along the first one's dimension
+                    f.create_dataset(other, data=np.asarray(study.axes[other])) \
+                        .dims[0].attach_scale(ds)
+            scales.append(f[name])
+        if "realisation" not in f:
+            f.create_dataset("realisation", data=np.arange(study.realisations)).make_scale(
+                "realisation")
+        scales.append(f["realisation"])
+        for c in VIEW_COLUMNS:
+            data = np.stack(values[c]).reshape(shape)
+            if c in f:
+                f[c][...] = data
+            else:
+                ds = f.create_dataset(c, data=data)
+                for i, sc in enumerate(scales):
+                    ds.dims[i].attach_scale(sc)
+        if "title" not in f.attrs:
+            for k, v in provenance(f"sliders study: {len(study.points)} points x "
+                                   f"{study.realisations} realisations", study.spec["scene"]).items():
+                f.attrs[k] = v
+            safeio.seal_attrs(f)
+
+
+# ---------------------------------------------------------------------------
+# command line and run
+# ---------------------------------------------------------------------------
+def build_parser(rank: int = 0) -> argparse.ArgumentParser:
+    """The command line of ``python -m sliders.study`` (help printed by rank 0 only)."""
+    from .ensemble import _Parser
+    from .scene import BACKENDS
+    from .storage import STORAGES
+
+    p = _Parser(prog="python -m sliders.study",
+                description="Sweep scene parameters: R realisations (common random numbers: the "
+                            "same seeds at every point) at each point of the product of the axes, "
+                            "over MPI ranks with the ensemble's dynamic scheduling, into one HDF5 "
+                            "file (one group per point).")
+    p.rank = rank
+    p.add_argument("study", metavar="STUDY.toml", help="study file: [study], [scene], [axes]")
+    p.add_argument("--out", required=True, metavar="FILE.h5", help="output HDF5 file")
+    p.add_argument("--backend", choices=BACKENDS, default=None, help="tilt backend (default fortran)")
+    p.add_argument("--resume", action="store_true", help="complete the missing rows of --out")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    p.add_argument("--storage", choices=STORAGES, default="auto", help="file writer (as ensemble)")
+    p.add_argument("--progress-interval", type=float, default=10.0, metavar="S",
+                   help="seconds between progress lines on rank 0 (0: one per row)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    return p
+
+
+def _plan_root(args, study: Study) -> dict[str, Any]:
+    """Rank 0, holding the claim: new file or resume against the same study."""
+    from .ensemble import DEFAULT_BACKEND, UsageError
+    from .storage import StorageError
+
+    out = args.out
+    backend = args.backend or DEFAULT_BACKEND
+    resume = args.resume and os.path.exists(out)
+    if os.path.exists(out) and not (args.overwrite or resume):
+        raise UsageError(f"--out {out!r} exists; pass --resume to complete it or --overwrite "
+                         "to replace it")
+    P, R = len(study.points), study.realisations
+    done = np.zeros(P * R, dtype=bool)
+    attrs = None
+    if resume:
+        try:
+            head = read_study_header(out)
+        except StorageError as exc:
+            raise UsageError(f"--resume: {exc}") from None
+        attrs = head["attrs"]
+        if attrs.get("study_digest") != study.digest:
+            theirs = json.loads(attrs["study"])
+            what = [k for k in ("scene", "axes", "zip", "realisations")
+                    if theirs.get(k) != study.spec[k]]
+            raise UsageError(f"--resume: {out!r} holds a different study ({', '.join(what)} "
+                             f"differ from {args.study!r}); start a new file or resume with the "
+                             "study file that made it")
+        if args.backend is not None and attrs["backend"] != args.backend:
+            raise UsageError(f"--resume: {out!r} was computed with --backend {attrs['backend']}")
+        backend = attrs["backend"]
+        done = np.concatenate(head["done"])
+        n_bad = sum(len(b) for b in head["damaged"])
+        if n_bad:
+            sys.stderr.write(f"study: note: {n_bad} finished row(s) of {out} fail their "
+                             "checksums; recomputing them\n")
+    layout = make_study_layout(study, backend, attrs)
+    # most expensive points first (then realisation order), so that the tail is short
+    order = sorted(range(P), key=lambda p: (-study.cost(p), p))
+    tasks = [p * R + r for p in order for r in range(R)]
+    pending = np.array([t for t in tasks if not done[t]], dtype=np.int64)
+    return {"layout": layout, "resume": resume, "done": done, "pending": pending,
+            "backend": backend}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m sliders.study STUDY.toml --out FILE.h5``: run (or resume) a study; the exit code."""
+    from .ensemble import (UsageError, _claim_output, _error_line, _HelpExit, _Root, _Stop,
+                           _worker, compute_row)
+    from .parallel import MPIUnavailable, get_comm, launcher_rank
+    from .storage import StorageError, choose_storage
+
+    try:
+        comm, have_mpi = get_comm()
+    except MPIUnavailable as exc:
+        if launcher_rank() == 0:
+            sys.stderr.write(_error_line(str(exc)) + "\n")
+        return 1
+    rank = comm.rank
+    err = plan = claim = args = study = None
+    storage = None
+    try:
+        args = build_parser(rank).parse_args(argv)
+        if args.resume and args.overwrite:
+            raise UsageError("--resume and --overwrite exclude each other", code=2)
+        if args.progress_interval < 0:
+            raise UsageError(f"--progress-interval={args.progress_interval} must be >= 0")
+        study = load_study(args.study)
+        try:
+            storage = choose_storage(args.storage, comm.size, have_mpi)
+        except StorageError as exc:
+            raise UsageError(str(exc)) from None
+        if rank == 0:
+            claim = _claim_output(args)
+            plan = _plan_root(args, study)
+    except _HelpExit as exc:
+        err = (exc.code, "")
+    except UsageError as exc:
+        err = (exc.code, str(exc))
+    except (StudyError, SceneError, ValueError, OSError) as exc:
+        err = (1, str(exc))
+    except Exception as exc:  # noqa: BLE001 - any failure here must reach every rank
+        err = (1, f"{type(exc).__name__}: {exc}")
+    errors = comm.allgather(err)
+    first = next((e for e in errors if e is not None), None)
+    if first is not None:
+        if claim is not None:
+            claim.release()
+        if rank == 0 and first[1]:
+            sys.stderr.write(_error_line(first[1]) + "\n")
+        return first[0]
+    plan = comm.bcast(plan, root=0)
+    try:
+        return _run(args, comm, study, plan, storage, _Root, _worker, _Stop, compute_row)
+    finally:
+        if claim is not None:
+            claim.release()
+
+
+def _run(args, comm, study, plan, storage, _Root, _worker, _Stop, compute_row) -> int:
+    from .ensemble import _error_line
+    from .observables import StatisticsGrids
+    from .safeio import os_reason
+
+    rank = comm.rank
+    layout = plan["layout"]
+    handler = err = None
+    try:
+        cls = HANDLERS[storage]
+        if not plan["resume"]:
+            cls.create(args.out, layout, comm, overwrite=args.overwrite).close()
+        handler = cls.open_for_resume(args.out, layout, comm)
+    except Exception as exc:  # noqa: BLE001
+        err = f"cannot {'open' if plan['resume'] else 'create'} {args.out!r}: {os_reason(exc)}"
+    errors = comm.allgather(err)
+    if any(errors):
+        if rank == next(i for i, e in enumerate(errors) if e):
+            sys.stderr.write(_error_line(errors[rank]) + "\n")
+        if all(errors):
+            return 1
+        comm.Abort(1)
+
+    R = study.realisations
+    grids = [StatisticsGrids.from_arrays(lay.grids) for lay in layout.points]
+    backend = plan["backend"]
+
+    def compute(t: int, progress):
+        p, r = divmod(int(t), R)
+        # the point's scene keeps the base seed: realisation r has the same seed at every point
+        return compute_row(study.scenes[p], r, backend, grids[p], progress, 0, extra_statistics)
+
+    pending = plan["pending"]
+    total = len(study.points) * R
+    ctx = {"R": total, "compute_row": compute, "interval": args.progress_interval,
+           "quiet": args.quiet, "label": ("study", "(point, realisation) rows")}
+    if rank == 0 and not args.quiet:
+        verb = "resuming" if plan["resume"] else "starting"
+        sys.stderr.write(f"study: {verb} {pending.size} of {total} rows ({len(study.points)} points "
+                         f"x {R} realisations, backend {backend}) on {comm.size} rank(s), storage "
+                         f"{storage} -> {args.out}\n")
+        sys.stderr.flush()
+    old = {s: signal.signal(s, _Stop.handler) for s in (signal.SIGTERM, signal.SIGINT)}
+    root = None
+    try:
+        if rank == 0:
+            root = _Root(comm, handler, pending, total - pending.size, ctx)
+            root.run()
+        else:
+            _worker(comm, handler, ctx)
+    except Exception as exc:  # noqa: BLE001 - nothing may hang
+        sys.stderr.write(_error_line(f"rank {rank}: {type(exc).__name__}: {exc}") + "\n")
+        sys.stderr.flush()
+        if comm.size > 1:
+            comm.Abort(1)
+        handler.close()
+        return 1
+    try:
+        handler.close()
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    final = None
+    if rank == 0:
+        try:
+            write_view(args.out, study)
+        except (OSError, KeyError, ValueError) as exc:  # the rows are safe; only the view is missing
+            sys.stderr.write(f"study: warning: the xarray view of {args.out} was not written "
+                             f"({' '.join(str(exc).split())}); rerun with --resume to add it\n")
+        final = {"stop": root.stop_reason, "signum": root.signum}
+        elapsed = time.monotonic() - root.started
+        n_done = root.done_before + root.done_now
+        if root.stop_reason:
+            sys.stderr.write(f"study: interrupted ({root.stop_reason}): {n_done}/{total} rows in "
+                             f"{args.out}; rerun with --resume to complete them\n")
+        elif not args.quiet:
+            stats = ", ".join(f"{k} {v}" for k, v in sorted(root.statuses.items())) or "none run"
+            sys.stderr.write(f"study: {n_done}/{total} rows done, {root.done_now} in this run in "
+                             f"{elapsed:.1f} s; statuses: {stats} -> {args.out}\n")
+    final = comm.bcast(final, root=0)
+    if final["stop"]:
+        return 128 + int(final["signum"] or signal.SIGTERM)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
