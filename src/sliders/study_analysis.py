@@ -3,7 +3,7 @@
 Definitions are REPRODUCTION.md's (``sliders.reproduction``), applied at every point:
 
 * α_c: mean, standard deviation and standard error over the avalanching runs, with the
-  bounds atan μ_d and atan μ̄_s (MODEL.md §4);
+  bounds atan μ_d and atan μ̄_s (docs/model.md, "The avalanche and why α_c is bounded");
 * the observed transition angle: where P₁ + P₂ rises above its linear trend fitted on
   [0.1, 0.3] by more than 3 standard errors on two angles in a row
   (``reproduction.departure_angle``), against the model's 2μ̄_s/(1 + e) and the angle where
