@@ -69,6 +69,8 @@ module sliders_events
                             status_interrupted, status_refine_limit
   use sliders_chain, only: chain_params, elastic_force, total_displacement, &
                            spring_energy_change, cantilever_energy_change
+  use sliders_contract, only: ev_alpha, ev_duration, ev_work_gravity, ev_elastic_change, &
+                              ev_dissipation, ev_n_moved, ev_n_stops, ev_n_steps, ev_slider_steps
   use sliders_friction, only: static_threshold, kinetic_force, draw_at_stop
   use sliders_loading, only: tilt_terms, tilt_work, tilt_runaway, tilt_root_cache, &
                              roots_from, root_lower_bounds, tie_tol
@@ -77,9 +79,6 @@ module sliders_events
 
   public :: tilt_params, tilt_run
   public :: max_halvings, interrupt_check_steps
-  public :: n_event_real, n_event_int
-  public :: ev_alpha, ev_duration, ev_work_gravity, ev_elastic_change, ev_dissipation
-  public :: ev_n_moved, ev_n_stops, ev_n_steps, ev_slider_steps
   public :: detail_none, detail_resting, detail_state
 
   !> A crossing's bracket is halved at most this often (reference.MAX_HALVINGS):
@@ -90,30 +89,25 @@ module sliders_events
   !> before every event.
   integer(i8), parameter :: interrupt_check_steps = 100000_i8
 
-  !> Columns of the per-event buffers (status.EVENT_FIELDS, split by type).
-  integer(ip), parameter :: n_event_real = 5, n_event_int = 4
-  integer(ip), parameter :: ev_alpha = 1, ev_duration = 2, ev_work_gravity = 3, &
-                            ev_elastic_change = 4, ev_dissipation = 5
-  integer(ip), parameter :: ev_n_moved = 1, ev_n_stops = 2, ev_n_steps = 3, &
-                            ev_slider_steps = 4
   !> What a non-finite status refers to (for the message).
   integer(ip), parameter :: detail_none = 0, detail_resting = 1, detail_state = 2
 
-  !> Everything of the scene the kernel uses.
+  !> Everything of the scene the kernel uses.  No defaults: every field is
+  !> set from the packed parameters (contract.py, from the scene's defaults).
   type :: tilt_params
     type(chain_params) :: chain
-    real(dp) :: mu_d = 0.55_dp
-    real(dp) :: mu_s_mean = 0.6_dp
-    real(dp) :: sigma_mu = 0.01_dp
-    integer(i8) :: seed = 0_i8
-    real(dp) :: dt = 1.0e-3_dp
-    real(dp) :: refine_tol = 1.0e-10_dp
-    real(dp) :: max_event_duration = 1.0e5_dp             ! scene.py's modes
-    real(dp) :: alpha_max = 1.5707963267948966_dp - 1.0e-6_dp   ! scene.ALPHA_MAX_LIMIT
-    real(dp) :: force_tol = 1.0e-12_dp
-    logical :: record_sparse = .true.   !< store the moved sliders' displacements
-    logical :: relax_only = .false.     !< only relax at the current angle
-    integer(ip) :: max_events = 1       !< events to record in this call
+    real(dp) :: mu_d
+    real(dp) :: mu_s_mean
+    real(dp) :: sigma_mu
+    integer(i8) :: seed
+    real(dp) :: dt
+    real(dp) :: refine_tol
+    real(dp) :: max_event_duration
+    real(dp) :: alpha_max
+    real(dp) :: force_tol
+    logical :: record_sparse    !< store the moved sliders' displacements
+    logical :: relax_only       !< only relax at the current angle
+    integer(ip) :: max_events   !< events to record in this call
   end type tilt_params
 
   !> Work arrays of one tilt_run call (allocated once per call, sized n).

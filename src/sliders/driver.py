@@ -17,7 +17,8 @@ import numpy as np
 from . import status
 from .chain import ChainState
 from .preparation import prepare
-from .reference import Chunk, NumpyEngine
+from .contract import Chunk, join_chunks
+from .reference import NumpyEngine
 from .result import EventSparse, TiltResult
 from .scene import BACKENDS, Scene, SceneError, check_memory
 
@@ -177,28 +178,16 @@ def _interrupt_or_return(result: TiltResult, keep_partial: bool) -> TiltResult:
 
 def _finish(scene, backend, code, message, alpha_c, chunks, initial, final, relaxation, started,
             final_event):
-    events = {f: np.concatenate([c.events[f] for c in chunks]) if chunks else np.zeros(0)
-              for f in status.EVENT_FIELDS}
-    for f in ("n_moved", "n_stops", "n_steps", "slider_steps"):
-        events[f] = events[f].astype(np.int64)
+    run = join_chunks(chunks, code)
     displacement = None
     if scene.record != "summary":
-        ptr = [np.zeros(1, dtype=np.int64)]
-        offset = 0
-        for c in chunks:
-            ptr.append(c.sparse_ptr[1:] + offset)
-            offset += c.sparse_index.size
-        displacement = EventSparse(
-            np.concatenate(ptr),
-            np.concatenate([c.sparse_index for c in chunks]) if chunks else np.zeros(0, np.int64),
-            np.concatenate([c.sparse_displacement for c in chunks]) if chunks else np.zeros(0),
-            scene.n_sliders,
-        )
+        displacement = EventSparse(run.sparse_ptr, run.sparse_index, run.sparse_displacement,
+                                   scene.n_sliders)
     if not message and code in status.ERRORS:
         message = status.NAMES[code]
     return TiltResult(
         scene=scene, backend=backend, status=status.NAMES[code], message=message,
-        alpha_c=float(alpha_c), events=events, displacement=displacement,
+        alpha_c=float(alpha_c), events=run.events, displacement=displacement,
         initial=initial, final=final, relaxation=relaxation,
         wall_time=time.perf_counter() - started, final_event=dict(final_event),
     )

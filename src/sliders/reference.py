@@ -45,34 +45,12 @@ import numpy as np
 
 from . import status
 from .chain import ChainState, elastic_energy, elastic_force
+from .contract import MAX_HALVINGS, Chunk, events_from_records, refine_limit_message
 from .friction import friction_for
 # next_instability, TIE_TOL and TRANSCENDENTALS live with the tilt loading;
 # re-exported here, where callers and tests have always found them.
 from .loading import TIE_TOL, TRANSCENDENTALS, loading_for, next_instability  # noqa: F401
 from .scene import Scene
-
-# Halvings of a crossing bracket, at most (sliders_events.max_halvings): a step
-# of 1 tau closes to 3e-39 within them, so only a refine_tol below what the
-# step can resolve reaches the bound.
-MAX_HALVINGS = 128
-
-
-@dataclass
-class Chunk:
-    """What one call of a backend's ``advance`` produced."""
-
-    status: int
-    events: dict[str, np.ndarray]
-    sparse_ptr: np.ndarray  # events[k] moved sliders are entries ptr[k]:ptr[k+1]
-    sparse_index: np.ndarray
-    sparse_displacement: np.ndarray
-    alpha_c: float = math.nan
-    message: str = ""
-    final_event: dict = field(default_factory=dict)  # work of an unfinished last event
-
-    @property
-    def n_events(self) -> int:
-        return len(self.events["alpha"])
 
 
 @dataclass
@@ -81,13 +59,6 @@ class _EventOutcome:
     record: dict = field(default_factory=dict)
     moved_index: np.ndarray | None = None
     moved_displacement: np.ndarray | None = None
-
-
-def refine_limit_message(scene: Scene, alpha: float) -> str:
-    """What a run ended by the bisection bound says (both backends)."""
-    return (f"crossing refinement at alpha={alpha:.6f}: bracket still wider than "
-            f"refine_tol={scene.refine_tol} tau after {MAX_HALVINGS} halvings of dt={scene.dt} "
-            f"(below double precision; use a larger refine_tol)")
 
 
 class NumpyEngine:
@@ -108,9 +79,7 @@ class NumpyEngine:
         ptr, index, disp = [0], [], []
 
         def chunk(code, alpha_c=math.nan, message="", final_event=None):
-            events = {f: np.array([r[f] for r in records], dtype=float) for f in status.EVENT_FIELDS}
-            for f in ("n_moved", "n_stops", "n_steps", "slider_steps"):
-                events[f] = events[f].astype(np.int64)
+            events = events_from_records(records)
             return Chunk(
                 code, events, np.array(ptr, dtype=np.int64),
                 np.array(np.concatenate(index) if index else [], dtype=np.int64),

@@ -332,7 +332,3 @@ def whole_file_problem(path) -> str | None:
         return named
     return f"{where} is damaged: it fails its whole-file checksum (in the HDF5 metadata)"
 
-
-def empty_events() -> dict[str, np.ndarray]:
-    return {f: np.zeros(0, dtype=np.int64 if f in ("n_moved", "n_stops", "n_steps", "slider_steps")
-                        else float) for f in status.EVENT_FIELDS}
