@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from sliders import Scene, contract, status
 from sliders.contract import Chunk, join_chunks
@@ -20,24 +21,24 @@ def _fortran_constants() -> dict[str, int]:
     return {name: int(value) for name, value in re.findall(r"\b(\w+)\s*=\s*(\d+)\b", text)}
 
 
-def test_event_columns_match_the_schema():
-    """ev_<field> is the field's 1-based position among the fields of its type."""
+@pytest.mark.parametrize("prefix, counts, groups", [
+    ("ev", ("n_event_real", "n_event_int"), (contract.REAL_FIELDS, contract.INT_FIELDS)),
+    ("par", ("n_real_params", "n_int_params"),
+     (contract.REAL_PARAMETERS, contract.INT_PARAMETERS)),
+])
+def test_fortran_positions_match_the_contract(prefix, counts, groups):
+    """<prefix>_<name> is the name's 1-based position in its group (event
+    columns by type, packed parameters by type); n_* are the group sizes."""
     consts = _fortran_constants()
-    assert consts["n_event_real"] == len(contract.REAL_FIELDS)
-    assert consts["n_event_int"] == len(contract.INT_FIELDS)
-    for fields in (contract.REAL_FIELDS, contract.INT_FIELDS):
-        for column, name in enumerate(fields, start=1):
-            assert consts[f"ev_{name}"] == column, name
-    assert set(contract.REAL_FIELDS) | set(contract.INT_FIELDS) == set(status.EVENT_FIELDS)
-
-
-def test_parameter_positions_match_the_contract():
-    consts = _fortran_constants()
-    assert consts["n_real_params"] == len(contract.REAL_PARAMETERS)
-    assert consts["n_int_params"] == len(contract.INT_PARAMETERS)
-    for names in (contract.REAL_PARAMETERS, contract.INT_PARAMETERS):
+    for count, names in zip(counts, groups):
+        assert consts[count] == len(names)
         for position, name in enumerate(names, start=1):
-            assert consts[f"par_{name}"] == position, name
+            assert consts[f"{prefix}_{name}"] == position, name
+
+
+def test_schema_covers_every_event_field():
+    assert contract.REAL_FIELDS + contract.INT_FIELDS != ()
+    assert set(contract.REAL_FIELDS) | set(contract.INT_FIELDS) == set(status.EVENT_FIELDS)
 
 
 def test_pack_parameters_takes_the_scene_values():
