@@ -104,7 +104,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser(rank: int = 0) -> argparse.ArgumentParser:
     from .cli import add_scene_arguments
-    from .storage import STORAGES
+    from .io.storage import STORAGES
 
     p = _Parser(
         prog="python -m sliders.ensemble",
@@ -141,7 +141,7 @@ def build_parser(rank: int = 0) -> argparse.ArgumentParser:
 def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
     """Validate everything that can be checked locally (every rank, same answer)."""
     from .cli import scene_from_args
-    from .storage import StorageError, choose_storage
+    from .io.storage import StorageError, choose_storage
 
     scene = scene_from_args(args)
     if args.realisations is not None and args.realisations < 1:
@@ -175,8 +175,8 @@ def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
 def _claim_output(args):
     """Rank 0, before anything is created or read: the claim on --out (held to the end)."""
     from .cli import check_output
-    from .filelock import OutputClaim
-    from .safeio import is_special
+    from .io.filelock import OutputClaim
+    from .io.safeio import is_special
 
     check_output(args.out, overwrite=True)  # a writable file path (existence checked later)
     if is_special(args.out):
@@ -203,7 +203,7 @@ def _plan_root(args, plan) -> dict[str, Any]:
     from .cli import disagreements, given_scene_values
     from .keyed_random import realisation_seed
     from .observables import default_grids, statistics_layout
-    from .storage import StorageError, damaged_rows, file_attributes, make_layout, read_header
+    from .io.storage import StorageError, damaged_rows, file_attributes, make_layout, read_header
 
     scene: Scene = plan["scene"]
     backend = args.backend or DEFAULT_BACKEND
@@ -296,7 +296,7 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
     scene (base columns + statistics/<key>)."""
     from .keyed_random import realisation_seed
     from .observables import realisation_statistics
-    from .storage import STATISTICS
+    from .io.storage import STATISTICS
 
     started = time.perf_counter()
     delay = os.environ.get("SLIDERS_ENSEMBLE_TEST_DELAY")
@@ -692,9 +692,9 @@ def _run(args, comm, plan, root_plan) -> int:
 
     # 2. create or open the file (collective for mpio)
     from .observables import StatisticsGrids
-    from .conventions import describe_ensemble_file
-    from .safeio import os_reason
-    from .storage import HANDLERS, CollectiveFailure, StorageError
+    from .io.conventions import describe_ensemble_file
+    from .io.safeio import os_reason
+    from .io.storage import HANDLERS, CollectiveFailure, StorageError
 
     layout = root_plan["layout"]
     scene: Scene = root_plan["scene"]
@@ -829,7 +829,7 @@ def read_realisations(path) -> dict[str, Any]:
     ``alpha_c``, ``n_events``, ``slider_steps``, ``wall_time`` and
     ``statistics`` ({key: (R, ...) array}).
     """
-    from .storage import STATISTICS, read_rows
+    from .io.storage import STATISTICS, read_rows
 
     rows = read_rows(path)
     out: dict[str, Any] = {k: v for k, v in rows.items() if not k.startswith(STATISTICS)}
@@ -848,7 +848,7 @@ def load_summary(path):
     ``wall_time`` (sum over done rows, seconds of computing).
     """
     from .observables import StatisticsGrids, combine
-    from .storage import read_header
+    from .io.storage import read_header
 
     head = read_header(path)
     rows = read_realisations(path)

@@ -738,7 +738,7 @@ def load_ensemble_summary(path, prefer_package: bool = True):
         except ImportError:
             pass
     if load_summary is not None:
-        from .storage import StorageError
+        from .io.storage import StorageError
 
         try:
             out = load_summary(path)

@@ -159,7 +159,7 @@ class TiltResult:
         ``load`` checks it before HDF5 parses anything, so that damaged HDF5
         metadata cannot crash the process.
         """
-        from .safeio import publish_bytes
+        from .io.safeio import publish_bytes
 
         publish_bytes(path, self.to_bytes(), overwrite)
 
@@ -170,7 +170,7 @@ class TiltResult:
         import h5py
 
         from . import __version__
-        from .safeio import seal_attrs, seal_dataset
+        from .io.safeio import seal_attrs, seal_dataset
 
         def dataset(group, name, data):
             data = np.asarray(data)
@@ -205,7 +205,7 @@ class TiltResult:
                 g.attrs["alpha"] = st.alpha
                 seal_attrs(g)
             seal_attrs(f)
-            from .conventions import describe_tilt_file
+            from .io.conventions import describe_tilt_file
 
             # named dimensions, units, provenance: added after the seals, which
             # cover the data and the attributes that load() reads
@@ -222,7 +222,7 @@ class TiltResult:
         """
         problem = whole_file_problem(path)
         if problem:
-            from .safeio import IntegrityError
+            from .io.safeio import IntegrityError
 
             raise IntegrityError(problem)
         return cls._load_checked(path)
@@ -232,7 +232,7 @@ class TiltResult:
         """``load`` without the whole-file check (per dataset and attribute set only)."""
         import h5py
 
-        from .safeio import (IntegrityError, check_attrs, check_coordinates, describe_os_error,
+        from .io.safeio import (IntegrityError, check_attrs, check_coordinates, describe_os_error,
                              read_checked)
 
         where = repr(os.fspath(path))

@@ -239,7 +239,7 @@ def scene_toml(scene: dict) -> str:
 def provenance(title: str, scene: dict | None) -> dict[str, str]:
     import h5py
 
-    from . import __version__
+    from .. import __version__
 
     now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     out = {

@@ -56,7 +56,8 @@ from typing import Any
 
 import numpy as np
 
-from . import safeio, status
+from .. import status
+from . import safeio
 
 FORMAT = "sliders.ensemble"
 FORMAT_VERSION = 1
@@ -126,7 +127,7 @@ def make_layout(n_realisations: int, seeds, grids: dict[str, np.ndarray],
 
 
 def file_attributes(scene_dict: dict, base_seed: int, n_realisations: int, backend: str) -> dict:
-    from . import __version__
+    from .. import __version__
 
     return {
         "format": FORMAT,
