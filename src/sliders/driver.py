@@ -16,8 +16,9 @@ import numpy as np
 
 from . import status
 from .chain import ChainState
-from .preparation import prepare
 from .contract import Chunk, join_chunks
+from .keyed_random import realisation_seed
+from .preparation import prepare
 from .reference import NumpyEngine
 from .result import EventSparse, TiltResult
 from .scene import BACKENDS, Scene, SceneError, check_memory
@@ -191,3 +192,16 @@ def _finish(scene, backend, code, message, alpha_c, chunks, initial, final, rela
         initial=initial, final=final, relaxation=relaxation,
         wall_time=time.perf_counter() - started, final_event=dict(final_event),
     )
+
+
+def realisation_scene(scene: Scene, r: int) -> Scene:
+    """Realisation ``r`` of an ensemble of ``scene``: its seed keyed by (scene.seed, r)."""
+    return scene.replace(seed=realisation_seed(scene.seed, r))
+
+
+def tilt_realisations(scene: Scene, runs: int, backend: str = "fortran", first: int = 0):
+    """The serial ensemble loop: yields ``(r, TiltResult)`` for realisations
+    ``first`` .. ``first + runs - 1`` of ``scene`` (``realisation_scene``), the
+    same runs as the rows of ``python -m sliders.ensemble``."""
+    for r in range(first, first + runs):
+        yield r, tilt(realisation_scene(scene, r), backend=backend)

@@ -54,6 +54,7 @@ import numpy as np
 from . import status as status_codes
 from .merge import chunk_range, parse_chunk
 from .parallel import MPIUnavailable, SerialComm, get_comm, launcher_rank  # noqa: F401 - MPI optional
+from .io.storage import load_summary, read_realisations  # noqa: F401 - the readers, kept importable here
 from .scene import BACKENDS, Scene, SceneError
 
 TAG_MSG, TAG_REPLY, TAG_CTRL = 71, 72, 73
@@ -294,9 +295,9 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
                 first: int = 0) -> dict[str, Any]:
     """Row ``r`` of a file starting at realisation ``first``: realisation ``first + r`` of the
     scene (base columns + statistics/<key>)."""
-    from .keyed_random import realisation_seed
-    from .observables import realisation_statistics
+    from .driver import realisation_scene
     from .io.storage import STATISTICS
+    from .observables import realisation_statistics
 
     started = time.perf_counter()
     delay = os.environ.get("SLIDERS_ENSEMBLE_TEST_DELAY")
@@ -306,7 +307,7 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
             progress(None)
     if os.environ.get("SLIDERS_ENSEMBLE_TEST_FAIL") == str(r):
         raise RuntimeError(f"test hook SLIDERS_ENSEMBLE_TEST_FAIL: realisation {r} fails")
-    result = _tilt_interruptibly(scene.replace(seed=realisation_seed(scene.seed, first + r)),
+    result = _tilt_interruptibly(realisation_scene(scene, first + r),
                                  backend, progress)
     stats = {} if scene.record == "summary" else realisation_statistics(result, grids)
     row: dict[str, Any] = {
@@ -817,57 +818,6 @@ def _run(args, comm, plan, root_plan) -> int:
     if final["stop"]:
         return 128 + int(final["signum"] or signal.SIGTERM)
     return 0
-
-
-# ---------------------------------------------------------------------------
-# reading
-# ---------------------------------------------------------------------------
-def read_realisations(path) -> dict[str, Any]:
-    """Every row of an ensemble file (R rows, done or not).
-
-    Keys: ``seed``, ``done`` (bool), ``status`` (codes), ``status_name``,
-    ``alpha_c``, ``n_events``, ``slider_steps``, ``wall_time`` and
-    ``statistics`` ({key: (R, ...) array}).
-    """
-    from .io.storage import STATISTICS, read_rows
-
-    rows = read_rows(path)
-    out: dict[str, Any] = {k: v for k, v in rows.items() if not k.startswith(STATISTICS)}
-    out["done"] = out["done"].astype(bool)
-    out["status_name"] = np.array([status_codes.NAMES.get(int(c), "not_run" if c < 0 else "unknown")
-                                   for c in out["status"]])
-    out["statistics"] = {k[len(STATISTICS):]: v for k, v in rows.items() if k.startswith(STATISTICS)}
-    return out
-
-
-def load_summary(path):
-    """``(EnsembleSummary, grids, scene, info)`` of an ensemble file, over its done rows.
-
-    ``info``: the file attributes plus ``n_done``, ``n_realisations``,
-    ``done`` (mask), ``statuses`` ({name: count} over done rows) and
-    ``wall_time`` (sum over done rows, seconds of computing).
-    """
-    from .observables import StatisticsGrids, combine
-    from .io.storage import read_header
-
-    head = read_header(path)
-    rows = read_realisations(path)
-    if not rows["statistics"]:
-        raise ValueError(f"{os.fspath(path)!r} holds only the per-realisation summary (scene "
-                         "record='summary'): no statistics; read_realisations gives alpha_c, "
-                         "n_events and status per realisation")
-    grids = StatisticsGrids.from_arrays(head["grids"])
-    scene = Scene.from_dict(json.loads(head["attrs"]["scene"]))
-    done = rows["done"]
-    stats = {k: v[done] for k, v in rows["statistics"].items()}
-    summary = combine(stats, grids, scene.n_sliders)
-    info = dict(head["attrs"])
-    info.update({
-        "n_done": int(done.sum()), "n_realisations": int(done.size), "done": done,
-        "statuses": dict(Counter(str(s) for s in rows["status_name"][done])),
-        "wall_time": float(np.sum(rows["wall_time"][done])),
-    })
-    return summary, grids, scene, info
 
 
 if __name__ == "__main__":
