@@ -1,4 +1,4 @@
-!> The engine contract on the kernel's side (src/sliders/contract.py is the
+!> The engine contract on the kernel's side (src/sliders/engine/contract.py is the
 !> one declaration; tests/test_contract.py checks these numbers against it).
 !>
 !> * Columns of the per-event buffers: contract.EVENT_SCHEMA split by type,

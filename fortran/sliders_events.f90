@@ -1,7 +1,7 @@
 !> The quasi-static tilt: next-instability angles, one rearrangement, the
 !> tilt loop.
 !>
-!> This is src/sliders/reference.py (the specification) reorganised so that
+!> This is src/sliders/engine/reference.py (the specification) reorganised so that
 !> the cost follows what moves ("integrate only what moves"):
 !>
 !> * Per integration step only the *active* sliders (the moving ones and

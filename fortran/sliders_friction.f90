@@ -1,5 +1,5 @@
 !> Friction laws: static threshold, kinetic force and the draw at a stop
-!> (src/sliders/friction.py, the specification).
+!> (src/sliders/engine/friction.py, the specification).
 !>
 !> Coulomb friction with a static coefficient redrawn at every stop: a
 !> resting slider withstands |F| <= mu_s N + force_tol, a moving one feels

@@ -3,7 +3,7 @@
 !
 ! A plain subroutine outside any module: explicit-shape arrays and
 ! iso_c_binding kinds only.  The work is done in module sliders_events;
-! src/sliders/fortran_engine.py is the Python side, src/sliders/contract.py
+! src/sliders/engine/fortran_engine.py is the Python side, src/sliders/engine/contract.py
 ! the declaration of the packed arrays (positions in sliders_contract).
 !
 ! A packed boundary (in the manner of pymsis): the scene's values and the

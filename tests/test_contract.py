@@ -1,4 +1,4 @@
-"""The engine contract (src/sliders/contract.py) is the one declaration of the
+"""The engine contract (src/sliders/engine/contract.py) is the one declaration of the
 per-event schema and the packed kernel parameters: the Fortran side agrees."""
 
 from __future__ import annotations
@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sliders import Scene, contract, status
-from sliders.contract import Chunk, join_chunks
+from sliders import Scene, status
+from sliders.engine import contract
+from sliders.engine.contract import Chunk, join_chunks
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -62,7 +63,7 @@ def test_kernel_boundary_is_packed():
 
 
 def test_the_fortran_backend_does_not_depend_on_the_reference():
-    tree = ast.parse((ROOT / "src" / "sliders" / "fortran_engine.py").read_text())
+    tree = ast.parse((ROOT / "src" / "sliders" / "engine" / "fortran_engine.py").read_text())
     imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     assert "reference" not in imported
 

@@ -16,10 +16,10 @@ import numpy as np
 
 from . import status
 from .chain import ChainState
-from .contract import Chunk, join_chunks
+from .engine.contract import Chunk, join_chunks
 from .keyed_random import realisation_seed
 from .preparation import prepare
-from .reference import NumpyEngine
+from .engine.reference import NumpyEngine
 from .result import EventSparse, TiltResult
 from .scene import BACKENDS, Scene, SceneError, check_memory
 
@@ -66,7 +66,7 @@ def make_engine(scene: Scene, backend: str):
     if backend == "numpy":
         return NumpyEngine(scene)
     if backend == "fortran":
-        from .fortran_engine import FortranEngine
+        from .engine.fortran_engine import FortranEngine
 
         return FortranEngine(scene)
     raise SceneError(f"backend={backend!r} must be one of {BACKENDS}")

@@ -33,4 +33,4 @@ ERRORS = {EVENT_DURATION_CAP, NON_FINITE, RANDOM_FAILURE, REFINE_LIMIT}
 
 # Per-event scalar records, in this order in both backends (declared with
 # their types in contract.EVENT_SCHEMA).
-from .contract import EVENT_FIELDS  # noqa: E402,F401
+from .engine.contract import EVENT_FIELDS  # noqa: E402,F401

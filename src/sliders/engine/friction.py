@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import keyed_random
+from .. import keyed_random
 
 
 class CoulombFriction:

@@ -30,11 +30,11 @@ import threading
 
 import numpy as np
 
-from . import keyed_random, status
-from .chain import ChainState
+from .. import keyed_random, status
+from ..chain import ChainState
+from ..scene import Scene
 from .contract import (INT_FIELDS, REAL_FIELDS, Chunk, join_chunks, pack_parameters,
                        refine_limit_message)
-from .scene import Scene
 
 EVENT_CAPACITY = 4096  # event buffer of a relax-only call
 MAX_EVENT_CAPACITY = 1 << 16  # events per kernel call, at most (4.7 MB of buffers)
@@ -54,7 +54,7 @@ class FortranEngine:
     name = "fortran"
 
     def __init__(self, scene: Scene):
-        from . import _kernel  # the compiled extension (meson build)
+        from .. import _kernel  # the compiled extension (meson build)
 
         self.scene = scene
         self._tilt_advance = _kernel.tilt_advance

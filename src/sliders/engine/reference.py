@@ -43,14 +43,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import status
-from .chain import ChainState, elastic_energy, elastic_force
+from .. import status
+from ..chain import ChainState, elastic_energy, elastic_force
+from ..scene import Scene
 from .contract import MAX_HALVINGS, Chunk, events_from_records, refine_limit_message
 from .friction import friction_for
 # next_instability, TIE_TOL and TRANSCENDENTALS live with the tilt loading;
 # re-exported here, where callers and tests have always found them.
 from .loading import TIE_TOL, TRANSCENDENTALS, loading_for, next_instability  # noqa: F401
-from .scene import Scene
 
 
 @dataclass
