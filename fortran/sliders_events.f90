@@ -1,7 +1,7 @@
 !> The quasi-static tilt: next-instability angles, one rearrangement, the
 !> tilt loop.
 !>
-!> This is src/sliders/reference.py (the specification) reorganised so that
+!> This is src/sliders/engine/reference.py (the specification) reorganised so that
 !> the cost follows what moves ("integrate only what moves"):
 !>
 !> * Per integration step only the *active* sliders (the moving ones and
@@ -69,24 +69,18 @@ module sliders_events
                             status_interrupted, status_refine_limit
   use sliders_chain, only: chain_params, elastic_force, total_displacement, &
                            spring_energy_change, cantilever_energy_change
-  use sliders_random, only: static_coefficient
+  use sliders_contract, only: ev_alpha, ev_duration, ev_work_gravity, ev_elastic_change, &
+                              ev_dissipation, ev_n_moved, ev_n_stops, ev_n_steps, ev_slider_steps
+  use sliders_friction, only: static_threshold, kinetic_force, draw_at_stop
+  use sliders_loading, only: tilt_terms, tilt_work, tilt_runaway, tilt_root_cache, &
+                             roots_from, root_lower_bounds, tie_tol
   implicit none
   private
 
   public :: tilt_params, tilt_run
-  public :: instability_roots
-  public :: tie_tol, max_halvings, interrupt_check_steps
-  public :: n_event_real, n_event_int
-  public :: ev_alpha, ev_duration, ev_work_gravity, ev_elastic_change, ev_dissipation
-  public :: ev_n_moved, ev_n_stops, ev_n_steps, ev_slider_steps
+  public :: max_halvings, interrupt_check_steps
   public :: detail_none, detail_resting, detail_state
 
-  !> Sliders whose instability angles tie within this start together.
-  real(dp), parameter :: tie_tol = 1.0e-12_dp
-  real(dp), parameter :: pi = 3.141592653589793_dp   ! == numpy.pi
-  !> Absolute widening of the asin bounds of coupled_next: far above the
-  !> rounding of angles <= pi (1e-15), far below the spread of the angles.
-  real(dp), parameter :: bound_slack = 1.0e-12_dp
   !> A crossing's bracket is halved at most this often (reference.MAX_HALVINGS):
   !> a step of 1 tau closes to 3e-39 within it, so only a refine_tol below
   !> what the step can resolve reaches it (status_refine_limit, never a hang).
@@ -95,30 +89,25 @@ module sliders_events
   !> before every event.
   integer(i8), parameter :: interrupt_check_steps = 100000_i8
 
-  !> Columns of the per-event buffers (status.EVENT_FIELDS, split by type).
-  integer(ip), parameter :: n_event_real = 5, n_event_int = 4
-  integer(ip), parameter :: ev_alpha = 1, ev_duration = 2, ev_work_gravity = 3, &
-                            ev_elastic_change = 4, ev_dissipation = 5
-  integer(ip), parameter :: ev_n_moved = 1, ev_n_stops = 2, ev_n_steps = 3, &
-                            ev_slider_steps = 4
   !> What a non-finite status refers to (for the message).
   integer(ip), parameter :: detail_none = 0, detail_resting = 1, detail_state = 2
 
-  !> Everything of the scene the kernel uses.
+  !> Everything of the scene the kernel uses.  No defaults: every field is
+  !> set from the packed parameters (contract.py, from the scene's defaults).
   type :: tilt_params
     type(chain_params) :: chain
-    real(dp) :: mu_d = 0.55_dp
-    real(dp) :: mu_s_mean = 0.6_dp
-    real(dp) :: sigma_mu = 0.01_dp
-    integer(i8) :: seed = 0_i8
-    real(dp) :: dt = 1.0e-3_dp
-    real(dp) :: refine_tol = 1.0e-10_dp
-    real(dp) :: max_event_duration = 1.0e5_dp             ! scene.py's modes
-    real(dp) :: alpha_max = 1.5707963267948966_dp - 1.0e-6_dp   ! scene.ALPHA_MAX_LIMIT
-    real(dp) :: force_tol = 1.0e-12_dp
-    logical :: record_sparse = .true.   !< store the moved sliders' displacements
-    logical :: relax_only = .false.     !< only relax at the current angle
-    integer(ip) :: max_events = 1       !< events to record in this call
+    real(dp) :: mu_d
+    real(dp) :: mu_s_mean
+    real(dp) :: sigma_mu
+    integer(i8) :: seed
+    real(dp) :: dt
+    real(dp) :: refine_tol
+    real(dp) :: max_event_duration
+    real(dp) :: alpha_max
+    real(dp) :: force_tol
+    logical :: record_sparse    !< store the moved sliders' displacements
+    logical :: relax_only       !< only relax at the current angle
+    integer(ip) :: max_events   !< events to record in this call
   end type tilt_params
 
   !> Work arrays of one tilt_run call (allocated once per call, sized n).
@@ -195,74 +184,6 @@ contains
 
   ! ------------------------------------------------------------------ angles
 
-  !> Instability angles of one resting slider of elastic force `elastic` and
-  !> static coefficient `mu` (reference.next_instability): downwards the root
-  !> of E + sin a = mu cos a, phi + asin(-E/R) if E >= -1; upwards the root of
-  !> E + sin a = -mu cos a, pi - phi - asin(-E/R) if E <= -1 (R = hypot(1, mu),
-  !> phi = atan(mu)); +inf where there is none in [0, pi/2].
-  elemental subroutine instability_roots(elastic, mu, down, up)
-    real(dp), intent(in) :: elastic, mu
-    real(dp), intent(out) :: down, up
-
-    call roots_from(elastic, hypot(1.0_dp, mu), atan(mu), down, up)
-  end subroutine instability_roots
-
-  !> instability_roots with R = hypot(1, mu) and phi = atan(mu) given (they
-  !> change only when mu does, so the kernel caches them per slider).
-  elemental subroutine roots_from(elastic, radius, phi, down, up)
-    real(dp), intent(in) :: elastic, radius, phi
-    real(dp), intent(out) :: down, up
-    real(dp) :: ratio, s
-
-    down = ieee_value(down, ieee_positive_inf)
-    up = down
-    ratio = -elastic/radius
-    if (abs(ratio) <= 1.0_dp) then
-      s = asin(ratio)
-      if (elastic >= -1.0_dp) down = phi + s
-      if (elastic <= -1.0_dp) up = (pi - phi) - s
-    end if
-  end subroutine roots_from
-
-  !> Bounds of asin(x), |x| <= 1, without a transcendental: with y = |x|,
-  !> P(y) = y + y**3/6 + 3 y**5/40 <= asin(y) <= P(y) + 0.33 y**7 (the series
-  !> of asin has positive coefficients, and its tail beyond y**5 is at most
-  !> (pi/2 - P(1)) y**7 = 0.3291 y**7), widened by bound_slack for rounding.
-  elemental subroutine asin_bounds(x, lower, upper)
-    real(dp), intent(in) :: x
-    real(dp), intent(out) :: lower, upper
-    real(dp) :: y, y2, p, tail
-
-    y = abs(x)
-    y2 = y*y
-    p = y*(1.0_dp + y2*(1.0_dp/6.0_dp + y2*(3.0_dp/40.0_dp)))
-    tail = 0.33_dp*y*y2*y2*y2
-    if (x >= 0.0_dp) then
-      lower = p - bound_slack
-      upper = p + tail + bound_slack
-    else
-      lower = -(p + tail) - bound_slack
-      upper = -p + bound_slack
-    end if
-  end subroutine asin_bounds
-
-  !> A lower bound of max(min(down, up), alpha) of roots_from, without asin
-  !> (+inf where roots_from finds no root: the same tests).
-  elemental function root_lower_bound(elastic, radius, phi, alpha) result(bound)
-    real(dp), intent(in) :: elastic, radius, phi, alpha
-    real(dp) :: bound
-    real(dp) :: ratio, lower, upper
-
-    bound = ieee_value(bound, ieee_positive_inf)
-    ratio = -elastic/radius
-    if (abs(ratio) <= 1.0_dp) then
-      call asin_bounds(ratio, lower, upper)
-      if (elastic >= -1.0_dp) bound = phi + lower
-      if (elastic <= -1.0_dp) bound = min(bound, (pi - phi) - upper)
-      bound = max(bound, alpha) - bound_slack
-    end if
-  end function root_lower_bound
-
   !> Smallest angle >= alpha at which a resting slider destabilises, and the
   !> sliders within tie_tol of it (increasing order, into ws%slist, their
   !> directions into ws%sdir), when every elastic force changed (xi > 0):
@@ -283,7 +204,7 @@ contains
 
     angle = ieee_value(angle, ieee_positive_inf)
     n_trig = 0
-    ws%bound(1:n) = root_lower_bound(ws%elastic(1:n), ws%radius(1:n), ws%phi(1:n), alpha)
+    call root_lower_bounds(n, ws%elastic, ws%radius, ws%phi, alpha, ws%bound)
     i = minloc(ws%bound(1:n), 1)
     if (.not. ws%bound(i) <= huge(1.0_dp)) return     ! no root in [0, pi/2]
     call roots_from(ws%elastic(i), ws%radius(i), ws%phi(i), ws%root_down(i), ws%root_up(i))
@@ -400,15 +321,14 @@ contains
       end if
       ! A non-finite force stops the run; unstable sliders at the current
       ! angle start at once (relaxation).
-      sin_a = sin(alpha)
-      cos_a = cos(alpha)
+      call tilt_terms(alpha, sin_a, cos_a)
       n_trig = 0
       n_bad = 0
       do k = 1, ws%n_changed
         i = ws%changed(k)
         f = ws%elastic(i) + sin_a
         n_bad = n_bad + merge(0_ip, 1_ip, abs(ws%elastic(i)) <= huge(1.0_dp))
-        if (abs(f) > mu(i)*cos_a + p%force_tol) then
+        if (abs(f) > static_threshold(mu(i), cos_a, p%force_tol)) then
           n_trig = n_trig + 1
           ws%slist(n_trig) = i
           ws%sdir(n_trig) = sign(1.0_dp, f)
@@ -551,9 +471,8 @@ contains
 
     n = p%chain%n
     xi = p%chain%xi
-    sin_a = sin(alpha)
-    cos_a = cos(alpha)
-    friction = p%mu_d*cos_a
+    call tilt_terms(alpha, sin_a, cos_a)
+    friction = kinetic_force(p%mu_d, cos_a)
     sum0 = ws%sum_du
     mean0 = sum0/real(n, dp)
 
@@ -567,7 +486,7 @@ contains
     ws%force_tol = p%force_tol
     if (xi /= 0.0_dp) then
       do i = 1, n
-        ws%thr(i) = mu(i)*cos_a + p%force_tol
+        ws%thr(i) = static_threshold(mu(i), cos_a, p%force_tol)
         f = ws%elastic(i) + sin_a
         ws%gap_plus(i) = ws%thr(i) - f
         ws%gap_minus(i) = ws%thr(i) + f
@@ -697,7 +616,7 @@ contains
               ws%stops_start(i) = n_stops(i)
             end if
             n_stops(i) = n_stops(i) + 1
-            ws%mu_new(k) = static_coefficient(p%seed, int(i - 1, i8), n_stops(i), &
+            ws%mu_new(k) = draw_at_stop(p%seed, int(i - 1, i8), n_stops(i), &
                                               p%mu_s_mean, p%sigma_mu, p%mu_d, draw_status)
             if (draw_status /= 0) draws_ok = .false.
           end do
@@ -710,7 +629,7 @@ contains
           do k = 1, n_stop
             i = ws%stops(k)
             mu(i) = ws%mu_new(k)
-            ws%thr(i) = mu(i)*cos_a + p%force_tol
+            ws%thr(i) = static_threshold(mu(i), cos_a, p%force_tol)
           end do
         end if
 
@@ -762,7 +681,7 @@ contains
         call abort_event(ws, du, mu, n_stops)
         return
       end if
-      if (.not. p%chain%walls .and. ws%m == n .and. ws%n_down == n .and. sin_a > friction) then
+      if (tilt_runaway(p%chain%walls, n, ws%m, ws%n_down, sin_a, friction)) then
         rec%status = status_avalanche
         rec%duration = t
         call store_displacements(ws, du)
@@ -786,7 +705,7 @@ contains
       i = ws%sorted(k)
       step = step + (du(i) - ws%du_start(i))
     end do
-    rec%work_gravity = sin_a*step
+    rec%work_gravity = tilt_work(sin_a, step)
     rec%elastic_change = &
       spring_energy_change(p%chain, t0, ws%du_start, du, ws%sorted(1:n_moved)) + &
       cantilever_energy_change(p%chain, w0, ws%du_start, du, ws%sorted(1:n_moved), mean0)
@@ -1197,7 +1116,7 @@ contains
     real(dp), contiguous, intent(in) :: mu(:)
 
     ws%active(i) = .true.
-    ws%thr(i) = mu(i)*ws%cos_a + ws%force_tol
+    ws%thr(i) = static_threshold(mu(i), ws%cos_a, ws%force_tol)
     if (i == ws%arg_plus .or. i == ws%arg_minus) ws%stale = .true.
     if (.not. ws%involved(i)) then
       ws%involved(i) = .true.
@@ -1486,17 +1405,14 @@ contains
     end do
   end subroutine tree_next
 
-  !> hypot(1, mu) and atan(mu) of slider i into the cache.  Its loops are
-  !> marked novector: a vectorised loop would call glibc's libmvec variants (_ZGV*_atan,
-  !> _ZGV*_hypot), which differ from the scalar functions in the last bit and
-  !> would break the bit-for-bit agreement with the reference.
+  !> The loading's per-slider root terms of slider i into the cache
+  !> (sliders_loading.tilt_root_cache; its callers' loops are novector).
   subroutine cache_trig(ws, mu, i)
     type(workspace), intent(inout) :: ws
     real(dp), contiguous, intent(in) :: mu(:)
     integer(ip), intent(in) :: i
 
-    ws%radius(i) = hypot(1.0_dp, mu(i))
-    ws%phi(i) = atan(mu(i))
+    call tilt_root_cache(mu(i), ws%radius(i), ws%phi(i))
   end subroutine cache_trig
 
   !> An event that ends the run in error: du, mu and the stop counts back to

@@ -43,10 +43,11 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders import Scene, fortran_engine, keyed_random, prepare, reference, status, tilt
+from sliders import Scene, keyed_random, prepare, status, tilt
+from sliders.engine import fortran_engine, reference
 from sliders.chain import elastic_energy
-from sliders.fortran_engine import FortranEngine
-from sliders.reference import NumpyEngine, next_instability
+from sliders.engine.fortran_engine import FortranEngine
+from sliders.engine.reference import NumpyEngine, next_instability
 
 ROOT = Path(__file__).resolve().parents[1]
 

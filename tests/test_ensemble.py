@@ -25,7 +25,8 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders import ensemble, storage
+from sliders import ensemble
+from sliders.io import storage
 from sliders.keyed_random import realisation_seed
 from sliders.observables import default_grids, realisation_statistics, statistics_layout
 
@@ -542,7 +543,8 @@ import math, sys
 import numpy as np
 import pytest
 import sliders
-from sliders import ensemble, storage
+from sliders import ensemble
+from sliders.io import storage
 from sliders.keyed_random import realisation_seed
 from sliders.observables import default_grids, statistics_layout
 

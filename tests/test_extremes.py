@@ -24,7 +24,7 @@ import sliders
 from sliders import Scene, SceneError, model, prepare, status
 from sliders.chain import elastic_force
 from sliders.driver import make_engine
-from sliders.reference import next_instability
+from sliders.engine.reference import next_instability
 from sliders.scene import ALPHA_MAX_LIMIT, max_time_step
 
 _FORK = multiprocessing.get_context("fork")

@@ -30,8 +30,9 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders import ensemble, storage
-from sliders.filelock import OutputClaim
+from sliders import ensemble
+from sliders.io import storage
+from sliders.io.filelock import OutputClaim
 from test_ensemble import (BACKEND, PY, R, SCENE_OPTS, _env, _Run, assert_same_file,
                            ensemble_args, one_error_line, progress_lines, rank_pids, run)
 

@@ -8,8 +8,8 @@ import signal
 import sys
 
 from .cli import ProgressLine, add_scene_arguments, check_output, fail, scene_from_args
-from .filelock import ClaimError, OutputClaim
-from .safeio import describe_os_error
+from .io.filelock import ClaimError, OutputClaim
+from .io.safeio import describe_os_error
 from .scene import BACKENDS, SceneError, check_memory
 
 

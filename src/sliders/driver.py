@@ -16,8 +16,10 @@ import numpy as np
 
 from . import status
 from .chain import ChainState
+from .engine.contract import Chunk, join_chunks
+from .keyed_random import realisation_seed
 from .preparation import prepare
-from .reference import Chunk, NumpyEngine
+from .engine.reference import NumpyEngine
 from .result import EventSparse, TiltResult
 from .scene import BACKENDS, Scene, SceneError, check_memory
 
@@ -64,7 +66,7 @@ def make_engine(scene: Scene, backend: str):
     if backend == "numpy":
         return NumpyEngine(scene)
     if backend == "fortran":
-        from .fortran_engine import FortranEngine
+        from .engine.fortran_engine import FortranEngine
 
         return FortranEngine(scene)
     raise SceneError(f"backend={backend!r} must be one of {BACKENDS}")
@@ -184,28 +186,29 @@ def _interrupt_or_return(result: TiltResult, keep_partial: bool) -> TiltResult:
 
 def _finish(scene, backend, code, message, alpha_c, chunks, initial, final, relaxation, started,
             final_event):
-    events = {f: np.concatenate([c.events[f] for c in chunks]) if chunks else np.zeros(0)
-              for f in status.EVENT_FIELDS}
-    for f in ("n_moved", "n_stops", "n_steps", "slider_steps"):
-        events[f] = events[f].astype(np.int64)
+    run = join_chunks(chunks, code)
     displacement = None
     if scene.record != "summary":
-        ptr = [np.zeros(1, dtype=np.int64)]
-        offset = 0
-        for c in chunks:
-            ptr.append(c.sparse_ptr[1:] + offset)
-            offset += c.sparse_index.size
-        displacement = EventSparse(
-            np.concatenate(ptr),
-            np.concatenate([c.sparse_index for c in chunks]) if chunks else np.zeros(0, np.int64),
-            np.concatenate([c.sparse_displacement for c in chunks]) if chunks else np.zeros(0),
-            scene.n_sliders,
-        )
+        displacement = EventSparse(run.sparse_ptr, run.sparse_index, run.sparse_displacement,
+                                   scene.n_sliders)
     if not message and code in status.ERRORS:
         message = status.NAMES[code]
     return TiltResult(
         scene=scene, backend=backend, status=status.NAMES[code], message=message,
-        alpha_c=float(alpha_c), events=events, displacement=displacement,
+        alpha_c=float(alpha_c), events=run.events, displacement=displacement,
         initial=initial, final=final, relaxation=relaxation,
         wall_time=time.perf_counter() - started, final_event=dict(final_event),
     )
+
+
+def realisation_scene(scene: Scene, r: int) -> Scene:
+    """Realisation ``r`` of an ensemble of ``scene``: its seed keyed by (scene.seed, r)."""
+    return scene.replace(seed=realisation_seed(scene.seed, r))
+
+
+def tilt_realisations(scene: Scene, runs: int, backend: str = "fortran", first: int = 0):
+    """The serial ensemble loop: yields ``(r, TiltResult)`` for realisations
+    ``first`` .. ``first + runs - 1`` of ``scene`` (``realisation_scene``), the
+    same runs as the rows of ``python -m sliders.ensemble``."""
+    for r in range(first, first + runs):
+        yield r, tilt(realisation_scene(scene, r), backend=backend)

@@ -54,6 +54,7 @@ import numpy as np
 from . import status as status_codes
 from .merge import chunk_range, parse_chunk
 from .parallel import MPIUnavailable, SerialComm, get_comm, launcher_rank  # noqa: F401 - MPI optional
+from .io.storage import load_summary, read_realisations  # noqa: F401 - the readers, kept importable here
 from .scene import BACKENDS, Scene, SceneError
 
 TAG_MSG, TAG_REPLY, TAG_CTRL = 71, 72, 73
@@ -105,7 +106,7 @@ class _Parser(argparse.ArgumentParser):
 def build_parser(rank: int = 0) -> argparse.ArgumentParser:
     """The command line of ``python -m sliders.ensemble`` (only ``rank`` 0 prints help and errors)."""
     from .cli import add_scene_arguments
-    from .storage import STORAGES
+    from .io.storage import STORAGES
 
     p = _Parser(
         prog="python -m sliders.ensemble",
@@ -142,7 +143,7 @@ def build_parser(rank: int = 0) -> argparse.ArgumentParser:
 def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
     """Validate everything that can be checked locally (every rank, same answer)."""
     from .cli import scene_from_args
-    from .storage import StorageError, choose_storage
+    from .io.storage import StorageError, choose_storage
 
     scene = scene_from_args(args)
     if args.realisations is not None and args.realisations < 1:
@@ -176,8 +177,8 @@ def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
 def _claim_output(args):
     """Rank 0, before anything is created or read: the claim on --out (held to the end)."""
     from .cli import check_output
-    from .filelock import OutputClaim
-    from .safeio import is_special
+    from .io.filelock import OutputClaim
+    from .io.safeio import is_special
 
     check_output(args.out, overwrite=True)  # a writable file path (existence checked later)
     if is_special(args.out):
@@ -204,7 +205,7 @@ def _plan_root(args, plan) -> dict[str, Any]:
     from .cli import disagreements, given_scene_values
     from .keyed_random import realisation_seed
     from .observables import default_grids, statistics_layout
-    from .storage import StorageError, damaged_rows, file_attributes, make_layout, read_header
+    from .io.storage import StorageError, damaged_rows, file_attributes, make_layout, read_header
 
     scene: Scene = plan["scene"]
     backend = args.backend or DEFAULT_BACKEND
@@ -296,9 +297,9 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
     """Row ``r`` of a file starting at realisation ``first``: realisation ``first + r`` of the
     scene (base columns + statistics/<key>).  ``extra_statistics(result)`` -> {key: value}
     adds statistics of the caller's own (a study's burst periods and synchronisation)."""
-    from .keyed_random import realisation_seed
+    from .driver import realisation_scene
+    from .io.storage import STATISTICS
     from .observables import realisation_statistics
-    from .storage import STATISTICS
 
     started = time.perf_counter()
     delay = os.environ.get("SLIDERS_ENSEMBLE_TEST_DELAY")
@@ -308,7 +309,7 @@ def compute_row(scene: Scene, r: int, backend: str, grids, progress=None,
             progress(None)
     if os.environ.get("SLIDERS_ENSEMBLE_TEST_FAIL") == str(r):
         raise RuntimeError(f"test hook SLIDERS_ENSEMBLE_TEST_FAIL: realisation {r} fails")
-    result = _tilt_interruptibly(scene.replace(seed=realisation_seed(scene.seed, first + r)),
+    result = _tilt_interruptibly(realisation_scene(scene, first + r),
                                  backend, progress)
     stats = {} if scene.record == "summary" else realisation_statistics(result, grids)
     if extra_statistics is not None:
@@ -706,9 +707,9 @@ def _run(args, comm, plan, root_plan) -> int:
 
     # 2. create or open the file (collective for mpio)
     from .observables import StatisticsGrids
-    from .conventions import describe_ensemble_file
-    from .safeio import os_reason
-    from .storage import HANDLERS, CollectiveFailure, StorageError
+    from .io.conventions import describe_ensemble_file
+    from .io.safeio import os_reason
+    from .io.storage import HANDLERS, CollectiveFailure, StorageError
 
     layout = root_plan["layout"]
     scene: Scene = root_plan["scene"]
@@ -831,72 +832,6 @@ def _run(args, comm, plan, root_plan) -> int:
     if final["stop"]:
         return 128 + int(final["signum"] or signal.SIGTERM)
     return 0
-
-
-# ---------------------------------------------------------------------------
-# reading
-# ---------------------------------------------------------------------------
-def read_realisations(path) -> dict[str, Any]:
-    """Every row of an ensemble file (R rows, done or not).
-
-    Keys: ``seed``, ``done`` (bool), ``status`` (codes), ``status_name``,
-    ``alpha_c``, ``n_events``, ``slider_steps``, ``wall_time`` and
-    ``statistics`` ({key: (R, ...) array}).
-    """
-    from .storage import STATISTICS, read_rows
-
-    rows = read_rows(path)
-    out: dict[str, Any] = {k: v for k, v in rows.items() if not k.startswith(STATISTICS)}
-    out["done"] = out["done"].astype(bool)
-    out["status_name"] = np.array([status_codes.NAMES.get(int(c), "not_run" if c < 0 else "unknown")
-                                   for c in out["status"]])
-    out["statistics"] = {k[len(STATISTICS):]: v for k, v in rows.items() if k.startswith(STATISTICS)}
-    return out
-
-
-def load_summary(path):
-    """The ensemble statistics of a file, over its rows marked done.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        An ensemble file (``python -m sliders.ensemble``, ``python -m sliders.merge``).
-
-    Returns
-    -------
-    summary : observables.EnsembleSummary
-        Means over the realisations at rest at each angle: force PDF (per m g),
-        P_i(alpha), A(alpha) (g tau^2), alpha_c (radians), event sizes.
-    grids : observables.StatisticsGrids
-        The angles (radians) and bin edges the rows were computed on.
-    scene : Scene
-        The ensemble's scene (realisation r has seed ``realisation_seed(scene.seed, r)``).
-    info : dict
-        The file attributes plus ``n_done``, ``n_realisations``, ``done``
-        (mask), ``statuses`` ({name: count} over done rows) and ``wall_time``
-        (sum over done rows, seconds of computing).
-    """
-    from .observables import StatisticsGrids, combine
-    from .storage import read_header
-
-    head = read_header(path)
-    rows = read_realisations(path)
-    if not rows["statistics"]:
-        raise ValueError(f"{os.fspath(path)!r} holds only the per-realisation summary (scene "
-                         "record='summary'): no statistics; read_realisations gives alpha_c, "
-                         "n_events and status per realisation")
-    grids = StatisticsGrids.from_arrays(head["grids"])
-    scene = Scene.from_dict(json.loads(head["attrs"]["scene"]))
-    done = rows["done"]
-    stats = {k: v[done] for k, v in rows["statistics"].items()}
-    summary = combine(stats, grids, scene.n_sliders)
-    info = dict(head["attrs"])
-    info.update({
-        "n_done": int(done.sum()), "n_realisations": int(done.size), "done": done,
-        "statuses": dict(Counter(str(s) for s in rows["status_name"][done])),
-        "wall_time": float(np.sum(rows["wall_time"][done])),
-    })
-    return summary, grids, scene, info
 
 
 if __name__ == "__main__":

@@ -666,13 +666,13 @@ def run_scene(n_sliders: int, xi: float, seed: int, backend: str = "fortran", **
 def run_ensemble(n_sliders: int = 100, runs: int = 20, base_seed: int = 0, xi: float = 0.0,
                  backend: str = "fortran", keep_results: bool = False, progress=None):
     """Serial ensemble: (summary, results or None).  Seeds keyed_random.realisation_seed(base, r)."""
-    from .keyed_random import realisation_seed
+    from .driver import tilt_realisations
     from .scene import Scene
 
-    grids = ob.default_grids(Scene(n_sliders=n_sliders, xi=xi))
+    scene = Scene(n_sliders=n_sliders, xi=xi, seed=base_seed, record="displacements")
+    grids = ob.default_grids(scene)
     rows, results = [], []
-    for r in range(runs):
-        res = run_scene(n_sliders, xi, realisation_seed(base_seed, r), backend=backend)
+    for r, res in tilt_realisations(scene, runs, backend=backend):
         rows.append(ob.realisation_statistics(res, grids))
         if keep_results:
             results.append(res)
@@ -740,7 +740,7 @@ def load_ensemble_summary(path, prefer_package: bool = True):
         except ImportError:
             pass
     if load_summary is not None:
-        from .storage import StorageError
+        from .io.storage import StorageError
 
         try:
             out = load_summary(path)

@@ -60,7 +60,7 @@ def merge(out, inputs, overwrite: bool = False) -> dict:
     from .observables import StatisticsGrids, statistics_layout
     from .parallel import SerialComm
     from .scene import Scene
-    from .storage import GatherFile, StorageError, file_attributes, make_layout, read_header, read_rows
+    from .io.storage import GatherFile, StorageError, file_attributes, make_layout, read_header, read_rows
 
     out = os.fspath(out)
     if not inputs:
@@ -131,7 +131,7 @@ def merge(out, inputs, overwrite: bool = False) -> dict:
         handler.close()
     import h5py
 
-    from .conventions import describe_ensemble_file
+    from .io.conventions import describe_ensemble_file
 
     with h5py.File(out, "r+") as f:  # the chunks' commands first; describe adds this merge
         f.attrs["history"] = "\n".join(str(h["attrs"]["history"]) for _, h in heads

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import Iterable, Mapping, Sequence
+from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -46,7 +46,7 @@ __all__ = [
     "cumulated_displacement", "mean_event_displacement", "stopped_force_ratios",
     "stopped_force_ratio_histogram", "event_sizes", "event_size_counts",
     "synchronisation", "moving_clusters", "extremity_activity", "realisation_statistics",
-    "statistics_layout",
+    "statistics_layout", "Statistic", "STATISTICS",
     "EnsembleSummary", "combine", "summary_from_results", "exponential_fit",
     "linear_fit",
 ]
@@ -470,24 +470,165 @@ def extremity_activity(result, edges, end_fraction: float = 0.25) -> dict[str, n
 # -----------------------------------------------------------------------------
 
 
+class _Run:
+    """One run seen by the statistics: what several of them share, computed once."""
+
+    def __init__(self, result, grids: StatisticsGrids):
+        self.result, self.grids = result, grids
+        self._histogram = None
+        self._event_bins = None
+
+    @property
+    def force_histogram(self):
+        if self._histogram is None:
+            self._histogram = force_histogram(self.result, self.grids.alpha, self.grids.force_edges)
+        return self._histogram
+
+    @property
+    def event_bins(self):
+        """(interval of each event among the grid's G-1, mask of those inside, <dx> per event)."""
+        if self._event_bins is None:
+            a = self.grids.alpha
+            ig = np.searchsorted(a, np.asarray(self.result.alpha, dtype=float), side="right") - 1
+            self._event_bins = (ig, (ig >= 0) & (ig < a.size - 1),
+                                mean_event_displacement(self.result))
+        return self._event_bins
+
+
+@dataclass(frozen=True)
+class Statistic:
+    """One per-realisation statistic: its row's shape (from the grids and N),
+    dtype, how a run is reduced to it, and how the rows of an ensemble combine
+    (a function of (rows, ctx) giving ``EnsembleSummary`` fields; fields the
+    dataclass does not know go to ``summary.extra``).  Adding a statistic is
+    adding one entry to ``STATISTICS``."""
+
+    name: str
+    shape: Callable[[StatisticsGrids, int], tuple[int, ...]]
+    dtype: type
+    compute: Callable[[_Run], np.ndarray]
+    combine: Callable[[Mapping[str, np.ndarray], "_Ensemble"], dict] | None = None
+
+
+@dataclass
+class _Ensemble:
+    """What the combine functions share: R, N, the grids and the valid mask."""
+
+    r: int
+    n: int
+    grids: StatisticsGrids
+    valid: np.ndarray  # (R, G)
+    n_valid: np.ndarray  # (G,)
+
+
+def _combine_force_pdf(rows, ens: _Ensemble) -> dict:
+    fc = np.asarray(rows["force_counts"], dtype=float)
+    width = np.diff(ens.grids.force_edges)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        force_pdf = np.where(ens.n_valid[:, None] > 0,
+                             fc.sum(axis=0) / (np.maximum(ens.n_valid, 1)[:, None] * ens.n
+                                               * width[None, :]),
+                             np.nan)
+    return {"force_pdf": force_pdf}
+
+
+def _combine_model_bins(rows, ens: _Ensemble) -> dict:
+    p = np.asarray(rows["model_bin_counts"], dtype=float) / (ens.n * 2.0 * ens.grids.delta_mu)
+    p_mean, p_sem = _mean_sem(p, ens.valid)
+    return {"p_mean": p_mean, "p_sem": p_sem}
+
+
+def _combine_cumulated(rows, ens: _Ensemble) -> dict:
+    a_mean, a_sem = _mean_sem(np.asarray(rows["cumulated_displacement"], dtype=float), ens.valid)
+    return {"cumulated_mean": a_mean, "cumulated_sem": a_sem}
+
+
+def _combine_stopped_ratio(rows, ens: _Ensemble) -> dict:
+    sc = np.asarray(rows["stopped_ratio_counts"], dtype=float).sum(axis=0)
+    stopped = sc.sum(axis=1)
+    rwidth = np.diff(ens.grids.ratio_edges)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio_pdf = np.where(stopped[:, None] > 0, sc / (np.maximum(stopped, 1)[:, None] * rwidth), np.nan)
+    return {"stopped_ratio_pdf": ratio_pdf, "stopped_counts": stopped.astype(np.int64)}
+
+
+def _combine_event_sizes(rows, ens: _Ensemble) -> dict:
+    esc = np.asarray(rows["event_size_counts"], dtype=np.int64).sum(axis=0)
+    total = esc.sum()
+    esp = esc / total if total else np.full(esc.shape, np.nan)
+    return {"event_size_counts": esc, "event_size_pdf": esp}
+
+
+def _combine_alpha_c(rows, ens: _Ensemble) -> dict:
+    ac = np.asarray(rows["alpha_c"], dtype=float).reshape(ens.r)
+    fin = ac[np.isfinite(ac)]
+    ac_mean = float(fin.mean()) if fin.size else math.nan
+    ac_std = float(fin.std(ddof=1)) if fin.size > 1 else math.nan
+    ac_sem = ac_std / math.sqrt(fin.size) if fin.size > 1 else math.nan
+    return {"alpha_c_values": ac, "alpha_c_mean": ac_mean, "alpha_c_std": ac_std,
+            "alpha_c_sem": ac_sem, "n_avalanche": int(fin.size)}
+
+
+def _combine_event_displacement(rows, ens: _Ensemble) -> dict:
+    """<dx> per angle interval from the per-run sums and counts (files without
+    these optional rows leave both fields None)."""
+    if "event_counts" not in rows or "event_mean_displacement_sum" not in rows:
+        return {}
+    ev_counts = np.asarray(rows["event_counts"], dtype=np.int64).sum(axis=0)
+    s = np.asarray(rows["event_mean_displacement_sum"], dtype=float).sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ev_mdx = np.where(ev_counts > 0, s / np.maximum(ev_counts, 1), np.nan)
+    return {"event_counts": ev_counts, "event_mean_displacement": ev_mdx}
+
+
+def _event_interval_sums(run: _Run, weights: bool) -> np.ndarray:
+    ig, keep, mdx = run.event_bins
+    g = run.grids.alpha.size
+    if weights:
+        return np.bincount(ig[keep], weights=np.nan_to_num(mdx[keep]),
+                           minlength=g - 1).astype(np.float64)
+    return np.bincount(ig[keep], minlength=g - 1).astype(np.int64)
+
+
+# The rows of one realisation (in this order in ensemble files).
+STATISTICS = (
+    Statistic("force_counts", lambda g, n: (g.alpha.size, g.force_edges.size - 1), np.int64,
+              lambda run: run.force_histogram[0], _combine_force_pdf),
+    Statistic("valid_alpha", lambda g, n: (g.alpha.size,), np.bool_,
+              lambda run: run.force_histogram[1]),  # combined through _Ensemble.valid
+    Statistic("model_bin_counts", lambda g, n: (g.alpha.size, g.n_model_bins), np.int64,
+              lambda run: model_bin_counts(run.result, run.grids.alpha, run.grids.mu_s_mean,
+                                           run.grids.mu_d, run.grids.n_model_bins),
+              _combine_model_bins),
+    Statistic("cumulated_displacement", lambda g, n: (g.alpha.size,), np.float64,
+              lambda run: cumulated_displacement(run.result, run.grids.alpha).astype(np.float64),
+              _combine_cumulated),
+    Statistic("stopped_ratio_counts",
+              lambda g, n: (g.stop_alpha_edges.size - 1, g.ratio_edges.size - 1), np.int64,
+              lambda run: stopped_force_ratio_histogram(run.result, run.grids.stop_alpha_edges,
+                                                        run.grids.ratio_edges),
+              _combine_stopped_ratio),
+    Statistic("event_size_counts", lambda g, n: (int(n),), np.int64,
+              lambda run: event_size_counts(run.result), _combine_event_sizes),
+    Statistic("alpha_c", lambda g, n: (), np.float64,
+              lambda run: np.float64(run.result.alpha_c), _combine_alpha_c),
+    Statistic("n_events", lambda g, n: (), np.int64,
+              lambda run: np.int64(run.result.n_events),
+              lambda rows, ens: {"n_events": np.asarray(rows["n_events"],
+                                                        dtype=np.int64).reshape(ens.r)}),
+    Statistic("event_counts", lambda g, n: (g.alpha.size - 1,), np.int64,
+              lambda run: _event_interval_sums(run, weights=False)),  # with the next one
+    Statistic("event_mean_displacement_sum", lambda g, n: (g.alpha.size - 1,), np.float64,
+              lambda run: _event_interval_sums(run, weights=True), _combine_event_displacement),
+)
+
+
 def statistics_layout(grids: StatisticsGrids, n_sliders: int) -> dict[str, tuple[tuple[int, ...], type]]:
     """{key: (shape, dtype)} of ``realisation_statistics`` for these grids.
 
     For pre-creating one dataset per key with a leading realisation axis.
     """
-    g = grids.alpha.size
-    return {
-        "force_counts": ((g, grids.force_edges.size - 1), np.int64),
-        "valid_alpha": ((g,), np.bool_),
-        "model_bin_counts": ((g, grids.n_model_bins), np.int64),
-        "cumulated_displacement": ((g,), np.float64),
-        "stopped_ratio_counts": ((grids.stop_alpha_edges.size - 1, grids.ratio_edges.size - 1), np.int64),
-        "event_size_counts": ((int(n_sliders),), np.int64),
-        "alpha_c": ((), np.float64),
-        "n_events": ((), np.int64),
-        "event_counts": ((g - 1,), np.int64),
-        "event_mean_displacement_sum": ((g - 1,), np.float64),
-    }
+    return {st.name: (st.shape(grids, n_sliders), st.dtype) for st in STATISTICS}
 
 
 def realisation_statistics(result, grids: StatisticsGrids) -> dict[str, np.ndarray]:
@@ -523,27 +664,8 @@ def realisation_statistics(result, grids: StatisticsGrids) -> dict[str, np.ndarr
         Sum over those events of their <dx> (mean over the sliders that moved).
     """
     _need(result, "realisation_statistics")
-    a = grids.alpha
-    counts, valid = force_histogram(result, a, grids.force_edges)
-    ea = np.asarray(result.alpha, dtype=float)
-    ig = np.searchsorted(a, ea, side="right") - 1
-    keep = (ig >= 0) & (ig < a.size - 1)
-    mdx = mean_event_displacement(result)
-    return {
-        "force_counts": counts,
-        "valid_alpha": valid,
-        "model_bin_counts": model_bin_counts(result, a, grids.mu_s_mean, grids.mu_d,
-                                             grids.n_model_bins),
-        "cumulated_displacement": cumulated_displacement(result, a).astype(np.float64),
-        "stopped_ratio_counts": stopped_force_ratio_histogram(result, grids.stop_alpha_edges,
-                                                              grids.ratio_edges),
-        "event_size_counts": event_size_counts(result),
-        "alpha_c": np.float64(result.alpha_c),
-        "n_events": np.int64(result.n_events),
-        "event_counts": np.bincount(ig[keep], minlength=a.size - 1).astype(np.int64),
-        "event_mean_displacement_sum": np.bincount(ig[keep], weights=np.nan_to_num(mdx[keep]),
-                                                   minlength=a.size - 1).astype(np.float64),
-    }
+    run = _Run(result, grids)
+    return {st.name: st.compute(run) for st in STATISTICS}
 
 
 # -----------------------------------------------------------------------------
@@ -629,50 +751,17 @@ def combine(rows: Mapping[str, np.ndarray], grids: StatisticsGrids, n_sliders: i
     if valid.ndim != 2 or valid.shape[1] != grids.alpha.size:
         raise ValueError(f"rows['valid_alpha'] must have shape (R, {grids.alpha.size}), "
                          f"got {valid.shape}")
-    r = valid.shape[0]
-    n = int(n_sliders)
     n_valid = valid.sum(axis=0)
-    fc = np.asarray(rows["force_counts"], dtype=float)
-    width = np.diff(grids.force_edges)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        force_pdf = np.where(n_valid[:, None] > 0,
-                             fc.sum(axis=0) / (np.maximum(n_valid, 1)[:, None] * n * width[None, :]),
-                             np.nan)
-    p = np.asarray(rows["model_bin_counts"], dtype=float) / (n * 2.0 * grids.delta_mu)
-    p_mean, p_sem = _mean_sem(p, valid)
-    a_mean, a_sem = _mean_sem(np.asarray(rows["cumulated_displacement"], dtype=float), valid)
-
-    sc = np.asarray(rows["stopped_ratio_counts"], dtype=float).sum(axis=0)
-    stopped = sc.sum(axis=1)
-    rwidth = np.diff(grids.ratio_edges)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ratio_pdf = np.where(stopped[:, None] > 0, sc / (np.maximum(stopped, 1)[:, None] * rwidth), np.nan)
-
-    ac = np.asarray(rows["alpha_c"], dtype=float).reshape(r)
-    fin = ac[np.isfinite(ac)]
-    ac_mean = float(fin.mean()) if fin.size else math.nan
-    ac_std = float(fin.std(ddof=1)) if fin.size > 1 else math.nan
-    ac_sem = ac_std / math.sqrt(fin.size) if fin.size > 1 else math.nan
-
-    esc = np.asarray(rows["event_size_counts"], dtype=np.int64).sum(axis=0)
-    total = esc.sum()
-    esp = esc / total if total else np.full(esc.shape, np.nan)
-
-    ev_counts = ev_mdx = None
-    if "event_counts" in rows and "event_mean_displacement_sum" in rows:
-        ev_counts = np.asarray(rows["event_counts"], dtype=np.int64).sum(axis=0)
-        s = np.asarray(rows["event_mean_displacement_sum"], dtype=float).sum(axis=0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ev_mdx = np.where(ev_counts > 0, s / np.maximum(ev_counts, 1), np.nan)
-
+    ens = _Ensemble(r=valid.shape[0], n=int(n_sliders), grids=grids, valid=valid, n_valid=n_valid)
+    combined: dict = {}
+    for st in STATISTICS:
+        if st.combine is not None:
+            combined.update(st.combine(rows, ens))
+    known = {f.name for f in fields(EnsembleSummary)}
     return EnsembleSummary(
-        grids=grids, n_sliders=n, n_realisations=r, n_valid=n_valid, force_pdf=force_pdf,
-        p_mean=p_mean, p_sem=p_sem, cumulated_mean=a_mean, cumulated_sem=a_sem,
-        stopped_ratio_pdf=ratio_pdf, stopped_counts=stopped.astype(np.int64),
-        alpha_c_values=ac, alpha_c_mean=ac_mean, alpha_c_std=ac_std, alpha_c_sem=ac_sem,
-        n_avalanche=int(fin.size), event_size_counts=esc, event_size_pdf=esp,
-        n_events=np.asarray(rows["n_events"], dtype=np.int64).reshape(r),
-        event_counts=ev_counts, event_mean_displacement=ev_mdx,
+        grids=grids, n_sliders=ens.n, n_realisations=ens.r, n_valid=n_valid,
+        **{k: v for k, v in combined.items() if k in known},
+        extra={k: v for k, v in combined.items() if k not in known},
     )
 
 

@@ -94,19 +94,19 @@ def _pm(mean, err, nd=3) -> str:
 def run_many(n_sliders: int, xi: float, runs: int, base_seed: int, backend: str, log=None,
              label: str = ""):
     """Tilt ``runs`` realisations of the paper's chain (seeds ``realisation_seed(base_seed, r)``); returns the TiltResults."""
-    from .driver import tilt
-    from .keyed_random import realisation_seed
+    from .driver import tilt_realisations
     from .scene import Scene
 
     out = []
-    for r in range(runs):
-        t0 = time.perf_counter()
-        res = tilt(Scene(n_sliders=n_sliders, xi=xi, seed=realisation_seed(base_seed, r),
-                         record="displacements"), backend=backend)
+    scene = Scene(n_sliders=n_sliders, xi=xi, seed=base_seed, record="displacements")
+    runs_started = time.perf_counter()
+    for r, res in tilt_realisations(scene, runs, backend=backend):
         out.append(res)
         if log:
             log(f"  {label} run {r + 1}/{runs}: N={n_sliders} xi={xi:g} {res.status} "
-                f"alpha_c={res.alpha_c:.4f} events={res.n_events} ({time.perf_counter() - t0:.1f} s)")
+                f"alpha_c={res.alpha_c:.4f} events={res.n_events} "
+                f"({time.perf_counter() - runs_started:.1f} s)")
+            runs_started = time.perf_counter()
     return out
 
 

@@ -210,7 +210,7 @@ class TiltResult:
         ``load`` checks it before HDF5 parses anything, so that damaged HDF5
         metadata cannot crash the process.
         """
-        from .safeio import publish_bytes
+        from .io.safeio import publish_bytes
 
         publish_bytes(path, self.to_bytes(), overwrite)
 
@@ -221,7 +221,7 @@ class TiltResult:
         import h5py
 
         from . import __version__
-        from .safeio import seal_attrs, seal_dataset
+        from .io.safeio import seal_attrs, seal_dataset
 
         def dataset(group, name, data):
             data = np.asarray(data)
@@ -256,7 +256,7 @@ class TiltResult:
                 g.attrs["alpha"] = st.alpha
                 seal_attrs(g)
             seal_attrs(f)
-            from .conventions import describe_tilt_file
+            from .io.conventions import describe_tilt_file
 
             # named dimensions, units, provenance: added after the seals, which
             # cover the data and the attributes that load() reads
@@ -273,7 +273,7 @@ class TiltResult:
         """
         problem = whole_file_problem(path)
         if problem:
-            from .safeio import IntegrityError
+            from .io.safeio import IntegrityError
 
             raise IntegrityError(problem)
         return cls._load_checked(path)
@@ -283,7 +283,7 @@ class TiltResult:
         """``load`` without the whole-file check (per dataset and attribute set only)."""
         import h5py
 
-        from .safeio import (IntegrityError, check_attrs, check_coordinates, describe_os_error,
+        from .io.safeio import (IntegrityError, check_attrs, check_coordinates, describe_os_error,
                              read_checked)
 
         where = repr(os.fspath(path))
@@ -383,8 +383,3 @@ def whole_file_problem(path) -> str | None:
         return named
     return f"{where} is damaged: it fails its whole-file checksum (in the HDF5 metadata)"
 
-
-def empty_events() -> dict[str, np.ndarray]:
-    """Per-event arrays of length 0, one per field of ``status.EVENT_FIELDS``."""
-    return {f: np.zeros(0, dtype=np.int64 if f in ("n_moved", "n_stops", "n_steps", "slider_steps")
-                        else float) for f in status.EVENT_FIELDS}

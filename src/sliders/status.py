@@ -31,15 +31,6 @@ NAMES = {
 FINAL_OK = {AVALANCHE, ALPHA_MAX, MAX_EVENTS}
 ERRORS = {EVENT_DURATION_CAP, NON_FINITE, RANDOM_FAILURE, REFINE_LIMIT}
 
-# Per-event scalar records, in this order in both backends.
-EVENT_FIELDS = (
-    "alpha",  # tilt at which the rearrangement happened
-    "n_moved",  # distinct sliders that moved
-    "n_stops",  # stops (velocity zero crossings) during the event
-    "n_steps",  # accepted integration steps
-    "slider_steps",  # sum over steps of the number of moving sliders
-    "duration",  # in tau
-    "work_gravity",  # sin(alpha) * sum of displacements
-    "elastic_change",  # change of elastic energy (springs + cantilevers)
-    "dissipation",  # mu_d cos(alpha) * path length
-)
+# Per-event scalar records, in this order in both backends (declared with
+# their types in contract.EVENT_SCHEMA).
+from .engine.contract import EVENT_FIELDS  # noqa: E402,F401

@@ -53,9 +53,9 @@ from typing import Any
 
 import numpy as np
 
-from . import safeio
+from .io import safeio
 from .scene import Scene, SceneError
-from .storage import ROW_DIGEST, GatherFile, Layout, MpioFile, _create_structure
+from .io.storage import ROW_DIGEST, GatherFile, Layout, MpioFile, _create_structure
 
 FORMAT = "sliders.study"
 FORMAT_VERSION = 1
@@ -256,7 +256,7 @@ def point_name(p: int) -> str:
 def _point_layout(study: Study, p: int, backend: str):
     from .keyed_random import realisation_seed
     from .observables import default_grids, statistics_layout
-    from .storage import file_attributes, make_layout
+    from .io.storage import file_attributes, make_layout
 
     scene = study.scenes[p]
     R = study.realisations
@@ -408,7 +408,7 @@ def read_study_header(path) -> dict[str, Any]:
     """Root attributes and, per point, its done mask (checksums of the rows verified)."""
     import h5py
 
-    from .storage import StorageError, _row_damage
+    from .io.storage import StorageError, _row_damage
 
     p = os.fspath(path)
     if not os.path.exists(p):
@@ -461,7 +461,7 @@ def write_view(path, study: Study) -> None:
     as dimensions (derived from the checksummed rows, rewritten at the end of every run)."""
     import h5py
 
-    from .conventions import provenance
+    from .io.conventions import provenance
 
     shape = study.shape + (study.realisations,)
     with h5py.File(os.fspath(path), "r+") as f:
@@ -506,7 +506,7 @@ def build_parser(rank: int = 0) -> argparse.ArgumentParser:
     """The command line of ``python -m sliders.study`` (help printed by rank 0 only)."""
     from .ensemble import _Parser
     from .scene import BACKENDS
-    from .storage import STORAGES
+    from .io.storage import STORAGES
 
     p = _Parser(prog="python -m sliders.study",
                 description="Sweep scene parameters: R realisations (common random numbers: the "
@@ -529,7 +529,7 @@ def build_parser(rank: int = 0) -> argparse.ArgumentParser:
 def _plan_root(args, study: Study) -> dict[str, Any]:
     """Rank 0, holding the claim: new file or resume against the same study."""
     from .ensemble import DEFAULT_BACKEND, UsageError
-    from .storage import StorageError
+    from .io.storage import StorageError
 
     out = args.out
     backend = args.backend or DEFAULT_BACKEND
@@ -575,7 +575,7 @@ def main(argv: list[str] | None = None) -> int:
     from .ensemble import (UsageError, _claim_output, _error_line, _HelpExit, _Root, _Stop,
                            _worker, compute_row)
     from .parallel import MPIUnavailable, get_comm, launcher_rank
-    from .storage import StorageError, choose_storage
+    from .io.storage import StorageError, choose_storage
 
     try:
         comm, have_mpi = get_comm()
@@ -627,7 +627,7 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args, comm, study, plan, storage, _Root, _worker, _Stop, compute_row) -> int:
     from .ensemble import _error_line
     from .observables import StatisticsGrids
-    from .safeio import os_reason
+    from .io.safeio import os_reason
 
     rank = comm.rank
     layout = plan["layout"]

@@ -51,12 +51,14 @@ from __future__ import annotations
 import datetime
 import json
 import os
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from . import safeio, status
+from .. import status
+from . import safeio
 
 FORMAT = "sliders.ensemble"
 FORMAT_VERSION = 1
@@ -128,7 +130,7 @@ def make_layout(n_realisations: int, seeds, grids: dict[str, np.ndarray],
 
 def file_attributes(scene_dict: dict, base_seed: int, n_realisations: int, backend: str) -> dict:
     """Root attributes of a new ensemble file: format, scene (JSON), seeds, count, backend, versions."""
-    from . import __version__
+    from .. import __version__
 
     return {
         "format": FORMAT,
@@ -623,3 +625,67 @@ def _plain(v):
     if isinstance(v, np.generic):
         return v.item()
     return v
+
+
+# ---------------------------------------------------------------------------
+# reading
+# ---------------------------------------------------------------------------
+def read_realisations(path) -> dict[str, Any]:
+    """Every row of an ensemble file (R rows, done or not).
+
+    Keys: ``seed``, ``done`` (bool), ``status`` (codes), ``status_name``,
+    ``alpha_c``, ``n_events``, ``slider_steps``, ``wall_time`` and
+    ``statistics`` ({key: (R, ...) array}).
+    """
+    rows = read_rows(path)
+    out: dict[str, Any] = {k: v for k, v in rows.items() if not k.startswith(STATISTICS)}
+    out["done"] = out["done"].astype(bool)
+    out["status_name"] = np.array([status.NAMES.get(int(c), "not_run" if c < 0 else "unknown")
+                                   for c in out["status"]])
+    out["statistics"] = {k[len(STATISTICS):]: v for k, v in rows.items() if k.startswith(STATISTICS)}
+    return out
+
+
+def load_summary(path):
+    """The ensemble statistics of a file, over its rows marked done.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An ensemble file (``python -m sliders.ensemble``, ``python -m sliders.merge``).
+
+    Returns
+    -------
+    summary : observables.EnsembleSummary
+        Means over the realisations at rest at each angle: force PDF (per m g),
+        P_i(alpha), A(alpha) (g tau^2), alpha_c (radians), event sizes.
+    grids : observables.StatisticsGrids
+        The angles (radians) and bin edges the rows were computed on.
+    scene : Scene
+        The ensemble's scene (realisation r has seed ``realisation_seed(scene.seed, r)``).
+    info : dict
+        The file attributes plus ``n_done``, ``n_realisations``, ``done``
+        (mask), ``statuses`` ({name: count} over done rows) and ``wall_time``
+        (sum over done rows, seconds of computing).
+    """
+    from ..observables import StatisticsGrids, combine
+    from ..scene import Scene
+
+    head = read_header(path)
+    rows = read_realisations(path)
+    if not rows["statistics"]:
+        raise ValueError(f"{os.fspath(path)!r} holds only the per-realisation summary (scene "
+                         "record='summary'): no statistics; read_realisations gives alpha_c, "
+                         "n_events and status per realisation")
+    grids = StatisticsGrids.from_arrays(head["grids"])
+    scene = Scene.from_dict(json.loads(head["attrs"]["scene"]))
+    done = rows["done"]
+    stats = {k: v[done] for k, v in rows["statistics"].items()}
+    summary = combine(stats, grids, scene.n_sliders)
+    info = dict(head["attrs"])
+    info.update({
+        "n_done": int(done.sum()), "n_realisations": int(done.size), "done": done,
+        "statuses": dict(Counter(str(s) for s in rows["status_name"][done])),
+        "wall_time": float(np.sum(rows["wall_time"][done])),
+    })
+    return summary, grids, scene, info

@@ -30,15 +30,15 @@ import threading
 
 import numpy as np
 
-from . import keyed_random, status
-from .chain import ChainState
-from .reference import Chunk, refine_limit_message
-from .scene import Scene
+from .. import keyed_random, status
+from ..chain import ChainState
+from ..scene import Scene
+from .contract import (INT_FIELDS, REAL_FIELDS, Chunk, join_chunks, pack_parameters,
+                       refine_limit_message)
 
 EVENT_CAPACITY = 4096  # event buffer of a relax-only call
 MAX_EVENT_CAPACITY = 1 << 16  # events per kernel call, at most (4.7 MB of buffers)
-_REAL_FIELDS = ("alpha", "duration", "work_gravity", "elastic_change", "dissipation")
-_INT_FIELDS = ("n_moved", "n_stops", "n_steps", "slider_steps")
+_CONTRACT_MISMATCH = -1  # sliders_wrapper_tilt: the packed widths are not sliders_contract's
 _DETAIL_RESTING, _DETAIL_STATE = 1, 2  # sliders_events: detail_resting, detail_state
 _WAIT_SECONDS = 0.05  # the waiting thread wakes this often (signals reach it at once anyway)
 
@@ -54,7 +54,7 @@ class FortranEngine:
     name = "fortran"
 
     def __init__(self, scene: Scene):
-        from . import _kernel  # the compiled extension (meson build)
+        from .. import _kernel  # the compiled extension (meson build)
 
         self.scene = scene
         self._tilt_advance = _kernel.tilt_advance
@@ -69,8 +69,8 @@ class FortranEngine:
     def _buffers(self, capacity: int) -> None:
         if capacity > self._capacity:
             self._capacity = capacity
-            self._event_real = np.zeros((capacity, len(_REAL_FIELDS)), order="F")
-            self._event_int = np.zeros((capacity, len(_INT_FIELDS)), dtype=np.int64, order="F")
+            self._event_real = np.zeros((capacity, len(REAL_FIELDS)), order="F")
+            self._event_int = np.zeros((capacity, len(INT_FIELDS)), dtype=np.int64, order="F")
             self._sparse_ptr = np.zeros(capacity + 1, dtype=np.int64)
 
     # -- public -----------------------------------------------------------
@@ -83,7 +83,10 @@ class FortranEngine:
             piece = self._call(state, max_events, relax_only=True)
             pieces.append(piece)
             if piece.status != status.SPARSE_FULL:
-                return _join(pieces)
+                if len(pieces) == 1:
+                    return piece
+                return join_chunks(pieces, piece.status, piece.alpha_c, piece.message,
+                                   piece.final_event)
 
     # -- one kernel call --------------------------------------------------
     def _call(self, state: ChainState, max_events: int, relax_only: bool) -> Chunk:
@@ -94,24 +97,25 @@ class FortranEngine:
         max_events = int(max(0, min(max_events, np.iinfo(np.int32).max)))
         self._buffers(EVENT_CAPACITY if relax_only else max(1, min(max_events, MAX_EVENT_CAPACITY)))
 
-        e0 = np.ascontiguousarray(state.elastic_force0, dtype=np.float64)
-        t0 = np.ascontiguousarray(state.spring_extension0, dtype=np.float64)
-        w0 = np.ascontiguousarray(state.cantilever_stretch0, dtype=np.float64)
+        e0, t0, w0 = state.elastic_force0, state.spring_extension0, state.cantilever_stretch0
         mu = np.ascontiguousarray(state.mu_s, dtype=np.float64)
         stops = np.ascontiguousarray(state.n_stops, dtype=np.int64)
         du = np.ascontiguousarray(state.displacement, dtype=np.float64)
         if t0.size != n + 1 or e0.size != n or w0.size != n or stops.size != n or du.size != n:
             raise ValueError("inconsistent ChainState array sizes")
 
+        real_params, int_params = pack_parameters(sc, float(state.alpha), self._record_sparse,
+                                                  relax_only, max_events)
+        chain0 = np.concatenate([e0, w0, t0]).astype(np.float64)  # the kernel's packed layout
         (alpha, n_events, n_sparse, code, alpha_c, event_time, final_steps, final_slider_steps,
          detail) = self._interruptible(
-            int(sc.walls), float(sc.xi), float(sc.mu_d), float(sc.mu_s_mean), float(sc.sigma_mu),
-            int(sc.seed), float(sc.dt), float(sc.refine_tol), float(sc.max_event_duration),
-            float(sc.alpha_max), float(sc.force_tol), int(self._record_sparse), int(relax_only),
-            max_events, e0, t0, w0, mu, stops, du, float(state.alpha),
+            real_params, int_params, chain0, mu, stops, du,
             self._event_real, self._event_int, self._sparse_ptr,
             self._sparse_index, self._sparse_value, self._interrupt,
         )
+        if code == _CONTRACT_MISMATCH:
+            raise RuntimeError("Fortran kernel: its packed layout (sliders_contract.f90) is not "
+                               "contract.py's; rebuild the extension")
         # write back (no-ops when the state arrays were passed themselves)
         state.mu_s[:] = mu
         state.n_stops[:] = stops
@@ -123,8 +127,8 @@ class FortranEngine:
             raise RuntimeError(
                 f"Fortran kernel: the displacement buffer ({self._sparse_index.size} entries) "
                 f"cannot hold one event of {n} sliders")
-        events = {f: self._event_real[:k, j].copy() for j, f in enumerate(_REAL_FIELDS)}
-        events.update({f: self._event_int[:k, j].copy() for j, f in enumerate(_INT_FIELDS)})
+        events = {f: self._event_real[:k, j].copy() for j, f in enumerate(REAL_FIELDS)}
+        events.update({f: self._event_int[:k, j].copy() for j, f in enumerate(INT_FIELDS)})
         events = {f: events[f] for f in status.EVENT_FIELDS}
         ptr = self._sparse_ptr[: k + 1].copy()
         m = int(n_sparse)
@@ -209,22 +213,3 @@ def _message(sc: Scene, code: int, detail: int, alpha: float, event_time: float)
                 f"{keyed_random.MAX_ATTEMPTS} attempts "
                 f"(mu_s_mean={sc.mu_s_mean}, sigma_mu={sc.sigma_mu})")
     return ""
-
-
-def _join(pieces: list[Chunk]) -> Chunk:
-    """One chunk from consecutive ones (CSR pointers shifted)."""
-    if len(pieces) == 1:
-        return pieces[0]
-    events = {f: np.concatenate([c.events[f] for c in pieces]) for f in status.EVENT_FIELDS}
-    ptr = [np.zeros(1, dtype=np.int64)]
-    offset = 0
-    for c in pieces:
-        ptr.append(c.sparse_ptr[1:] + offset)
-        offset += c.sparse_index.size
-    last = pieces[-1]
-    return Chunk(
-        last.status, events, np.concatenate(ptr),
-        np.concatenate([c.sparse_index for c in pieces]),
-        np.concatenate([c.sparse_displacement for c in pieces]),
-        last.alpha_c, last.message, last.final_event,
-    )

@@ -43,37 +43,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import keyed_random, status
-from .chain import ChainState, elastic_energy, elastic_force
-from .scene import Scene
-
-TIE_TOL = 1e-12  # sliders whose instability angles tie within this start together
-# Halvings of a crossing bracket, at most (sliders_events.max_halvings): a step
-# of 1 tau closes to 3e-39 within them, so only a refine_tol below what the
-# step can resolve reaches the bound.
-MAX_HALVINGS = 128
-# The transcendentals of next_instability: NumPy's; a caller may put the C
-# library's here (as keyed_random.TRANSCENDENTALS).
-TRANSCENDENTALS = {"asin": np.arcsin, "atan": np.arctan, "hypot": np.hypot}
-
-
-@dataclass
-class Chunk:
-    """What one call of a backend's ``advance`` produced."""
-
-    status: int
-    events: dict[str, np.ndarray]
-    sparse_ptr: np.ndarray  # events[k] moved sliders are entries ptr[k]:ptr[k+1]
-    sparse_index: np.ndarray
-    sparse_displacement: np.ndarray
-    alpha_c: float = math.nan
-    message: str = ""
-    final_event: dict = field(default_factory=dict)  # work of an unfinished last event
-
-    @property
-    def n_events(self) -> int:
-        """Number of events in this chunk."""
-        return len(self.events["alpha"])
+from .. import status
+from ..chain import ChainState, elastic_energy, elastic_force
+from ..scene import Scene
+from .contract import MAX_HALVINGS, Chunk, events_from_records, refine_limit_message
+from .friction import friction_for
+# next_instability, TIE_TOL and TRANSCENDENTALS live with the tilt loading;
+# re-exported here, where callers and tests have always found them.
+from .loading import TIE_TOL, TRANSCENDENTALS, loading_for, next_instability  # noqa: F401
 
 
 @dataclass
@@ -84,39 +61,6 @@ class _EventOutcome:
     moved_displacement: np.ndarray | None = None
 
 
-def next_instability(elastic: np.ndarray, mu: np.ndarray, alpha: float):
-    """Smallest angle >= alpha at which some resting slider destabilises.
-
-    Downwards: E + sin a = mu cos a, i.e. R sin(a - phi) = -E with
-    R = sqrt(1 + mu^2), phi = atan(mu); on [0, pi/2] the left side only grows,
-    so the root phi + asin(-E/R) is the one, if E >= -1 (else it lies beyond
-    pi/2).  Upwards: E + sin a = -mu cos a, R sin(a + phi) = -E; the left side
-    falls only beyond pi/2 - phi, so the root is pi - phi - asin(-E/R), which
-    lies in [0, pi/2] only if E <= -1.
-    Returns (angle, trigger indices, directions +1 down / -1 up).
-    """
-    math_fn = TRANSCENDENTALS
-    radius = math_fn["hypot"](1.0, mu)
-    phi = math_fn["atan"](mu)
-    ratio = -elastic / radius
-    inside = np.abs(ratio) <= 1.0
-    s = math_fn["asin"](np.where(inside, ratio, 0.0))
-    down = np.where(inside & (elastic >= -1.0), phi + s, np.inf)
-    up = np.where(inside & (elastic <= -1.0), np.pi - phi - s, np.inf)
-    root = np.maximum(np.minimum(down, up), alpha)
-    angle = float(root.min())
-    triggers = np.flatnonzero(root <= angle + TIE_TOL)
-    directions = np.where(down[triggers] <= up[triggers], 1.0, -1.0)
-    return angle, triggers, directions
-
-
-def refine_limit_message(scene: Scene, alpha: float) -> str:
-    """What a run ended by the bisection bound says (both backends)."""
-    return (f"crossing refinement at alpha={alpha:.6f}: bracket still wider than "
-            f"refine_tol={scene.refine_tol} tau after {MAX_HALVINGS} halvings of dt={scene.dt} "
-            f"(below double precision; use a larger refine_tol)")
-
-
 class NumpyEngine:
     """The reference backend: same interface as the Fortran one."""
 
@@ -124,6 +68,8 @@ class NumpyEngine:
 
     def __init__(self, scene: Scene):
         self.scene = scene
+        self.loading = loading_for(scene)
+        self.friction = friction_for(scene)
 
     # -- public -----------------------------------------------------------
     def advance(self, state: ChainState, max_events: int, relax_only: bool = False) -> Chunk:
@@ -133,9 +79,7 @@ class NumpyEngine:
         ptr, index, disp = [0], [], []
 
         def chunk(code, alpha_c=math.nan, message="", final_event=None):
-            events = {f: np.array([r[f] for r in records], dtype=float) for f in status.EVENT_FIELDS}
-            for f in ("n_moved", "n_stops", "n_steps", "slider_steps"):
-                events[f] = events[f].astype(np.int64)
+            events = events_from_records(records)
             return Chunk(
                 code, events, np.array(ptr, dtype=np.int64),
                 np.array(np.concatenate(index) if index else [], dtype=np.int64),
@@ -165,8 +109,9 @@ class NumpyEngine:
         elastic = elastic_force(state, sc.xi, sc.walls)
         if not np.all(np.isfinite(elastic)):
             return chunk(status.NON_FINITE, message="non-finite force in the resting chain")
-        force = elastic + math.sin(state.alpha)
-        unstable = np.abs(force) > state.mu_s * math.cos(state.alpha) + sc.force_tol
+        load, law = self.loading, self.friction
+        force = elastic + load.weight(state.alpha)
+        unstable = np.abs(force) > law.static_threshold(state.mu_s, load.normal(state.alpha))
         if unstable.any():  # relaxation (preparation with coupling)
             triggers = np.flatnonzero(unstable)
             directions = np.sign(force[triggers])
@@ -175,8 +120,8 @@ class NumpyEngine:
         else:
             if len(records) >= max_events:
                 return chunk(status.RUNNING)
-            angle, triggers, directions = next_instability(elastic, state.mu_s, state.alpha)
-            if angle > sc.alpha_max:
+            angle, triggers, directions = load.next_instability(elastic, state.mu_s, state.alpha)
+            if load.beyond_limit(angle):
                 return chunk(status.ALPHA_MAX)
             state.alpha = angle
         outcome = self._event(state, triggers, directions)
@@ -199,9 +144,11 @@ class NumpyEngine:
     def _event(self, state: ChainState, triggers, directions) -> _EventOutcome:
         sc = self.scene
         n = state.n_sliders
-        sin_a, cos_a = math.sin(state.alpha), math.cos(state.alpha)
-        friction = sc.mu_d * cos_a
-        threshold = state.mu_s * cos_a + sc.force_tol
+        load, law = self.loading, self.friction
+        # the drive is fixed during an event: its terms are numbers here
+        weight, normal = load.weight(state.alpha), load.normal(state.alpha)
+        friction = law.kinetic_force(normal)
+        threshold = law.static_threshold(state.mu_s, normal)
 
         du_start = state.displacement.copy()
         du = du_start.copy()
@@ -211,13 +158,13 @@ class NumpyEngine:
         moving[triggers] = True
         direction[triggers] = directions
         moved = moving.copy()
-        force = elastic_force(state, sc.xi, sc.walls, du) + sin_a
+        force = elastic_force(state, sc.xi, sc.walls, du) + weight
         acc = np.where(moving, force - friction * direction, 0.0)
 
         def substep(h):
             """Velocity-Verlet step of size h from (du, v, acc); only movers move."""
             du1 = du + np.where(moving, v * h + 0.5 * acc * h * h, 0.0)
-            force1 = elastic_force(state, sc.xi, sc.walls, du1) + sin_a
+            force1 = elastic_force(state, sc.xi, sc.walls, du1) + weight
             acc1 = np.where(moving, force1 - friction * direction, 0.0)
             v1 = np.where(moving, v + 0.5 * (acc + acc1) * h, 0.0)
             return du1, v1, force1
@@ -281,12 +228,10 @@ class NumpyEngine:
                 direction[stops] = 0.0
                 state.n_stops[stops] += 1
                 try:
-                    state.mu_s[stops] = keyed_random.static_coefficient(
-                        sc.seed, stops, state.n_stops[stops], sc.mu_s_mean, sc.sigma_mu, sc.mu_d
-                    )
+                    state.mu_s[stops] = law.draw_at_stop(stops, state.n_stops[stops])
                 except RuntimeError as exc:
                     return unfinished(status.RANDOM_FAILURE, str(exc))
-                threshold[stops] = state.mu_s[stops] * cos_a + sc.force_tol
+                threshold[stops] = law.static_threshold(state.mu_s[stops], normal)
             starts = np.flatnonzero(~moving & (np.abs(force) > threshold))
             moving[starts] = True
             direction[starts] = np.sign(force[starts])
@@ -299,8 +244,7 @@ class NumpyEngine:
                     f"rearrangement at alpha={state.alpha:.6f} still moving after "
                     f"{t:.1f} tau (max_event_duration={sc.max_event_duration} tau)",
                 )
-            if (not sc.walls and moving.all() and np.all(direction > 0.0)
-                    and sin_a > sc.mu_d * cos_a):
+            if load.runaway(moving, direction, weight, friction):
                 state.displacement[:] = du
                 return unfinished(status.AVALANCHE)
 
@@ -312,7 +256,7 @@ class NumpyEngine:
             "n_steps": n_steps,
             "slider_steps": slider_steps,
             "duration": t,
-            "work_gravity": sin_a * float(step.sum()),
+            "work_gravity": load.work(weight, step),
             "elastic_change": elastic_energy(state, sc.xi, sc.walls, du)
             - elastic_energy(state, sc.xi, sc.walls, du_start),
             "dissipation": friction * path,

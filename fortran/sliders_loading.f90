@@ -1,0 +1,154 @@
+!> Loading protocols: how the drive parameter lambda enters the chain
+!> (src/sliders/engine/loading.py, the specification).
+!>
+!> The tilt (lambda = alpha): every slider feels sin(alpha) along the incline
+!> and presses with cos(alpha) on it; a resting slider of elastic force E and
+!> static coefficient mu destabilises at the closed-form roots of
+!> E + sin a = +-mu cos a.  The event integrator (sliders_events) asks this
+!> module for the drive's terms once per event and for the next critical
+!> angle between events; nothing here runs per integration step.
+module sliders_loading
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_positive_inf
+  use sliders_kinds, only: dp, ip
+  implicit none
+  private
+
+  public :: tilt_terms, tilt_work, tilt_runaway
+  public :: tilt_root_cache, instability_roots, roots_from, root_lower_bounds
+  public :: tie_tol
+
+  !> Sliders whose instability angles tie within this start together.
+  real(dp), parameter :: tie_tol = 1.0e-12_dp
+  real(dp), parameter :: pi = 3.141592653589793_dp   ! == numpy.pi
+  !> Absolute widening of the asin bounds of root_lower_bound: far above the
+  !> rounding of angles <= pi (1e-15), far below the spread of the angles.
+  real(dp), parameter :: bound_slack = 1.0e-12_dp
+
+contains
+
+  ! ------------------------------------------------------- the drive's terms
+
+  !> The tilt's tangential force on every slider (weight = sin alpha) and
+  !> normal load (normal = cos alpha), fixed during an event.
+  pure subroutine tilt_terms(alpha, weight, normal)
+    real(dp), intent(in) :: alpha
+    real(dp), intent(out) :: weight, normal
+
+    weight = sin(alpha)
+    normal = cos(alpha)
+  end subroutine tilt_terms
+
+  !> Work of gravity in an event whose displacements sum to `step`.
+  pure function tilt_work(weight, step) result(work)
+    real(dp), intent(in) :: weight, step
+    real(dp) :: work
+
+    work = weight*step
+  end function tilt_work
+
+  !> The paper's avalanche: a free chain whose n sliders all slide down
+  !> (n_moving == n_down == n) with the weight beating kinetic friction.
+  pure function tilt_runaway(walls, n, n_moving, n_down, weight, kinetic) result(runaway)
+    logical, intent(in) :: walls
+    integer(ip), intent(in) :: n, n_moving, n_down
+    real(dp), intent(in) :: weight, kinetic
+    logical :: runaway
+
+    runaway = .not. walls .and. n_moving == n .and. n_down == n .and. weight > kinetic
+  end function tilt_runaway
+
+  ! ------------------------------------------------------------------ angles
+
+  !> hypot(1, mu) and atan(mu), cached per slider by the kernel (they change
+  !> only when mu does).  Callers mark their loops novector: a vectorised
+  !> loop would call glibc's libmvec variants (_ZGV*_atan, _ZGV*_hypot),
+  !> which differ from the scalar functions in the last bit and would break
+  !> the bit-for-bit agreement with the reference.
+  elemental subroutine tilt_root_cache(mu, radius, phi)
+    real(dp), intent(in) :: mu
+    real(dp), intent(out) :: radius, phi
+
+    radius = hypot(1.0_dp, mu)
+    phi = atan(mu)
+  end subroutine tilt_root_cache
+
+  !> Instability angles of one resting slider of elastic force `elastic` and
+  !> static coefficient `mu` (loading.next_instability): downwards the root
+  !> of E + sin a = mu cos a, phi + asin(-E/R) if E >= -1; upwards the root of
+  !> E + sin a = -mu cos a, pi - phi - asin(-E/R) if E <= -1 (R = hypot(1, mu),
+  !> phi = atan(mu)); +inf where there is none in [0, pi/2].
+  elemental subroutine instability_roots(elastic, mu, down, up)
+    real(dp), intent(in) :: elastic, mu
+    real(dp), intent(out) :: down, up
+
+    call roots_from(elastic, hypot(1.0_dp, mu), atan(mu), down, up)
+  end subroutine instability_roots
+
+  !> instability_roots with R = hypot(1, mu) and phi = atan(mu) given (they
+  !> change only when mu does, so the kernel caches them per slider).
+  elemental subroutine roots_from(elastic, radius, phi, down, up)
+    real(dp), intent(in) :: elastic, radius, phi
+    real(dp), intent(out) :: down, up
+    real(dp) :: ratio, s
+
+    down = ieee_value(down, ieee_positive_inf)
+    up = down
+    ratio = -elastic/radius
+    if (abs(ratio) <= 1.0_dp) then
+      s = asin(ratio)
+      if (elastic >= -1.0_dp) down = phi + s
+      if (elastic <= -1.0_dp) up = (pi - phi) - s
+    end if
+  end subroutine roots_from
+
+  !> Bounds of asin(x), |x| <= 1, without a transcendental: with y = |x|,
+  !> P(y) = y + y**3/6 + 3 y**5/40 <= asin(y) <= P(y) + 0.33 y**7 (the series
+  !> of asin has positive coefficients, and its tail beyond y**5 is at most
+  !> (pi/2 - P(1)) y**7 = 0.3291 y**7), widened by bound_slack for rounding.
+  elemental subroutine asin_bounds(x, lower, upper)
+    real(dp), intent(in) :: x
+    real(dp), intent(out) :: lower, upper
+    real(dp) :: y, y2, p, tail
+
+    y = abs(x)
+    y2 = y*y
+    p = y*(1.0_dp + y2*(1.0_dp/6.0_dp + y2*(3.0_dp/40.0_dp)))
+    tail = 0.33_dp*y*y2*y2*y2
+    if (x >= 0.0_dp) then
+      lower = p - bound_slack
+      upper = p + tail + bound_slack
+    else
+      lower = -(p + tail) - bound_slack
+      upper = -p + bound_slack
+    end if
+  end subroutine asin_bounds
+
+  !> A lower bound of max(min(down, up), alpha) of roots_from, without asin
+  !> (+inf where roots_from finds no root: the same tests).
+  elemental function root_lower_bound(elastic, radius, phi, alpha) result(bound)
+    real(dp), intent(in) :: elastic, radius, phi, alpha
+    real(dp) :: bound
+    real(dp) :: ratio, lower, upper
+
+    bound = ieee_value(bound, ieee_positive_inf)
+    ratio = -elastic/radius
+    if (abs(ratio) <= 1.0_dp) then
+      call asin_bounds(ratio, lower, upper)
+      if (elastic >= -1.0_dp) bound = phi + lower
+      if (elastic <= -1.0_dp) bound = min(bound, (pi - phi) - upper)
+      bound = max(bound, alpha) - bound_slack
+    end if
+  end function root_lower_bound
+
+  !> root_lower_bound of sliders 1..n into bound (one call per event: the
+  !> loop, a polynomial, vectorises here).
+  pure subroutine root_lower_bounds(n, elastic, radius, phi, alpha, bound)
+    integer(ip), intent(in) :: n
+    real(dp), intent(in) :: elastic(:), radius(:), phi(:)
+    real(dp), intent(in) :: alpha
+    real(dp), intent(inout) :: bound(:)
+
+    bound(1:n) = root_lower_bound(elastic(1:n), radius(1:n), phi(1:n), alpha)
+  end subroutine root_lower_bounds
+
+end module sliders_loading
