@@ -667,15 +667,41 @@ def main(argv: list[str] | None = None) -> int:
     rank = comm.rank
 
     # 1. validate (no collective before this point: every rank reaches the allgather)
-    err: tuple[int, str] | None = None
-    plan = root_plan = claim = None
-    args = None
-    try:
+    claims: list = []
+
+    def prepare():
         args = build_parser(rank).parse_args(argv)
         plan = _plan(args, comm, have_mpi)
+        root_plan = None
         if rank == 0:
-            claim = _claim_output(args)
+            claims.append(_claim_output(args))
             root_plan = _plan_root(args, plan)
+        return args, plan, root_plan
+
+    code, planned = agree_on_plan(comm, prepare, claims)
+    if code is not None:
+        return code
+    args, plan, root_plan = planned
+    root_plan = comm.bcast(root_plan, root=0)
+    try:
+        return _run(args, comm, plan, root_plan)
+    finally:
+        for claim in claims:
+            claim.release()  # after the file is closed: the next writer finds it complete
+
+
+def agree_on_plan(comm, prepare, claims: list):
+    """Run ``prepare()`` on every rank and agree on whether it failed anywhere.
+
+    ``prepare`` takes no collective step and appends any output claim it
+    takes to ``claims``.  Returns ``(None, its value)`` when every rank
+    succeeded, else ``(exit code, None)``: rank 0 has printed the one-line
+    reason and the claims are released.
+    """
+    err: tuple[int, str] | None = None
+    value = None
+    try:
+        value = prepare()
     except _HelpExit as exc:
         err = (exc.code, "")
     except UsageError as exc:
@@ -686,19 +712,14 @@ def main(argv: list[str] | None = None) -> int:
         err = (1, f"{type(exc).__name__}: {exc}")
     errors = comm.allgather(err)
     first = next((e for e in errors if e is not None), None)
-    if first is not None:
-        if claim is not None:
-            claim.release()
-        code, message = first
-        if rank == 0 and message:
-            sys.stderr.write(_error_line(message) + "\n")
-        return code
-    root_plan = comm.bcast(root_plan, root=0)
-    try:
-        return _run(args, comm, plan, root_plan)
-    finally:
-        if claim is not None:
-            claim.release()  # after the file is closed: the next writer finds it complete
+    if first is None:
+        return None, value
+    for claim in claims:
+        claim.release()
+    code, message = first
+    if comm.rank == 0 and message:
+        sys.stderr.write(_error_line(message) + "\n")
+    return code, None
 
 
 def _run(args, comm, plan, root_plan) -> int:

@@ -572,8 +572,8 @@ def _plan_root(args, study: Study) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sliders.study STUDY.toml --out FILE.h5``: run (or resume) a study; the exit code."""
-    from .ensemble import (UsageError, _claim_output, _error_line, _HelpExit, _Root, _Stop,
-                           _worker, compute_row)
+    from .ensemble import (UsageError, _claim_output, _error_line, _Root, _Stop, _worker,
+                           agree_on_plan, compute_row)
     from .parallel import MPIUnavailable, get_comm, launcher_rank
     from .io.storage import StorageError, choose_storage
 
@@ -584,9 +584,9 @@ def main(argv: list[str] | None = None) -> int:
             sys.stderr.write(_error_line(str(exc)) + "\n")
         return 1
     rank = comm.rank
-    err = plan = claim = args = study = None
-    storage = None
-    try:
+    claims: list = []
+
+    def prepare():
         args = build_parser(rank).parse_args(argv)
         if args.resume and args.overwrite:
             raise UsageError("--resume and --overwrite exclude each other", code=2)
@@ -597,30 +597,21 @@ def main(argv: list[str] | None = None) -> int:
             storage = choose_storage(args.storage, comm.size, have_mpi)
         except StorageError as exc:
             raise UsageError(str(exc)) from None
+        plan = None
         if rank == 0:
-            claim = _claim_output(args)
+            claims.append(_claim_output(args))
             plan = _plan_root(args, study)
-    except _HelpExit as exc:
-        err = (exc.code, "")
-    except UsageError as exc:
-        err = (exc.code, str(exc))
-    except (StudyError, SceneError, ValueError, OSError) as exc:
-        err = (1, str(exc))
-    except Exception as exc:  # noqa: BLE001 - any failure here must reach every rank
-        err = (1, f"{type(exc).__name__}: {exc}")
-    errors = comm.allgather(err)
-    first = next((e for e in errors if e is not None), None)
-    if first is not None:
-        if claim is not None:
-            claim.release()
-        if rank == 0 and first[1]:
-            sys.stderr.write(_error_line(first[1]) + "\n")
-        return first[0]
+        return args, study, storage, plan
+
+    code, planned = agree_on_plan(comm, prepare, claims)  # a StudyError is a ValueError
+    if code is not None:
+        return code
+    args, study, storage, plan = planned
     plan = comm.bcast(plan, root=0)
     try:
         return _run(args, comm, study, plan, storage, _Root, _worker, _Stop, compute_row)
     finally:
-        if claim is not None:
+        for claim in claims:
             claim.release()
 
 
