@@ -94,6 +94,7 @@ def test_single_slider_stick_slip_period():
 def test_run_ends_at_the_onset_of_sliding_or_the_driver_limit():
     result = sliders.tilt(PUSHED, backend="numpy")
     assert result.status == "sliding"
+    assert f"driver position D={result.events['alpha'][-1]:.4f}" in repr(result)
     assert result.events["n_moved"][-1] == PUSHED.n_sliders
     assert (result.events["n_moved"][:-1] < PUSHED.n_sliders).all()
     # the precursors' fronts start at slider 1 and are contiguous
@@ -117,6 +118,7 @@ def test_tilt_scenes_unchanged_by_the_new_keys():
     ({"loading": "pushed_end", "drive_stiffness": 0.0}, "drive_stiffness=0.0 is out of range"),
     ({"loading": "pushed_end", "drive_max": -1.0}, "drive_max=-1.0 is out of range"),
     ({"tilt": 0.1}, "tilt=0.1 is the fixed incline of loading='pushed_end'"),
+    ({"loading": "pushed_end", "record": "forces"}, "record='forces' rebuilds the forces of the tilt"),
 ])
 def test_bad_pushed_end_values_give_one_line_errors(values, message):
     with pytest.raises(SceneError, match=message.replace("(", r"\(")) as err:

@@ -269,6 +269,9 @@ class Scene:
         if self.loading == "tilt" and self.tilt != 0.0:
             raise SceneError(f"tilt={self.tilt!r} is the fixed incline of loading='pushed_end'; "
                              "with loading='tilt' the angle is the drive (leave tilt at 0)")
+        if self.loading == "pushed_end" and self.record == "forces":
+            raise SceneError("record='forces' rebuilds the forces of the tilt; with "
+                             "loading='pushed_end' use record='displacements'")
         _check_real("drive_stiffness", self.drive_stiffness, 0.0, None, open_low=True)
         _check_real("drive_max", self.drive_max, 0.0, None, open_low=True)
         if self.record not in RECORDS:

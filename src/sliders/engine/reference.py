@@ -140,7 +140,7 @@ class NumpyEngine:
         else:
             ptr.append(0)
         if load.spanning_ends_run() and not relax_only and outcome.record["n_moved"] == sc.n_sliders:
-            return chunk(status.SLIDING, alpha_c=state.alpha)
+            return chunk(status.SLIDING)  # the onset drive is the last event's
         return None
 
     # -- one rearrangement ------------------------------------------------
