@@ -129,3 +129,13 @@ def test_bad_pushed_end_values_give_one_line_errors(values, message):
 def test_fortran_backend_refuses_pushed_end_in_one_line():
     with pytest.raises(SceneError, match="runs on the NumPy reference only"):
         sliders.tilt(PUSHED, backend="fortran")
+
+
+def test_command_line_refuses_the_fortran_backend_in_one_line(capsys):
+    from sliders.__main__ import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["tilt", "--loading", "pushed_end", "--n-sliders", "4", "--out", "unused.h5"])
+    assert exit_.value.code != 0
+    err = capsys.readouterr().err.strip()
+    assert "runs on the NumPy reference only" in err and "\n" not in err

@@ -55,11 +55,9 @@ class FortranEngine:
 
     def __init__(self, scene: Scene):
         from .. import _kernel  # the compiled extension (meson build)
-        from ..scene import SceneError
+        from ..scene import check_backend
 
-        if scene.loading != "tilt":
-            raise SceneError(f"loading={scene.loading!r} runs on the NumPy reference only "
-                             "(backend='numpy'); the Fortran kernel has the tilt only")
+        check_backend(scene, self.name)
 
         self.scene = scene
         self._tilt_advance = _kernel.tilt_advance
