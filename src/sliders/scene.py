@@ -263,12 +263,12 @@ class Scene:
             raise SceneError(f"loading={self.loading!r} must be one of {LOADINGS}")
         _check_real("tilt", self.tilt, 0.0, math.atan(self.mu_d), why="below atan(mu_d), "
                     "so that every slip of the pushed chain stops")
-        if self.tilt == math.atan(self.mu_d):
-            raise SceneError(f"tilt={self.tilt!r} must be below atan(mu_d)={math.atan(self.mu_d):.10g}"
-                             " (at it the pushed chain never stops sliding)")
         if self.loading == "tilt" and self.tilt != 0.0:
             raise SceneError(f"tilt={self.tilt!r} is the fixed incline of loading='pushed_end'; "
                              "with loading='tilt' the angle is the drive (leave tilt at 0)")
+        if self.loading == "pushed_end" and self.tilt == math.atan(self.mu_d):
+            raise SceneError(f"tilt={self.tilt!r} must be below atan(mu_d)={math.atan(self.mu_d):.10g}"
+                             " (at it the pushed chain never stops sliding)")
         if self.loading == "pushed_end" and self.record == "forces":
             raise SceneError("record='forces' rebuilds the forces of the tilt; with "
                              "loading='pushed_end' use record='displacements'")
