@@ -10,7 +10,7 @@ import sys
 from .cli import ProgressLine, add_scene_arguments, check_output, fail, scene_from_args
 from .io.filelock import ClaimError, OutputClaim
 from .io.safeio import describe_os_error
-from .scene import BACKENDS, SceneError, check_memory
+from .scene import BACKENDS, SceneError, check_backend, check_memory
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,6 +38,7 @@ def main(argv: list[str] | None = None) -> int:
         scene = scene_from_args(args)
         check_output(args.out, args.overwrite)
         check_memory(scene)
+        check_backend(scene, args.backend)
     except SceneError as exc:
         fail(str(exc))
     try:

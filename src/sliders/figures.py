@@ -50,6 +50,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.ticker import NullFormatter  # noqa: E402
 
 from . import observables as ob  # noqa: E402
+from .pushed_figure import NAME as PUSHED_END, fig_pushed_end, pushed_end_run  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -837,12 +838,13 @@ def resolve_names(requested: Sequence[str] | None, ensemble: bool) -> list[str]:
     if not requested:
         return [n for n in FIGURE_NAMES if not (ensemble and n in SCENE_LETTERS)]
     lookup = figure_lookup()
+    lookup[PUSHED_END] = PUSHED_END  # beyond the paper: drawn only when named
     unknown = [r for r in requested if r.lower() not in lookup]
     if unknown:
         raise FigureInputError(f"unknown figure name(s) {', '.join(unknown)}; valid names: "
-                               f"{', '.join(FIGURE_NAMES)} (see --list)")
+                               f"{', '.join(FIGURE_NAMES + (PUSHED_END,))} (see --list)")
     wanted = {lookup[r.lower()] for r in requested}
-    return [n for n in FIGURE_NAMES if n in wanted]
+    return [n for n in FIGURE_NAMES + (PUSHED_END,) if n in wanted]
 
 
 def _check_args(args) -> None:
@@ -875,6 +877,7 @@ def draw_figures(names, out, args, formats=("png", "pdf"), palette_png: bool = F
         "fig01_sketch": lambda: schematics.fig_sketch(out_dir=None),
         "fig08_histogram_model": lambda: schematics.fig_histogram_model(out_dir=None),
         "fig05_single_slider": lambda: fig_single_slider(backend=args.backend, out_dir=None),
+        PUSHED_END: lambda: fig_pushed_end(pushed_end_run(), out_dir=None),
     }
     setups = scene_setups(args.paper_size, args.backend)
     for name in names:

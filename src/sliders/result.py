@@ -124,6 +124,8 @@ class TiltResult:
         """One line: the scene, how the run ended, alpha_c, the events and what was recorded."""
         end = (f"alpha_c={self.alpha_c:.4f} rad" if math.isfinite(self.alpha_c)
                else f"last event at alpha={self.alpha[-1]:.4f} rad" if self.n_events else "no event")
+        if self.scene.loading == "pushed_end" and self.n_events:  # the drive is D, not an angle
+            end = f"last event at driver position D={self.alpha[-1]:.4f} g tau^2"
         return (f"<TiltResult {self.scene!r}: {self.status}, {end}, {self.n_events} events, "
                 f"recorded {self.scene.record}, backend {self.backend}>")
 

@@ -18,6 +18,7 @@ RECORDS = ("summary", "displacements", "forces")
 AVALANCHE_CRITERIA = ("sliding",)
 INITIAL_FORCES = ("uniform", "zero")
 BACKENDS = ("fortran", "numpy")
+LOADINGS = ("tilt", "pushed_end")
 
 # Verlet needs dt well below the fastest spring period 2 pi / sqrt(4 + xi).
 DT_PERIOD_FRACTION = 1.0 / 30.0
@@ -138,6 +139,18 @@ class Scene:
     avalanche : str
         Avalanche criterion ("sliding": every slider moving downwards with
         tan(alpha) > mu_d).
+    loading : {"tilt", "pushed_end"}
+        The paper's quasi-static tilt (the drive is the angle alpha), or the
+        Burridge-Knopoff loading: the incline fixed at ``tilt`` and slider 1
+        pushed down the chain by a driver on a spring; the drive is then the
+        driver's position D (g tau^2), stored where the tilt's alpha is.
+    tilt : float
+        pushed_end only: the fixed incline, radians, in [0, atan(mu_d)) so
+        that every slip stops.
+    drive_stiffness : float
+        pushed_end only: stiffness K of the driver's spring, units of k.
+    drive_max : float
+        pushed_end only: the driver's limit, g tau^2 (the run ends there).
     record : {"summary", "displacements", "forces"}
         Per-event scalars only; plus the displacement of every slider that
         moved, stored sparsely; or the same storage with the tangential force
@@ -168,6 +181,10 @@ class Scene:
     alpha_max: float = ALPHA_MAX_LIMIT
     force_tol: float = 1e-12
     avalanche: str = "sliding"
+    loading: str = "tilt"
+    tilt: float = 0.0
+    drive_stiffness: float = 1.0
+    drive_max: float = 1e9
     record: str = "displacements"
     output: str | None = field(default=None, compare=False)
 
@@ -242,6 +259,21 @@ class Scene:
         _check_real("force_tol", self.force_tol, 0.0, 1e-6)
         if self.avalanche not in AVALANCHE_CRITERIA:
             raise SceneError(f"avalanche={self.avalanche!r} must be one of {AVALANCHE_CRITERIA}")
+        if self.loading not in LOADINGS:
+            raise SceneError(f"loading={self.loading!r} must be one of {LOADINGS}")
+        _check_real("tilt", self.tilt, 0.0, math.atan(self.mu_d), why="below atan(mu_d), "
+                    "so that every slip of the pushed chain stops")
+        if self.loading == "tilt" and self.tilt != 0.0:
+            raise SceneError(f"tilt={self.tilt!r} is the fixed incline of loading='pushed_end'; "
+                             "with loading='tilt' the angle is the drive (leave tilt at 0)")
+        if self.loading == "pushed_end" and self.tilt == math.atan(self.mu_d):
+            raise SceneError(f"tilt={self.tilt!r} must be below atan(mu_d)={math.atan(self.mu_d):.10g}"
+                             " (at it the pushed chain never stops sliding)")
+        if self.loading == "pushed_end" and self.record == "forces":
+            raise SceneError("record='forces' rebuilds the forces of the tilt; with "
+                             "loading='pushed_end' use record='displacements'")
+        _check_real("drive_stiffness", self.drive_stiffness, 0.0, None, open_low=True)
+        _check_real("drive_max", self.drive_max, 0.0, None, open_low=True)
         if self.record not in RECORDS:
             raise SceneError(f"record={self.record!r} must be one of {RECORDS}")
         if self.output is not None:
@@ -374,6 +406,13 @@ def _plain_value(name: str, kind: str, value):
     elif kind.startswith("str") and isinstance(value, np.str_):
         return str(value)
     return value
+
+
+def check_backend(scene: Scene, backend: str) -> None:
+    """Refuse a loading the backend does not have (the kernel has the tilt only)."""
+    if backend == "fortran" and scene.loading != "tilt":
+        raise SceneError(f"loading={scene.loading!r} runs on the NumPy reference only "
+                         "(backend='numpy'); the Fortran kernel has the tilt only")
 
 
 def check_memory(scene: Scene) -> None:

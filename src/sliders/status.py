@@ -13,6 +13,7 @@ RELAXED = 7  # relax-only call: the chain is at rest at the current angle
 SPARSE_FULL = 8  # the displacement buffer filled mid-chunk (call again)
 INTERRUPTED = 9  # Ctrl-C/SIGTERM; the event in progress is undone, the completed ones kept
 REFINE_LIMIT = 10  # a crossing bracket stayed wider than refine_tol after MAX_HALVINGS halvings
+SLIDING = 11  # pushed_end: every slider moved in the last event, the onset of sliding (Python only)
 
 NAMES = {
     RUNNING: "running",
@@ -26,9 +27,10 @@ NAMES = {
     SPARSE_FULL: "sparse_full",
     INTERRUPTED: "interrupted",
     REFINE_LIMIT: "refine_limit",
+    SLIDING: "sliding",
 }
 
-FINAL_OK = {AVALANCHE, ALPHA_MAX, MAX_EVENTS}
+FINAL_OK = {AVALANCHE, ALPHA_MAX, MAX_EVENTS, SLIDING}
 ERRORS = {EVENT_DURATION_CAP, NON_FINITE, RANDOM_FAILURE, REFINE_LIMIT}
 
 # Per-event scalar records, in this order in both backends (declared with

@@ -29,13 +29,15 @@ MAX_HALVINGS = 128
 
 # name, dtype, meaning.  Order: the columns of each type in the kernel's buffers.
 EVENT_SCHEMA = (
-    ("alpha", np.float64, "tilt at which the rearrangement happened"),
+    ("alpha", np.float64, "drive at which the rearrangement happened: the tilt, or the "
+                          "driver's position D for loading='pushed_end'"),
     ("n_moved", np.int64, "distinct sliders that moved"),
     ("n_stops", np.int64, "stops (velocity zero crossings) during the event"),
     ("n_steps", np.int64, "accepted integration steps"),
     ("slider_steps", np.int64, "sum over steps of the number of moving sliders"),
     ("duration", np.float64, "in tau"),
-    ("work_gravity", np.float64, "sin(alpha) * sum of displacements"),
+    ("work_gravity", np.float64, "work of the loading: sin(tilt) * sum of displacements, plus "
+                                 "the driver's spring on slider 1 for loading='pushed_end'"),
     ("elastic_change", np.float64, "change of elastic energy (springs + cantilevers)"),
     ("dissipation", np.float64, "mu_d cos(alpha) * path length"),
 )

@@ -66,6 +66,11 @@ class TiltLoading:
         self.scene = scene
 
     @staticmethod
+    def tangential(elastic: np.ndarray, weight: float, drive: float, du: np.ndarray):
+        """Tangential force on every slider: elastic force plus the weight."""
+        return elastic + weight
+
+    @staticmethod
     def weight(alpha: float) -> float:
         """Tangential force the drive adds to every slider (sin alpha)."""
         return math.sin(alpha)
@@ -75,7 +80,7 @@ class TiltLoading:
         """Normal load that scales friction (cos alpha)."""
         return math.cos(alpha)
 
-    def next_instability(self, elastic: np.ndarray, mu: np.ndarray, alpha: float):
+    def next_instability(self, elastic: np.ndarray, mu: np.ndarray, alpha: float, du=None):
         """The next critical tilt in closed form (module function ``next_instability``)."""
         return next_instability(elastic, mu, alpha)
 
@@ -84,9 +89,14 @@ class TiltLoading:
         return alpha > self.scene.alpha_max
 
     @staticmethod
-    def work(weight: float, step: np.ndarray) -> float:
+    def work(weight: float, step: np.ndarray, drive: float, du_start: np.ndarray) -> float:
         """Work of gravity on the event's displacements."""
         return weight * float(step.sum())
+
+    @staticmethod
+    def spanning_ends_run() -> bool:
+        """The tilt runs on after system-spanning events (the avalanche ends it)."""
+        return False
 
     def runaway(self, moving: np.ndarray, direction: np.ndarray, weight: float,
                 kinetic: float) -> bool:
@@ -96,6 +106,76 @@ class TiltLoading:
                 and weight > kinetic)
 
 
+class PushedEndLoading:
+    """The Burridge-Knopoff loading: lambda = D, the position of a driver tied
+    by a spring of stiffness K (``drive_stiffness``, units of k) to slider 1.
+
+    The incline's tilt is fixed (``scene.tilt``): every slider feels sin(tilt)
+    and presses with cos(tilt).  Slider 1 (index 0) also feels K (D - du_1),
+    which changes during an event as it moves (the driver stands still).
+    Only slider 1's force depends on D, so the next instability is its
+    threshold crossing, D = du_1 + (mu_1 cos(tilt) - E_1 - sin(tilt)) / K.
+    The run ends after the first event in which every slider moved: the
+    system-spanning slip, the onset of sliding.
+    """
+
+    name = "pushed_end"
+
+    def __init__(self, scene):
+        self.scene = scene
+        self.stiffness = scene.drive_stiffness
+
+    def tangential(self, elastic: np.ndarray, weight: float, drive: float, du: np.ndarray):
+        """Elastic force plus the weight, plus the driver's spring on slider 1."""
+        force = elastic + weight
+        force[0] += self.stiffness * (drive - du[0])
+        return force
+
+    def weight(self, drive: float) -> float:
+        """Tangential component of the weight at the fixed tilt."""
+        return math.sin(self.scene.tilt)
+
+    def normal(self, drive: float) -> float:
+        """Normal load at the fixed tilt."""
+        return math.cos(self.scene.tilt)
+
+    def driver_force(self, drive: float, du: np.ndarray) -> float:
+        """Force of the driver's spring on slider 1."""
+        return self.stiffness * (drive - du[0])
+
+    def next_instability(self, elastic: np.ndarray, mu: np.ndarray, drive: float, du: np.ndarray):
+        """The drive at which slider 1 starts downwards (every other slider is
+        stable and does not feel D): its force E_1 + sin + K (D - du_1)
+        reaches mu_1 cos + force_tol."""
+        sc = self.scene
+        threshold = mu[0] * math.cos(sc.tilt) + sc.force_tol
+        critical = du[0] + (threshold - elastic[0] - math.sin(sc.tilt)) / self.stiffness
+        return max(critical, drive), np.array([0]), np.array([1.0])
+
+    def beyond_limit(self, drive: float) -> bool:
+        """The driver went past its limit (drive_max)."""
+        return drive > self.scene.drive_max
+
+    def work(self, weight: float, step: np.ndarray, drive: float, du_start: np.ndarray) -> float:
+        """Work of gravity plus the work of the driver's spring on slider 1 as
+        it moves by s = step_1 against a fixed driver: K (D - du_1) s - K s^2/2."""
+        s = float(step[0])
+        return weight * float(step.sum()) + self.stiffness * ((drive - du_start[0]) * s - 0.5 * s * s)
+
+    def runaway(self, moving, direction, weight, kinetic) -> bool:
+        """Never during an event: the tilt is below the avalanche angle, so every
+        slip stops; the run ends after a system-spanning slip instead."""
+        return False
+
+    @staticmethod
+    def spanning_ends_run() -> bool:
+        """The first event in which every slider moved is the onset of sliding."""
+        return True
+
+
+LOADINGS = {"tilt": TiltLoading, "pushed_end": PushedEndLoading}
+
+
 def loading_for(scene):
     """The loading protocol of a scene."""
-    return TiltLoading(scene)
+    return LOADINGS[scene.loading](scene)

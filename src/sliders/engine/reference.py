@@ -110,7 +110,7 @@ class NumpyEngine:
         if not np.all(np.isfinite(elastic)):
             return chunk(status.NON_FINITE, message="non-finite force in the resting chain")
         load, law = self.loading, self.friction
-        force = elastic + load.weight(state.alpha)
+        force = load.tangential(elastic, load.weight(state.alpha), state.alpha, state.displacement)
         unstable = np.abs(force) > law.static_threshold(state.mu_s, load.normal(state.alpha))
         if unstable.any():  # relaxation (preparation with coupling)
             triggers = np.flatnonzero(unstable)
@@ -120,7 +120,8 @@ class NumpyEngine:
         else:
             if len(records) >= max_events:
                 return chunk(status.RUNNING)
-            angle, triggers, directions = load.next_instability(elastic, state.mu_s, state.alpha)
+            angle, triggers, directions = load.next_instability(elastic, state.mu_s, state.alpha,
+                                                                state.displacement)
             if load.beyond_limit(angle):
                 return chunk(status.ALPHA_MAX)
             state.alpha = angle
@@ -138,6 +139,8 @@ class NumpyEngine:
             ptr.append(ptr[-1] + outcome.moved_index.size)
         else:
             ptr.append(0)
+        if load.spanning_ends_run() and not relax_only and outcome.record["n_moved"] == sc.n_sliders:
+            return chunk(status.SLIDING)  # the onset drive is the last event's
         return None
 
     # -- one rearrangement ------------------------------------------------
@@ -158,13 +161,14 @@ class NumpyEngine:
         moving[triggers] = True
         direction[triggers] = directions
         moved = moving.copy()
-        force = elastic_force(state, sc.xi, sc.walls, du) + weight
+        drive = state.alpha
+        force = load.tangential(elastic_force(state, sc.xi, sc.walls, du), weight, drive, du)
         acc = np.where(moving, force - friction * direction, 0.0)
 
         def substep(h):
             """Velocity-Verlet step of size h from (du, v, acc); only movers move."""
             du1 = du + np.where(moving, v * h + 0.5 * acc * h * h, 0.0)
-            force1 = elastic_force(state, sc.xi, sc.walls, du1) + weight
+            force1 = load.tangential(elastic_force(state, sc.xi, sc.walls, du1), weight, drive, du1)
             acc1 = np.where(moving, force1 - friction * direction, 0.0)
             v1 = np.where(moving, v + 0.5 * (acc + acc1) * h, 0.0)
             return du1, v1, force1
@@ -256,7 +260,7 @@ class NumpyEngine:
             "n_steps": n_steps,
             "slider_steps": slider_steps,
             "duration": t,
-            "work_gravity": load.work(weight, step),
+            "work_gravity": load.work(weight, step, drive, du_start),
             "elastic_change": elastic_energy(state, sc.xi, sc.walls, du)
             - elastic_energy(state, sc.xi, sc.walls, du_start),
             "dissipation": friction * path,

@@ -1,0 +1,111 @@
+"""The figure of the second loading protocol: the chain pushed at one end.
+
+``fig_pushed_end`` draws, for one run of ``loading="pushed_end"``,
+
+(a) the precursors: where each slip front arrested (the largest slider
+    number that moved) against the driver's position D when it started, up
+    to the system-spanning slip, the onset of sliding;
+(b) the tangential force along the chain just before each precursor that
+    reached further than every earlier one, coloured by D, in the manner of
+    the paper's force panels.
+
+``python -m sliders.figures --only pushed_end`` draws it (NumPy reference:
+the Fortran kernel has the tilt only).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .figure_style import COLUMN_WIDTH, ORDER_CMAP, STYLE, panel_label, save_figure
+import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
+from matplotlib import colors as mcolors  # noqa: E402
+
+from .chain import elastic_force  # noqa: E402
+from .engine.loading import loading_for  # noqa: E402
+from .scene import Scene  # noqa: E402
+
+NAME = "pushed_end"
+# A chain long enough for fronts of many lengths, short enough for the NumPy
+# reference (about 1200 events, a minute).
+FIGURE_SCENE = Scene(n_sliders=24, seed=2, loading="pushed_end", drive_stiffness=1.0,
+                     mode="explore")
+
+
+def pushed_end_run(scene: Scene = FIGURE_SCENE):
+    """The figure's run, on the NumPy reference (the kernel has the tilt only)."""
+    from .driver import tilt
+
+    return tilt(scene, backend="numpy")
+
+
+def arrest_positions(result) -> np.ndarray:
+    """Slider number (1-based) at which each event's front arrested: the
+    largest one that moved (fronts start at the pushed slider 1)."""
+    ptr, index = result.displacement.ptr, result.displacement.index
+    return np.array([index[a:b].max() + 1 for a, b in zip(ptr[:-1], ptr[1:])], dtype=int)
+
+
+def forces_before(result, events: np.ndarray) -> np.ndarray:
+    """Tangential force on every slider just before each of ``events`` starts
+    (at the drive it starts at), rebuilt from the recorded displacements."""
+    sc = result.scene
+    load = loading_for(sc)
+    before = result.initial.displacement + np.vstack(
+        [np.zeros(sc.n_sliders), np.cumsum(result.displacement.dense(), axis=0)[:-1]])
+    out = np.empty((len(events), sc.n_sliders))
+    for row, k in enumerate(events):
+        du = before[k]
+        drive = float(result.events["alpha"][k])
+        out[row] = load.tangential(elastic_force(result.initial, sc.xi, sc.walls, du),
+                                   load.weight(drive), drive, du)
+    return out
+
+
+def record_fronts(arrest: np.ndarray) -> np.ndarray:
+    """Events whose front reached further than every earlier one."""
+    best = np.maximum.accumulate(arrest)
+    return np.flatnonzero(np.r_[True, arrest[1:] > best[:-1]])
+
+
+def fig_pushed_end(result, out_dir="figures", name: str = NAME):
+    """The precursor lengths against the drive, and the force profiles before them."""
+    sc = result.scene
+    if sc.loading != "pushed_end":
+        raise ValueError(f"fig_pushed_end needs a run of loading='pushed_end', not {sc.loading!r}")
+    drive = result.events["alpha"]
+    arrest = arrest_positions(result)
+    growing = record_fronts(arrest)
+    profiles = forces_before(result, growing)
+
+    with plt.rc_context(STYLE):
+        fig, (ax_a, ax_b) = plt.subplots(2, 1, figsize=(COLUMN_WIDTH, 4.2))
+        ax_a.plot(drive, arrest, ".", ms=1.5, color="0.55", label="every slip")
+        ax_a.plot(drive[growing], arrest[growing], "o", ms=2.5, mfc="none", color="C0",
+                  label="fronts reaching further")
+        if result.status == "sliding":
+            ax_a.plot(drive[-1], arrest[-1], "*", ms=7, color="C3", label="onset of sliding")
+        ax_a.set_xlabel(r"driver position $D$ ($g\tau^2$)")
+        ax_a.set_ylabel("arrest position (slider)")
+        ax_a.set_ylim(0, sc.n_sliders + 1)
+        ax_a.legend(loc="upper left", bbox_to_anchor=(0.07, 1.0), frameon=False)
+        ax_a.set_title(f"N = {sc.n_sliders}, tilt = {sc.tilt:g}, K = {sc.drive_stiffness:g} k, "
+                       f"{result.n_events} events")
+        panel_label(ax_a, "(a)")
+
+        norm = mcolors.Normalize(drive[growing].min(), drive[growing].max())
+        cmap = plt.get_cmap(ORDER_CMAP)
+        position = np.arange(1, sc.n_sliders + 1)
+        for row, k in enumerate(growing):
+            ax_b.plot(position, profiles[row], lw=0.7, color=cmap(norm(drive[k])))
+        threshold = sc.mu_s_mean * math.cos(sc.tilt)
+        for level in (threshold, sc.mu_d * math.cos(sc.tilt)):
+            ax_b.axhline(level, ls="--", lw=0.6, color="0.3")
+        ax_b.set_xlabel("slider $n$ (driver at $n = 1$)")
+        ax_b.set_ylabel(r"$F_t$ before the slip ($mg$)")
+        fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax_b, label=r"$D$ ($g\tau^2$)")
+        panel_label(ax_b, "(b)")
+    save_figure(fig, out_dir, name)
+    return fig
