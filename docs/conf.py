@@ -13,6 +13,7 @@ follows the package when modules move.
 """
 
 import os
+import shutil
 import sys
 
 import sliders
@@ -47,6 +48,10 @@ nb_execution_show_tb = True
 
 # API reference: numpydoc docstrings, one page per public module.
 autosummary_generate = True
+# The stubs are rebuilt from the package on every build: stale ones (a module
+# that moved, as sliders.conventions into sliders.io) would break the -W build.
+shutil.rmtree(os.path.join(os.path.dirname(os.path.abspath(__file__)), "generated"),
+              ignore_errors=True)
 autosummary_ignore_module_all = False
 autodoc_default_options = {}
 autodoc_typehints = "none"            # the numpydoc sections say the types and units
