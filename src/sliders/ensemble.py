@@ -658,12 +658,10 @@ def _error_line(message: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``python -m sliders.ensemble`` with ``argv``; returns the exit code (0: every realisation done)."""
-    try:
-        comm, have_mpi = get_comm()
-    except MPIUnavailable as exc:  # under mpirun without a working mpi4py: stop every rank
-        if launcher_rank() == 0:
-            sys.stderr.write(_error_line(str(exc)) + "\n")
+    world = world_or_none()
+    if world is None:
         return 1
+    comm, have_mpi = world
     rank = comm.rank
 
     # 1. validate (no collective before this point: every rank reaches the allgather)
@@ -688,6 +686,17 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         for claim in claims:
             claim.release()  # after the file is closed: the next writer finds it complete
+
+
+def world_or_none():
+    """``(comm, have_mpi)``; None under a launcher without a working mpi4py, after one
+    line from its rank 0 (every rank then exits non-zero: never a hang)."""
+    try:
+        return get_comm()
+    except MPIUnavailable as exc:
+        if launcher_rank() == 0:
+            sys.stderr.write(_error_line(str(exc)) + "\n")
+        return None
 
 
 def agree_on_plan(comm, prepare, claims: list):

@@ -572,17 +572,14 @@ def _plan_root(args, study: Study) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sliders.study STUDY.toml --out FILE.h5``: run (or resume) a study; the exit code."""
-    from .ensemble import (UsageError, _claim_output, _error_line, _Root, _Stop, _worker,
-                           agree_on_plan, compute_row)
-    from .parallel import MPIUnavailable, get_comm, launcher_rank
+    from .ensemble import (UsageError, _claim_output, _Root, _Stop, _worker, agree_on_plan,
+                           compute_row, world_or_none)
     from .io.storage import StorageError, choose_storage
 
-    try:
-        comm, have_mpi = get_comm()
-    except MPIUnavailable as exc:
-        if launcher_rank() == 0:
-            sys.stderr.write(_error_line(str(exc)) + "\n")
+    world = world_or_none()
+    if world is None:
         return 1
+    comm, have_mpi = world
     rank = comm.rank
     claims: list = []
 
