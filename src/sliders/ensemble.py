@@ -140,26 +140,33 @@ def build_parser(rank: int = 0) -> argparse.ArgumentParser:
     return p
 
 
+def check_run_options(args, comm, have_mpi: bool) -> str:
+    """The options an ensemble and a study share (--resume/--overwrite,
+    --progress-interval, --storage), checked; returns the storage to use."""
+    from .io.storage import StorageError, choose_storage
+
+    if args.resume and args.overwrite:
+        raise UsageError("--resume and --overwrite exclude each other", code=2)
+    if args.progress_interval < 0:
+        raise UsageError(f"--progress-interval={args.progress_interval} must be >= 0")
+    try:
+        return choose_storage(args.storage, comm.size, have_mpi)
+    except StorageError as exc:
+        raise UsageError(str(exc)) from None
+
+
 def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
     """Validate everything that can be checked locally (every rank, same answer)."""
     from .cli import scene_from_args
-    from .io.storage import StorageError, choose_storage
 
     scene = scene_from_args(args)
     if args.realisations is not None and args.realisations < 1:
         raise UsageError(f"--realisations={args.realisations} must be at least 1")
     if args.realisations is None and not args.resume:
         raise UsageError("--realisations R is required (unless --resume)", code=2)
-    if args.resume and args.overwrite:
-        raise UsageError("--resume and --overwrite exclude each other", code=2)
     if args.chunk is not None and args.realisations is None:
         raise UsageError("--chunk I/K needs --realisations R (the whole ensemble's)", code=2)
-    if args.progress_interval < 0:
-        raise UsageError(f"--progress-interval={args.progress_interval} must be >= 0")
-    try:
-        storage = choose_storage(args.storage, comm.size, have_mpi)
-    except StorageError as exc:
-        raise UsageError(str(exc)) from None
+    storage = check_run_options(args, comm, have_mpi)
     from .driver import make_engine
 
     backend = args.backend or DEFAULT_BACKEND

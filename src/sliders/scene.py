@@ -341,20 +341,26 @@ class Scene:
         return cls.from_dict(toml_values(path))
 
 
-def toml_values(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """The scene keys of a TOML file (its [scene] table, or the top level), as written."""
+def read_toml(path, where: str, error: type[Exception]) -> dict[str, Any]:
+    """The tables of a TOML file; a missing, unreadable or invalid file raises
+    ``error`` with one line that starts with ``where``."""
     import tomllib
 
     try:
         with open(path, "rb") as fh:
-            data = tomllib.load(fh)
+            return tomllib.load(fh)
     except FileNotFoundError:
-        raise SceneError(f"scene file {str(path)!r} does not exist") from None
+        raise error(f"{where} does not exist") from None
     except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"scene file {str(path)!r} is not valid TOML: {exc}") from None
+        raise error(f"{where} is not valid TOML: {exc}") from None
     except OSError as exc:
-        raise SceneError(f"scene file {str(path)!r} cannot be read ({exc.strerror})") from None
+        raise error(f"{where} cannot be read ({exc.strerror})") from None
+
+
+def toml_values(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The scene keys of a TOML file (its [scene] table, or the top level), as written."""
     where = f"scene file {str(path)!r}"
+    data = read_toml(path, where, SceneError)
     known = {f.name for f in fields(Scene)} - {"output"}
     if "scene" in data:
         outside = [k for k in data if k != "scene"]

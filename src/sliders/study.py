@@ -206,19 +206,10 @@ def load_study(path) -> Study:
     axis or a value invalid at one point raises ``StudyError`` naming the axis
     and the point.
     """
-    import tomllib
+    from .scene import read_toml
 
     where = f"study file {os.fspath(path)!r}"
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise StudyError(f"{where} does not exist") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise StudyError(f"{where} is not valid TOML: {exc}") from None
-    except OSError as exc:
-        raise StudyError(f"{where} cannot be read ({exc.strerror})") from None
-    return parse_study(data, where)
+    return parse_study(read_toml(path, where, StudyError), where)
 
 
 # ---------------------------------------------------------------------------
@@ -572,9 +563,8 @@ def _plan_root(args, study: Study) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sliders.study STUDY.toml --out FILE.h5``: run (or resume) a study; the exit code."""
-    from .ensemble import (UsageError, _claim_output, _Root, _Stop, _worker, agree_on_plan,
-                           compute_row, world_or_none)
-    from .io.storage import StorageError, choose_storage
+    from .ensemble import (_claim_output, _Root, _Stop, _worker, agree_on_plan,
+                           check_run_options, compute_row, world_or_none)
 
     world = world_or_none()
     if world is None:
@@ -585,15 +575,8 @@ def main(argv: list[str] | None = None) -> int:
 
     def prepare():
         args = build_parser(rank).parse_args(argv)
-        if args.resume and args.overwrite:
-            raise UsageError("--resume and --overwrite exclude each other", code=2)
-        if args.progress_interval < 0:
-            raise UsageError(f"--progress-interval={args.progress_interval} must be >= 0")
+        storage = check_run_options(args, comm, have_mpi)
         study = load_study(args.study)
-        try:
-            storage = choose_storage(args.storage, comm.size, have_mpi)
-        except StorageError as exc:
-            raise UsageError(str(exc)) from None
         plan = None
         if rank == 0:
             claims.append(_claim_output(args))
