@@ -16,14 +16,12 @@ import numpy as np
 
 from . import status
 from .chain import ChainState
-from .engine.contract import Chunk, join_chunks
+from .engine.contract import INTERRUPTED_MESSAGE, Chunk, join_chunks
 from .keyed_random import realisation_seed
 from .preparation import prepare
 from .engine.reference import NumpyEngine
 from .result import EventSparse, TiltResult
 from .scene import BACKENDS, Scene, SceneError, check_memory
-
-INTERRUPTED_MESSAGE = "interrupted by the user"
 
 CHUNK_EVENTS = {"numpy": 16, "fortran": 512}
 # A kernel call starts with O(N) set-up (forces, angles, min-tree): for long

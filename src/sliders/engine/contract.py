@@ -25,6 +25,8 @@ import numpy as np
 # of 1 tau closes to 3e-39 within them, so only a refine_tol below what the
 # step can resolve reaches the bound.
 MAX_HALVINGS = 128
+# The message of status INTERRUPTED, from either backend and from the driver.
+INTERRUPTED_MESSAGE = "interrupted by the user"
 
 
 # name, dtype, meaning.  Order: the columns of each type in the kernel's buffers.

@@ -33,8 +33,8 @@ import numpy as np
 from .. import keyed_random, status
 from ..chain import ChainState
 from ..scene import Scene
-from .contract import (INT_FIELDS, REAL_FIELDS, Chunk, join_chunks, pack_parameters,
-                       refine_limit_message)
+from .contract import (INT_FIELDS, INTERRUPTED_MESSAGE, REAL_FIELDS, Chunk, join_chunks,
+                       pack_parameters, refine_limit_message)
 
 EVENT_CAPACITY = 4096  # event buffer of a relax-only call
 MAX_EVENT_CAPACITY = 1 << 16  # events per kernel call, at most (4.7 MB of buffers)
@@ -208,7 +208,7 @@ def _message(sc: Scene, code: int, detail: int, alpha: float, event_time: float)
         return (f"rearrangement at alpha={alpha:.6f} still moving after "
                 f"{event_time:.1f} tau (max_event_duration={sc.max_event_duration} tau)")
     if code == status.INTERRUPTED:
-        return "interrupted by the user"
+        return INTERRUPTED_MESSAGE
     if code == status.REFINE_LIMIT:
         return refine_limit_message(sc, alpha)
     if code == status.RANDOM_FAILURE:

@@ -46,7 +46,8 @@ import numpy as np
 from .. import status
 from ..chain import ChainState, elastic_energy, elastic_force
 from ..scene import Scene
-from .contract import MAX_HALVINGS, Chunk, events_from_records, refine_limit_message
+from .contract import (INTERRUPTED_MESSAGE, MAX_HALVINGS, Chunk, events_from_records,
+                       refine_limit_message)
 from .friction import friction_for
 # next_instability, TIE_TOL and TRANSCENDENTALS live with the tilt loading;
 # re-exported here, where callers and tests have always found them.
@@ -99,7 +100,7 @@ class NumpyEngine:
                 state.alpha = alpha
                 state.displacement[:], state.mu_s[:], state.n_stops[:] = du, mu, stops
                 del records[n_records:], ptr[n_ptr:], index[n_index:], disp[n_index:]
-                return chunk(status.INTERRUPTED, message="interrupted by the user")
+                return chunk(status.INTERRUPTED, message=INTERRUPTED_MESSAGE)
             if done is not None:
                 return done
 
