@@ -24,7 +24,7 @@ module sliders_chain
   private
 
   public :: chain_params
-  public :: elastic_force, total_displacement
+  public :: elastic_force, tangential_force, total_displacement
   public :: spring_energy_change, cantilever_energy_change
 
   !> What the force and energy formulas need to know about the chain.
@@ -32,6 +32,10 @@ module sliders_chain
     integer(ip) :: n = 0            !< number of sliders
     logical :: walls = .false.      !< between two immobile walls (else free ends)
     real(dp) :: xi = 0.0_dp         !< cantilever stiffness (neighbour springs: 1)
+    !> The pushed end (sliders_loading): slider 1 tied by a spring of this
+    !> stiffness to a driver at driver_position; 0: no driver (the tilt).
+    real(dp) :: driver_stiffness = 0.0_dp
+    real(dp) :: driver_position = 0.0_dp
   end type chain_params
 
 contains
@@ -79,6 +83,21 @@ contains
     e = e0(i) + (right - left)
     if (chain%xi /= 0.0_dp) e = e - chain%xi*(du(i) - mean)
   end function force_formula
+
+  !> Tangential force on slider i of elastic force `elastic` and displacement
+  !> du_i: the elastic force plus the weight, plus on slider 1 the driver's
+  !> spring if there is one, (E + w) + K (D - du_1): the order of the
+  !> reference (loading.PushedEndLoading.tangential).
+  pure function tangential_force(chain, i, elastic, weight, du_i) result(f)
+    type(chain_params), intent(in) :: chain
+    integer(ip), intent(in) :: i
+    real(dp), intent(in) :: elastic, weight, du_i
+    real(dp) :: f
+
+    f = elastic + weight
+    if (i == 1 .and. chain%driver_stiffness /= 0.0_dp) &
+      f = f + chain%driver_stiffness*(chain%driver_position - du_i)
+  end function tangential_force
 
   !> Sum of du (plain left-to-right sum).
   pure function total_displacement(du) result(s)

@@ -66,14 +66,16 @@ module sliders_events
   use sliders_status, only: status_running, status_avalanche, status_alpha_max, &
                             status_event_duration_cap, status_non_finite, &
                             status_random_failure, status_relaxed, status_sparse_full, &
-                            status_interrupted, status_refine_limit
-  use sliders_chain, only: chain_params, elastic_force, total_displacement, &
+                            status_interrupted, status_refine_limit, status_sliding
+  use sliders_chain, only: chain_params, elastic_force, tangential_force, total_displacement, &
                            spring_energy_change, cantilever_energy_change
   use sliders_contract, only: ev_alpha, ev_duration, ev_work_gravity, ev_elastic_change, &
                               ev_dissipation, ev_n_moved, ev_n_stops, ev_n_steps, ev_slider_steps
   use sliders_friction, only: static_threshold, kinetic_force, draw_at_stop
-  use sliders_loading, only: tilt_terms, tilt_work, tilt_runaway, tilt_root_cache, &
+  use sliders_loading, only: loading_params, drive_terms, loading_work, loading_runaway, &
+                             beyond_limit, spanning_ends_run, pushed_next, tilt_root_cache, &
                              roots_from, root_lower_bounds, tie_tol
+  use sliders_contract, only: loading_pushed_end
   implicit none
   private
 
@@ -96,6 +98,7 @@ module sliders_events
   !> set from the packed parameters (contract.py, from the scene's defaults).
   type :: tilt_params
     type(chain_params) :: chain
+    type(loading_params) :: loading   !< the drive lambda ("alpha" here) and its end
     real(dp) :: mu_d
     real(dp) :: mu_s_mean
     real(dp) :: sigma_mu
@@ -103,7 +106,6 @@ module sliders_events
     real(dp) :: dt
     real(dp) :: refine_tol
     real(dp) :: max_event_duration
-    real(dp) :: alpha_max
     real(dp) :: force_tol
     logical :: record_sparse    !< store the moved sliders' displacements
     logical :: relax_only       !< only relax at the current angle
@@ -255,10 +257,10 @@ contains
   !> slider-steps: the event in progress is undone entirely (du, mu, stop
   !> counts, and alpha back to the last completed event), the completed
   !> events are kept.
-  subroutine tilt_run(p, e0, t0, w0, mu, n_stops, du, alpha, ev_real, ev_int, &
+  subroutine tilt_run(params, e0, t0, w0, mu, n_stops, du, alpha, ev_real, ev_int, &
                       sp_ptr, sp_index, sp_value, n_events, n_sparse, status, &
                       alpha_c, event_time, final_work, detail, interrupt)
-    type(tilt_params), intent(in) :: p
+    type(tilt_params), intent(in) :: params
     real(dp), contiguous, intent(in) :: e0(:)
     real(dp), intent(in) :: t0(0:)
     real(dp), contiguous, intent(in) :: w0(:)
@@ -276,13 +278,16 @@ contains
     integer(i8), intent(out) :: final_work(2)
     integer(ip), intent(out) :: detail
     integer(ip), volatile, intent(inout) :: interrupt(:)   ! only read
+    type(tilt_params) :: p       ! params, with the pushed end's driver at the drive
     type(workspace) :: ws
     type(event_record) :: rec
     integer(ip) :: n, i, n_trig, j, n_bad, k
     real(dp) :: sin_a, cos_a, f, angle, alpha_done
-    logical :: coupled
+    logical :: coupled, pushed
 
+    p = params
     n = p%chain%n
+    pushed = p%loading%protocol == loading_pushed_end
     coupled = p%chain%xi /= 0.0_dp
     call allocate_workspace(ws, n)
     ws%du_start = du
@@ -321,12 +326,13 @@ contains
       end if
       ! A non-finite force stops the run; unstable sliders at the current
       ! angle start at once (relaxation).
-      call tilt_terms(alpha, sin_a, cos_a)
+      call drive_terms(p%loading, alpha, sin_a, cos_a)
+      p%chain%driver_position = alpha
       n_trig = 0
       n_bad = 0
       do k = 1, ws%n_changed
         i = ws%changed(k)
-        f = ws%elastic(i) + sin_a
+        f = tangential_force(p%chain, i, ws%elastic(i), sin_a, du(i))
         n_bad = n_bad + merge(0_ip, 1_ip, abs(ws%elastic(i)) <= huge(1.0_dp))
         if (abs(f) > static_threshold(mu(i), cos_a, p%force_tol)) then
           n_trig = n_trig + 1
@@ -349,12 +355,17 @@ contains
           status = status_running
           exit
         end if
-        if (coupled) then
+        if (pushed) then    ! only slider 1 feels the driver
+          angle = pushed_next(p%loading, ws%elastic(1), mu(1), du(1), alpha, p%force_tol)
+          n_trig = 1
+          ws%slist(1) = 1
+          ws%sdir(1) = 1.0_dp
+        else if (coupled) then
           call coupled_next(ws, n, alpha, angle, n_trig)
         else
           call tree_next(ws, alpha, angle, n_trig)
         end if
-        if (angle > p%alpha_max) then
+        if (beyond_limit(p%loading, angle)) then
           status = status_alpha_max
           exit
         end if
@@ -366,6 +377,7 @@ contains
       end if
       alpha_done = alpha
       alpha = angle
+      p%chain%driver_position = alpha
 
       call run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, interrupt, rec)
       if (rec%status == status_interrupted) then
@@ -405,6 +417,10 @@ contains
         sp_ptr(n_events + 1) = 0
       end if
       call end_event(p, ws, e0, mu, du)
+      if (spanning_ends_run(p%loading) .and. .not. p%relax_only .and. rec%n_moved == n) then
+        status = status_sliding       ! the onset drive is the last event's
+        exit
+      end if
     end do
   end subroutine tilt_run
 
@@ -471,7 +487,7 @@ contains
 
     n = p%chain%n
     xi = p%chain%xi
-    call tilt_terms(alpha, sin_a, cos_a)
+    call drive_terms(p%loading, alpha, sin_a, cos_a)
     friction = kinetic_force(p%mu_d, cos_a)
     sum0 = ws%sum_du
     mean0 = sum0/real(n, dp)
@@ -487,7 +503,7 @@ contains
     if (xi /= 0.0_dp) then
       do i = 1, n
         ws%thr(i) = static_threshold(mu(i), cos_a, p%force_tol)
-        f = ws%elastic(i) + sin_a
+        f = tangential_force(p%chain, i, ws%elastic(i), sin_a, ws%du(i))
         ws%gap_plus(i) = ws%thr(i) - f
         ws%gap_minus(i) = ws%thr(i) + f
       end do
@@ -503,7 +519,7 @@ contains
     call find_runs(ws)
     do r = 1, ws%n_runs
       do i = ws%run_lo(r), ws%run_hi(r)
-        ws%f_t(i) = ws%elastic(i) + sin_a
+        ws%f_t(i) = tangential_force(p%chain, i, ws%elastic(i), sin_a, ws%du(i))
         if (ws%dir(i) /= 0.0_dp) ws%acc(i) = ws%f_t(i) - friction*ws%dir(i)
       end do
     end do
@@ -648,7 +664,8 @@ contains
           do i = 1, n        ! rare: a pool slider crossed, find it (O(n))
             if (ws%active(i)) cycle
             if (shift > ws%gap_plus(i) .or. -shift > ws%gap_minus(i)) then
-              ws%f_t(i) = elastic_force(p%chain, e0, ws%du, i, mean) + sin_a
+              ws%f_t(i) = tangential_force(p%chain, i, elastic_force(p%chain, e0, ws%du, i, mean), &
+                                           sin_a, ws%du(i))
               n_start = n_start + 1
               ws%slist(n_start) = i
               ws%sdir(n_start) = sign(1.0_dp, ws%f_t(i))
@@ -681,7 +698,7 @@ contains
         call abort_event(ws, du, mu, n_stops)
         return
       end if
-      if (tilt_runaway(p%chain%walls, n, ws%m, ws%n_down, sin_a, friction)) then
+      if (loading_runaway(p%loading, p%chain%walls, n, ws%m, ws%n_down, sin_a, friction)) then
         rec%status = status_avalanche
         rec%duration = t
         call store_displacements(ws, du)
@@ -705,7 +722,8 @@ contains
       i = ws%sorted(k)
       step = step + (du(i) - ws%du_start(i))
     end do
-    rec%work_gravity = tilt_work(sin_a, step)
+    rec%work_gravity = loading_work(p%loading, sin_a, step, alpha, du(1) - ws%du_start(1), &
+                                    ws%du_start(1))
     rec%elastic_change = &
       spring_energy_change(p%chain, t0, ws%du_start, du, ws%sorted(1:n_moved)) + &
       cantilever_energy_change(p%chain, w0, ws%du_start, du, ws%sorted(1:n_moved), mean0)
@@ -983,7 +1001,8 @@ contains
     last = min(hi, chain%n - 1_ip)
     xi = chain%xi
     if (lo == 1) then
-      f(1) = elastic_force(chain, e0, du_t, 1_ip, mean) + sin_a
+      f(1) = tangential_force(chain, 1_ip, elastic_force(chain, e0, du_t, 1_ip, mean), sin_a, &
+                              du_t(1))
       call verlet_correct(1_ip, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
     end if
     if (xi /= 0.0_dp) then

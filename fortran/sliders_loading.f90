@@ -1,21 +1,40 @@
 !> Loading protocols: how the drive parameter lambda enters the chain
 !> (src/sliders/engine/loading.py, the specification).
 !>
-!> The tilt (lambda = alpha): every slider feels sin(alpha) along the incline
-!> and presses with cos(alpha) on it; a resting slider of elastic force E and
-!> static coefficient mu destabilises at the closed-form roots of
-!> E + sin a = +-mu cos a.  The event integrator (sliders_events) asks this
-!> module for the drive's terms once per event and for the next critical
-!> angle between events; nothing here runs per integration step.
+!> * The tilt (lambda = alpha): every slider feels sin(alpha) along the
+!>   incline and presses with cos(alpha) on it; a resting slider of elastic
+!>   force E and static coefficient mu destabilises at the closed-form roots
+!>   of E + sin a = +-mu cos a.
+!> * The pushed end (lambda = D): the incline fixed at `tilt`, slider 1 tied
+!>   by a spring of stiffness K to a driver at D (the chain's
+!>   driver_stiffness/driver_position, whose force sliders_chain adds); only
+!>   slider 1's force depends on D, so the next instability is slider 1's
+!>   threshold crossing, in closed form (pushed_next).  The run ends after
+!>   the first event in which every slider moved, the onset of sliding.
+!>
+!> The event integrator (sliders_events) asks this module for the drive's
+!> terms once per event and for the next critical drive between events;
+!> nothing here runs per integration step.
 module sliders_loading
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_positive_inf
   use sliders_kinds, only: dp, ip
+  use sliders_contract, only: loading_tilt, loading_pushed_end
   implicit none
   private
 
-  public :: tilt_terms, tilt_work, tilt_runaway
+  public :: loading_params
+  public :: drive_terms, loading_work, loading_runaway, beyond_limit, spanning_ends_run
+  public :: pushed_next
   public :: tilt_root_cache, instability_roots, roots_from, root_lower_bounds
   public :: tie_tol
+
+  !> The loading protocol of a run (from the packed parameters).
+  type :: loading_params
+    integer(ip) :: protocol = loading_tilt   !< loading_tilt or loading_pushed_end
+    real(dp) :: tilt = 0.0_dp                !< pushed end: the fixed incline
+    real(dp) :: stiffness = 0.0_dp           !< pushed end: K of the driver's spring
+    real(dp) :: limit = 0.0_dp               !< end of loading: alpha_max or drive_max
+  end type loading_params
 
   !> Sliders whose instability angles tie within this start together.
   real(dp), parameter :: tie_tol = 1.0e-12_dp
@@ -27,6 +46,81 @@ module sliders_loading
 contains
 
   ! ------------------------------------------------------- the drive's terms
+
+  !> Tangential force the drive adds to every slider (weight) and the normal
+  !> load that scales friction (normal) at drive lambda, fixed during an
+  !> event: the tilt's sin/cos(lambda), the pushed end's sin/cos(tilt).
+  pure subroutine drive_terms(load, lambda, weight, normal)
+    type(loading_params), intent(in) :: load
+    real(dp), intent(in) :: lambda
+    real(dp), intent(out) :: weight, normal
+
+    if (load%protocol == loading_pushed_end) then
+      call tilt_terms(load%tilt, weight, normal)
+    else
+      call tilt_terms(lambda, weight, normal)
+    end if
+  end subroutine drive_terms
+
+  !> Work of the loading in an event whose displacements sum to `step`:
+  !> gravity's, plus for the pushed end the driver's spring on slider 1 as
+  !> it moves by s1 against the fixed driver at `drive` from du1_start,
+  !> K (D - du1_start) s1 - K s1**2/2 (the reference's order).
+  pure function loading_work(load, weight, step, drive, s1, du1_start) result(work)
+    type(loading_params), intent(in) :: load
+    real(dp), intent(in) :: weight, step, drive, s1, du1_start
+    real(dp) :: work
+
+    work = tilt_work(weight, step)
+    if (load%protocol == loading_pushed_end) &
+      work = work + load%stiffness*((drive - du1_start)*s1 - 0.5_dp*s1*s1)
+  end function loading_work
+
+  !> The run ends in a runaway: the tilt's avalanche (tilt_runaway); the
+  !> pushed end never runs away (its tilt is below atan(mu_d)).
+  pure function loading_runaway(load, walls, n, n_moving, n_down, weight, kinetic) &
+      result(runaway)
+    type(loading_params), intent(in) :: load
+    logical, intent(in) :: walls
+    integer(ip), intent(in) :: n, n_moving, n_down
+    real(dp), intent(in) :: weight, kinetic
+    logical :: runaway
+
+    runaway = load%protocol == loading_tilt .and. &
+              tilt_runaway(walls, n, n_moving, n_down, weight, kinetic)
+  end function loading_runaway
+
+  !> The drive went past the end of loading (alpha_max or drive_max).
+  pure function beyond_limit(load, lambda) result(beyond)
+    type(loading_params), intent(in) :: load
+    real(dp), intent(in) :: lambda
+    logical :: beyond
+
+    beyond = lambda > load%limit
+  end function beyond_limit
+
+  !> The run ends after the first event in which every slider moved (the
+  !> pushed end's onset of sliding); the tilt runs on.
+  pure function spanning_ends_run(load) result(ends)
+    type(loading_params), intent(in) :: load
+    logical :: ends
+
+    ends = load%protocol == loading_pushed_end
+  end function spanning_ends_run
+
+  !> The pushed end's next critical drive >= drive: slider 1 (elastic force
+  !> elastic1, static coefficient mu1, displacement du1) starts downwards
+  !> when E_1 + sin(tilt) + K (D - du_1) reaches mu_1 cos(tilt) + force_tol.
+  pure function pushed_next(load, elastic1, mu1, du1, drive, force_tol) result(critical)
+    type(loading_params), intent(in) :: load
+    real(dp), intent(in) :: elastic1, mu1, du1, drive, force_tol
+    real(dp) :: critical
+    real(dp) :: weight, normal
+
+    call tilt_terms(load%tilt, weight, normal)
+    critical = du1 + (((mu1*normal + force_tol) - elastic1) - weight)/load%stiffness
+    critical = max(critical, drive)
+  end function pushed_next
 
   !> The tilt's tangential force on every slider (weight = sin alpha) and
   !> normal load (normal = cos alpha), fixed during an event.

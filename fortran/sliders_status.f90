@@ -10,6 +10,7 @@ module sliders_status
   public :: status_running, status_avalanche, status_alpha_max, status_max_events
   public :: status_event_duration_cap, status_non_finite, status_random_failure
   public :: status_relaxed, status_sparse_full, status_interrupted, status_refine_limit
+  public :: status_sliding
 
   !> The chunk's event budget is used up; call again.
   integer(ip), parameter :: status_running = 0
@@ -35,5 +36,7 @@ module sliders_status
   !> A crossing's bracket was still wider than refine_tol after the bounded
   !> number of halvings (refine_tol below what the step can resolve).
   integer(ip), parameter :: status_refine_limit = 10
+  !> Pushed end: every slider moved in the last event, the onset of sliding.
+  integer(ip), parameter :: status_sliding = 11
 
 end module sliders_status

@@ -40,7 +40,9 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, n_real, n_int, n_real_cols, n_in
                               par_xi, par_mu_d, par_mu_s_mean, par_sigma_mu, par_dt, &
                               par_refine_tol, par_max_event_duration, par_alpha_max, &
                               par_force_tol, par_alpha, par_walls, par_seed, &
-                              par_record_sparse, par_relax_only, par_max_events
+                              par_record_sparse, par_relax_only, par_max_events, &
+                              par_tilt, par_drive_stiffness, par_drive_max, par_loading, &
+                              loading_pushed_end
   use sliders_events, only: tilt_params, tilt_run
   implicit none
   integer(c_int), intent(in) :: n
@@ -99,7 +101,14 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, n_real, n_int, n_real_cols, n_in
   p%dt = real_params(par_dt)
   p%refine_tol = real_params(par_refine_tol)
   p%max_event_duration = real_params(par_max_event_duration)
-  p%alpha_max = real_params(par_alpha_max)
+  p%loading%protocol = int(int_params(par_loading), c_int)
+  p%loading%tilt = real_params(par_tilt)
+  p%loading%stiffness = real_params(par_drive_stiffness)
+  p%loading%limit = real_params(par_alpha_max)
+  if (p%loading%protocol == loading_pushed_end) then
+    p%loading%limit = real_params(par_drive_max)
+    p%chain%driver_stiffness = p%loading%stiffness   ! the driver's spring on slider 1
+  end if
   p%force_tol = real_params(par_force_tol)
   p%record_sparse = int_params(par_record_sparse) /= 0
   p%relax_only = int_params(par_relax_only) /= 0

@@ -13,6 +13,7 @@ import pytest
 from sliders import Scene, status
 from sliders.engine import contract
 from sliders.engine.contract import Chunk, join_chunks
+from sliders.scene import LOADINGS
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -50,7 +51,20 @@ def test_pack_parameters_takes_the_scene_values():
     assert by_name["max_event_duration"] == scene.max_event_duration
     ints = dict(zip(contract.INT_PARAMETERS, ints))
     assert ints == {"walls": 1, "seed": 2**31 + 3, "record_sparse": 1, "relax_only": 0,
-                    "max_events": 7}
+                    "max_events": 7, "loading": contract.LOADING_CODES["tilt"]}
+    pushed = Scene(n_sliders=5, loading="pushed_end", tilt=0.1, drive_stiffness=3.0, drive_max=9.0)
+    real, ints = contract.pack_parameters(pushed, 0.5, False, False, 1)
+    by_name = dict(zip(contract.REAL_PARAMETERS, real))
+    assert (by_name["tilt"], by_name["drive_stiffness"], by_name["drive_max"]) == (0.1, 3.0, 9.0)
+    assert dict(zip(contract.INT_PARAMETERS, ints))["loading"] == \
+        contract.LOADING_CODES["pushed_end"]
+
+
+def test_fortran_loading_codes_match_the_contract():
+    consts = _fortran_constants()
+    assert {name: consts[f"loading_{name}"] for name in contract.LOADING_CODES} == \
+        contract.LOADING_CODES
+    assert set(contract.LOADING_CODES) == set(LOADINGS)
 
 
 def test_kernel_boundary_is_packed():

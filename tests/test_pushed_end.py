@@ -1,6 +1,6 @@
 """The second loading protocol, the chain pushed at one end (loading="pushed_end"):
-the facts any correct run satisfies, on the NumPy reference (the Fortran kernel
-has the tilt only and refuses this loading with a one-line error)."""
+the facts any correct run satisfies, on both backends, and the Fortran kernel
+against the NumPy reference event by event."""
 
 from __future__ import annotations
 
@@ -14,15 +14,17 @@ import sliders
 from sliders import Scene, prepare, status
 from sliders.chain import elastic_force
 from sliders.driver import make_engine
+from sliders.engine.loading import loading_for
 from sliders.scene import SceneError
+from test_backends import assert_bit_for_bit, assert_same_run, libm_reference
 
 PUSHED = Scene(n_sliders=8, seed=5, loading="pushed_end", tilt=0.2, drive_stiffness=2.0,
                mode="explore", xi=0.001)
 
 
-def pushed_events(scene, max_events=5_000, stop_at_sliding=True):
+def pushed_events(scene, max_events=5_000, stop_at_sliding=True, backend="numpy"):
     """Advance one event at a time: (engine, state before, state after, chunk) per event."""
-    engine = make_engine(scene, "numpy")
+    engine = make_engine(scene, backend)
     state = prepare(scene)
     assert engine.advance(state, max_events=1, relax_only=True).status == status.RELAXED
     for _ in range(max_events):
@@ -33,16 +35,16 @@ def pushed_events(scene, max_events=5_000, stop_at_sliding=True):
             return
 
 
-def test_forces_balance_stability_and_energy_after_every_event():
+def test_forces_balance_stability_and_energy_after_every_event(backend):
     """Sum of F_t = N sin(tilt) + driver force; every slider stable; the work
     of gravity and of the driver's spring = elastic change + dissipation."""
     sc = PUSHED
+    load = loading_for(sc)
     n_events = 0
-    for engine, before, after, chunk in pushed_events(sc):
+    for _, before, after, chunk in pushed_events(sc, backend=backend):
         if chunk.n_events == 0:
             break
         n_events += 1
-        load = engine.loading
         drive = after.alpha
         force = load.tangential(elastic_force(after, sc.xi, sc.walls), math.sin(sc.tilt), drive,
                                 after.displacement)
@@ -75,7 +77,7 @@ def test_driver_work_is_in_the_energy_balance():
         assert engine.loading.name == "pushed_end"
 
 
-def test_single_slider_stick_slip_period():
+def test_single_slider_stick_slip_period(backend):
     """N = 1 on the driver's spring K, sigma_mu = 0: released at F = mu_s cos,
     it swings about F = mu_d cos and stops at zero velocity after moving
     2 (mu_s - mu_d) cos / K; the driver then advances by the same amount."""
@@ -83,7 +85,8 @@ def test_single_slider_stick_slip_period():
                initial_forces="zero")
     expected = 2.0 * (sc.mu_s_mean - sc.mu_d) * math.cos(sc.tilt) / sc.drive_stiffness
     slips, drives = [], []
-    for _, before, after, chunk in pushed_events(sc, max_events=6, stop_at_sliding=False):
+    for _, before, after, chunk in pushed_events(sc, max_events=6, stop_at_sliding=False,
+                                                 backend=backend):
         assert chunk.status == status.SLIDING  # one slider: every slip spans the system
         slips.append(after.displacement[0] - before.displacement[0])
         drives.append(after.alpha)
@@ -92,8 +95,8 @@ def test_single_slider_stick_slip_period():
     np.testing.assert_allclose(np.diff(drives), expected, rtol=1e-6)
 
 
-def test_run_ends_at_the_onset_of_sliding_or_the_driver_limit():
-    result = sliders.tilt(PUSHED, backend="numpy")
+def test_run_ends_at_the_onset_of_sliding_or_the_driver_limit(backend):
+    result = sliders.tilt(PUSHED, backend=backend)
     assert result.status == "sliding"
     assert f"driver position D={result.events['alpha'][-1]:.4f}" in repr(result)
     assert result.events["n_moved"][-1] == PUSHED.n_sliders
@@ -103,7 +106,7 @@ def test_run_ends_at_the_onset_of_sliding_or_the_driver_limit():
     for row in dense[:-1]:
         moved = np.flatnonzero(row)
         assert moved[0] == 0 and moved.size == moved[-1] + 1
-    limited = sliders.tilt(PUSHED.replace(drive_max=result.events["alpha"][5]), backend="numpy")
+    limited = sliders.tilt(PUSHED.replace(drive_max=result.events["alpha"][5]), backend=backend)
     assert limited.status == "alpha_max" and limited.n_events == 6
     np.testing.assert_array_equal(limited.events["alpha"], result.events["alpha"][:6])
 
@@ -128,16 +131,41 @@ def test_bad_pushed_end_values_give_one_line_errors(values, message):
     assert "\n" not in str(err.value)
 
 
-def test_fortran_backend_refuses_pushed_end_in_one_line():
-    with pytest.raises(SceneError, match="runs on the NumPy reference only"):
-        sliders.tilt(PUSHED, backend="fortran")
+# ------------------------------------------------ Fortran against NumPy
+@pytest.mark.parametrize("scene", [
+    PUSHED.replace(xi=0.0),
+    Scene(n_sliders=12, seed=2, loading="pushed_end", tilt=0.0, drive_stiffness=0.5,
+          ends="walls", dt=0.004, max_events=150),
+    Scene(n_sliders=10, seed=7, loading="pushed_end", tilt=0.4, drive_stiffness=0.2,
+          dt=0.004),
+], ids=["free", "walls", "steep_soft_driver"])
+def test_fortran_matches_numpy_bit_for_bit(scene, monkeypatch):
+    """xi = 0: the kernel reproduces the reference (with glibc's
+    transcendentals, those the kernel calls) event by event, to the last bit:
+    drives, moved sliders, their displacements, draws and final states."""
+    libm_reference(monkeypatch)
+    f, n = sliders.tilt(scene, "fortran"), sliders.tilt(scene, "numpy")
+    assert n.status in ("sliding", "max_events") and n.n_events > 10
+    assert_bit_for_bit(f, n)
 
 
-def test_command_line_refuses_the_fortran_backend_in_one_line(capsys):
+def test_fortran_matches_numpy_with_cantilevers():
+    """xi > 0: the mean of du is summed in another order, so the drives agree
+    to rounding (the run's tolerances), the events exactly."""
+    f, n = sliders.tilt(PUSHED, "fortran"), sliders.tilt(PUSHED, "numpy")
+    assert n.status == "sliding"
+    assert_same_run(f, n)
+
+
+def test_command_line_runs_the_pushed_end_on_the_kernel(tmp_path, capsys):
+    """The onset of sliding is a normal end (exit 0), reported as a drive."""
     from sliders.__main__ import main
 
-    with pytest.raises(SystemExit) as exit_:
-        main(["tilt", "--loading", "pushed_end", "--n-sliders", "4", "--out", "unused.h5"])
-    assert exit_.value.code != 0
-    err = capsys.readouterr().err.strip()
-    assert "runs on the NumPy reference only" in err and "\n" not in err
+    out = tmp_path / "pushed.h5"
+    assert main(["tilt", "--loading", "pushed_end", "--tilt", "0.2", "--n-sliders", "6",
+                 "--out", str(out), "--quiet"]) == 0
+    result = sliders.TiltResult.load(out)
+    assert result.status == "sliding" and result.scene.loading == "pushed_end"
+    assert result.events["n_moved"][-1] == 6
+    assert capsys.readouterr().out.startswith(
+        f"sliding: last drive D={result.events['alpha'][-1]:.5f}")

@@ -7,10 +7,11 @@ import math
 import signal
 import sys
 
+from . import status
 from .cli import ProgressLine, add_scene_arguments, check_output, fail, scene_from_args
 from .io.filelock import ClaimError, OutputClaim
 from .io.safeio import describe_os_error
-from .scene import BACKENDS, SceneError, check_backend, check_memory
+from .scene import BACKENDS, SceneError, check_memory
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,7 +39,6 @@ def main(argv: list[str] | None = None) -> int:
         scene = scene_from_args(args)
         check_output(args.out, args.overwrite)
         check_memory(scene)
-        check_backend(scene, args.backend)
     except SceneError as exc:
         fail(str(exc))
     try:
@@ -95,14 +95,18 @@ def _run(args, scene) -> int:
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-    alpha_c = "n/a" if math.isnan(result.alpha_c) else f"{result.alpha_c:.5f}"
-    print(f"{result.status}: alpha_c={alpha_c}  events={result.n_events}  "
+    if scene.loading == "pushed_end":  # the run ends at a driver position, not an angle
+        last = f"{result.events['alpha'][-1]:.5f}" if result.n_events else "n/a"
+        reached = f"last drive D={last}"
+    else:
+        reached = "alpha_c=" + ("n/a" if math.isnan(result.alpha_c) else f"{result.alpha_c:.5f}")
+    print(f"{result.status}: {reached}  events={result.n_events}  "
           f"wall={result.wall_time:.2f} s  -> {args.out}")
     if result.message:
         print(f"note: {result.message}", file=sys.stderr)
     if result.status == "interrupted":
         return 128 + (received[0] if received else signal.SIGINT)
-    return 0 if result.status in ("avalanche", "alpha_max", "max_events") else 1
+    return 0 if result.status in {status.NAMES[code] for code in status.FINAL_OK} else 1
 
 
 if __name__ == "__main__":

@@ -414,13 +414,6 @@ def _plain_value(name: str, kind: str, value):
     return value
 
 
-def check_backend(scene: Scene, backend: str) -> None:
-    """Refuse a loading the backend does not have (the kernel has the tilt only)."""
-    if backend == "fortran" and scene.loading != "tilt":
-        raise SceneError(f"loading={scene.loading!r} runs on the NumPy reference only "
-                         "(backend='numpy'); the Fortran kernel has the tilt only")
-
-
 def check_memory(scene: Scene) -> None:
     """Refuse a scene whose run would need more memory than the machine has available."""
     need = scene.memory_estimate()

@@ -13,7 +13,7 @@ RELAXED = 7  # relax-only call: the chain is at rest at the current angle
 SPARSE_FULL = 8  # the displacement buffer filled mid-chunk (call again)
 INTERRUPTED = 9  # Ctrl-C/SIGTERM; the event in progress is undone, the completed ones kept
 REFINE_LIMIT = 10  # a crossing bracket stayed wider than refine_tol after MAX_HALVINGS halvings
-SLIDING = 11  # pushed_end: every slider moved in the last event, the onset of sliding (Python only)
+SLIDING = 11  # pushed_end: every slider moved in the last event, the onset of sliding
 
 NAMES = {
     RUNNING: "running",

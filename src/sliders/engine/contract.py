@@ -50,15 +50,20 @@ INT_FIELDS = tuple(name for name, dtype, _ in EVENT_SCHEMA if dtype == np.int64)
 
 # The packed parameters of a kernel call, in order (1-based in Fortran).
 REAL_PARAMETERS = ("xi", "mu_d", "mu_s_mean", "sigma_mu", "dt", "refine_tol",
-                   "max_event_duration", "alpha_max", "force_tol", "alpha")
-INT_PARAMETERS = ("walls", "seed", "record_sparse", "relax_only", "max_events")
+                   "max_event_duration", "alpha_max", "force_tol", "alpha",
+                   "tilt", "drive_stiffness", "drive_max")
+INT_PARAMETERS = ("walls", "seed", "record_sparse", "relax_only", "max_events", "loading")
+# The loading protocols' codes in the int parameter "loading" (sliders_contract:
+# loading_tilt, loading_pushed_end).
+LOADING_CODES = {"tilt": 0, "pushed_end": 1}
 
 
 def pack_parameters(scene, alpha: float, record_sparse: bool, relax_only: bool,
                     max_events: int) -> tuple[np.ndarray, np.ndarray]:
     """The kernel's two parameter arrays (float64, int64) for one call."""
     calls = {"alpha": alpha, "walls": int(scene.walls), "record_sparse": int(record_sparse),
-             "relax_only": int(relax_only), "max_events": max_events}
+             "relax_only": int(relax_only), "max_events": max_events,
+             "loading": LOADING_CODES[scene.loading]}
     real = np.array([float(calls[k]) if k in calls else float(getattr(scene, k))
                      for k in REAL_PARAMETERS], dtype=np.float64)
     ints = np.array([int(calls[k]) if k in calls else int(getattr(scene, k))

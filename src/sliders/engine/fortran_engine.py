@@ -55,9 +55,6 @@ class FortranEngine:
 
     def __init__(self, scene: Scene):
         from .. import _kernel  # the compiled extension (meson build)
-        from ..scene import check_backend
-
-        check_backend(scene, self.name)
 
         self.scene = scene
         self._tilt_advance = _kernel.tilt_advance
