@@ -877,7 +877,7 @@ def draw_figures(names, out, args, formats=("png", "pdf"), palette_png: bool = F
         "fig01_sketch": lambda: schematics.fig_sketch(out_dir=None),
         "fig08_histogram_model": lambda: schematics.fig_histogram_model(out_dir=None),
         "fig05_single_slider": lambda: fig_single_slider(backend=args.backend, out_dir=None),
-        PUSHED_END: lambda: fig_pushed_end(pushed_end_run(), out_dir=None),
+        PUSHED_END: lambda: fig_pushed_end(pushed_end_run(backend=args.backend), out_dir=None),
     }
     setups = scene_setups(args.paper_size, args.backend)
     for name in names:
