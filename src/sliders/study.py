@@ -337,7 +337,7 @@ def main(argv: list[str] | None = None) -> int:
         study = load_study(args.study)
         plan = None
         if rank == 0:
-            claims.append(_claim_output(args))
+            claims.append(_claim_output(args, "study"))
             plan = _plan_root(args, study)
         return args, study, storage, plan
 
