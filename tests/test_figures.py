@@ -3,7 +3,6 @@ event by event, tests/test_backends.py) and writes PNG + PDF at print size; the 
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
@@ -111,23 +110,31 @@ def test_rebin_factor():
     assert F.rebin_factor(120, 0.01) == 120
 
 
-def test_ensemble_file_agreed_layout(runs, tmp_path):
-    """Statistics read back from an HDF5 file in the agreed layout give the same summary."""
-    grids = ob.default_grids(runs[0].scene)
+def test_ensemble_file_summary_of_the_done_rows(runs, tmp_path):
+    """Statistics read back from an ensemble file (the package's writer) give the same summary;
+    a row not marked done is ignored."""
+    from sliders import status
+    from sliders.io import storage
+    from sliders.parallel import SerialComm
+
+    scene = runs[0].scene
+    grids = ob.default_grids(scene)
     rows = ob.stack_rows(ob.realisation_statistics(r, grids) for r in runs)
+    layout = storage.make_layout(4, np.arange(4), grids.to_arrays(),
+                                 ob.statistics_layout(grids, scene.n_sliders),
+                                 storage.file_attributes(scene.to_dict(), scene.seed, 4, "fortran"))
     path = tmp_path / "e.h5"
-    with h5py.File(path, "w") as f:
-        f.attrs["scene"] = json.dumps(runs[0].scene.to_dict())
-        g = f.create_group("grids")
-        for k, v in grids.to_arrays().items():
-            g.create_dataset(k, data=v)
-        s = f.create_group("realisations/statistics")
-        for k, v in rows.items():  # a fourth, unfinished row must be ignored
-            s.create_dataset(k, data=np.concatenate([v, np.zeros_like(v[:1])]))
-        f.create_dataset("realisations/done", data=np.array([1, 1, 1, 0], dtype=np.uint8))
-    summary, g2, scene = F.load_ensemble_summary(path, prefer_package=False)
+    f = storage.GatherFile.create(path, layout, SerialComm())
+    for r, res in enumerate(runs + [runs[0]]):  # a fourth row, written but not done
+        f.write_row(r, {"status": status.AVALANCHE, "alpha_c": res.alpha_c,
+                        "n_events": res.n_events, "slider_steps": 0, "wall_time": 0.0,
+                        **{storage.STATISTICS + k: v[r % 3] for k, v in rows.items()}})
+        if r < 3:
+            f.mark_done(r)
+    f.close()
+    summary, g2, scene_dict = F.load_ensemble_summary(path)
     direct = ob.combine(rows, grids, 6)
-    assert summary.n_realisations == 3 and scene["n_sliders"] == 6
+    assert summary.n_realisations == 3 and scene_dict["n_sliders"] == 6
     np.testing.assert_allclose(summary.p_mean, direct.p_mean, equal_nan=True)
     np.testing.assert_array_equal(g2.force_edges, grids.force_edges)
 

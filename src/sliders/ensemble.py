@@ -181,16 +181,17 @@ def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
     return {"scene": scene, "storage": storage}
 
 
-def _claim_output(args):
-    """Rank 0, before anything is created or read: the claim on --out (held to the end)."""
+def _claim_output(args, program: str = "ensemble"):
+    """Rank 0, before anything is created or read: the claim on --out (held to the end);
+    ``program`` ("ensemble", "study") names the command in its messages."""
     from .cli import check_output
     from .io.filelock import OutputClaim
     from .io.safeio import is_special
 
     check_output(args.out, overwrite=True)  # a writable file path (existence checked later)
     if is_special(args.out):
-        raise UsageError(f"--out {args.out!r} is not a regular file (a device or a fifo): an "
-                         "ensemble file is written in place and resumed; give a file path")
+        raise UsageError(f"--out {args.out!r} is not a regular file (a device or a fifo): the "
+                         f"{program} file is written in place and resumed; give a file path")
     claim = OutputClaim(args.out).acquire()
     if not claim.locking:
         if args.overwrite:
@@ -198,10 +199,10 @@ def _claim_output(args):
             raise UsageError(f"--out {args.out!r}: this file system does not support file locks, "
                              "so a concurrent writer could not be detected; --overwrite is "
                              "refused there (delete the file first, or write elsewhere)")
-        sys.stderr.write(f"ensemble: warning: no file locks on the file system of {args.out!r}; "
+        sys.stderr.write(f"{program}: warning: no file locks on the file system of {args.out!r}; "
                          "a concurrent writer would not be detected\n")
     elif claim.previous_holder and not args.quiet:
-        sys.stderr.write(f"ensemble: note: {args.out} was held by {claim.previous_holder}, which "
+        sys.stderr.write(f"{program}: note: {args.out} was held by {claim.previous_holder}, which "
                          "is no longer running; its stale claim is taken over\n")
     return claim
 

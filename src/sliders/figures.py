@@ -30,7 +30,6 @@ a GIF of a tilt instead (``animation.py``).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
@@ -694,83 +693,50 @@ def check_ensemble_file(path) -> None:
     (``TiltResult.save``: read it with ``TiltResult.load``) and an HDF5 file
     of another kind.
     """
-    import h5py
+    from .io import formats
 
     p = os.fspath(path)
-    if not os.path.exists(p):
+    probe = formats.probe_file(p)
+    if probe.state == "missing":
         raise FigureInputError(f"ensemble file {p!r} does not exist")
-    if os.path.isdir(p):
+    if probe.state == "directory":
         raise FigureInputError(f"ensemble file {p!r} is a directory")
-    try:
-        readable_hdf5 = h5py.is_hdf5(p)
-    except OSError as exc:
-        raise FigureInputError(f"ensemble file {p!r} cannot be read ({exc.strerror or exc})") \
-            from None
-    if not readable_hdf5:
+    if probe.state == "unreadable":
+        raise FigureInputError(f"ensemble file {p!r} cannot be read ({probe.reason})")
+    if probe.state == "not_hdf5":
         raise FigureInputError(f"{p!r} is not an HDF5 file; --ensemble needs the file written by "
                                "python -m sliders.ensemble")
-    try:
-        with h5py.File(p, "r") as f:
-            fmt = f.attrs.get("format")
-            fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
-            agreed_layout = "realisations/statistics" in f and "realisations/done" in f
-    except OSError as exc:
-        raise FigureInputError(f"{p!r} is not a readable HDF5 file ({exc})") from None
-    if fmt == "sliders.tilt":
+    if probe.state == "bad_hdf5":
+        raise FigureInputError(f"{p!r} is not a readable HDF5 file ({probe.reason})")
+    if probe.format == formats.TILT:
         raise FigureInputError(f"{p!r} holds a single run, not an ensemble: read it with "
                                f"sliders.TiltResult.load({p!r}); --ensemble needs the file "
                                "written by python -m sliders.ensemble")
-    if not agreed_layout:
+    if not probe.ensemble_rows:
         raise FigureInputError(f"{p!r} is an HDF5 file but not a sliders ensemble file "
-                               f"(format attribute {fmt!r}, no /realisations/statistics)")
+                               f"(format attribute {probe.format!r}, no /realisations/statistics)")
 
 
-def load_ensemble_summary(path, prefer_package: bool = True):
+def load_ensemble_summary(path):
     """(EnsembleSummary, grids, scene dict) from an ensemble HDF5 file.
 
-    Uses ``sliders.ensemble.load_summary`` when the package provides it, else
-    reads the agreed layout: grids in /grids/<field>, rows in
-    /realisations/statistics/<key>, done mask /realisations/done, scene JSON
-    in the root attribute "scene".  Only rows with done = 1 are used.
+    The package's reader (``sliders.io.storage.load_summary``): only rows
+    marked done are used, every checksum is verified; a file that cannot give
+    a summary raises ``FigureInputError`` with one line.
     """
+    from .io.storage import StorageError, load_summary
+
     check_ensemble_file(path)
-    load_summary = None
-    if prefer_package:
-        try:
-            from .ensemble import load_summary  # type: ignore[attr-defined]
-        except ImportError:
-            pass
-    if load_summary is not None:
-        from .io.storage import StorageError
-
-        try:
-            out = load_summary(path)
-        except (StorageError, KeyError, OSError) as exc:
-            raise FigureInputError(f"{os.fspath(path)!r}: cannot read the ensemble ({exc})") \
-                from None
-        except ValueError as exc:  # e.g. combine() of zero finished rows
-            raise FigureInputError(f"{os.fspath(path)!r}: {exc}") from None
-        if len(out) > 3 and out[3].get("n_done", 1) == 0:
-            raise FigureInputError(f"{os.fspath(path)!r}: no finished realisation yet")
-        if isinstance(out, tuple) and len(out) >= 2:
-            scene = out[2] if len(out) > 2 else None
-            return out[0], out[1], (scene.to_dict() if hasattr(scene, "to_dict") else scene)
-    import h5py
-
-    with h5py.File(os.fspath(path), "r") as f:
-        scene = json.loads(f.attrs["scene"]) if "scene" in f.attrs else {}
-        done = f["realisations/done"][()].astype(bool)
-        rows = {k: ds[()][done] for k, ds in f["realisations/statistics"].items()}
-        if "grids" in f:
-            grids = ob.StatisticsGrids.from_arrays({k: ds[()] for k, ds in f["grids"].items()})
-        else:
-            from .scene import Scene
-
-            grids = ob.default_grids(Scene.from_dict(scene))
-    if not done.any():
-        raise FigureInputError(f"{os.fspath(path)!r}: no finished realisation (done mask all 0)")
-    n = int(scene.get("n_sliders", rows["event_size_counts"].shape[-1]))
-    return ob.combine(rows, grids, n), grids, scene
+    try:
+        summary, grids, scene, info = load_summary(path)
+    except (StorageError, KeyError, OSError) as exc:
+        raise FigureInputError(f"{os.fspath(path)!r}: cannot read the ensemble ({exc})") \
+            from None
+    except ValueError as exc:  # e.g. combine() of zero finished rows
+        raise FigureInputError(f"{os.fspath(path)!r}: {exc}") from None
+    if info["n_done"] == 0:
+        raise FigureInputError(f"{os.fspath(path)!r}: no finished realisation yet")
+    return summary, grids, scene.to_dict()
 
 
 # -----------------------------------------------------------------------------

@@ -129,14 +129,11 @@ def merge(out, inputs, overwrite: bool = False) -> dict:
         handler.flush()
     finally:
         handler.close()
-    import h5py
-
     from .io.conventions import describe_ensemble_file
 
-    with h5py.File(out, "r+") as f:  # the chunks' commands first; describe adds this merge
-        f.attrs["history"] = "\n".join(str(h["attrs"]["history"]) for _, h in heads
-                                       if h["attrs"].get("history"))
-    described = describe_ensemble_file(out)
+    # the chunks' commands first; describe adds this merge
+    described = describe_ensemble_file(out, "\n".join(str(h["attrs"]["history"]) for _, h in heads
+                                                      if h["attrs"].get("history")))
     if described is not True:
         raise MergeError(f"cannot describe {out!r}: {described}")
     return {"realisations": n_total, "done": n_done, "inputs": len(heads)}

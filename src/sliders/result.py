@@ -1,19 +1,15 @@
-"""The record of one tilt run, and its HDF5 form."""
+"""The record of one tilt run (its HDF5 form: ``sliders.io.tilt_file``)."""
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import status
 from .chain import ChainState, tangential_force as _tangential_force
 from .scene import Scene
-
-FORMAT_VERSION = 1
 
 
 @dataclass
@@ -199,7 +195,7 @@ class TiltResult:
         """F_t of every slider at alpha = 0 when the tilt starts (after any relaxation)."""
         return _tangential_force(self.initial, self.scene.xi, self.scene.walls, 0.0)
 
-    # -- HDF5 ---------------------------------------------------------------
+    # -- HDF5 (the layout, the writer and the reader: sliders.io.tilt_file) --
     def save(self, path: str | os.PathLike[str], overwrite: bool = True) -> None:
         """Write the run to an HDF5 file, atomically.
 
@@ -210,60 +206,17 @@ class TiltResult:
         that ``load`` verifies, and the HDF5 user block (the file's first
         512 bytes, which HDF5 skips) a CRC-32 of the whole rest of the file:
         ``load`` checks it before HDF5 parses anything, so that damaged HDF5
-        metadata cannot crash the process.
+        metadata cannot crash the process.  The layout: ``sliders.io.tilt_file``.
         """
-        from .io.safeio import publish_bytes
+        from .io.tilt_file import write_tilt_file
 
-        publish_bytes(path, self.to_bytes(), overwrite)
+        write_tilt_file(path, self, overwrite)
 
     def to_bytes(self) -> bytes:
         """The HDF5 file of the run, as bytes."""
-        import io
+        from .io.tilt_file import tilt_file_bytes
 
-        import h5py
-
-        from . import __version__
-        from .io.safeio import seal_attrs, seal_dataset
-
-        def dataset(group, name, data):
-            data = np.asarray(data)
-            seal_dataset(group.create_dataset(name, data=data), data)
-
-        buffer = io.BytesIO()
-        with h5py.File(buffer, "w", userblock_size=WHOLE_FILE_BLOCK) as f:
-            f.attrs["format"] = "sliders.tilt"
-            f.attrs["format_version"] = FORMAT_VERSION
-            f.attrs["software_version"] = __version__
-            f.attrs["scene"] = json.dumps(self.scene.to_dict())
-            f.attrs["backend"] = self.backend
-            f.attrs["status"] = self.status
-            f.attrs["message"] = self.message
-            f.attrs["alpha_c"] = self.alpha_c
-            f.attrs["wall_time"] = self.wall_time
-            f.attrs["relaxation"] = json.dumps(self.relaxation)
-            f.attrs["final_event"] = json.dumps(self.final_event)
-            ev = f.create_group("events")
-            for name, values in self.events.items():
-                dataset(ev, name, values)
-            if self.displacement is not None:
-                g = f.create_group("displacement")
-                dataset(g, "ptr", self.displacement.ptr)
-                dataset(g, "index", self.displacement.index.astype(np.int32))
-                dataset(g, "value", self.displacement.value)
-            for label, st in (("initial", self.initial), ("final", self.final)):
-                g = f.create_group(label)
-                for name in ("elastic_force0", "spring_extension0", "cantilever_stretch0",
-                             "lattice_position0", "mu_s", "displacement", "n_stops"):
-                    dataset(g, name, getattr(st, name))
-                g.attrs["alpha"] = st.alpha
-                seal_attrs(g)
-            seal_attrs(f)
-            from .io.conventions import describe_tilt_file
-
-            # named dimensions, units, provenance: added after the seals, which
-            # cover the data and the attributes that load() reads
-            describe_tilt_file(f, self)
-        return seal_whole_file(buffer.getvalue())
+        return tilt_file_bytes(self)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> "TiltResult":
@@ -273,115 +226,6 @@ class TiltResult:
         OSError) with one line naming the file and, for a flipped byte, the
         dataset; a file of another kind raises ValueError.
         """
-        problem = whole_file_problem(path)
-        if problem:
-            from .io.safeio import IntegrityError
+        from .io.tilt_file import read_tilt_file
 
-            raise IntegrityError(problem)
-        return cls._load_checked(path)
-
-    @classmethod
-    def _load_checked(cls, path: str | os.PathLike[str]) -> "TiltResult":
-        """``load`` without the whole-file check (per dataset and attribute set only)."""
-        import h5py
-
-        from .io.safeio import (IntegrityError, check_attrs, check_coordinates, describe_os_error,
-                             read_checked)
-
-        where = repr(os.fspath(path))
-        try:
-            f = h5py.File(path, "r")
-        except FileNotFoundError as exc:
-            raise FileNotFoundError(exc.errno, f"{where} does not exist") from None
-        except OSError as exc:
-            raise IntegrityError(f"{where} is not a readable HDF5 file ({exc})") from None
-        try:
-            with f:
-                if f.attrs.get("format") != "sliders.tilt":
-                    raise ValueError(f"{where} is not a sliders tilt file")
-                check_attrs(f, where)
-                check_coordinates(f, where)
-                scene = Scene.from_dict(json.loads(f.attrs["scene"]))
-                events = {name: read_checked(ds, where) for name, ds in f["events"].items()}
-                disp = None
-                if "displacement" in f:
-                    g = f["displacement"]
-                    disp = EventSparse(read_checked(g["ptr"], where),
-                                       read_checked(g["index"], where).astype(np.int64),
-                                       read_checked(g["value"], where), scene.n_sliders)
-                states = {}
-                for label in ("initial", "final"):
-                    g = f[label]
-                    check_attrs(g, where)
-                    states[label] = ChainState(**{k: read_checked(g[k], where) for k in g},
-                                               alpha=float(g.attrs["alpha"]))
-                return cls(
-                    scene=scene, backend=str(f.attrs["backend"]), status=str(f.attrs["status"]),
-                    message=str(f.attrs["message"]), alpha_c=float(f.attrs["alpha_c"]),
-                    events=events, displacement=disp, initial=states["initial"],
-                    final=states["final"], relaxation=json.loads(f.attrs["relaxation"]),
-                    wall_time=float(f.attrs["wall_time"]),
-                    final_event=json.loads(f.attrs.get("final_event", "{}")),
-                )
-        except (IntegrityError, ValueError) as exc:
-            if isinstance(exc, ValueError) and not str(exc).startswith(where):
-                raise IntegrityError(f"{where} is damaged ({' '.join(str(exc).split())})") from None
-            raise
-        except OSError as exc:
-            raise IntegrityError(f"{where} is damaged ({describe_os_error(exc, path)})") from None
-        except Exception as exc:  # noqa: BLE001 - whatever HDF5 makes of a damaged file
-            raise IntegrityError(f"{where} is damaged ({type(exc).__name__}: "
-                                 f"{' '.join(str(exc).split())})") from None
-
-
-# ---------------------------------------------------------------------------
-# whole-file checksum in the HDF5 user block
-# ---------------------------------------------------------------------------
-WHOLE_FILE_BLOCK = 512  # bytes before the HDF5 superblock, which HDF5 leaves to the user
-WHOLE_FILE_MAGIC = b"sliders.tilt whole-file crc32 "
-
-
-def seal_whole_file(data: bytes) -> bytes:
-    """Write the CRC-32 of everything after the user block into the user block."""
-    import zlib
-
-    out = bytearray(data)
-    tag = WHOLE_FILE_MAGIC + b"%08x\n" % zlib.crc32(memoryview(out)[WHOLE_FILE_BLOCK:])
-    out[:len(tag)] = tag
-    return bytes(out)
-
-
-def whole_file_problem(path) -> str | None:
-    """One line if the file fails its whole-file checksum (then naming the damaged
-    dataset when a sandboxed per-dataset check can), else None.  Files without
-    the user-block checksum are left to the per-dataset checks."""
-    import subprocess
-    import sys
-    import zlib
-
-    where = repr(os.fspath(path))
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read()
-    except OSError:
-        return None  # the HDF5 open reports it, in its own words
-    if not data.startswith(WHOLE_FILE_MAGIC):
-        return None
-    stored = data[len(WHOLE_FILE_MAGIC):len(WHOLE_FILE_MAGIC) + 8]
-    if len(data) > WHOLE_FILE_BLOCK and stored == b"%08x" % zlib.crc32(data[WHOLE_FILE_BLOCK:]):
-        return None
-    # Damaged: say where if HDF5 can tell, in a child process (damaged metadata
-    # can crash HDF5 1.10 itself).
-    probe = ("import sys\nfrom sliders.result import TiltResult\ntry:\n"
-             "    TiltResult._load_checked(sys.argv[1])\nexcept Exception as exc:\n"
-             "    print(' '.join(str(exc).split()))\n")
-    try:
-        res = subprocess.run([sys.executable, "-c", probe, os.fspath(path)], capture_output=True,
-                             text=True, timeout=120)
-        named = res.stdout.strip() if res.returncode == 0 else ""
-    except (OSError, subprocess.SubprocessError):
-        named = ""
-    if "checksum" in named or "damaged" in named:
-        return named
-    return f"{where} is damaged: it fails its whole-file checksum (in the HDF5 metadata)"
-
+        return read_tilt_file(path)

@@ -21,24 +21,20 @@ of the per-realisation differences, not the root sum of the two points' errors.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from typing import Any
 
 import numpy as np
 
-from .study import STUDY_PREFIX, Study, parse_study, read_point_rows
-
-STATISTICS = "statistics/"
+from .io.storage import STATISTICS
+from .io.study_file import read_point_rows, read_study_spec
+from .study import STUDY_PREFIX, Study, parse_study
 
 
 def load_study_file(path) -> tuple[Study, list[dict[str, np.ndarray]]]:
     """The study (re-validated from the file) and every point's rows."""
-    import h5py
-
-    with h5py.File(os.fspath(path), "r") as f:
-        spec = json.loads(f.attrs["study"])
+    spec = read_study_spec(path)
     data = {"study": {"realisations": spec["realisations"]}, "scene": spec["scene"],
             "axes": spec["axes"]}
     if spec.get("zip"):

@@ -193,16 +193,13 @@ def draw_study(path, out_dir, formats=("png", "pdf"), dpi: int = PNG_DPI,
 
 def check_study_file(path) -> None:
     """One-line errors for a file that is not a readable study."""
-    import h5py
+    from .io import formats
 
     p = os.fspath(path)
-    if not os.path.exists(p):
+    probe = formats.probe_file(p)
+    if probe.state == "missing":
         raise ValueError(f"--study {p!r} does not exist")
-    try:
-        with h5py.File(p, "r") as f:
-            fmt = f.attrs.get("format")
-    except OSError:
-        raise ValueError(f"--study {p!r} is not a readable HDF5 file") from None
-    if fmt != "sliders.study":
+    if probe.state != "hdf5":
+        raise ValueError(f"--study {p!r} is not a readable HDF5 file")
+    if probe.format != formats.STUDY:
         raise ValueError(f"--study {p!r} is not a sliders study file (python -m sliders.study)")
-

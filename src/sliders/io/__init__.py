@@ -1,12 +1,18 @@
 """Files: everything sliders reads or writes, and how it is kept trustworthy.
 
+No other module of the package touches HDF5 (tests/test_io_layout.py checks it).
+
+* ``tilt_file``: the single-run file (layout, writer, reader, whole-file
+  checksum); ``TiltResult.save``/``load`` call it;
 * ``storage``: the ensemble file (layout, serial / gather / MPI-IO writers,
-  readers of its header and rows);
-* ``conventions``: the xarray/CF conventions both files follow (dimension
-  scales, units, descriptions);
+  readers of its header and rows, the summary of its done rows);
+* ``study_file``: the study file (one ensemble layout per point, its writers,
+  readers and the view xarray opens);
+* ``formats``: the three format names, and the probe that tells a user what a
+  path holds;
+* ``conventions``: the xarray/CF conventions the files follow (dimension
+  scales, units, descriptions, provenance);
 * ``safeio``: atomic publication, CRC32 checksums of datasets and
   attributes, OS error messages;
 * ``filelock``: the claim an output path is written under.
-
-The single-run file is ``TiltResult.save``/``load`` (``sliders.result``).
 """

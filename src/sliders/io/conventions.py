@@ -318,8 +318,12 @@ def describe_tilt_file(h5file, result) -> None:
 RESUME_HISTORY_MIN_FREE = 1 << 20
 
 
-def describe_ensemble_file(path) -> bool | str:
-    """Describe an ensemble file (one process, no writer holding it): True, or why not."""
+def describe_ensemble_file(path, earlier_history: str | None = None) -> bool | str:
+    """Describe an ensemble file (one process, no writer holding it): True, or why not.
+
+    ``earlier_history``: the history of the files this one was made from (the
+    chunks of a merge), written before this command's line.
+    """
     import h5py
 
     try:
@@ -330,6 +334,8 @@ def describe_ensemble_file(path) -> bool | str:
             if st.f_bavail * st.f_frsize < RESUME_HISTORY_MIN_FREE:
                 return True  # nearly full disk: keep the description, skip the history line
         with h5py.File(os.fspath(path), "r+") as f:
+            if earlier_history is not None:
+                f.attrs["history"] = earlier_history
             _describe_ensemble(f)
     except (OSError, KeyError, ValueError) as exc:
         return " ".join(str(exc).split()) or type(exc).__name__

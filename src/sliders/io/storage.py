@@ -58,9 +58,9 @@ from typing import Any
 import numpy as np
 
 from .. import status
-from . import safeio
+from . import formats, safeio
 
-FORMAT = "sliders.ensemble"
+FORMAT = formats.ENSEMBLE
 FORMAT_VERSION = 1
 ROW_DIGEST = "row_crc32"
 STORAGES = ("auto", "mpio", "gather")
