@@ -169,3 +169,18 @@ def test_command_line_runs_the_pushed_end_on_the_kernel(tmp_path, capsys):
     assert result.events["n_moved"][-1] == 6
     assert capsys.readouterr().out.startswith(
         f"sliding: last drive D={result.events['alpha'][-1]:.5f}")
+
+
+def test_ensembles_refuse_the_pushed_end_in_one_line(tmp_path):
+    """The ensemble's statistics are the tilt's (alpha_c, precursors by angle):
+    a pushed-end ensemble would bin driver positions as angles, so it is refused."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "pushed.h5"
+    res = subprocess.run([sys.executable, "-m", "sliders.ensemble", "--loading", "pushed_end",
+                          "--n-sliders", "6", "--realisations", "2", "--out", str(out)],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode != 0 and not out.exists()
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "ensembles and studies gather the tilt's statistics" in lines[0]

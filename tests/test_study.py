@@ -113,6 +113,8 @@ def test_resume_completes_only_the_missing_rows(spec, tmp_path):
     ("mu_d = [0.5, 0.7]", "axis 'mu_d' at point 1 (mu_d=0.7)"),
     ("xi = [0.0, 0.001]\nmu_d = [0.5, 0.7]", "axis 'mu_d' at point 1 (xi=0.0, mu_d=0.7)"),
     ("seed = [1, 2]", "axis 'seed' cannot vary"),
+    ('loading = ["tilt", "pushed_end"]', "axis 'loading' at point 1 (loading='pushed_end'): "
+                                         "loading='pushed_end': ensembles and studies gather"),
 ])
 def test_bad_study_is_one_line_before_anything_runs(tmp_path, axes, expected):
     p = tmp_path / "bad.toml"

@@ -175,8 +175,9 @@ def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
     except (ImportError, AttributeError) as exc:  # not built, or built from older sources
         raise UsageError(f"backend {backend!r} is not available ({exc}); "
                          "build it (scripts/setup.sh) or use --backend numpy") from None
-    from .scene import check_memory
+    from .scene import check_memory, check_tilt_statistics
 
+    check_tilt_statistics(scene)
     check_memory(scene)
     return {"scene": scene, "storage": storage}
 

@@ -414,6 +414,14 @@ def _plain_value(name: str, kind: str, value):
     return value
 
 
+def check_tilt_statistics(scene: Scene) -> None:
+    """Refuse a loading whose runs the tilt's statistics cannot describe (ensembles, studies)."""
+    if scene.loading != "tilt":
+        raise SceneError(f"loading={scene.loading!r}: ensembles and studies gather the tilt's "
+                         "statistics (alpha_c, precursors by angle); run it one realisation at "
+                         "a time: python -m sliders tilt --loading pushed_end")
+
+
 def check_memory(scene: Scene) -> None:
     """Refuse a scene whose run would need more memory than the machine has available."""
     need = scene.memory_estimate()

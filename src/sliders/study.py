@@ -46,7 +46,7 @@ import numpy as np
 
 from .io.study_file import (HANDLERS, read_study_header, study_attributes, study_layout,
                             write_view)
-from .scene import Scene, SceneError
+from .scene import Scene, SceneError, check_tilt_statistics
 
 STUDY_PREFIX = "study_"  # extra per-realisation statistics (burst periods, synchronisation)
 NOT_AXES = ("seed", "output", "record")  # seed: common random numbers; record: statistics needed
@@ -172,6 +172,7 @@ def parse_study(data: dict, where: str = "study") -> Study:
         p = len(study.points)
         try:
             scene = Scene.from_dict({**base, **values})
+            check_tilt_statistics(scene)
             if scene.record == "summary":
                 raise SceneError("record = 'summary' keeps no statistics; a study needs "
                                  "'displacements' or 'forces'")
