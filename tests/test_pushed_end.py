@@ -184,3 +184,25 @@ def test_ensembles_refuse_the_pushed_end_in_one_line(tmp_path):
     assert res.returncode != 0 and not out.exists()
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "ensembles and studies gather the tilt's statistics" in lines[0]
+
+
+def test_result_forces_include_the_driver(backend):
+    """TiltResult's force analysis is the loading's: after every event the
+    rebuilt forces balance N sin(tilt) + K (D - u_1) and are stable; up to the
+    next event's drive only slider 1's force grows, to a static threshold."""
+    sc = PUSHED.replace(xi=0.0)
+    result = sliders.tilt(sc, backend)
+    force = result.tangential_force
+    du = result.displacement_after()
+    drive = result.events["alpha"]
+    driver = sc.drive_stiffness * (drive - du[:, 0])
+    np.testing.assert_allclose(force.sum(axis=1), sc.n_sliders * math.sin(sc.tilt) + driver,
+                               rtol=1e-12, atol=1e-10)
+    assert np.abs(force).max() <= sc.mu_s_mean + 5 * sc.sigma_mu  # stable: no force beyond any mu_s
+    # just below the next event's drive only slider 1's force has changed, by
+    # K dD, and it is up at a static threshold (every mu_s lies above mu_d)
+    at_next = result.force_at(drive[1:] - 1e-9)
+    np.testing.assert_array_equal(at_next[:, 1:], force[:-1, 1:])
+    np.testing.assert_allclose(at_next[:, 0], force[:-1, 0] + sc.drive_stiffness
+                               * (drive[1:] - 1e-9 - drive[:-1]), rtol=0, atol=1e-10)
+    assert np.all(at_next[:, 0] > sc.mu_d * math.cos(sc.tilt))

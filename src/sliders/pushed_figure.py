@@ -24,7 +24,6 @@ from .figure_style import COLUMN_WIDTH, ORDER_CMAP, STYLE, panel_label, save_fig
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib import colors as mcolors  # noqa: E402
 
-from .chain import elastic_force  # noqa: E402
 from .engine.loading import loading_for  # noqa: E402
 from .scene import Scene  # noqa: E402
 
@@ -52,17 +51,9 @@ def arrest_positions(result) -> np.ndarray:
 def forces_before(result, events: np.ndarray) -> np.ndarray:
     """Tangential force on every slider just before each of ``events`` starts
     (at the drive it starts at), rebuilt from the recorded displacements."""
-    sc = result.scene
-    load = loading_for(sc)
-    before = result.initial.displacement + np.vstack(
-        [np.zeros(sc.n_sliders), np.cumsum(result.displacement.dense(), axis=0)[:-1]])
-    out = np.empty((len(events), sc.n_sliders))
-    for row, k in enumerate(events):
-        du = before[k]
-        drive = float(result.events["alpha"][k])
-        out[row] = load.tangential(elastic_force(result.initial, sc.xi, sc.walls, du),
-                                   load.weight(drive), drive, du)
-    return out
+    before = np.vstack([result.initial.displacement[None, :], result.displacement_after()[:-1]])
+    return loading_for(result.scene).forces(result.initial, result.events["alpha"][events],
+                                            before[events])
 
 
 def record_fronts(arrest: np.ndarray) -> np.ndarray:

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .chain import ChainState, tangential_force as _tangential_force
+from .chain import ChainState
 from .scene import Scene
 
 
@@ -148,6 +148,12 @@ class TiltResult:
         e = self.events
         return e["work_gravity"] - e["elastic_change"] - e["dissipation"]
 
+    def _loading(self):
+        """The scene's loading protocol: the forces are its (tilt or pushed end)."""
+        from .engine.loading import loading_for
+
+        return loading_for(self.scene)
+
     def _need_displacements(self, what: str) -> EventSparse:
         if self.displacement is None:
             raise ValueError(
@@ -164,7 +170,7 @@ class TiltResult:
     def tangential_force(self) -> np.ndarray:
         """(K, N) tangential force F_t of every slider just after each event."""
         du = self.displacement_after()
-        return _tangential_force(self.initial, self.scene.xi, self.scene.walls, self.alpha, du)
+        return self._loading().forces(self.initial, self.alpha, du)
 
     def events_before(self, alphas) -> np.ndarray:
         """For each angle, how many rearrangements happened at or below it."""
@@ -181,19 +187,21 @@ class TiltResult:
 
         Between events nothing moves, so F_n(alpha) = E_n + sin(alpha) with E_n
         the elastic force after the last rearrangement at or below alpha.
-        Angles beyond the avalanche are meaningless (the chain is gone).
+        Angles beyond the avalanche are meaningless (the chain is gone).  With
+        loading='pushed_end' the angles are driver positions D, and slider 1
+        also feels the driver's spring K (D - u_1).
         """
         alphas = np.asarray(alphas, dtype=float)
-        return _tangential_force(self.initial, self.scene.xi, self.scene.walls, alphas,
-                                 self.displacement_at(alphas))
+        return self._loading().forces(self.initial, alphas, self.displacement_at(alphas))
 
     def prepared_force(self) -> np.ndarray:
         """The drawn tangential forces at alpha = 0, before the coupling is switched on."""
         return self.initial.elastic_force0 + self.scene.xi * self.initial.cantilever_stretch0
 
     def start_force(self) -> np.ndarray:
-        """F_t of every slider at alpha = 0 when the tilt starts (after any relaxation)."""
-        return _tangential_force(self.initial, self.scene.xi, self.scene.walls, 0.0)
+        """F_t of every slider at alpha = 0 (pushed end: D = 0) when the loading
+        starts (after any relaxation)."""
+        return self._loading().forces(self.initial, 0.0)
 
     # -- HDF5 (the layout, the writer and the reader: sliders.io.tilt_file) --
     def save(self, path: str | os.PathLike[str], overwrite: bool = True) -> None:

@@ -21,6 +21,8 @@ import math
 
 import numpy as np
 
+from ..chain import elastic_force, tangential_force
+
 TIE_TOL = 1e-12  # sliders whose instability angles tie within this start together
 # The transcendentals of next_instability: NumPy's; a caller may put the C
 # library's here (as keyed_random.TRANSCENDENTALS).
@@ -80,6 +82,11 @@ class TiltLoading:
         """Normal load that scales friction (cos alpha)."""
         return math.cos(alpha)
 
+    def forces(self, state, drives, displacement=None) -> np.ndarray:
+        """F_t of every slider at rest at each drive (the paper's E + sin alpha);
+        broadcasts over drives and (G, N) displacements, for analysis."""
+        return tangential_force(state, self.scene.xi, self.scene.walls, drives, displacement)
+
     def next_instability(self, elastic: np.ndarray, mu: np.ndarray, alpha: float, du=None):
         """The next critical tilt in closed form (module function ``next_instability``)."""
         return next_instability(elastic, mu, alpha)
@@ -138,6 +145,18 @@ class PushedEndLoading:
     def normal(self, drive: float) -> float:
         """Normal load at the fixed tilt."""
         return math.cos(self.scene.tilt)
+
+    def forces(self, state, drives, displacement=None) -> np.ndarray:
+        """F_t of every slider at rest at each driver position (``tangential``
+        in the same order); broadcasts over drives and (G, N) displacements."""
+        sc = self.scene
+        drives = np.asarray(drives, dtype=float)
+        du = state.displacement if displacement is None else np.asarray(displacement, dtype=float)
+        force = elastic_force(state, sc.xi, sc.walls, du) + math.sin(sc.tilt)
+        force = np.array(np.broadcast_to(force, np.broadcast_shapes(force.shape,
+                                                                    drives.shape + (1,))))
+        force[..., 0] += self.stiffness * (drives - du[..., 0])
+        return force
 
     def driver_force(self, drive: float, du: np.ndarray) -> float:
         """Force of the driver's spring on slider 1."""
