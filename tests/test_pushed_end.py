@@ -206,3 +206,26 @@ def test_result_forces_include_the_driver(backend):
     np.testing.assert_allclose(at_next[:, 0], force[:-1, 0] + sc.drive_stiffness
                                * (drive[1:] - 1e-9 - drive[:-1]), rtol=0, atol=1e-10)
     assert np.all(at_next[:, 0] > sc.mu_d * math.cos(sc.tilt))
+
+
+def test_tilt_animation_refuses_a_pushed_scene_in_one_line(tmp_path, capsys):
+    from sliders.figures import main
+
+    scene_file = tmp_path / "pushed.toml"
+    scene_file.write_text('n_sliders = 6\nloading = "pushed_end"\n')
+    assert main(["--animate", "--scene", str(scene_file), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "the pushed chain has its own figure" in err
+    assert not list(tmp_path.glob("*.gif"))
+
+
+@pytest.mark.parametrize("observable", ["valid_limit", "force_before_events",
+                                        "stopped_force_ratios"])
+def test_tilt_observables_refuse_a_pushed_run(observable):
+    """They take sin and cos of the drive: on driver positions they would be wrong."""
+    from sliders import observables
+
+    result = sliders.tilt(PUSHED.replace(xi=0.0, max_events=20))
+    with pytest.raises(ValueError, match="is an observable of the tilt"):
+        getattr(observables, observable)(result)
+    assert observables.event_sizes(result).size == 20  # loading-free ones still work

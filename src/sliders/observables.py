@@ -184,12 +184,20 @@ def default_grids(scene, n_alpha: int = 55, n_force_bins: int = 120,
 # -----------------------------------------------------------------------------
 
 
+def _tilt_only(result, what: str) -> None:
+    """These observables read the drive as the tilt (sin and cos of it)."""
+    if result.scene.loading != "tilt":
+        raise ValueError(f"{what} is an observable of the tilt (it takes sin and cos of the "
+                         f"drive); this run has loading={result.scene.loading!r}")
+
+
 def valid_limit(result) -> tuple[float, bool]:
     """(angle, inclusive): the chain is at rest at alpha < angle (<= if inclusive).
 
     See the module notes: alpha_c for an avalanche, scene.alpha_max for
     "alpha_max", the last event for "max_events", the failed event otherwise.
     """
+    _tilt_only(result, "valid_limit")
     if result.status == "avalanche" and math.isfinite(result.alpha_c):
         return float(result.alpha_c), False
     if result.status == "alpha_max":
@@ -232,6 +240,7 @@ def force_before_events(result, after: np.ndarray | None = None) -> np.ndarray:
     Nothing moves between events, so F_before[k] = F_after[k-1] - sin a_{k-1}
     + sin a_k (F_after[-1] the force when the tilt starts, at alpha = 0).
     """
+    _tilt_only(result, "force_before_events")
     after = force_history(result) if after is None else after
     if result.n_events == 0:
         return np.zeros((0, result.scene.n_sliders))
@@ -309,6 +318,7 @@ def event_total_displacement(result) -> np.ndarray:
         totals = np.zeros(d.n_events)
         np.add.at(totals, d.event_of_entry(), d.value)
         return totals
+    _tilt_only(result, "event_total_displacement of a summary-only run")
     a = np.asarray(result.alpha, dtype=float)
     if np.any(a <= 0.0):
         raise ValueError("event_total_displacement: a summary-only run with an event at "
@@ -342,6 +352,7 @@ def stopped_force_ratios(result) -> tuple[np.ndarray, np.ndarray]:
     F_t* = (2 mu_d - mu_s_mean) cos(alpha_k).
     """
     d = _need(result, "stopped_force_ratios")
+    _tilt_only(result, "stopped_force_ratios")
     sc = result.scene
     star_coef = 2.0 * sc.mu_d - sc.mu_s_mean
     if star_coef == 0.0:
