@@ -88,6 +88,10 @@ module sliders_events
   !> The interrupt flag is read after this many slider-steps (~0.3 ms) and
   !> before every event.
   integer(i8), parameter :: interrupt_check_steps = 100000_i8
+  !> Runs separated by at most this many pool sliders are integrated as one
+  !> span (one loop): a pool slider inside a loop costs less than a loop's
+  !> start and end (measured: benchmarks/kernel_speed.py).
+  integer(ip), parameter :: span_gap = 16
 
   !> What a non-finite status refers to (for the message).
   integer(ip), parameter :: detail_none = 0, detail_resting = 1, detail_state = 2
@@ -144,6 +148,7 @@ module sliders_events
     integer(ip), allocatable :: stops(:)     !< stops of one step
     integer(ip), allocatable :: sorted(:)    !< moved sliders, increasing
     integer(ip), allocatable :: run_lo(:), run_hi(:)  !< runs of active sliders
+    integer(ip), allocatable :: span_lo(:), span_hi(:)  !< the runs merged across short gaps
     integer(ip), allocatable :: seg_lo(:), seg_hi(:)  !< where update_runs looks
     integer(ip), allocatable :: changed(:)   !< sliders the tilt loop checks (increasing): all, or the last event's (xi = 0)
     real(dp), allocatable :: tree(:)         !< min-tree of min(root_down, root_up) (xi = 0)
@@ -153,6 +158,7 @@ module sliders_events
     real(dp) :: cos_a = 1.0_dp               !< cos(alpha) of the current event
     real(dp) :: force_tol = 0.0_dp
     integer(ip) :: n_runs = 0
+    integer(ip) :: n_spans = 0
     integer(ip) :: m = 0                     !< number of moving sliders
     integer(ip) :: ni = 0                    !< number of involved sliders
     integer(ip) :: n_down = 0                !< moving sliders with dir > 0
@@ -427,13 +433,14 @@ contains
     end do
     allocate (ws%tree(2*ws%leaves - 1))
     allocate (ws%cand(n), ws%slist(n), ws%sdir(n), ws%stops(n), ws%sorted(n), ws%run_lo(n), ws%run_hi(n))
-    allocate (ws%seg_lo(n + 2), ws%seg_hi(n + 2))
+    allocate (ws%seg_lo(n + 2), ws%seg_hi(n + 2), ws%span_lo(n), ws%span_hi(n))
     ws%v = 0.0_dp
     ws%acc = 0.0_dp
     ws%dir = 0.0_dp
     ws%v_t = 0.0_dp
     ws%acc_t = 0.0_dp
     ws%f_t = 0.0_dp
+    ws%thr = ieee_value(1.0_dp, ieee_positive_inf)     ! the pool's (see merge_spans)
     ws%active = .false.
     ws%involved = .false.
     ws%moved = .false.
@@ -464,7 +471,7 @@ contains
     integer(ip) :: n, i, j, k, r, n_moved, n_start, n_stop, draw_status, halvings
     integer(i8) :: unchecked_steps
     real(dp) :: sin_a, cos_a, friction, sum0, mean0, mean, t, h, lo, hi, mid
-    real(dp) :: dsum_t, step, xi, shift, f
+    real(dp) :: dsum_t, step, xi, shift, f, thr
     real(dp), allocatable :: swap(:)
     integer(ip) :: n_cand
     logical :: crossed, pool_crossed, draws_ok, changed
@@ -485,11 +492,11 @@ contains
     ws%cos_a = cos_a
     ws%force_tol = p%force_tol
     if (xi /= 0.0_dp) then
-      do i = 1, n
-        ws%thr(i) = static_threshold(mu(i), cos_a, p%force_tol)
+      do i = 1, n       ! ws%thr stays +inf in the pool (merge_spans)
+        thr = static_threshold(mu(i), cos_a, p%force_tol)
         f = ws%elastic(i) + sin_a
-        ws%gap_plus(i) = ws%thr(i) - f
-        ws%gap_minus(i) = ws%thr(i) + f
+        ws%gap_plus(i) = thr - f
+        ws%gap_minus(i) = thr + f
       end do
     end if
     ws%m = 0
@@ -738,13 +745,13 @@ contains
       mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
       shift = p%chain%xi*(mean_t - mean0)
     else
-      do r = 1, ws%n_runs
-        call predict_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t)
+      do r = 1, ws%n_spans
+        call predict_run(ws%span_lo(r), ws%span_hi(r), h, du, ws%v, ws%acc, ws%du_t)
       end do
     end if
     excess = -huge(1.0_dp)
-    do r = 1, ws%n_runs
-      call force_correct_run(p%chain, e0, ws%run_lo(r), ws%run_hi(r), mean_t, sin_a, h, &
+    do r = 1, ws%n_spans
+      call force_correct_run(p%chain, e0, ws%span_lo(r), ws%span_hi(r), mean_t, sin_a, h, &
                              friction, ws%du_t, ws%dir, ws%v, ws%acc, ws%thr, ws%f_t, &
                              ws%acc_t, ws%v_t, excess)
     end do
@@ -1140,6 +1147,7 @@ contains
     ws%acc_t(i) = 0.0_dp
     ws%gap_plus(i) = ws%thr(i) - (ws%f_t(i) - shift)
     ws%gap_minus(i) = ws%thr(i) + (ws%f_t(i) - shift)
+    ws%thr(i) = ieee_value(1.0_dp, ieee_positive_inf)   ! never crosses inside a span
     if (ws%arg_plus == 0 .or. ws%gap_plus(i) < ws%min_plus) then
       ws%min_plus = ws%gap_plus(i)
       ws%arg_plus = i
@@ -1157,6 +1165,7 @@ contains
 
     ws%n_runs = 0
     call scan_runs(ws, ws%i_lo, ws%i_hi)
+    call merge_spans(ws)
   end subroutine find_runs
 
   !> find_runs after a crossing step, in O(active + starts) instead of
@@ -1222,7 +1231,32 @@ contains
     do k = 1, n_seg
       call scan_runs(ws, ws%seg_lo(k), ws%seg_hi(k))
     end do
+    call merge_spans(ws)
   end subroutine update_runs
+
+  !> The spans a step integrates: the runs, merged where at most span_gap
+  !> pool sliders separate them.  A pool slider inside a span goes through
+  !> the step like a resting active slider (v = acc = 0: du_t = du, v_t =
+  !> 0, acc_t = 0) but never crosses there: its ws%thr is +inf (the pool is
+  !> tested through the gap minima, as before), so the spans change no
+  !> state, no crossing, no bit of any event.
+  subroutine merge_spans(ws)
+    type(workspace), intent(inout) :: ws
+    integer(ip) :: r
+
+    ws%n_spans = 0
+    do r = 1, ws%n_runs
+      if (ws%n_spans > 0) then
+        if (ws%run_lo(r) - ws%span_hi(ws%n_spans) - 1 <= span_gap) then
+          ws%span_hi(ws%n_spans) = ws%run_hi(r)
+          cycle
+        end if
+      end if
+      ws%n_spans = ws%n_spans + 1
+      ws%span_lo(ws%n_spans) = ws%run_lo(r)
+      ws%span_hi(ws%n_spans) = ws%run_hi(r)
+    end do
+  end subroutine merge_spans
 
   !> Appends the maximal runs of active sliders within lo..hi to ws%run_lo,
   !> ws%run_hi (the sliders just outside lo..hi are not active).
@@ -1332,6 +1366,7 @@ contains
     end do
     ws%ni = 0
     ws%n_runs = 0
+    ws%n_spans = 0
   end subroutine end_event
 
   ! ------------------------------------------------ next-instability tree
