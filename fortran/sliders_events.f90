@@ -744,22 +744,15 @@ contains
       end do
       mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
       shift = p%chain%xi*(mean_t - mean0)
-    else
-      do r = 1, ws%n_spans
-        call predict_run(ws%span_lo(r), ws%span_hi(r), h, du, ws%v, ws%acc, ws%du_t)
-      end do
     end if
-    excess = -huge(1.0_dp)
-    do r = 1, ws%n_spans
-      call force_correct_run(p%chain, e0, ws%span_lo(r), ws%span_hi(r), mean_t, sin_a, h, &
-                             friction, ws%du_t, ws%dir, ws%v, ws%acc, ws%thr, ws%f_t, &
-                             ws%acc_t, ws%v_t, excess)
-    end do
+    call step_spans(p%chain, p%chain%n, ws%n_spans, ws%span_lo, ws%span_hi, e0, h, mean_t, &
+                    sin_a, friction, du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, &
+                    ws%acc_t, ws%v_t, excess)
     crossed = excess > 0.0_dp .or. pool_crosses(ws, shift)
   end subroutine trial_step
 
   !> After a full trial step that crossed: the active sliders that crossed
-  !> (excess > 0, the test of force_correct_run) into ws%cand(1:n_cand), and
+  !> (excess > 0, the test of step_spans) into ws%cand(1:n_cand), and
   !> whether the pool crossed (its shift beyond a gap minimum) given the
   !> trial's total displacement `sum_t`.
   subroutine crossing_candidates(ws, sum_t, mean0, xi, n, n_cand, pool_crossed)
@@ -826,12 +819,10 @@ contains
       mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
       shift = p%chain%xi*(mean_t - mean0)
     end if
-    excess = -huge(1.0_dp)
-    do k = 1, n_cand
-      i = ws%cand(k)
-      call force_correct_run(p%chain, e0, i, i, mean_t, sin_a, h, friction, ws%du_t, ws%dir, &
-                             ws%v, ws%acc, ws%thr, ws%f_t, ws%acc_t, ws%v_t, excess)
-    end do
+    ! each candidate a span of its own (its neighbours are predicted above)
+    call step_spans(p%chain, p%chain%n, n_cand, ws%cand, ws%cand, e0, h, mean_t, sin_a, &
+                    friction, du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, ws%acc_t, &
+                    ws%v_t, excess)
     crossed = excess > 0.0_dp
     if (pool_crossed) crossed = crossed .or. pool_crosses(ws, shift)
   end subroutine candidate_trial
@@ -874,13 +865,13 @@ contains
     all_below = .true.
     do k = 1, n_cand
       i = ws%cand(k)
-      e_lo = -huge(1.0_dp)
-      call force_correct_run(p%chain, e0, i, i, mean_lo, sin_a, h, friction, ws%du_t, ws%dir, &
-                             ws%v, ws%acc, ws%thr, ws%f_t, ws%acc_t, ws%v_t, e_lo)
+      call step_spans(p%chain, p%chain%n, 1_ip, ws%cand(k:k), ws%cand(k:k), e0, h, mean_lo, &
+                      sin_a, friction, ws%du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, &
+                      ws%acc_t, ws%v_t, e_lo)
       f_lo = ws%f_t(i)
-      e_hi = -huge(1.0_dp)
-      call force_correct_run(p%chain, e0, i, i, mean_hi, sin_a, h, friction, ws%du_t, ws%dir, &
-                             ws%v, ws%acc, ws%thr, ws%f_t, ws%acc_t, ws%v_t, e_hi)
+      call step_spans(p%chain, p%chain%n, 1_ip, ws%cand(k:k), ws%cand(k:k), e0, h, mean_hi, &
+                      sin_a, friction, ws%du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, &
+                      ws%acc_t, ws%v_t, e_hi)
       f_hi = ws%f_t(i)
       if (e_lo > 0.0_dp .and. e_hi > 0.0_dp .and. (ws%dir(i) /= 0.0_dp .or. &
           (f_lo > 0.0_dp .and. f_hi > 0.0_dp) .or. (f_lo < 0.0_dp .and. f_hi < 0.0_dp))) return
@@ -931,7 +922,7 @@ contains
     integer(ip) :: i
 
     do i = lo, hi
-      du_t(i) = du(i) + (v(i)*h + 0.5_dp*acc(i)*h*h)
+      du_t(i) = verlet_position(du(i), v(i), acc(i), h)
     end do
   end subroutine predict_run
 
@@ -954,28 +945,80 @@ contains
     s4 = 0.0_dp
     last = lo + 4*((hi - lo + 1)/4) - 1
     do i = lo, last, 4
-      du_t(i) = du(i) + (v(i)*h + 0.5_dp*acc(i)*h*h)
-      du_t(i + 1) = du(i + 1) + (v(i + 1)*h + 0.5_dp*acc(i + 1)*h*h)
-      du_t(i + 2) = du(i + 2) + (v(i + 2)*h + 0.5_dp*acc(i + 2)*h*h)
-      du_t(i + 3) = du(i + 3) + (v(i + 3)*h + 0.5_dp*acc(i + 3)*h*h)
+      du_t(i) = verlet_position(du(i), v(i), acc(i), h)
+      du_t(i + 1) = verlet_position(du(i + 1), v(i + 1), acc(i + 1), h)
+      du_t(i + 2) = verlet_position(du(i + 2), v(i + 2), acc(i + 2), h)
+      du_t(i + 3) = verlet_position(du(i + 3), v(i + 3), acc(i + 3), h)
       s1 = s1 + (du_t(i) - du(i))
       s2 = s2 + (du_t(i + 1) - du(i + 1))
       s3 = s3 + (du_t(i + 2) - du(i + 2))
       s4 = s4 + (du_t(i + 3) - du(i + 3))
     end do
     do i = last + 1, hi
-      du_t(i) = du(i) + (v(i)*h + 0.5_dp*acc(i)*h*h)
+      du_t(i) = verlet_position(du(i), v(i), acc(i), h)
       s1 = s1 + (du_t(i) - du(i))
     end do
     dsum = dsum + ((s1 + s2) + (s3 + s4))
   end subroutine predict_sum_run
 
-  !> The second half of a trial over one run, in one pass: the force
-  !> F = E + sin(a) from the trial positions (sliders_chain's formula and
-  !> rounding, written out here so that it fuses with the rest; the chain's
-  !> ends through elastic_force), then verlet_correct.  Vectorises.
-  pure subroutine force_correct_run(chain, e0, lo, hi, mean, sin_a, h, friction, du_t, dir, &
-                                    v, acc, thr, f, acc_t, v_t, excess)
+  !> The step over every span in one call (explicit-shape arrays: nothing
+  !> but base addresses is passed, the loop constants are set up once): with
+  !> xi = 0 each span's positions are predicted here (with xi > 0 the
+  !> caller predicted them, with the mean's sums), then its forces (the
+  !> formula of sliders_chain, written out so that it vectorises; the chain's
+  !> end sliders in end_sliders) and the velocity update with the crossing
+  !> excess.  A span's force reads no trial position that a later span
+  !> predicts: merge_spans leaves at least span_gap + 1 pool sliders
+  !> between spans, and candidate_trial (one span per candidate) predicts
+  !> every candidate's neighbours first.
+  subroutine step_spans(chain, n, n_spans, span_lo, span_hi, e0, h, mean, sin_a, friction, &
+                        du, v, acc, dir, thr, du_t, f, acc_t, v_t, excess)
+    type(chain_params), intent(in) :: chain
+    integer(ip), intent(in) :: n, n_spans
+    integer(ip), intent(in) :: span_lo(n_spans), span_hi(n_spans)
+    real(dp), intent(in) :: e0(n)
+    real(dp), intent(in) :: h, mean, sin_a, friction
+    real(dp), intent(in) :: du(n), v(n), acc(n), dir(n), thr(n)
+    real(dp), intent(inout) :: du_t(n), f(n), acc_t(n), v_t(n)
+    real(dp), intent(out) :: excess
+    integer(ip) :: s, i, lo, hi
+    real(dp) :: xi
+
+    xi = chain%xi
+    excess = -huge(1.0_dp)
+    do s = 1, n_spans
+      lo = span_lo(s)
+      hi = span_hi(s)
+      if (xi == 0.0_dp) then
+        do i = lo, hi
+          du_t(i) = verlet_position(du(i), v(i), acc(i), h)
+        end do
+      end if
+      if (xi /= 0.0_dp) then
+        do i = max(lo, 2_ip), min(hi, n - 1_ip)
+          f(i) = ((e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) &
+                  - xi*(du_t(i) - mean)) + sin_a
+          call verlet_correct(h, friction, f(i), dir(i), v(i), acc(i), thr(i), acc_t(i), &
+                           v_t(i), excess)
+        end do
+      else
+        do i = max(lo, 2_ip), min(hi, n - 1_ip)
+          f(i) = (e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) + sin_a
+          call verlet_correct(h, friction, f(i), dir(i), v(i), acc(i), thr(i), acc_t(i), &
+                           v_t(i), excess)
+        end do
+      end if
+      if (lo == 1 .or. hi == n) call end_sliders(chain, e0, lo, hi, mean, sin_a, h, friction, &
+                                                 du_t, dir, v, acc, thr, f, acc_t, v_t, excess)
+    end do
+  end subroutine step_spans
+
+  !> The chain's end sliders within lo..hi, from their trial positions:
+  !> force (sliders_chain's elastic_force: walls or free ends) and
+  !> verlet_correct.  Slider 1's force is formed here and nowhere else in a
+  !> step (a loading acting on slider 1 adds its term here).
+  pure subroutine end_sliders(chain, e0, lo, hi, mean, sin_a, h, friction, du_t, dir, v, acc, &
+                              thr, f, acc_t, v_t, excess)
     type(chain_params), intent(in) :: chain
     real(dp), contiguous, intent(in) :: e0(:)
     integer(ip), intent(in) :: lo, hi
@@ -983,48 +1026,40 @@ contains
     real(dp), contiguous, intent(in) :: du_t(:), dir(:), v(:), acc(:), thr(:)
     real(dp), contiguous, intent(inout) :: f(:), acc_t(:), v_t(:)
     real(dp), intent(inout) :: excess
-    integer(ip) :: i, first, last
-    real(dp) :: xi
 
-    first = max(lo, 2_ip)
-    last = min(hi, chain%n - 1_ip)
-    xi = chain%xi
     if (lo == 1) then
       f(1) = elastic_force(chain, e0, du_t, 1_ip, mean) + sin_a
-      call verlet_correct(1_ip, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
-    end if
-    if (xi /= 0.0_dp) then
-      do i = first, last
-        f(i) = ((e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) &
-                - xi*(du_t(i) - mean)) + sin_a
-        call verlet_correct(i, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
-      end do
-    else
-      do i = first, last
-        f(i) = (e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) + sin_a
-        call verlet_correct(i, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
-      end do
+      call verlet_correct(h, friction, f(1), dir(1), v(1), acc(1), thr(1), acc_t(1), v_t(1), &
+                          excess)
     end if
     if (hi == chain%n .and. chain%n > 1) then
       f(hi) = elastic_force(chain, e0, du_t, hi, mean) + sin_a
-      call verlet_correct(hi, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+      call verlet_correct(h, friction, f(hi), dir(hi), v(hi), acc(hi), thr(hi), acc_t(hi), &
+                          v_t(hi), excess)
     end if
-  end subroutine force_correct_run
+  end subroutine end_sliders
 
-  !> Velocity-Verlet velocity of slider i from its trial force f(i), and the
+  !> Velocity-Verlet trial position du + v h + acc h**2/2 (one expression,
+  !> so that every loop computing it rounds alike).
+  elemental function verlet_position(du, v, acc, h) result(du_t)
+    real(dp), intent(in) :: du, v, acc, h
+    real(dp) :: du_t
+
+    du_t = du + (v*h + 0.5_dp*acc*h*h)
+  end function verlet_position
+
+  !> Velocity-Verlet velocity of a slider from its trial force f, and the
   !> largest crossing excess so far (crossing_excess).  For a mover (dir =
   !> +-1, dir**2 = 1) acc_t is f - friction dir exactly, for a resting one
   !> (dir = 0) it is 0 and v_t stays 0.  Branch-free.
-  pure subroutine verlet_correct(i, h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
-    integer(ip), intent(in) :: i
-    real(dp), intent(in) :: h, friction
-    real(dp), contiguous, intent(in) :: f(:), dir(:), v(:), acc(:), thr(:)
-    real(dp), contiguous, intent(inout) :: acc_t(:), v_t(:)
+  pure subroutine verlet_correct(h, friction, f, dir, v, acc, thr, acc_t, v_t, excess)
+    real(dp), intent(in) :: h, friction, f, dir, v, acc, thr
+    real(dp), intent(out) :: acc_t, v_t
     real(dp), intent(inout) :: excess
 
-    acc_t(i) = (f(i) - friction*dir(i))*(dir(i)*dir(i))
-    v_t(i) = v(i) + 0.5_dp*(acc(i) + acc_t(i))*h
-    excess = max(excess, crossing_excess(dir(i), v_t(i), f(i), thr(i)))
+    acc_t = (f - friction*dir)*(dir*dir)
+    v_t = v + 0.5_dp*(acc + acc_t)*h
+    excess = max(excess, crossing_excess(dir, v_t, f, thr))
   end subroutine verlet_correct
 
   !> How far a slider is beyond a crossing (a crossing if > 0): -dir v_t for
@@ -1239,22 +1274,26 @@ contains
   !> the step like a resting active slider (v = acc = 0: du_t = du, v_t =
   !> 0, acc_t = 0) but never crosses there: its ws%thr is +inf (the pool is
   !> tested through the gap minima, as before), so the spans change no
-  !> state, no crossing, no bit of any event.
+  !> state, no crossing, no bit of any event.  (Padding the spans to a
+  !> multiple of the vector width, to skip the loops' remainders, was
+  !> measured slower.)
   subroutine merge_spans(ws)
     type(workspace), intent(inout) :: ws
-    integer(ip) :: r
+    integer(ip) :: r, lo, hi
 
     ws%n_spans = 0
     do r = 1, ws%n_runs
+      lo = ws%run_lo(r)
+      hi = ws%run_hi(r)
       if (ws%n_spans > 0) then
-        if (ws%run_lo(r) - ws%span_hi(ws%n_spans) - 1 <= span_gap) then
-          ws%span_hi(ws%n_spans) = ws%run_hi(r)
-          cycle
+        if (lo - ws%span_hi(ws%n_spans) - 1 <= span_gap) then
+          lo = ws%span_lo(ws%n_spans)
+          ws%n_spans = ws%n_spans - 1
         end if
       end if
       ws%n_spans = ws%n_spans + 1
-      ws%span_lo(ws%n_spans) = ws%run_lo(r)
-      ws%span_hi(ws%n_spans) = ws%run_hi(r)
+      ws%span_lo(ws%n_spans) = lo
+      ws%span_hi(ws%n_spans) = hi
     end do
   end subroutine merge_spans
 
