@@ -472,7 +472,6 @@ contains
     integer(i8) :: unchecked_steps
     real(dp) :: sin_a, cos_a, friction, sum0, mean0, mean, t, h, lo, hi, mid
     real(dp) :: dsum_t, step, xi, shift, f, thr
-    real(dp), allocatable :: swap(:)
     integer(ip) :: n_cand
     logical :: crossed, pool_crossed, draws_ok, changed
 
@@ -525,9 +524,12 @@ contains
       ! ---- one step, cut back to the first crossing by bisection
       ! (the bisection tests only the sliders that crossed in the full step,
       ! and the pool if it did: O(crossers) per trial, not O(active))
-      h = p%dt
-      call trial_step(p, ws, e0, ws%du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
+      ! ---- steps of dt, accepted in quiet_steps until one crosses (its
+      ! trial is left unaccepted) or one of the checks below is due
+      call quiet_steps(p, ws, e0, sum0, mean0, sin_a, friction, t, rec, unchecked_steps, &
+                       dsum_t, crossed)
       if (crossed) then
+        h = p%dt
         call crossing_candidates(ws, sum0 + dsum_t, mean0, xi, n, n_cand, pool_crossed)
         if (xi /= 0.0_dp) call mean_sums(ws)
         lo = 0.0_dp
@@ -552,26 +554,9 @@ contains
         end do
         h = hi
         call trial_step(p, ws, e0, ws%du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
+        call swap_state(ws)
+        call count_step(ws, rec, h, dsum_t, t, unchecked_steps)
       end if
-
-      ! ---- accept the step: the trial becomes the state by swapping the
-      ! arrays, no copy (outside the active runs both hold the same values:
-      ! a resting active slider has du_t = du, v_t = acc_t = 0; a slider
-      ! leaving the runs is synchronised by deactivate)
-      call move_alloc(ws%du, swap)
-      call move_alloc(ws%du_t, ws%du)
-      call move_alloc(swap, ws%du_t)
-      call move_alloc(ws%v, swap)
-      call move_alloc(ws%v_t, ws%v)
-      call move_alloc(swap, ws%v_t)
-      call move_alloc(ws%acc, swap)
-      call move_alloc(ws%acc_t, ws%acc)
-      call move_alloc(swap, ws%acc_t)
-      ws%dsum = dsum_t
-      rec%n_steps = rec%n_steps + 1
-      rec%slider_steps = rec%slider_steps + ws%m
-      t = t + h
-      unchecked_steps = unchecked_steps + ws%m
       if (unchecked_steps >= interrupt_check_steps) then
         unchecked_steps = 0
         if (interrupt(1) /= 0) then
@@ -719,11 +704,90 @@ contains
     rec%dissipation = friction*ws%path
   end subroutine run_event
 
+  !> Steps of size p%dt from the state, each accepted at once, until one
+  !> crosses or the caller has a check due.  Between such steps the caller
+  !> (run_event) would do nothing but count: no crossing to process, the
+  !> finite check not due (it is after a crossing, beyond the duration cap
+  !> and every 1024th step), the interrupt counter below its limit, and the
+  !> runaway test unchanged (it depends on the moving sliders only, which
+  !> change only at a crossing; after the event's first step it is tested,
+  !> so that step is taken alone).  Returns with `crossed` and that step's
+  !> trial unaccepted in the trial arrays (dsum_t its sum), or after an
+  !> accepted step at which a check is due.  The trial and state arrays
+  !> alternate roles from step to step (no swap), and are swapped once at
+  !> the end if the state is in the trial arrays.
+  subroutine quiet_steps(p, ws, e0, sum0, mean0, sin_a, friction, t, rec, unchecked_steps, &
+                         dsum_t, crossed)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), intent(in) :: sum0, mean0, sin_a, friction
+    real(dp), intent(inout) :: t
+    type(event_record), intent(inout) :: rec
+    integer(i8), intent(inout) :: unchecked_steps
+    real(dp), intent(out) :: dsum_t
+    logical, intent(out) :: crossed
+    logical :: flipped
+    real(dp) :: shift, excess
+
+    flipped = .false.
+    do
+      if (flipped) then
+        call trial_arrays(p, ws, e0, p%dt, sum0, mean0, sin_a, friction, ws%du_t, ws%v_t, &
+                          ws%acc_t, ws%du, ws%v, ws%acc, ws%f_t, dsum_t, shift, excess)
+      else
+        call trial_arrays(p, ws, e0, p%dt, sum0, mean0, sin_a, friction, ws%du, ws%v, &
+                          ws%acc, ws%du_t, ws%v_t, ws%acc_t, ws%f_t, dsum_t, shift, excess)
+      end if
+      crossed = excess > 0.0_dp .or. pool_crosses(ws, shift)
+      if (crossed) exit
+      flipped = .not. flipped
+      call count_step(ws, rec, p%dt, dsum_t, t, unchecked_steps)
+      if (rec%n_steps == 1 .or. iand(rec%n_steps, 1023_i8) == 0 .or. &
+          t > p%max_event_duration .or. unchecked_steps >= interrupt_check_steps) exit
+    end do
+    if (flipped) call swap_state(ws)
+  end subroutine quiet_steps
+
+  !> An accepted step of size h: the event's sums and counters.
+  subroutine count_step(ws, rec, h, dsum_t, t, unchecked_steps)
+    type(workspace), intent(inout) :: ws
+    type(event_record), intent(inout) :: rec
+    real(dp), intent(in) :: h, dsum_t
+    real(dp), intent(inout) :: t
+    integer(i8), intent(inout) :: unchecked_steps
+
+    ws%dsum = dsum_t
+    rec%n_steps = rec%n_steps + 1
+    rec%slider_steps = rec%slider_steps + ws%m
+    t = t + h
+    unchecked_steps = unchecked_steps + ws%m
+  end subroutine count_step
+
+  !> The trial becomes the state by swapping the arrays, no copy (outside
+  !> the spans both hold the same values: a resting slider has du_t = du,
+  !> v_t = acc_t = 0; a slider leaving the runs is synchronised by
+  !> deactivate).
+  subroutine swap_state(ws)
+    type(workspace), intent(inout) :: ws
+    real(dp), allocatable :: swap(:)
+
+    call move_alloc(ws%du, swap)
+    call move_alloc(ws%du_t, ws%du)
+    call move_alloc(swap, ws%du_t)
+    call move_alloc(ws%v, swap)
+    call move_alloc(ws%v_t, ws%v)
+    call move_alloc(swap, ws%v_t)
+    call move_alloc(ws%acc, swap)
+    call move_alloc(ws%acc_t, ws%acc)
+    call move_alloc(swap, ws%acc_t)
+  end subroutine swap_state
+
   !> One velocity-Verlet trial of size h from the start of the step, over the
-  !> runs of active sliders: du_t, v_t, acc_t, and the forces f_t.  Resting
-  !> sliders keep du_t = du and get v_t = acc_t = 0.  `crossed`: a mover's
-  !> velocity changed sign, or a resting slider (active, or in the pool
-  !> through the gap minima) exceeds its threshold.
+  !> spans: du_t, v_t, acc_t, and the forces f_t.  Resting sliders keep
+  !> du_t = du and get v_t = acc_t = 0.  `crossed`: a mover's velocity
+  !> changed sign, or a resting slider (active, or in the pool through the
+  !> gap minima) exceeds its threshold.
   subroutine trial_step(p, ws, e0, du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
     type(tilt_params), intent(in) :: p
     type(workspace), intent(inout) :: ws
@@ -732,24 +796,40 @@ contains
     real(dp), intent(in) :: h, sum0, mean0, sin_a, friction
     real(dp), intent(out) :: dsum_t
     logical, intent(out) :: crossed
-    integer(ip) :: r
-    real(dp) :: mean_t, shift, excess
+    real(dp) :: shift, excess
+
+    call trial_arrays(p, ws, e0, h, sum0, mean0, sin_a, friction, du, ws%v, ws%acc, ws%du_t, &
+                      ws%v_t, ws%acc_t, ws%f_t, dsum_t, shift, excess)
+    crossed = excess > 0.0_dp .or. pool_crosses(ws, shift)
+  end subroutine trial_step
+
+  !> trial_step on the state du, v, acc into the trial du_t, v_t, acc_t, f
+  !> given as arguments (quiet_steps alternates them): the pool's shift and
+  !> the largest crossing excess of the spans.  Of ws only the runs, spans,
+  !> directions and thresholds are read.
+  subroutine trial_arrays(p, ws, e0, h, sum0, mean0, sin_a, friction, du, v, acc, du_t, v_t, &
+                          acc_t, f, dsum_t, shift, excess)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(in) :: ws
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), intent(in) :: h, sum0, mean0, sin_a, friction
+    real(dp), contiguous, intent(in) :: du(:), v(:), acc(:)
+    real(dp), contiguous, intent(inout) :: du_t(:), v_t(:), acc_t(:), f(:)
+    real(dp), intent(out) :: dsum_t, shift, excess
+    real(dp) :: mean_t
 
     dsum_t = ws%dsum
     mean_t = mean0
     shift = 0.0_dp
     if (p%chain%xi /= 0.0_dp) then
-      do r = 1, ws%n_runs
-        call predict_sum_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t, dsum_t)
-      end do
+      call predict_sum_runs(p%chain%n, ws%n_runs, ws%run_lo, ws%run_hi, h, du, v, acc, du_t, &
+                            dsum_t)
       mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
       shift = p%chain%xi*(mean_t - mean0)
     end if
     call step_spans(p%chain, p%chain%n, ws%n_spans, ws%span_lo, ws%span_hi, e0, h, mean_t, &
-                    sin_a, friction, du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, &
-                    ws%acc_t, ws%v_t, excess)
-    crossed = excess > 0.0_dp .or. pool_crosses(ws, shift)
-  end subroutine trial_step
+                    sin_a, friction, du, v, acc, ws%dir, ws%thr, du_t, f, acc_t, v_t, excess)
+  end subroutine trial_arrays
 
   !> After a full trial step that crossed: the active sliders that crossed
   !> (excess > 0, the test of step_spans) into ws%cand(1:n_cand), and
@@ -793,7 +873,7 @@ contains
     integer(ip), intent(in) :: n_cand
     logical, intent(in) :: pool_crossed
     logical, intent(out) :: crossed
-    integer(ip) :: r, k, i, lo, hi
+    integer(ip) :: k, i, lo, hi
     real(dp) :: mean_t, shift, excess, dsum_t
     logical :: decided
 
@@ -813,9 +893,8 @@ contains
                           decided, crossed)
       if (decided) return
       dsum_t = ws%dsum        ! the exact mean (rare): every active slider's increment
-      do r = 1, ws%n_runs
-        call predict_sum_run(ws%run_lo(r), ws%run_hi(r), h, du, ws%v, ws%acc, ws%du_t, dsum_t)
-      end do
+      call predict_sum_runs(p%chain%n, ws%n_runs, ws%run_lo, ws%run_hi, h, du, ws%v, ws%acc, &
+                            ws%du_t, dsum_t)
       mean_t = (sum0 + dsum_t)/real(p%chain%n, dp)
       shift = p%chain%xi*(mean_t - mean0)
     end if
@@ -926,40 +1005,46 @@ contains
     end do
   end subroutine predict_run
 
-  !> predict_run fused with dsum = dsum + sum of (du_t - du) over the run
-  !> (xi > 0: the mean moves).  Four partial sums: the order of the
-  !> additions is free, the chain of dependent additions short; it is fixed
-  !> (slider lo + j goes to sum j mod 4), so every trial rounds alike.
-  pure subroutine predict_sum_run(lo, hi, h, du, v, acc, du_t, dsum)
-    integer(ip), intent(in) :: lo, hi
+  !> predict_run over every run, fused with dsum = dsum + the sum of du_t -
+  !> du (xi > 0: the mean moves), run after run.  Four partial sums per
+  !> run: the order of the additions is free, the chain of dependent
+  !> additions short; it is fixed (slider lo + j goes to sum j mod 4), so
+  !> every trial rounds alike.
+  pure subroutine predict_sum_runs(n, n_runs, run_lo, run_hi, h, du, v, acc, du_t, dsum)
+    integer(ip), intent(in) :: n, n_runs
+    integer(ip), intent(in) :: run_lo(n_runs), run_hi(n_runs)
     real(dp), intent(in) :: h
-    real(dp), contiguous, intent(in) :: du(:), v(:), acc(:)
-    real(dp), contiguous, intent(inout) :: du_t(:)
+    real(dp), intent(in) :: du(n), v(n), acc(n)
+    real(dp), intent(inout) :: du_t(n)
     real(dp), intent(inout) :: dsum
-    integer(ip) :: i, last
+    integer(ip) :: r, i, lo, hi, last
     real(dp) :: s1, s2, s3, s4
 
-    s1 = 0.0_dp
-    s2 = 0.0_dp
-    s3 = 0.0_dp
-    s4 = 0.0_dp
-    last = lo + 4*((hi - lo + 1)/4) - 1
-    do i = lo, last, 4
-      du_t(i) = verlet_position(du(i), v(i), acc(i), h)
-      du_t(i + 1) = verlet_position(du(i + 1), v(i + 1), acc(i + 1), h)
-      du_t(i + 2) = verlet_position(du(i + 2), v(i + 2), acc(i + 2), h)
-      du_t(i + 3) = verlet_position(du(i + 3), v(i + 3), acc(i + 3), h)
-      s1 = s1 + (du_t(i) - du(i))
-      s2 = s2 + (du_t(i + 1) - du(i + 1))
-      s3 = s3 + (du_t(i + 2) - du(i + 2))
-      s4 = s4 + (du_t(i + 3) - du(i + 3))
+    do r = 1, n_runs
+      lo = run_lo(r)
+      hi = run_hi(r)
+      s1 = 0.0_dp
+      s2 = 0.0_dp
+      s3 = 0.0_dp
+      s4 = 0.0_dp
+      last = lo + 4*((hi - lo + 1)/4) - 1
+      do i = lo, last, 4
+        du_t(i) = verlet_position(du(i), v(i), acc(i), h)
+        du_t(i + 1) = verlet_position(du(i + 1), v(i + 1), acc(i + 1), h)
+        du_t(i + 2) = verlet_position(du(i + 2), v(i + 2), acc(i + 2), h)
+        du_t(i + 3) = verlet_position(du(i + 3), v(i + 3), acc(i + 3), h)
+        s1 = s1 + (du_t(i) - du(i))
+        s2 = s2 + (du_t(i + 1) - du(i + 1))
+        s3 = s3 + (du_t(i + 2) - du(i + 2))
+        s4 = s4 + (du_t(i + 3) - du(i + 3))
+      end do
+      do i = last + 1, hi
+        du_t(i) = verlet_position(du(i), v(i), acc(i), h)
+        s1 = s1 + (du_t(i) - du(i))
+      end do
+      dsum = dsum + ((s1 + s2) + (s3 + s4))
     end do
-    do i = last + 1, hi
-      du_t(i) = verlet_position(du(i), v(i), acc(i), h)
-      s1 = s1 + (du_t(i) - du(i))
-    end do
-    dsum = dsum + ((s1 + s2) + (s3 + s4))
-  end subroutine predict_sum_run
+  end subroutine predict_sum_runs
 
   !> The step over every span in one call (explicit-shape arrays: nothing
   !> but base addresses is passed, the loop constants are set up once): with
