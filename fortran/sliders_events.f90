@@ -715,7 +715,9 @@ contains
   !> trial unaccepted in the trial arrays (dsum_t its sum), or after an
   !> accepted step at which a check is due.  The trial and state arrays
   !> alternate roles from step to step (no swap), and are swapped once at
-  !> the end if the state is in the trial arrays.
+  !> the end if the state is in the trial arrays.  The accepted steps'
+  !> forces are never read, so they are not stored (one store per slider
+  !> less); the crossing trial is computed again with them.
   subroutine quiet_steps(p, ws, e0, sum0, mean0, sin_a, friction, t, rec, unchecked_steps, &
                          dsum_t, crossed)
     type(tilt_params), intent(in) :: p
@@ -733,11 +735,11 @@ contains
     flipped = .false.
     do
       if (flipped) then
-        call trial_arrays(p, ws, e0, p%dt, sum0, mean0, sin_a, friction, ws%du_t, ws%v_t, &
-                          ws%acc_t, ws%du, ws%v, ws%acc, ws%f_t, dsum_t, shift, excess)
+        call trial_arrays(p, ws, e0, p%dt, sum0, mean0, sin_a, friction, .false., ws%du_t, &
+                          ws%v_t, ws%acc_t, ws%du, ws%v, ws%acc, ws%f_t, dsum_t, shift, excess)
       else
-        call trial_arrays(p, ws, e0, p%dt, sum0, mean0, sin_a, friction, ws%du, ws%v, &
-                          ws%acc, ws%du_t, ws%v_t, ws%acc_t, ws%f_t, dsum_t, shift, excess)
+        call trial_arrays(p, ws, e0, p%dt, sum0, mean0, sin_a, friction, .false., ws%du, &
+                          ws%v, ws%acc, ws%du_t, ws%v_t, ws%acc_t, ws%f_t, dsum_t, shift, excess)
       end if
       crossed = excess > 0.0_dp .or. pool_crosses(ws, shift)
       if (crossed) exit
@@ -747,6 +749,10 @@ contains
           t > p%max_event_duration .or. unchecked_steps >= interrupt_check_steps) exit
     end do
     if (flipped) call swap_state(ws)
+    ! the crossing trial again, the same numbers, now with its forces (the
+    ! crossing's bookkeeping reads them)
+    if (crossed) call trial_step(p, ws, e0, ws%du, p%dt, sum0, mean0, sin_a, friction, dsum_t, &
+                                 crossed)
   end subroutine quiet_steps
 
   !> An accepted step of size h: the event's sums and counters.
@@ -798,21 +804,22 @@ contains
     logical, intent(out) :: crossed
     real(dp) :: shift, excess
 
-    call trial_arrays(p, ws, e0, h, sum0, mean0, sin_a, friction, du, ws%v, ws%acc, ws%du_t, &
-                      ws%v_t, ws%acc_t, ws%f_t, dsum_t, shift, excess)
+    call trial_arrays(p, ws, e0, h, sum0, mean0, sin_a, friction, .true., du, ws%v, ws%acc, &
+                      ws%du_t, ws%v_t, ws%acc_t, ws%f_t, dsum_t, shift, excess)
     crossed = excess > 0.0_dp .or. pool_crosses(ws, shift)
   end subroutine trial_step
 
   !> trial_step on the state du, v, acc into the trial du_t, v_t, acc_t, f
-  !> given as arguments (quiet_steps alternates them): the pool's shift and
-  !> the largest crossing excess of the spans.  Of ws only the runs, spans,
-  !> directions and thresholds are read.
-  subroutine trial_arrays(p, ws, e0, h, sum0, mean0, sin_a, friction, du, v, acc, du_t, v_t, &
-                          acc_t, f, dsum_t, shift, excess)
+  !> given as arguments (quiet_steps alternates them; f only if
+  !> keep_forces): the pool's shift and the largest crossing excess of the
+  !> spans.  Of ws only the runs, spans, directions and thresholds are read.
+  subroutine trial_arrays(p, ws, e0, h, sum0, mean0, sin_a, friction, keep_forces, du, v, acc, &
+                          du_t, v_t, acc_t, f, dsum_t, shift, excess)
     type(tilt_params), intent(in) :: p
     type(workspace), intent(in) :: ws
     real(dp), contiguous, intent(in) :: e0(:)
     real(dp), intent(in) :: h, sum0, mean0, sin_a, friction
+    logical, intent(in) :: keep_forces
     real(dp), contiguous, intent(in) :: du(:), v(:), acc(:)
     real(dp), contiguous, intent(inout) :: du_t(:), v_t(:), acc_t(:), f(:)
     real(dp), intent(out) :: dsum_t, shift, excess
@@ -828,7 +835,8 @@ contains
       shift = p%chain%xi*(mean_t - mean0)
     end if
     call step_spans(p%chain, p%chain%n, ws%n_spans, ws%span_lo, ws%span_hi, e0, h, mean_t, &
-                    sin_a, friction, du, v, acc, ws%dir, ws%thr, du_t, f, acc_t, v_t, excess)
+                    sin_a, friction, keep_forces, du, v, acc, ws%dir, ws%thr, du_t, f, acc_t, &
+                    v_t, excess)
   end subroutine trial_arrays
 
   !> After a full trial step that crossed: the active sliders that crossed
@@ -900,7 +908,7 @@ contains
     end if
     ! each candidate a span of its own (its neighbours are predicted above)
     call step_spans(p%chain, p%chain%n, n_cand, ws%cand, ws%cand, e0, h, mean_t, sin_a, &
-                    friction, du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, ws%acc_t, &
+                    friction, .true., du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, ws%acc_t, &
                     ws%v_t, excess)
     crossed = excess > 0.0_dp
     if (pool_crossed) crossed = crossed .or. pool_crosses(ws, shift)
@@ -945,11 +953,11 @@ contains
     do k = 1, n_cand
       i = ws%cand(k)
       call step_spans(p%chain, p%chain%n, 1_ip, ws%cand(k:k), ws%cand(k:k), e0, h, mean_lo, &
-                      sin_a, friction, ws%du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, &
+                      sin_a, friction, .true., ws%du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, &
                       ws%acc_t, ws%v_t, e_lo)
       f_lo = ws%f_t(i)
       call step_spans(p%chain, p%chain%n, 1_ip, ws%cand(k:k), ws%cand(k:k), e0, h, mean_hi, &
-                      sin_a, friction, ws%du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, &
+                      sin_a, friction, .true., ws%du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, &
                       ws%acc_t, ws%v_t, e_hi)
       f_hi = ws%f_t(i)
       if (e_lo > 0.0_dp .and. e_hi > 0.0_dp .and. (ws%dir(i) /= 0.0_dp .or. &
@@ -1057,17 +1065,18 @@ contains
   !> between spans, and candidate_trial (one span per candidate) predicts
   !> every candidate's neighbours first.
   subroutine step_spans(chain, n, n_spans, span_lo, span_hi, e0, h, mean, sin_a, friction, &
-                        du, v, acc, dir, thr, du_t, f, acc_t, v_t, excess)
+                        keep_forces, du, v, acc, dir, thr, du_t, f, acc_t, v_t, excess)
     type(chain_params), intent(in) :: chain
     integer(ip), intent(in) :: n, n_spans
     integer(ip), intent(in) :: span_lo(n_spans), span_hi(n_spans)
     real(dp), intent(in) :: e0(n)
     real(dp), intent(in) :: h, mean, sin_a, friction
+    logical, intent(in) :: keep_forces     ! store f (the end sliders' always)
     real(dp), intent(in) :: du(n), v(n), acc(n), dir(n), thr(n)
     real(dp), intent(inout) :: du_t(n), f(n), acc_t(n), v_t(n)
     real(dp), intent(out) :: excess
     integer(ip) :: s, i, lo, hi
-    real(dp) :: xi
+    real(dp) :: xi, fi
 
     xi = chain%xi
     excess = -huge(1.0_dp)
@@ -1081,15 +1090,17 @@ contains
       end if
       if (xi /= 0.0_dp) then
         do i = max(lo, 2_ip), min(hi, n - 1_ip)
-          f(i) = ((e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) &
-                  - xi*(du_t(i) - mean)) + sin_a
-          call verlet_correct(h, friction, f(i), dir(i), v(i), acc(i), thr(i), acc_t(i), &
+          fi = ((e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) &
+                - xi*(du_t(i) - mean)) + sin_a
+          if (keep_forces) f(i) = fi
+          call verlet_correct(h, friction, fi, dir(i), v(i), acc(i), thr(i), acc_t(i), &
                            v_t(i), excess)
         end do
       else
         do i = max(lo, 2_ip), min(hi, n - 1_ip)
-          f(i) = (e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) + sin_a
-          call verlet_correct(h, friction, f(i), dir(i), v(i), acc(i), thr(i), acc_t(i), &
+          fi = (e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) + sin_a
+          if (keep_forces) f(i) = fi
+          call verlet_correct(h, friction, fi, dir(i), v(i), acc(i), thr(i), acc_t(i), &
                            v_t(i), excess)
         end do
       end if
