@@ -6,13 +6,16 @@
 !>
 !> * Per integration step only the *active* sliders (the moving ones and
 !>   their neighbours) have their force computed and their threshold checked;
-!>   they are kept as runs of consecutive sliders, so that the step is two
-!>   branch-free loops over contiguous memory (vectorised): predict (and the
-!>   mean's sums when xi > 0), then force + velocity + crossing test.  A
-!>   resting active slider has v = acc = 0, so the Verlet update leaves it in
-!>   place.  An accepted trial becomes the state by swapping the arrays
-!>   (ws%du, v, acc and their trial twins; both agree outside the runs), and
-!>   the caller's du is written at the end of the event.  The
+!>   they are kept as runs of consecutive sliders, merged into spans across
+!>   short gaps of pool sliders (which ride along with threshold +inf), so
+!>   that the step is, per span, two branch-free loops over contiguous
+!>   memory (vectorised): predict (and, per run, the mean's sums when xi >
+!>   0), then force + velocity + crossing test (step_spans, one call for all
+!>   spans).  A resting slider has v = acc = 0, so the Verlet update leaves
+!>   it in place.  The steps between two crossings are taken in one call
+!>   (quiet_steps), the trial and state arrays (ws%du, v, acc and their
+!>   trial twins; both agree outside the spans) swapping roles from step to
+!>   step; the caller's du is written at the end of the event.  The
 !>   *involved* sliders (every slider active at some point of the event) are
 !>   remembered for the bookkeeping at the end of the event.  The sum of du is
 !>   kept incrementally during an event (recomputed exactly between events).
@@ -953,12 +956,12 @@ contains
     do k = 1, n_cand
       i = ws%cand(k)
       call step_spans(p%chain, p%chain%n, 1_ip, ws%cand(k:k), ws%cand(k:k), e0, h, mean_lo, &
-                      sin_a, friction, .true., ws%du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, &
-                      ws%acc_t, ws%v_t, e_lo)
+                      sin_a, friction, .true., ws%du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, &
+                      ws%f_t, ws%acc_t, ws%v_t, e_lo)
       f_lo = ws%f_t(i)
       call step_spans(p%chain, p%chain%n, 1_ip, ws%cand(k:k), ws%cand(k:k), e0, h, mean_hi, &
-                      sin_a, friction, .true., ws%du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, ws%f_t, &
-                      ws%acc_t, ws%v_t, e_hi)
+                      sin_a, friction, .true., ws%du, ws%v, ws%acc, ws%dir, ws%thr, ws%du_t, &
+                      ws%f_t, ws%acc_t, ws%v_t, e_hi)
       f_hi = ws%f_t(i)
       if (e_lo > 0.0_dp .and. e_hi > 0.0_dp .and. (ws%dir(i) /= 0.0_dp .or. &
           (f_lo > 0.0_dp .and. f_hi > 0.0_dp) .or. (f_lo < 0.0_dp .and. f_hi < 0.0_dp))) return
