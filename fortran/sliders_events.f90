@@ -95,6 +95,10 @@ module sliders_events
   !> span (one loop): a pool slider inside a loop costs less than a loop's
   !> start and end (measured: benchmarks/kernel_speed.py).
   integer(ip), parameter :: span_gap = 16
+  !> quiet_steps stores the forces (which only a crossing reads) in its first
+  !> this many steps: a crossing that comes later pays one trial again, less
+  !> than the stores it saved (about 5 % of a trial each).
+  integer(ip), parameter :: keep_forces_steps = 32
 
   !> What a non-finite status refers to (for the message).
   integer(ip), parameter :: detail_none = 0, detail_resting = 1, detail_state = 2
@@ -590,15 +594,7 @@ contains
         if (xi /= 0.0_dp) shift = xi*(mean - mean0)
 
         ! stops: rest, count, redraw (keyed by the 0-based slider number)
-        n_stop = 0
-        do r = 1, ws%n_runs
-          do i = ws%run_lo(r), ws%run_hi(r)
-            if (ws%dir(i)*ws%v(i) < 0.0_dp) then
-              n_stop = n_stop + 1
-              ws%stops(n_stop) = i
-            end if
-          end do
-        end do
+        call find_changes(ws, .true., ws%stops, n_stop)
         if (n_stop > 0) then
           rec%n_stops = rec%n_stops + n_stop
           draws_ok = .true.
@@ -629,15 +625,9 @@ contains
         end if
 
         ! starts: every resting slider beyond its threshold now
-        n_start = 0
-        do r = 1, ws%n_runs
-          do i = ws%run_lo(r), ws%run_hi(r)
-            if (ws%dir(i) == 0.0_dp .and. abs(ws%f_t(i)) > ws%thr(i)) then
-              n_start = n_start + 1
-              ws%slist(n_start) = i
-              ws%sdir(n_start) = sign(1.0_dp, ws%f_t(i))
-            end if
-          end do
+        call find_changes(ws, .false., ws%slist, n_start)
+        do k = 1, n_start
+          ws%sdir(k) = sign(1.0_dp, ws%f_t(ws%slist(k)))
         end do
         if (pool_crosses(ws, shift)) then
           do i = 1, n        ! rare: a pool slider crossed, find it (O(n))
@@ -719,8 +709,9 @@ contains
   !> accepted step at which a check is due.  The trial and state arrays
   !> alternate roles from step to step (no swap), and are swapped once at
   !> the end if the state is in the trial arrays.  The accepted steps'
-  !> forces are never read, so they are not stored (one store per slider
-  !> less); the crossing trial is computed again with them.
+  !> forces are never read, so after the first keep_forces_steps steps of
+  !> a call they are not stored (one store per slider less), and a
+  !> crossing trial then is computed again with them.
   subroutine quiet_steps(p, ws, e0, sum0, mean0, sin_a, friction, t, rec, unchecked_steps, &
                          dsum_t, crossed)
     type(tilt_params), intent(in) :: p
@@ -732,16 +723,20 @@ contains
     integer(i8), intent(inout) :: unchecked_steps
     real(dp), intent(out) :: dsum_t
     logical, intent(out) :: crossed
-    logical :: flipped
+    logical :: flipped, keep_forces
+    integer(ip) :: steps
     real(dp) :: shift, excess
 
     flipped = .false.
+    steps = 0
     do
+      steps = steps + 1
+      keep_forces = steps <= keep_forces_steps
       if (flipped) then
-        call trial_arrays(p, ws, e0, p%dt, sum0, mean0, sin_a, friction, .false., ws%du_t, &
+        call trial_arrays(p, ws, e0, p%dt, sum0, mean0, sin_a, friction, keep_forces, ws%du_t, &
                           ws%v_t, ws%acc_t, ws%du, ws%v, ws%acc, ws%f_t, dsum_t, shift, excess)
       else
-        call trial_arrays(p, ws, e0, p%dt, sum0, mean0, sin_a, friction, .false., ws%du, &
+        call trial_arrays(p, ws, e0, p%dt, sum0, mean0, sin_a, friction, keep_forces, ws%du, &
                           ws%v, ws%acc, ws%du_t, ws%v_t, ws%acc_t, ws%f_t, dsum_t, shift, excess)
       end if
       crossed = excess > 0.0_dp .or. pool_crosses(ws, shift)
@@ -754,7 +749,7 @@ contains
     if (flipped) call swap_state(ws)
     ! the crossing trial again, the same numbers, now with its forces (the
     ! crossing's bookkeeping reads them)
-    if (crossed) call trial_step(p, ws, e0, ws%du, p%dt, sum0, mean0, sin_a, friction, dsum_t, &
+    if (crossed .and. .not. keep_forces) call trial_step(p, ws, e0, ws%du, p%dt, sum0, mean0, sin_a, friction, dsum_t, &
                                  crossed)
   end subroutine quiet_steps
 
@@ -1192,19 +1187,73 @@ contains
     end do
   end subroutine store_displacements
 
-  !> Whether du and v of every active slider are finite.
+  !> After a crossing step, the active sliders (increasing) that stop (with
+  !> `stopping`: a mover whose velocity turned against its direction) or
+  !> start (a resting one beyond its threshold), into found(1:n_found).  A
+  !> crossing step has one or two of them: a vectorised count first, then a
+  !> scan that ends at the last one.
+  subroutine find_changes(ws, stopping, found, n_found)
+    type(workspace), intent(in) :: ws
+    logical, intent(in) :: stopping
+    integer(ip), contiguous, intent(inout) :: found(:)
+    integer(ip), intent(out) :: n_found
+    integer(ip) :: r, i, n_count
+
+    n_count = 0                     ! (integer flags: the count has no branch)
+    do r = 1, ws%n_runs
+      if (stopping) then
+        do i = ws%run_lo(r), ws%run_hi(r)
+          n_count = n_count + merge(1_ip, 0_ip, ws%dir(i)*ws%v(i) < 0.0_dp)
+        end do
+      else
+        do i = ws%run_lo(r), ws%run_hi(r)
+          n_count = n_count + merge(1_ip, 0_ip, ws%dir(i) == 0.0_dp) &
+                              *merge(1_ip, 0_ip, abs(ws%f_t(i)) > ws%thr(i))
+        end do
+      end if
+    end do
+    n_found = 0
+    do r = 1, ws%n_runs
+      if (n_found == n_count) exit
+      do i = ws%run_lo(r), ws%run_hi(r)
+        if (changes(i)) then
+          n_found = n_found + 1
+          found(n_found) = i
+        end if
+      end do
+    end do
+
+  contains
+
+    !> Whether slider i stops (stopping) or starts.
+    pure logical function changes(i)
+      integer(ip), intent(in) :: i
+
+      if (stopping) then
+        changes = ws%dir(i)*ws%v(i) < 0.0_dp
+      else
+        changes = ws%dir(i) == 0.0_dp .and. abs(ws%f_t(i)) > ws%thr(i)
+      end if
+    end function changes
+
+  end subroutine find_changes
+
+  !> Whether du and v of every active slider are finite (a count of the
+  !> others: an integer sum vectorises, a chain of .and. did not).
   pure function all_finite(ws, du) result(finite)
     type(workspace), intent(in) :: ws
     real(dp), contiguous, intent(in) :: du(:)
     logical :: finite
-    integer(ip) :: r, i
+    integer(ip) :: r, i, n_bad
 
-    finite = .true.
+    n_bad = 0
     do r = 1, ws%n_runs
       do i = ws%run_lo(r), ws%run_hi(r)
-        finite = finite .and. abs(du(i)) <= huge(1.0_dp) .and. abs(ws%v(i)) <= huge(1.0_dp)
+        n_bad = n_bad + merge(0_ip, 1_ip, abs(du(i)) <= huge(1.0_dp) .and. &
+                                          abs(ws%v(i)) <= huge(1.0_dp))
       end do
     end do
+    finite = n_bad == 0
   end function all_finite
 
   !> Sets resting slider i moving in direction d; it and its neighbours
