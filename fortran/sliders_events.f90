@@ -528,11 +528,11 @@ contains
     rec = event_record()
     unchecked_steps = 0
     do while (ws%m > 0)
-      ! ---- one step, cut back to the first crossing by bisection
-      ! (the bisection tests only the sliders that crossed in the full step,
-      ! and the pool if it did: O(crossers) per trial, not O(active))
       ! ---- steps of dt, accepted in quiet_steps until one crosses (its
-      ! trial is left unaccepted) or one of the checks below is due
+      ! trial is left unaccepted) or one of the checks below is due; a
+      ! crossing step is cut back to the first crossing by bisection (which
+      ! tests only the sliders that crossed in the full step, and the pool
+      ! if it did: O(crossers) per trial, not O(active)), then accepted
       call quiet_steps(p, ws, e0, sum0, mean0, sin_a, friction, t, rec, unchecked_steps, &
                        dsum_t, crossed)
       if (crossed) then
