@@ -139,7 +139,7 @@ module sliders_events
     real(dp), allocatable :: v(:), acc(:), dir(:)
     real(dp), allocatable :: v_t(:), acc_t(:)
     real(dp), allocatable :: f_t(:)          !< force F of the active sliders, trial
-    real(dp), allocatable :: thr(:)          !< mu cos(a) + force_tol
+    real(dp), allocatable :: thr(:)          !< mu cos(a) + force_tol (+inf in the pool)
     real(dp), allocatable :: gap_plus(:)     !< pool: thr - (F - s) on joining it
     real(dp), allocatable :: gap_minus(:)    !< pool: thr + (F - s) on joining it
     real(dp), allocatable :: mu_new(:)
@@ -1092,14 +1092,14 @@ contains
                 - xi*(du_t(i) - mean)) + sin_a
           if (keep_forces) f(i) = fi
           call verlet_correct(h, friction, fi, dir(i), v(i), acc(i), thr(i), acc_t(i), &
-                           v_t(i), excess)
+                              v_t(i), excess)
         end do
       else
         do i = max(lo, 2_ip), min(hi, n - 1_ip)
           fi = (e0(i) + ((du_t(i + 1) - du_t(i)) - (du_t(i) - du_t(i - 1)))) + sin_a
           if (keep_forces) f(i) = fi
           call verlet_correct(h, friction, fi, dir(i), v(i), acc(i), thr(i), acc_t(i), &
-                           v_t(i), excess)
+                              v_t(i), excess)
         end do
       end if
       if (lo == 1 .or. hi == n) call end_sliders(chain, e0, lo, hi, mean, sin_a, h, friction, &
