@@ -12,7 +12,15 @@
    writes them to benchmarks/results/kernel_speed.json (under --label, so a
    "before" and an "after" measurement can sit side by side).
 
+With --reference PYTHON (the interpreter of another installation of
+sliders, e.g. a checkout of the code before a change) that build is
+measured in the same run, scene by scene alternating with this one, against
+the same baseline, and stored under --reference-label: a before/after
+comparison that the machine's drift between two runs cannot fake.  Every
+measurement runs in a fresh process (the same for both builds).
+
 Usage: python benchmarks/kernel_speed.py [--label after] [--repeat 2]
+           [--reference /path/to/other/python --reference-label before]
 """
 
 from __future__ import annotations
@@ -26,9 +34,6 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-
-import sliders
-from sliders import Scene
 
 HERE = Path(__file__).parent
 RESULTS = HERE / "results"
@@ -52,18 +57,43 @@ def baseline_ns(repeat: int, n_sliders: int = 250, steps: int = 400_000) -> floa
     return best
 
 
-def kernel_row(xi: float, seed: int, repeat: int) -> dict:
+# One scene to the avalanche, best CPU time of `repeat` runs, in the process
+# of the interpreter given (so that another build can be measured alike).
+SCENE_RUN = """
+import json, sys, time
+import sliders
+from sliders import Scene
+xi, seed, repeat = float(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+scene = Scene(n_sliders=400, xi=xi, seed=seed, record="summary")
+best = float("inf")
+for _ in range(repeat):
+    start = time.process_time()
+    result = sliders.tilt(scene)
+    best = min(best, time.process_time() - start)
+print(json.dumps({"status": result.status, "alpha_c": result.alpha_c,
+                  "n_events": result.n_events, "slider_steps": result.total_slider_steps,
+                  "cpu_s": best}))
+"""
+
+
+def kernel_row(python: str, xi: float, seed: int, repeat: int) -> dict:
     """Best CPU time of one N = 400 scene to the avalanche, and its work."""
-    scene = Scene(n_sliders=400, xi=xi, seed=seed, record="summary")
-    best, result = float("inf"), None
-    for _ in range(repeat):
-        start = time.process_time()
-        result = sliders.tilt(scene)
-        best = min(best, time.process_time() - start)
-    steps = result.total_slider_steps
-    return {"xi": xi, "seed": seed, "status": result.status, "alpha_c": result.alpha_c,
-            "n_events": result.n_events, "slider_steps": steps, "cpu_s": best,
-            "ns_per_slider_step": 1e9 * best / steps}
+    out = subprocess.run([python, "-c", SCENE_RUN, str(xi), str(seed), str(repeat)],
+                         check=True, capture_output=True, text=True).stdout
+    row = {"xi": xi, "seed": seed, **json.loads(out.splitlines()[-1])}
+    row["ns_per_slider_step"] = 1e9 * row["cpu_s"] / row["slider_steps"]
+    return row
+
+
+def print_rows(title: str, rows: list, base: float) -> None:
+    """The table of one build, ratios to the baseline filled in."""
+    print(title)
+    print(f"{'scene':26s} {'CPU s':>7s} {'slider-steps':>13s} {'ns/step':>8s} {'ratio':>6s}")
+    for row in rows:
+        row["ratio_to_baseline"] = row["ns_per_slider_step"]/base
+        print(f"N = 400, xi = {row['xi']:<5g} seed {row['seed']}  {row['cpu_s']:7.3f} "
+              f"{row['slider_steps']:13.3e} {row['ns_per_slider_step']:8.2f} "
+              f"{row['ratio_to_baseline']:6.2f}")
 
 
 def main(argv=None) -> dict:
@@ -71,32 +101,48 @@ def main(argv=None) -> dict:
     parser.add_argument("--label", default="current", help="key of this measurement in the json")
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--out", default=str(RESULTS / "kernel_speed.json"))
+    parser.add_argument("--reference", metavar="PYTHON",
+                        help="interpreter of another sliders build, measured in the same run")
+    parser.add_argument("--reference-label", default="reference",
+                        help="key of the reference build's measurement in the json")
     args = parser.parse_args(argv)
     if args.repeat < 1:
         parser.error("--repeat must be at least 1")
+    if args.reference is not None and shutil.which(args.reference) is None:
+        parser.error(f"--reference {args.reference!r} is not an executable")
+    if args.reference is not None and args.reference_label == args.label:
+        parser.error("--reference-label must differ from --label")
 
+    builds = {args.label: sys.executable}
+    if args.reference is not None:
+        builds[args.reference_label] = args.reference
     base = baseline_ns(args.repeat)
-    rows = [kernel_row(xi, seed, args.repeat) for xi in (0.0, 0.001) for seed in (0, 1)]
+    rows = {label: [] for label in builds}
+    for xi in (0.0, 0.001):
+        for seed in (0, 1):
+            for label, python in builds.items():     # alternating: the same machine state
+                rows[label].append(kernel_row(python, xi, seed, args.repeat))
     base_after = baseline_ns(args.repeat)     # the machine drifts: take the better one
     base = min(base, base_after)
     print(f"baseline (fused Verlet loop, 250 sliders, gcc -O3 -march=native): {base:.3f} ns "
           "per slider-step")
-    print(f"{'scene':26s} {'CPU s':>7s} {'slider-steps':>13s} {'ns/step':>8s} {'ratio':>6s}")
-    for row in rows:
-        row["ratio_to_baseline"] = row["ns_per_slider_step"]/base
-        print(f"N = 400, xi = {row['xi']:<5g} seed {row['seed']}  {row['cpu_s']:7.3f} "
-              f"{row['slider_steps']:13.3e} {row['ns_per_slider_step']:8.2f} "
-              f"{row['ratio_to_baseline']:6.2f}")
-    record = {"baseline_ns_per_slider_step": base, "rows": rows, "repeat": args.repeat,
-              "machine": platform.node(), "when": time.strftime("%Y-%m-%d %H:%M:%S UTC",
-                                                                time.gmtime())}
+    when = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime())
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     stored = json.loads(out.read_text()) if out.exists() else {}
-    stored[args.label] = record
+    for label, python in builds.items():
+        print_rows(f"{label} ({python}):", rows[label], base)
+        stored[label] = {"baseline_ns_per_slider_step": base, "rows": rows[label],
+                         "repeat": args.repeat, "machine": platform.node(), "when": when}
+        if label != args.label:
+            stored[label]["python"] = python
+    if args.reference is not None:
+        for new, ref in zip(rows[args.label], rows[args.reference_label]):
+            print(f"xi = {new['xi']:<5g} seed {new['seed']}: CPU {args.label} / "
+                  f"{args.reference_label} = {new['cpu_s']/ref['cpu_s']:.3f}")
     out.write_text(json.dumps(stored, indent=1) + "\n")
-    print(f"written to {out} under {args.label!r}")
-    return record
+    print(f"written to {out} under {list(builds)}")
+    return stored[args.label]
 
 
 if __name__ == "__main__":
