@@ -301,9 +301,11 @@ def test_io_error_is_one_line(tmp_path, tmpfs, case, program):
 # ---------------------------------------------------------------------------
 LOOP = """
 import sys, sliders
+# the scenes first: a signal must land in tilt, not in the script's own Python
+scenes = [sliders.Scene(n_sliders=200, seed=seed, mode="explore") for seed in range(1000)]
 print("started", flush=True)
-for seed in range(1000):
-    sliders.tilt(sliders.Scene(n_sliders=200, seed=seed, mode="explore"))
+for scene in scenes:
+    sliders.tilt(scene)
 print("loop ended", flush=True)
 """
 
@@ -556,3 +558,35 @@ def test_resume_recomputes_a_damaged_row(tmp_path, reference):
     assert res.returncode == 0, res.stderr
     assert "1 finished row(s)" in res.stderr and "resuming 1 of" in res.stderr
     assert_same_file(reference, out)
+
+
+@pytest.mark.parametrize("where", ["prepare", "_finish"])
+def test_interrupt_in_the_python_around_the_engine_is_an_interrupted(monkeypatch, where):
+    """Ctrl-C landing while the chain is drawn or the result assembled (the
+    milliseconds of Python around the engine: a loop of short runs hits them)
+    still answers with Interrupted, and the partial result is a whole one."""
+    from sliders import driver
+
+    scene = sliders.Scene(n_sliders=20, seed=3, mode="explore")
+    real = getattr(driver, where)
+    calls = []
+
+    def ctrl_c_once(*args, **kwargs):
+        calls.append(where)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(driver, where, ctrl_c_once)
+    with pytest.raises(sliders.Interrupted) as exc:
+        sliders.tilt(scene)
+    partial = exc.value.partial
+    full = sliders.tilt(scene)
+    np.testing.assert_array_equal(partial.initial.displacement, full.initial.displacement)
+    if where == "prepare":  # stopped before any event
+        assert partial.status == "interrupted" and partial.n_events == 0
+    else:  # stopped as the run ended: the whole run
+        assert partial.status == full.status and partial.n_events == full.n_events
+    calls.clear()
+    kept = sliders.tilt(scene, keep_partial=True)
+    assert kept.n_events == partial.n_events

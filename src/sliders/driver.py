@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -113,17 +113,22 @@ def tilt(
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be a sliders.Scene, not {type(scene).__name__}")
     check_memory(scene)
-    engine = make_engine(scene, backend)
     started = time.perf_counter()
-    state = prepare(scene) if state is None else state.copy()
+    engine, stopped = _to_the_end(lambda: make_engine(scene, backend))
+    given = state
+    state, stopped_preparing = _to_the_end(lambda: prepare(scene) if given is None else given.copy())
 
     relaxation = {"n_events": 0, "n_moved": 0, "slider_steps": 0}
     # Relax at alpha = 0 first: with xi > 0 the coupling may destabilise sliders.
-    try:
-        relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
-    except KeyboardInterrupt:
-        relax = Chunk(status.INTERRUPTED, {}, np.zeros(1, np.int64), np.zeros(0, np.int64),
-                      np.zeros(0), message=INTERRUPTED_MESSAGE)
+    interrupted = Chunk(status.INTERRUPTED, {}, np.zeros(1, np.int64), np.zeros(0, np.int64),
+                        np.zeros(0), message=INTERRUPTED_MESSAGE)
+    if stopped or stopped_preparing:
+        relax = interrupted
+    else:
+        try:
+            relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
+        except KeyboardInterrupt:
+            relax = interrupted
     if relax.status != status.RELAXED:
         result = _finish(scene, backend, relax.status, relax.message, math.nan, [], state, state,
                          relaxation, started, relax.final_event)
@@ -166,11 +171,24 @@ def tilt(
             code, message, alpha_c = chunk.status, chunk.message, chunk.alpha_c
             final_event = chunk.final_event
             break
-    result = _finish(scene, backend, code, message, alpha_c, chunks, initial, state, relaxation,
-                     started, final_event)
-    if getattr(engine, "interrupted_late", False) and not keep_partial:
+    result, stopped = _to_the_end(lambda: _finish(scene, backend, code, message, alpha_c, chunks,
+                                                  initial, state, relaxation, started,
+                                                  final_event))
+    if (stopped or getattr(engine, "interrupted_late", False)) and not keep_partial:
         raise Interrupted(result)  # Ctrl-C as the run ended: the whole run, never swallowed
     return _interrupt_or_return(result, keep_partial)
+
+
+def _to_the_end(work: Callable[[], Any]) -> tuple[Any, bool]:
+    """(work(), whether Ctrl-C landed in it).  For the milliseconds of Python
+    around the engine (building it, drawing the chain, assembling the result):
+    a Ctrl-C there lets ``work`` run again to the end (it has no side
+    effects), and the caller then stops as if the engine had been
+    interrupted, so that tilt always answers Ctrl-C with ``Interrupted``."""
+    try:
+        return work(), False
+    except KeyboardInterrupt:
+        return work(), True
 
 
 def _interrupt_or_return(result: TiltResult, keep_partial: bool) -> TiltResult:
