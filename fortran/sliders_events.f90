@@ -1,5 +1,12 @@
-!> The quasi-static tilt: next-instability angles, one rearrangement, the
-!> tilt loop.
+!> The quasi-static loading: next-instability drives, one rearrangement, the
+!> loading loop.
+!>
+!> The loading (sliders_loading) gives the drive's terms: the tilt's sin/cos
+!> alpha, or for the pushed end sin/cos of the fixed tilt plus the driver's
+!> spring on slider 1 (sliders_chain's tangential_force, used wherever a
+!> slider's tangential force is formed: between events, at an event's start,
+!> for the pool, and for slider 1 in end_sliders).  "alpha" below is the drive
+!> lambda: the tilt, or the driver's position.
 !>
 !> This is src/sliders/engine/reference.py (the specification) reorganised so that
 !> the cost follows what moves ("integrate only what moves"):
