@@ -153,3 +153,33 @@ def test_ctrl_c_as_the_run_ends_is_not_swallowed(monkeypatch):
     else:
         assert partial.n_events <= whole.n_events
         np.testing.assert_array_equal(partial.alpha, whole.alpha[:partial.n_events])
+
+
+def test_ctrl_c_inside_the_kernel_threads_start_waits_for_the_kernel(monkeypatch):
+    """A Ctrl-C raised in Thread.start after the kernel thread launched: the
+    engine stops that kernel and waits for it before returning, so that no
+    caller saves a state the kernel is still writing (a saved file once
+    failed its own checksum this way)."""
+    import threading
+
+    scene = Scene(n_sliders=400, seed=1, record="summary")
+    engine = make_engine(scene, "fortran")
+    state = prepare(scene)
+    assert engine.advance(state, max_events=1, relax_only=True).status == status.RELAXED
+    real_start = threading.Thread.start
+    workers = []
+
+    def start_then_ctrl_c(thread):
+        real_start(thread)
+        workers.append(thread)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(threading.Thread, "start", start_then_ctrl_c)
+    chunk = engine.advance(state, max_events=10_000)
+    monkeypatch.undo()
+    assert workers and not workers[0].is_alive()  # the kernel had ended before the return
+    assert chunk.status == status.INTERRUPTED
+    kept = state.copy()
+    time.sleep(0.2)  # nothing writes into the state any more
+    np.testing.assert_array_equal(state.mu_s, kept.mu_s)
+    np.testing.assert_array_equal(state.displacement, kept.displacement)

@@ -40,6 +40,7 @@ EVENT_CAPACITY = 4096  # event buffer of a relax-only call
 MAX_EVENT_CAPACITY = 1 << 16  # events per kernel call, at most (4.7 MB of buffers)
 _CONTRACT_MISMATCH = -1  # sliders_wrapper_tilt: the packed widths are not sliders_contract's
 _DETAIL_RESTING, _DETAIL_STATE = 1, 2  # sliders_events: detail_resting, detail_state
+_LAUNCH_GRACE = 1.0  # s: a started kernel thread announces itself well within this
 _WAIT_SECONDS = 0.05  # the waiting thread wakes this often (signals reach it at once anyway)
 
 
@@ -153,7 +154,10 @@ class FortranEngine:
         outcome: dict = {}
         finished = threading.Event()
 
+        launched = threading.Event()
+
         def kernel():
+            launched.set()
             try:
                 outcome["value"] = self._tilt_advance(*args)
             except BaseException as exc:  # handed to the calling thread
@@ -162,8 +166,18 @@ class FortranEngine:
                 finished.set()
 
         worker = threading.Thread(target=kernel, name="sliders-kernel", daemon=True)
-        worker.start()
         pending = None
+        try:
+            worker.start()
+        except BaseException as exc:
+            # Ctrl-C inside start(): the thread may already run the kernel,
+            # which writes into the state, so it must be stopped and waited
+            # for (else the caller would save a state still changing); if it
+            # never launched, nothing runs and the interrupt goes on up.
+            self._interrupt[0] = 1
+            pending = exc
+            if not launched.wait(_LAUNCH_GRACE):
+                raise
         # An Event, not Thread.join: a join interrupted by KeyboardInterrupt
         # can leave is_alive() False while the thread still runs.
         while not finished.is_set():
