@@ -53,7 +53,7 @@ import numpy as np
 
 from . import status as status_codes
 from .merge import chunk_range, parse_chunk
-from .parallel import MPIUnavailable, SerialComm, get_comm, launcher_rank  # noqa: F401 - MPI optional
+from .parallel import MPIUnavailable, SerialComm, abort, get_comm, launcher_rank  # noqa: F401 - MPI optional
 from .io.storage import load_summary, read_realisations  # noqa: F401 - the readers, kept importable here
 from .scene import BACKENDS, Scene, SceneError
 
@@ -770,9 +770,7 @@ def _run(args, comm, plan, root_plan) -> int:
         err = (f"cannot {'open' if root_plan['resume'] else 'create'} {args.out!r}: "
                f"{os_reason(exc)}")
         if isinstance(exc, CollectiveFailure):  # other ranks may be inside the failed call
-            sys.stderr.write(_error_line(f"rank {rank}: {err}") + "\n")
-            sys.stderr.flush()
-            comm.Abort(1)
+            abort(comm, _error_line(f"rank {rank}: {err}"))
     errors = comm.allgather(err)
     if any(errors):
         if rank == next(i for i, e in enumerate(errors) if e):  # one line, from one rank
@@ -780,7 +778,7 @@ def _run(args, comm, plan, root_plan) -> int:
             sys.stderr.flush()
         if all(errors):
             return 1
-        comm.Abort(1)  # some ranks hold a half-open collective file
+        abort(comm)  # some ranks hold a half-open collective file
 
     done = root_plan["done"]
     pending = np.flatnonzero(~done)
@@ -822,7 +820,7 @@ def _run(args, comm, plan, root_plan) -> int:
             traceback.print_exc()
         sys.stderr.flush()
         if comm.size > 1:
-            comm.Abort(1)
+            abort(comm)
         try:
             handler.close()
         except Exception:  # noqa: BLE001 - already failing; the message above is the one

@@ -46,6 +46,7 @@ import numpy as np
 
 from .io.study_file import (HANDLERS, read_study_header, study_attributes, study_layout,
                             write_view)
+from .parallel import abort
 from .scene import Scene, SceneError, check_tilt_statistics
 
 STUDY_PREFIX = "study_"  # extra per-realisation statistics (burst periods, synchronisation)
@@ -375,7 +376,7 @@ def _run(args, comm, study, plan, storage, _Root, _worker, _Stop, compute_row) -
             sys.stderr.write(_error_line(errors[rank]) + "\n")
         if all(errors):
             return 1
-        comm.Abort(1)
+        abort(comm)
 
     R = study.realisations
     grids = [StatisticsGrids.from_arrays(lay.grids) for lay in layout.points]
@@ -408,7 +409,7 @@ def _run(args, comm, study, plan, storage, _Root, _worker, _Stop, compute_row) -
         sys.stderr.write(_error_line(f"rank {rank}: {type(exc).__name__}: {exc}") + "\n")
         sys.stderr.flush()
         if comm.size > 1:
-            comm.Abort(1)
+            abort(comm)
         handler.close()
         return 1
     try:
