@@ -104,6 +104,18 @@ def read_checked(ds, where: str) -> np.ndarray:
     return values
 
 
+def check_header(h5file, fmt: str, where: str, wrong_kind=ValueError,
+                 coordinates: bool = True) -> None:
+    """The file is of kind ``fmt`` (else ``wrong_kind``, one line), and its root
+    attributes (and coordinate variables) pass their checksums.  Every reader
+    (tilt, ensemble, study) opens a file through this, raising its own error."""
+    if h5file.attrs.get("format") != fmt:
+        raise wrong_kind(f"{where} is not a sliders {fmt.rpartition('.')[2]} file")
+    check_attrs(h5file, where)
+    if coordinates:
+        check_coordinates(h5file, where)
+
+
 def check_coordinates(h5file, where: str) -> None:
     """Verify the coordinate variables (the root group's datasets, written by
     ``conventions.describe`` for xarray) against their checksums."""

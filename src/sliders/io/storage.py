@@ -547,10 +547,7 @@ def read_header(path) -> dict[str, Any]:
     f = _open_for_reading(p)
     try:
         with f:
-            if f.attrs.get("format") != FORMAT:
-                raise StorageError(f"{p!r} is not a sliders ensemble file")
-            safeio.check_attrs(f, where)
-            safeio.check_coordinates(f, where)
+            safeio.check_header(f, FORMAT, where, StorageError)
             attrs = {k: _plain(v) for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
             grids = {k: safeio.read_checked(ds, where) for k, ds in f["grids"].items()}
             rg = f["realisations"]

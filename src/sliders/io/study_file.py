@@ -185,9 +185,7 @@ def read_study_header(path) -> dict[str, Any]:
         raise StorageError(f"{p!r} does not exist")
     try:
         with h5py.File(p, "r") as f:
-            if f.attrs.get("format") != FORMAT:
-                raise StorageError(f"{p!r} is not a sliders study file")
-            safeio.check_attrs(f, repr(p))
+            safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False)
             attrs = {k: (v.decode() if isinstance(v, bytes) else
                          v.item() if isinstance(v, np.generic) else v)
                      for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}

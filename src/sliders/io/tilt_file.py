@@ -128,10 +128,7 @@ def read_datasets_checked(path):
         raise safeio.IntegrityError(f"{where} is not a readable HDF5 file ({exc})") from None
     try:
         with f:
-            if f.attrs.get("format") != FORMAT:
-                raise ValueError(f"{where} is not a sliders tilt file")
-            safeio.check_attrs(f, where)
-            safeio.check_coordinates(f, where)
+            safeio.check_header(f, FORMAT, where, ValueError)
             scene = Scene.from_dict(json.loads(f.attrs["scene"]))
             events = {name: safeio.read_checked(ds, where) for name, ds in f["events"].items()}
             disp = None
