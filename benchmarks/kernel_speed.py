@@ -192,6 +192,8 @@ def main(argv=None) -> dict:
     stored = json.loads(out.read_text()) if out.exists() else {}
     for label, python in builds.items():
         print_rows(f"{label} ({python}):", rows[label], base, per_step)
+        for row in rows[label]:   # hundreds of bins: used above, too long to keep
+            del row["steps_by_movers"]
         stored[label] = {"baseline_ns_per_slider_step": base,
                          "baseline_ns_per_step_by_movers": per_step, "rows": rows[label],
                          "repeat": args.repeat, "machine": platform.node(), "when": when}
