@@ -63,7 +63,8 @@ from pathlib import Path
 import numpy as np
 
 import sliders
-from sliders import Scene, model, observables, prepare, status
+from sliders import Scene, prepare, status
+from sliders.analysis import model, observables
 from sliders.driver import make_engine
 
 RESULTS = Path(__file__).parent / "results"

@@ -83,8 +83,8 @@ def run_one(n_sliders: int, realisations: int, ranks: int, backend: str, seed: i
 BASELINE = """
 import sys, time
 import sliders
-from sliders.ensemble import compute_row
-from sliders.observables import default_grids
+from sliders.runs.ensemble import compute_row
+from sliders.analysis.observables import default_grids
 n, k, backend, seed = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], int(sys.argv[4])
 scene = sliders.Scene(n_sliders=n, seed=seed)
 grids = default_grids(scene)

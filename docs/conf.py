@@ -13,6 +13,7 @@ follows the package when modules move.
 """
 
 import os
+import pathlib
 import shutil
 import sys
 
@@ -53,6 +54,13 @@ autosummary_generate = True
 shutil.rmtree(os.path.join(os.path.dirname(os.path.abspath(__file__)), "generated"),
               ignore_errors=True)
 autosummary_ignore_module_all = False
+# The two-line modules that keep `python -m sliders.ensemble` & co. working
+# (sliders/_forward.py) are aliases of modules documented in their layer: not twice.
+_package = os.path.dirname(sliders.__file__)
+autosummary_context = {"forwarders": sorted(
+    "sliders." + name[:-3] for name in os.listdir(_package)
+    if name.endswith(".py")
+    and "forward(__name__" in pathlib.Path(_package, name).read_text())}
 autodoc_default_options = {}
 autodoc_typehints = "none"            # the numpydoc sections say the types and units
 numpydoc_show_class_members = False

@@ -25,10 +25,10 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders import ensemble
+from sliders.runs import ensemble
 from sliders.io import storage
 from sliders.keyed_random import realisation_seed
-from sliders.observables import default_grids, realisation_statistics, statistics_layout
+from sliders.analysis.observables import default_grids, realisation_statistics, statistics_layout
 
 # The tests pick the backend explicitly (no skipping).  "fortran" is the
 # production kernel; the lead makes sure it is built in the final set-up.
@@ -543,10 +543,10 @@ import math, sys
 import numpy as np
 import pytest
 import sliders
-from sliders import ensemble
+from sliders.runs import ensemble
 from sliders.io import storage
 from sliders.keyed_random import realisation_seed
-from sliders.observables import default_grids, statistics_layout
+from sliders.analysis.observables import default_grids, statistics_layout
 
 kind, path, backend = sys.argv[1], sys.argv[2], sys.argv[3]
 if kind == "mpio":

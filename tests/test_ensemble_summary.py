@@ -8,7 +8,7 @@ import sys
 import h5py
 import numpy as np
 
-from sliders import ensemble
+from sliders.runs import ensemble
 
 ARGS = ["--n-sliders", "25", "--seed", "4", "--mode", "explore", "--realisations", "3", "--quiet"]
 

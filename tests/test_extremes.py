@@ -21,7 +21,8 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders import Scene, SceneError, model, prepare, status
+from sliders import Scene, SceneError, prepare, status
+from sliders.analysis import model
 from sliders.chain import elastic_force
 from sliders.driver import make_engine
 from sliders.engine.reference import next_instability

@@ -19,10 +19,10 @@ import pytest  # noqa: E402
 from PIL import Image  # noqa: E402
 
 import sliders  # noqa: E402
-from sliders import animation  # noqa: E402
+from sliders.figures import animation  # noqa: E402
 from sliders import figures as F  # noqa: E402
-from sliders import observables as ob  # noqa: E402
-from sliders import schematics  # noqa: E402
+from sliders.analysis import observables as ob  # noqa: E402
+from sliders.figures import schematics  # noqa: E402
 
 MIN_BYTES = 5_000
 MAX_WIDTH_IN = 3.5  # one column of the paper (3.4 in) and a little rounding
@@ -115,7 +115,7 @@ def test_ensemble_file_summary_of_the_done_rows(runs, tmp_path):
     a row not marked done is ignored."""
     from sliders import status
     from sliders.io import storage
-    from sliders.parallel import SerialComm
+    from sliders.runs.parallel import SerialComm
 
     scene = runs[0].scene
     grids = ob.default_grids(scene)
@@ -157,7 +157,7 @@ def test_schematics_from_the_model(tmp_path):
     check_written(tmp_path, "fig08_histogram_model")
     plt.close(fig)
     upper, lower, heights, nu, low = schematics.histogram_model_bins(0.3)
-    assert nu == sliders.model.n_bins(0.3, 0.6, 0.55) and heights.shape == (nu,)
+    assert nu == sliders.analysis.model.n_bins(0.3, 0.6, 0.55) and heights.shape == (nu,)
     np.testing.assert_allclose(upper - lower, 0.1)
     assert lower[-1] <= low < upper[-1]  # the last bin holds the lower bound sin(a) - mu_s
     assert np.sum(heights) * 0.1 == pytest.approx(1.0)  # probabilities 2 dmu P_i sum to 1

@@ -140,6 +140,6 @@ def test_under_mpirun_without_working_mpi4py_every_rank_exits(broken_mpi4py, tmp
     ({"SLURM_STEP_NUM_TASKS": "1", "SLURM_PROCID": "0"}, False, 0),  # a serial job step
 ])
 def test_launcher_detection(env, launched, rank):
-    from sliders.parallel import launcher_rank, under_mpi_launcher
+    from sliders.runs.parallel import launcher_rank, under_mpi_launcher
 
     assert under_mpi_launcher(env) is launched and launcher_rank(env) == rank

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from conftest import run
-from sliders import Scene, model, prepare, status
+from sliders import Scene, prepare, status
+from sliders.analysis import model
 from sliders.chain import elastic_force
 from sliders.driver import make_engine
 

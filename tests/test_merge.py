@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from sliders import ensemble, merge
+from sliders.runs import ensemble, merge
 from test_ensemble import assert_same_file, one_error_line
 
 R = 7  # not a multiple of the chunk counts: chunks of unequal sizes

@@ -1,11 +1,11 @@
-"""Tests of the analytical model (paper Sec. IV), ``sliders.model``."""
+"""Tests of the analytical model (paper Sec. IV), ``sliders.analysis.model``."""
 
 import math
 
 import numpy as np
 import pytest
 
-from sliders import model
+from sliders.analysis import model
 
 CASES = [(0.6, 0.55), (0.6, 0.595)]  # nu(0) = 12 and 120
 ALPHAS = np.array([0.0, 0.01, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0])

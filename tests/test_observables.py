@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders import observables as ob
+from sliders.analysis import observables as ob
 from sliders.figures import single_slider_run
 
 MU_S, MU_D = 0.6, 0.55
@@ -264,7 +264,7 @@ def test_moving_clusters_synthetic():
 
 def test_reproduction_helpers():
     """The analysis rules of the reproduction report on synthetic data."""
-    from sliders.reproduction import departure_angle, verdict_close
+    from sliders.analysis.reproduction import departure_angle, verdict_close
 
     a = np.linspace(0.0, 0.5, 51)
     y = 1.0 + 8.0 * a

@@ -223,7 +223,7 @@ def test_tilt_animation_refuses_a_pushed_scene_in_one_line(tmp_path, capsys):
                                         "stopped_force_ratios"])
 def test_tilt_observables_refuse_a_pushed_run(observable):
     """They take sin and cos of the drive: on driver positions they would be wrong."""
-    from sliders import observables
+    from sliders.analysis import observables
 
     result = sliders.tilt(PUSHED.replace(xi=0.0, max_events=20))
     with pytest.raises(ValueError, match="is an observable of the tilt"):

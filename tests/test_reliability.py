@@ -30,7 +30,7 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders import ensemble
+from sliders.runs import ensemble
 from sliders.io import storage
 from sliders.io.filelock import OutputClaim
 from test_ensemble import (BACKEND, PY, R, SCENE_OPTS, _env, _Run, assert_same_file,
@@ -381,7 +381,7 @@ LOADER = """
 import sys
 import numpy as np
 import sliders
-from sliders import ensemble
+from sliders.runs import ensemble
 
 kind, reference = sys.argv[1], sys.argv[2]
 

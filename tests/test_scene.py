@@ -112,7 +112,7 @@ def test_command_line_mode_with_a_scene_file(tmp_path):
     """A scene file's mode and an explicit option combine like the constructor."""
     import argparse
 
-    from sliders.cli import add_scene_arguments, scene_from_args
+    from sliders.runs.cli import add_scene_arguments, scene_from_args
 
     path = tmp_path / "s.toml"
     path.write_text('[scene]\nn_sliders = 20\nmode = "statistics"\n')

@@ -24,7 +24,7 @@ import h5py
 import numpy as np
 import pytest
 
-from sliders import ensemble
+from sliders.runs import ensemble
 from test_ensemble import assert_same_file
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -7,7 +7,7 @@ import numpy as np
 
 import sliders
 from sliders import Scene
-from sliders import observables as ob
+from sliders.analysis import observables as ob
 
 
 def _runs():

@@ -157,7 +157,7 @@ def test_xarray_view_has_the_axes_as_dimensions(spec, tmp_path):
 def test_most_expensive_points_are_queued_first(tmp_path):
     from types import SimpleNamespace
 
-    from sliders.study import _plan_root, parse_study
+    from sliders.runs.study import _plan_root, parse_study
 
     st = parse_study({"study": {"realisations": 2}, "scene": {"mode": "explore"},
                       "axes": {"n_sliders": [10, 40, 20]}})
@@ -169,7 +169,7 @@ def test_most_expensive_points_are_queued_first(tmp_path):
 
 
 def test_paired_difference_uses_the_pairs():
-    from sliders.study_analysis import paired_difference
+    from sliders.analysis.study_analysis import paired_difference
 
     common = np.array([0.50, 0.52, 0.48, 0.51])  # the realisations' shared disorder
     a = {"done": np.ones(4, bool), "alpha_c": common}
@@ -183,7 +183,7 @@ def test_paired_difference_uses_the_pairs():
 def test_figures_and_table_of_a_study(spec, tmp_path):
     out = tmp_path / "f.h5"
     assert study([spec, "--out", out, "--quiet"]).returncode == 0
-    from sliders.study_analysis import markdown_table, study_table
+    from sliders.analysis.study_analysis import markdown_table, study_table
 
     st, table = study_table(out)
     assert [t["mu_d"] for t in table] == [0.5, 0.55, 0.5, 0.55]
@@ -201,7 +201,7 @@ def test_figures_and_table_of_a_study(spec, tmp_path):
 
 
 def test_zipped_axes_vary_together(tmp_path):
-    from sliders.study import StudyError, parse_study
+    from sliders.runs.study import StudyError, parse_study
 
     data = {"study": {"realisations": 1, "zip": [["mu_d", "sigma_mu"]]}, "scene": {"n_sliders": 12},
             "axes": {"mu_d": [0.5, 0.55], "sigma_mu": [0.01, 0.02], "xi": [0.0, 0.001]}}

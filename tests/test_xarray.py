@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders import ensemble
+from sliders.runs import ensemble
 
 xr = pytest.importorskip("xarray", reason="xarray not installed (pip install '.[test]')")
 pytest.importorskip("h5netcdf", reason="h5netcdf not installed (pip install '.[test]')")

@@ -7,10 +7,10 @@ public API:
 * ``tilt(scene, backend="fortran"|"numpy")``: tilt to the avalanche, returns a
   ``TiltResult`` (save/load in HDF5);
 * ``prepare(scene)``: the prepared chain at alpha = 0;
-* ``model``: the analytical single-slider and master-equation results.
+* ``analysis``, ``figures``, ``runs``: the layers above (docs/architecture.md).
 """
 
-__version__ = "0.1.0"
+from ._version import __version__
 
 from .chain import ChainState
 from .driver import Interrupted, Progress, tilt

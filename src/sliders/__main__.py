@@ -8,7 +8,7 @@ import signal
 import sys
 
 from . import status
-from .cli import ProgressLine, add_scene_arguments, check_output, fail, scene_from_args
+from .runs.cli import ProgressLine, add_scene_arguments, check_output, fail, scene_from_args
 from .io.filelock import ClaimError, OutputClaim
 from .io.safeio import describe_os_error
 from .scene import BACKENDS, SceneError, check_memory

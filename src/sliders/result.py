@@ -236,4 +236,7 @@ class TiltResult:
         """
         from .io.tilt_file import read_tilt_file
 
-        return read_tilt_file(path)
+        fields = read_tilt_file(path)
+        if fields["displacement"] is not None:
+            fields["displacement"] = EventSparse(*fields["displacement"], fields["scene"].n_sliders)
+        return cls(**fields)

@@ -245,7 +245,7 @@ def provenance(title: str, scene: dict | None) -> dict[str, str]:
     """Root attributes every file carries: title, source, history (this command), date, git commit, versions, the scene as TOML."""
     import h5py
 
-    from .. import __version__
+    from .._version import __version__
 
     now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     out = {

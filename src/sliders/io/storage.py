@@ -130,7 +130,7 @@ def make_layout(n_realisations: int, seeds, grids: dict[str, np.ndarray],
 
 def file_attributes(scene_dict: dict, base_seed: int, n_realisations: int, backend: str) -> dict:
     """Root attributes of a new ensemble file: format, scene (JSON), seeds, count, backend, versions."""
-    from .. import __version__
+    from .._version import __version__
 
     return {
         "format": FORMAT,
@@ -408,15 +408,19 @@ class MpioFile(EnsembleFile):
         self._bind()
 
     def write_row(self, r, row):
+        """Write realisation ``r``'s row (a dict of arrays) at once, independently of the other ranks."""
         self._write_local(r, row)
 
     def mark_done(self, r):
+        """Mark row ``r`` done (its digest checked on read): only then does a resume skip it."""
         self._done_local(r)
 
     def flush(self):
+        """Nothing to do: a row's bytes reach the operating system when it is written."""
         pass
 
     def close(self):
+        """Close the file on every rank (collective)."""
         if self.file is not None:
             self._ds = {}
             self.file.close()  # collective
@@ -451,18 +455,21 @@ class GatherFile(EnsembleFile):
             self._bind()
 
     def write_row(self, r, row):
+        """Write realisation ``r``'s row on rank 0; other ranks queue it for ``outbox``."""
         if self.comm.rank == 0:
             self._write_local(r, row)
         else:
             self._queue.append(("row", int(r), self._row_arrays(row)))
 
     def mark_done(self, r):
+        """Mark row ``r`` done on rank 0; other ranks queue the mark for ``outbox``."""
         if self.comm.rank == 0:
             self._done_local(r)
         else:
             self._queue.append(("done", int(r), None))
 
     def flush(self):
+        """Flush rank 0's file to the operating system (the time is added to ``write_seconds``)."""
         if self.comm.rank == 0 and self.file is not None:
             import time
 
@@ -471,10 +478,12 @@ class GatherFile(EnsembleFile):
             self.write_seconds += time.perf_counter() - t
 
     def outbox(self):
+        """The rows and done marks this rank queued since the last call (sent to rank 0)."""
         ops, self._queue = self._queue, []
         return ops
 
     def apply(self, ops):
+        """On rank 0: write the rows and marks another rank's ``outbox`` gave, then flush."""
         for op, r, values in ops or ():
             if op == "row":
                 self._write_local(r, values)
@@ -484,6 +493,7 @@ class GatherFile(EnsembleFile):
             self.flush()
 
     def close(self):
+        """Close rank 0's file."""
         if self.file is not None:
             self._ds = {}
             self.file.close()
@@ -643,8 +653,41 @@ def read_realisations(path) -> dict[str, Any]:
     return out
 
 
-def load_summary(path):
-    """The ensemble statistics of a file, over its rows marked done.
+class EnsembleInputError(ValueError):
+    """A path given as an ensemble file that cannot be used as one (one-line message)."""
+
+
+def check_ensemble_file(path) -> None:
+    """Raise ``EnsembleInputError`` unless ``path`` is an HDF5 ensemble file.
+
+    Tells apart a missing file, a file that is not HDF5, a single-run file
+    (``TiltResult.save``: read it with ``TiltResult.load``) and an HDF5 file
+    of another kind.
+    """
+    p = os.fspath(path)
+    probe = formats.probe_file(p)
+    if probe.state == "missing":
+        raise EnsembleInputError(f"ensemble file {p!r} does not exist")
+    if probe.state == "directory":
+        raise EnsembleInputError(f"ensemble file {p!r} is a directory")
+    if probe.state == "unreadable":
+        raise EnsembleInputError(f"ensemble file {p!r} cannot be read ({probe.reason})")
+    if probe.state == "not_hdf5":
+        raise EnsembleInputError(f"{p!r} is not an HDF5 file; --ensemble needs the file written by "
+                                 "python -m sliders.ensemble")
+    if probe.state == "bad_hdf5":
+        raise EnsembleInputError(f"{p!r} is not a readable HDF5 file ({probe.reason})")
+    if probe.format == formats.TILT:
+        raise EnsembleInputError(f"{p!r} holds a single run, not an ensemble: read it with "
+                                 f"sliders.TiltResult.load({p!r}); --ensemble needs the file "
+                                 "written by python -m sliders.ensemble")
+    if not probe.ensemble_rows:
+        raise EnsembleInputError(f"{p!r} is an HDF5 file but not a sliders ensemble file "
+                                 f"(format attribute {probe.format!r}, no /realisations/statistics)")
+
+
+def read_done_statistics(path):
+    """The per-realisation statistics of the rows marked done, with what averages them needs.
 
     Parameters
     ----------
@@ -653,19 +696,20 @@ def load_summary(path):
 
     Returns
     -------
-    summary : observables.EnsembleSummary
-        Means over the realisations at rest at each angle: force PDF (per m g),
-        P_i(alpha), A(alpha) (g tau^2), alpha_c (radians), event sizes.
-    grids : observables.StatisticsGrids
-        The angles (radians) and bin edges the rows were computed on.
+    statistics : dict of str to numpy.ndarray
+        ``/realisations/statistics/<key>`` over the done rows, shape ``(n_done, *shape)``.
+    grids : dict of str to numpy.ndarray
+        The angles (radians) and bin edges the rows were computed on
+        (``StatisticsGrids.from_arrays`` rebuilds them).
     scene : Scene
         The ensemble's scene (realisation r has seed ``realisation_seed(scene.seed, r)``).
     info : dict
         The file attributes plus ``n_done``, ``n_realisations``, ``done``
         (mask), ``statuses`` ({name: count} over done rows) and ``wall_time``
         (sum over done rows, seconds of computing).
+
+    ``sliders.analysis.summary.load_summary`` averages them.
     """
-    from ..observables import StatisticsGrids, combine
     from ..scene import Scene
 
     head = read_header(path)
@@ -674,15 +718,13 @@ def load_summary(path):
         raise ValueError(f"{os.fspath(path)!r} holds only the per-realisation summary (scene "
                          "record='summary'): no statistics; read_realisations gives alpha_c, "
                          "n_events and status per realisation")
-    grids = StatisticsGrids.from_arrays(head["grids"])
     scene = Scene.from_dict(json.loads(head["attrs"]["scene"]))
     done = rows["done"]
     stats = {k: v[done] for k, v in rows["statistics"].items()}
-    summary = combine(stats, grids, scene.n_sliders)
     info = dict(head["attrs"])
     info.update({
         "n_done": int(done.sum()), "n_realisations": int(done.size), "done": done,
         "statuses": dict(Counter(str(s) for s in rows["status_name"][done])),
         "wall_time": float(np.sum(rows["wall_time"][done])),
     })
-    return summary, grids, scene, info
+    return stats, head["grids"], scene, info

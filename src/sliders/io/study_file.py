@@ -44,7 +44,7 @@ def point_name(p: int) -> str:
 
 def study_attributes(study, backend: str) -> dict[str, Any]:
     """The root attributes of a study file: the study, its digest, the dimensions, the backend."""
-    from .. import __version__
+    from .._version import __version__
 
     return {
         "format": FORMAT, "format_version": FORMAT_VERSION,
@@ -115,6 +115,7 @@ class _StudyRows:
         return r
 
     def write_row(self, t, row):
+        """Write row ``t`` of the study (point ``t // R``, realisation ``t % R``) into its point's group."""
         self._select(t)
         super().write_row(t, row)
 
@@ -125,6 +126,7 @@ class _StudyRows:
         super()._done_local(self._select(t))
 
     def close(self):
+        """Drop the per-point dataset handles, then close the file."""
         self._point_ds = []
         super().close()
 

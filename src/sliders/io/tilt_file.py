@@ -49,7 +49,7 @@ def tilt_file_bytes(result) -> bytes:
     """The HDF5 file of a ``TiltResult``, as bytes (sealed, described)."""
     import h5py
 
-    from .. import __version__
+    from .._version import __version__
     from .conventions import describe_tilt_file
 
     def dataset(group, name, data):
@@ -99,7 +99,11 @@ def write_tilt_file(path, result, overwrite: bool = True) -> None:
 # reading
 # ---------------------------------------------------------------------------
 def read_tilt_file(path):
-    """The ``TiltResult`` saved in ``path``; every checksum is verified.
+    """The fields of the ``TiltResult`` saved in ``path`` (a dict of its constructor's
+    arguments, the displacements as ``(ptr, index, value)``); every checksum is verified.
+
+    ``TiltResult.load`` builds the result from them: this module knows the
+    layout, not the result class (no import of ``sliders.result``).
 
     A damaged or truncated file raises ``safeio.IntegrityError`` (an OSError)
     with one line naming the file and, for a flipped byte, the dataset; a
@@ -116,7 +120,6 @@ def read_datasets_checked(path):
     import h5py
 
     from ..chain import ChainState
-    from ..result import EventSparse, TiltResult
     from ..scene import Scene
 
     where = repr(os.fspath(path))
@@ -134,16 +137,16 @@ def read_datasets_checked(path):
             disp = None
             if "displacement" in f:
                 g = f["displacement"]
-                disp = EventSparse(safeio.read_checked(g["ptr"], where),
-                                   safeio.read_checked(g["index"], where).astype(np.int64),
-                                   safeio.read_checked(g["value"], where), scene.n_sliders)
+                disp = (safeio.read_checked(g["ptr"], where),
+                        safeio.read_checked(g["index"], where).astype(np.int64),
+                        safeio.read_checked(g["value"], where))
             states = {}
             for label in ("initial", "final"):
                 g = f[label]
                 safeio.check_attrs(g, where)
                 states[label] = ChainState(**{k: safeio.read_checked(g[k], where) for k in g},
                                            alpha=float(g.attrs["alpha"]))
-            return TiltResult(
+            return dict(
                 scene=scene, backend=str(f.attrs["backend"]), status=str(f.attrs["status"]),
                 message=str(f.attrs["message"]), alpha_c=float(f.attrs["alpha_c"]),
                 events=events, displacement=disp, initial=states["initial"],

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from .figure_style import COLUMN_WIDTH, STYLE, save_figure
+from .style import COLUMN_WIDTH, STYLE, save_figure
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib.patches import FancyArrowPatch, Polygon  # noqa: E402
 
@@ -38,8 +38,8 @@ def sketch_chain(n_sliders: int = SKETCH_SLIDERS, seed: int = 2, xi: float = 0.0
     x_n^(c) = mean(x) + (n - (N+1)/2) l*, l* = (x_N - x_1)/(N - 1): the plate
     moves with the barycentre (paper Eq. bary).
     """
-    from .preparation import prepare
-    from .scene import Scene
+    from ..preparation import prepare
+    from ..scene import Scene
 
     scene = Scene(n_sliders=n_sliders, xi=xi, seed=seed)
     x = np.asarray(prepare(scene).lattice_position0, dtype=float)
@@ -167,7 +167,7 @@ def histogram_model_bins(alpha: float, mu_s_mean: float = 0.6, mu_d: float = 0.5
     (``model.integrate_master_equations(variable_nu=True)``), which conserves
     probability: sum_i 2 dmu P_i = 1.
     """
-    from . import model
+    from ..analysis import model
 
     dmu = mu_s_mean - mu_d
     nu = int(model.n_bins(alpha, mu_s_mean, mu_d))

@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from .io.storage import STATISTICS
-from .io.study_file import read_point_rows, read_study_spec
-from .study import STUDY_PREFIX, Study, parse_study
+from ..io.storage import STATISTICS
+from ..io.study_file import read_point_rows, read_study_spec
+from .study_spec import STUDY_PREFIX, Study, parse_study
 
 
 def load_study_file(path) -> tuple[Study, list[dict[str, np.ndarray]]]:

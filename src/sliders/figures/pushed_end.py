@@ -20,12 +20,12 @@ import math
 
 import numpy as np
 
-from .figure_style import COLUMN_WIDTH, ORDER_CMAP, STYLE, panel_label, save_figure
+from .style import COLUMN_WIDTH, ORDER_CMAP, STYLE, panel_label, save_figure
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib import colors as mcolors  # noqa: E402
 
-from .engine.loading import loading_for  # noqa: E402
-from .scene import Scene  # noqa: E402
+from ..engine.loading import loading_for  # noqa: E402
+from ..scene import Scene  # noqa: E402
 
 NAME = "pushed_end"
 # A chain long enough for fronts of many lengths (about 37 500 events to the
@@ -36,7 +36,7 @@ FIGURE_SCENE = Scene(n_sliders=100, seed=2, loading="pushed_end", drive_stiffnes
 
 def pushed_end_run(scene: Scene = FIGURE_SCENE, backend: str = "fortran"):
     """The figure's run."""
-    from .driver import tilt
+    from ..driver import tilt
 
     return tilt(scene, backend=backend)
 

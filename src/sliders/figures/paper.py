@@ -39,7 +39,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .figure_style import (COLUMN_WIDTH, DISPLACEMENT_CMAP, ORDER_CMAP, PNG_DPI,  # noqa: F401
+from .style import (COLUMN_WIDTH, DISPLACEMENT_CMAP, ORDER_CMAP, PNG_DPI,  # noqa: F401
                            STYLE, panel_label, save_figure)
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib import colors as mcolors  # noqa: E402
@@ -48,8 +48,10 @@ from matplotlib.legend_handler import HandlerTuple  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.ticker import NullFormatter  # noqa: E402
 
-from . import observables as ob  # noqa: E402
-from .pushed_figure import NAME as PUSHED_END, fig_pushed_end, pushed_end_run  # noqa: E402
+from ..analysis import observables as ob  # noqa: E402
+from ..analysis.summary import load_ensemble_summary  # noqa: E402,F401 - F.load_ensemble_summary
+from ..io.storage import check_ensemble_file  # noqa: E402
+from .pushed_end import NAME as PUSHED_END, fig_pushed_end, pushed_end_run  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -268,7 +270,7 @@ def fig_scene(result, name: str = "scene", label: str = "", out_dir="figures",
 def single_slider_scene(seed: int = 3, alpha_max: float = 0.6, mu_s: float = 0.6,
                         mu_d: float = 0.55, dt: float = 1e-3):
     """The paper's single slider (N = 1 between walls) tilted to ``alpha_max`` (radians), time step ``dt`` (tau)."""
-    from .scene import Scene
+    from ..scene import Scene
 
     return Scene(n_sliders=1, ends="walls", sigma_mu=0.0, mu_s_mean=mu_s, mu_d=mu_d, seed=seed,
                  alpha_max=alpha_max, record="forces", dt=dt)
@@ -307,8 +309,8 @@ def single_slider_run(initial_force: float | None = 0.45, backend: str = "fortra
     ``initial_force`` None keeps the random preparation of the scene; a value
     sets F_t(0) (the left wall spring at rest, the right one carrying it).
     """
-    from .driver import tilt
-    from .preparation import prepare
+    from ..driver import tilt
+    from ..preparation import prepare
 
     scene = single_slider_scene(seed=seed, alpha_max=alpha_max)
     state = prepare(scene)
@@ -332,7 +334,7 @@ def fig_single_slider(result=None, backend: str = "fortran", out_dir="figures",
     rearrangement angles (``model.single_slider_angles``) are marked on both
     limits (open circles: top of each drop, crosses: bottom).
     """
-    from . import model
+    from ..analysis import model
 
     if result is None:
         result = single_slider_run(initial_force, backend=backend, seed=seed, alpha_max=alpha_max)
@@ -518,7 +520,7 @@ def fig_bin_heights(summary, out_dir="figures", name: str = "bin_heights",
     Eq. cond); grey dash-dotted: the exact solution of Eq. (not_neg).  Every
     line has a legend entry: one legend for the bins, one for the line styles.
     """
-    from . import model
+    from ..analysis import model
 
     g = summary.grids
     nu = g.n_model_bins
@@ -656,8 +658,8 @@ def scene_setups(paper_size: bool = False, backend: str = "fortran") -> dict[str
 
 def run_scene(n_sliders: int, xi: float, seed: int, backend: str = "fortran", **kw):
     """Tilt one scene of N sliders to the avalanche; ``kw`` are further Scene fields.  Returns the TiltResult."""
-    from .driver import tilt
-    from .scene import Scene
+    from ..driver import tilt
+    from ..scene import Scene
 
     return tilt(Scene(n_sliders=n_sliders, xi=xi, seed=seed, record="displacements", **kw),
                 backend=backend)
@@ -666,8 +668,8 @@ def run_scene(n_sliders: int, xi: float, seed: int, backend: str = "fortran", **
 def run_ensemble(n_sliders: int = 100, runs: int = 20, base_seed: int = 0, xi: float = 0.0,
                  backend: str = "fortran", keep_results: bool = False, progress=None):
     """Serial ensemble: (summary, results or None).  Seeds keyed_random.realisation_seed(base, r)."""
-    from .driver import tilt_realisations
-    from .scene import Scene
+    from ..driver import tilt_realisations
+    from ..scene import Scene
 
     scene = Scene(n_sliders=n_sliders, xi=xi, seed=base_seed, record="displacements")
     grids = ob.default_grids(scene)
@@ -683,60 +685,7 @@ def run_ensemble(n_sliders: int = 100, runs: int = 20, base_seed: int = 0, xi: f
 
 
 class FigureInputError(ValueError):
-    """A file or name given to the figures command that cannot be used (one-line message)."""
-
-
-def check_ensemble_file(path) -> None:
-    """Raise ``FigureInputError`` unless ``path`` is an HDF5 ensemble file.
-
-    Tells apart a missing file, a file that is not HDF5, a single-run file
-    (``TiltResult.save``: read it with ``TiltResult.load``) and an HDF5 file
-    of another kind.
-    """
-    from .io import formats
-
-    p = os.fspath(path)
-    probe = formats.probe_file(p)
-    if probe.state == "missing":
-        raise FigureInputError(f"ensemble file {p!r} does not exist")
-    if probe.state == "directory":
-        raise FigureInputError(f"ensemble file {p!r} is a directory")
-    if probe.state == "unreadable":
-        raise FigureInputError(f"ensemble file {p!r} cannot be read ({probe.reason})")
-    if probe.state == "not_hdf5":
-        raise FigureInputError(f"{p!r} is not an HDF5 file; --ensemble needs the file written by "
-                               "python -m sliders.ensemble")
-    if probe.state == "bad_hdf5":
-        raise FigureInputError(f"{p!r} is not a readable HDF5 file ({probe.reason})")
-    if probe.format == formats.TILT:
-        raise FigureInputError(f"{p!r} holds a single run, not an ensemble: read it with "
-                               f"sliders.TiltResult.load({p!r}); --ensemble needs the file "
-                               "written by python -m sliders.ensemble")
-    if not probe.ensemble_rows:
-        raise FigureInputError(f"{p!r} is an HDF5 file but not a sliders ensemble file "
-                               f"(format attribute {probe.format!r}, no /realisations/statistics)")
-
-
-def load_ensemble_summary(path):
-    """(EnsembleSummary, grids, scene dict) from an ensemble HDF5 file.
-
-    The package's reader (``sliders.io.storage.load_summary``): only rows
-    marked done are used, every checksum is verified; a file that cannot give
-    a summary raises ``FigureInputError`` with one line.
-    """
-    from .io.storage import StorageError, load_summary
-
-    check_ensemble_file(path)
-    try:
-        summary, grids, scene, info = load_summary(path)
-    except (StorageError, KeyError, OSError) as exc:
-        raise FigureInputError(f"{os.fspath(path)!r}: cannot read the ensemble ({exc})") \
-            from None
-    except ValueError as exc:  # e.g. combine() of zero finished rows
-        raise FigureInputError(f"{os.fspath(path)!r}: {exc}") from None
-    if info["n_done"] == 0:
-        raise FigureInputError(f"{os.fspath(path)!r}: no finished realisation yet")
-    return summary, grids, scene.to_dict()
+    """A name or option given to the figures command that cannot be used (one-line message)."""
 
 
 # -----------------------------------------------------------------------------
@@ -751,6 +700,7 @@ class _Parser(argparse.ArgumentParser):
     """argparse that reports a bad option in one line (no usage block)."""
 
     def error(self, message):
+        """Print one line and exit with status 2."""
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
@@ -907,7 +857,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{time.perf_counter() - t_all:.1f} s)", flush=True)
             return 0
         if args.study:
-            from .study_figures import check_study_file, draw_study
+            from .study import check_study_file, draw_study
 
             check_study_file(args.study)
             for path in draw_study(args.study, args.out or "figures", dpi=args.dpi):

@@ -491,6 +491,7 @@ class _Run:
 
     @property
     def force_histogram(self):
+        """Counts of F_t / (m g) in the grid's force bins at each grid angle, computed once."""
         if self._histogram is None:
             self._histogram = force_histogram(self.result, self.grids.alpha, self.grids.force_edges)
         return self._histogram

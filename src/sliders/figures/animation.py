@@ -15,7 +15,7 @@ import os
 
 import numpy as np
 
-from .figure_style import COLUMN_WIDTH, STYLE
+from .style import COLUMN_WIDTH, STYLE
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib.animation import PillowWriter  # noqa: E402
 
@@ -31,7 +31,7 @@ def animation_scene(path=None):
     A scene that would record only a summary records displacements instead:
     the animation needs to know which sliders moved.
     """
-    from .scene import Scene, SceneError
+    from ..scene import Scene, SceneError
 
     if path is None:
         return Scene(n_sliders=10, xi=0.0, seed=1, record="displacements")
@@ -61,8 +61,8 @@ def animate_tilt(scene, out_dir="figures", name: str | None = None, backend: str
                  frames: int = ANIMATION_FRAMES, fps: int = FRAMES_PER_SECOND,
                  dpi: int = GIF_DPI) -> str:
     """Tilt ``scene`` to its end and write ``<out_dir>/<name>.gif``; returns the path."""
-    from .driver import tilt
-    from .observables import valid_limit
+    from ..driver import tilt
+    from ..analysis.observables import valid_limit
 
     result = tilt(scene, backend=backend)
     sc = result.scene

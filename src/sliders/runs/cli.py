@@ -9,7 +9,7 @@ import sys
 import time
 import typing
 
-from .scene import DEFAULT_MODE, SPEED_MODES, Scene, SceneError, check_writable, toml_values
+from ..scene import DEFAULT_MODE, SPEED_MODES, Scene, SceneError, check_writable, toml_values
 
 _SKIP = {"output"}
 

@@ -1,0 +1,28 @@
+"""The commands users already type, kept working after the code moved into its layer.
+
+``sliders/ensemble.py``, ``study.py``, ``merge.py``, ``reproduction.py`` and
+``forecast.py`` are two lines each: ``python -m sliders.ensemble`` runs the
+layer's ``main()``; ``import sliders.ensemble`` gives the layer's module itself
+(the same object, so that attributes and monkeypatches reach the real code).
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+
+def forward(name: str, target: str) -> None:
+    """Run ``target.main()`` when ``name`` is ``"__main__"``, else make ``name`` an alias of ``target``.
+
+    Parameters
+    ----------
+    name : str
+        The forwarding module's ``__name__``.
+    target : str
+        The module that holds the code, e.g. ``"sliders.runs.ensemble"``.
+    """
+    module = importlib.import_module(target)
+    if name == "__main__":
+        sys.exit(module.main())
+    sys.modules[name] = module

@@ -1,0 +1,176 @@
+"""``python -m sliders.merge OUT IN...``: join ensemble chunk files into one ensemble file.
+
+An ensemble of R realisations can be cut into K chunks run independently
+(a SLURM job array: ``python -m sliders.ensemble --realisations R --chunk I/K``).
+Realisation r always has the seed ``realisation_seed(scene seed, r)``, so
+chunk I holds exactly the rows I*R//K .. (I+1)*R//K - 1 that one run over
+all R realisations would hold, and the merged file has the same rows as that
+one run, bit for bit (apart from the wall times).
+
+The inputs must hold the same scene, backend and statistics grids, and their
+realisation ranges must tile 0..R-1 without overlap (in any order on the
+command line).  Rows a chunk has not completed (an interrupted task) stay
+not done; ``python -m sliders.ensemble --resume`` on the merged file
+computes them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+import numpy as np
+
+
+class MergeError(Exception):
+    """Inputs that do not form one ensemble (one line to the user)."""
+
+
+def parse_chunk(text: str) -> tuple[int, int]:
+    """``"I/K"`` -> ``(I, K)`` with 0 <= I < K (an argparse type)."""
+    try:
+        i, k = (int(part) for part in str(text).split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not I/K (two integers, e.g. 3/8)") from None
+    if k < 1 or not 0 <= i < k:
+        raise argparse.ArgumentTypeError(f"chunk {text!r} needs 0 <= I < K")
+    return i, k
+
+
+def chunk_range(chunk: tuple[int, int], n_realisations: int) -> tuple[int, int]:
+    """``(first, count)`` of chunk ``(I, K)`` of ``n_realisations``: rows I*R//K .. (I+1)*R//K - 1."""
+    i, k = chunk
+    if k > n_realisations:
+        raise ValueError(f"--chunk {i}/{k}: {k} chunks of {n_realisations} realisations would "
+                         "leave some empty; use K <= R")
+    first = i * n_realisations // k
+    return first, (i + 1) * n_realisations // k - first
+
+
+def _describe(path: str, head: dict) -> str:
+    first = int(head["attrs"].get("first_realisation", 0))
+    return f"{path} (realisations {first}..{first + int(head['attrs']['realisations']) - 1})"
+
+
+def merge(out, inputs, overwrite: bool = False) -> dict:
+    """Write the ensemble made of the chunk files ``inputs`` to ``out``; returns counts."""
+    from ..keyed_random import realisation_seed
+    from ..analysis.observables import StatisticsGrids, statistics_layout
+    from .parallel import SerialComm
+    from ..scene import Scene
+    from ..io.storage import GatherFile, StorageError, file_attributes, make_layout, read_header, read_rows
+
+    out = os.fspath(out)
+    if not inputs:
+        raise MergeError("no input files")
+    if os.path.exists(out) and not overwrite:
+        raise MergeError(f"{out!r} exists; pass --overwrite to replace it")
+    heads = []
+    for p in map(os.fspath, inputs):
+        if os.path.abspath(p) == os.path.abspath(out):
+            raise MergeError(f"{p!r} is both an input and the output")
+        try:
+            heads.append((p, read_header(p)))
+        except StorageError as exc:
+            raise MergeError(str(exc)) from None
+    heads.sort(key=lambda ph: int(ph[1]["attrs"].get("first_realisation", 0)))
+    p0, h0 = heads[0]
+    for key in ("scene", "backend", "format_version"):
+        for p, h in heads[1:]:
+            if h["attrs"].get(key) != h0["attrs"].get(key):
+                raise MergeError(f"{p!r} and {p0!r} differ in {key} ({h['attrs'].get(key)!r} vs "
+                                 f"{h0['attrs'].get(key)!r}); they are not chunks of one ensemble")
+    for p, h in heads[1:]:
+        for k, v in h0["grids"].items():
+            if k not in h["grids"] or not np.array_equal(h["grids"][k], v):
+                raise MergeError(f"{p!r} and {p0!r} differ in the statistics grid {k!r}")
+    expected = 0
+    for (p, h), prev in zip(heads, [None] + heads[:-1]):
+        first = int(h["attrs"].get("first_realisation", 0))
+        if first < expected:
+            raise MergeError(f"{_describe(p, h)} overlaps {_describe(*prev)}")
+        if first > expected:
+            raise MergeError(f"realisations {expected}..{first - 1} are in no input file "
+                             f"(the next one is {_describe(p, h)})")
+        expected = first + int(h["attrs"]["realisations"])
+    n_total = expected
+
+    scene = Scene.from_dict(json.loads(h0["attrs"]["scene"]))
+    grids = StatisticsGrids.from_arrays(h0["grids"])
+    seeds = np.array([realisation_seed(scene.seed, r) for r in range(n_total)], dtype=np.uint32)
+    attrs = file_attributes(scene.to_dict(), scene.seed, n_total, str(h0["attrs"]["backend"]))
+    attrs["first_realisation"] = 0
+    layout = make_layout(n_total, seeds, h0["grids"],
+                         statistics_layout(grids, scene.n_sliders)
+                         if any(k.startswith("statistics/") for k in h0["columns"]) else {},
+                         attrs)
+    names = [c.name for c in layout.columns]
+    for p, h in heads:
+        missing = [n for n in names if n not in h["columns"]]
+        if missing:
+            raise MergeError(f"{p!r} lacks the column(s) {missing}")
+    if os.path.exists(out):
+        os.remove(out)
+    handler = GatherFile.create(out, layout, SerialComm(), overwrite=True)
+    n_done = 0
+    try:
+        for p, h in heads:
+            first = int(h["attrs"].get("first_realisation", 0))
+            if not np.array_equal(h["seeds"], seeds[first:first + h["seeds"].size]):
+                raise MergeError(f"{p!r} holds other seeds than realisations "
+                                 f"{first}..{first + h['seeds'].size - 1} of this scene")
+            rows = read_rows(p)
+            for i in np.flatnonzero(h["done"]):
+                handler.write_row(first + int(i), {n: rows[n][i] for n in names})
+                handler.mark_done(first + int(i))
+                n_done += 1
+        handler.flush()
+    finally:
+        handler.close()
+    from ..io.conventions import describe_ensemble_file
+
+    # the chunks' commands first; describe adds this merge
+    described = describe_ensemble_file(out, "\n".join(str(h["attrs"]["history"]) for _, h in heads
+                                                      if h["attrs"].get("history")))
+    if described is not True:
+        raise MergeError(f"cannot describe {out!r}: {described}")
+    return {"realisations": n_total, "done": n_done, "inputs": len(heads)}
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a bad option in one line (no usage block)."""
+
+    def error(self, message):
+        """Print one line and exit with status 2 (not argparse's usage block)."""
+        sys.stderr.write(f"error: {message} (see --help)\n")
+        sys.exit(2)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``python -m sliders.merge`` (join the chunk files of one ensemble); returns the exit code."""
+    p = _Parser(
+        prog="python -m sliders.merge",
+        description="Join ensemble chunk files (python -m sliders.ensemble --chunk I/K) into one "
+                    "ensemble file with the same rows as one run over all realisations.")
+    p.add_argument("out", metavar="OUT.h5", help="merged ensemble file")
+    p.add_argument("inputs", metavar="IN.h5", nargs="+", help="chunk files, in any order")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing OUT.h5")
+    args = p.parse_args(argv)
+    try:
+        counts = merge(args.out, args.inputs, overwrite=args.overwrite)
+    except (MergeError, OSError, ValueError) as exc:
+        sys.stderr.write("error: " + " ".join(str(exc).split()) + "\n")
+        return 1
+    sys.stderr.write(f"merge: {counts['inputs']} files, {counts['done']}/{counts['realisations']} "
+                     f"realisations done -> {args.out}\n")
+    if counts["done"] < counts["realisations"]:
+        sys.stderr.write(f"merge: warning: {counts['realisations'] - counts['done']} realisation(s) "
+                         "not done; complete them with python -m sliders.ensemble --resume "
+                         f"--out {args.out} (same scene options)\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

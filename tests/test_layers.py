@@ -1,0 +1,148 @@
+"""The package's layers: each imports only the layers below it, and no module imports itself
+back through a circle (docs/architecture.md draws them).
+
+The allowed direction is written once, in LAYERS (bottom first).  Every import is counted,
+also those inside functions: a lazy import upwards is still an upward dependency.
+"""
+
+from __future__ import annotations
+
+import ast
+import pathlib
+
+import pytest
+
+import sliders
+
+PACKAGE = pathlib.Path(sliders.__file__).parent
+
+# bottom first; a module belongs to the first entry that is it or one of its parents
+LAYERS = [
+    ("core", ["sliders._version", "sliders.scene", "sliders.chain", "sliders.keyed_random",
+              "sliders.status", "sliders.engine"]),
+    ("io", ["sliders.io"]),
+    ("simulation", ["sliders.preparation", "sliders.driver", "sliders.result"]),
+    ("analysis", ["sliders.analysis"]),
+    ("figures", ["sliders.figures"]),
+    ("runs", ["sliders.runs"]),
+    # the commands users type and the package's front door
+    ("entry", ["sliders", "sliders.__main__", "sliders._forward", "sliders.ensemble",
+               "sliders.study", "sliders.merge", "sliders.reproduction", "sliders.forecast"]),
+]
+
+
+def module_name(path: pathlib.Path) -> str:
+    parts = ["sliders", *path.relative_to(PACKAGE).with_suffix("").parts]
+    return ".".join(parts[:-1]) if parts[-1] == "__init__" else ".".join(parts)
+
+
+def modules() -> dict[str, pathlib.Path]:
+    return {module_name(p): p for p in sorted(PACKAGE.rglob("*.py")) if "__pycache__" not in p.parts}
+
+
+def layer_of(module: str) -> int:
+    best, depth = None, -1
+    for i, (_, prefixes) in enumerate(LAYERS):
+        for pre in prefixes:
+            if (module == pre or module.startswith(pre + ".")) and pre.count(".") > depth:
+                best, depth = i, pre.count(".")
+    if best is None:
+        raise AssertionError(f"{module} is in no layer: add it to LAYERS")
+    return best
+
+
+def imported(module: str, path: pathlib.Path, known: set[str]) -> set[str]:
+    """The package modules that ``module`` imports (module level and inside functions)."""
+    package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[:len(base) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            for alias in node.names:  # "from . import observables" names a module
+                sub = f"{target}.{alias.name}"
+                out.add(sub if sub in known else target)
+        elif isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+    return {m for m in out if m in known and m != module}
+
+
+def import_graph():
+    mods = modules()
+    known = set(mods) | {"sliders._kernel"}
+    return {m: imported(m, p, known) for m, p in mods.items()}
+
+
+def test_every_module_has_a_layer():
+    for m in modules():
+        layer_of(m)
+
+
+def test_layers_import_only_downwards():
+    graph = import_graph()
+    upward = [f"{m} ({LAYERS[layer_of(m)][0]}) imports {t} ({LAYERS[layer_of(t)][0]})"
+              for m, targets in graph.items() for t in targets
+              if t != "sliders._kernel" and layer_of(t) > layer_of(m)]
+    assert not upward, "\n".join(upward)
+
+
+def test_no_import_circles():
+    graph = import_graph()
+    # a package's __init__ imports its own modules (re-exports): that edge is structure, not a circle
+    graph = {m: {t for t in ts if not t.startswith(m + ".")} for m, ts in graph.items()}
+    state: dict[str, int] = {}
+    stack: list[str] = []
+    circles = []
+
+    def visit(m):
+        state[m] = 1
+        stack.append(m)
+        for t in sorted(graph.get(m, ())):
+            if state.get(t) == 1:
+                circles.append(" -> ".join(stack[stack.index(t):] + [t]))
+            elif t not in state:
+                visit(t)
+        stack.pop()
+        state[m] = 2
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m)
+    assert not circles, "\n".join(circles)
+
+
+@pytest.mark.parametrize("bad", ["sliders.analysis.observables", "sliders.runs.ensemble"])
+def test_the_rule_catches_an_upward_import(bad, tmp_path):
+    """The check itself can fail: an io module importing from a higher layer is reported."""
+    known = set(modules())
+    fake = PACKAGE / "io" / "storage.py"
+    text = fake.read_text() + f"\nfrom ..{bad.split('.', 1)[1]} import x\n"
+    p = tmp_path / "io" / "storage.py"
+    p.parent.mkdir()
+    p.write_text(text)
+    found = imported("sliders.io.storage", p, known)
+    assert bad in found and layer_of(bad) > layer_of("sliders.io.storage")
+
+
+def test_every_public_name_is_documented():
+    """Module-level functions and classes and the public members of every class (private
+    classes included: their methods are what a reader of the scheduler meets) have docstrings."""
+    missing = []
+    for m, path in modules().items():
+        tree = ast.parse(path.read_text())
+        if ast.get_docstring(tree) is None:
+            missing.append(f"{m} (module)")
+        for node in tree.body:
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef)) and not node.name.startswith("_"):
+                if ast.get_docstring(node) is None:
+                    missing.append(f"{m}.{node.name}")
+            if isinstance(node, ast.ClassDef):
+                for sub in node.body:
+                    if (isinstance(sub, ast.FunctionDef) and not sub.name.startswith("_")
+                            and ast.get_docstring(sub) is None):
+                        missing.append(f"{m}.{node.name}.{sub.name}")
+    assert not missing, "undocumented: " + ", ".join(missing)
