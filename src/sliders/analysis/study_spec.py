@@ -184,8 +184,9 @@ def check_points_memory(study: Study, ranks: int = 1) -> None:
 
 def spec_difference(stored: dict[str, Any], study: Study, given: str = "the study file") -> str:
     """What differs in meaning between a stored study (``Study.spec`` as a file keeps it)
-    and ``study``: "" when they are the same study, else the first differing key, with
-    both values.  Parsed, not textual: key order, ``0`` for ``0.0``, a default written
+    and ``study``: "" when they are the same study, else "<part> differ: <key> is ... in
+    the file, ... in <given>" for the first differing key (part: scene, axes, zip,
+    realisations).  Parsed, not textual: key order, ``0`` for ``0.0``, a default written
     out or left implicit make no difference; the order of the axes does (it orders the
     points and the file's dimensions)."""
     data: dict[str, Any] = {"study": {"realisations": stored.get("realisations")},
@@ -197,26 +198,26 @@ def spec_difference(stored: dict[str, Any], study: Study, given: str = "the stud
     except StudyError as exc:
         return f"the file's study cannot be read by this version ({exc})"
     if theirs.realisations != study.realisations:
-        return (f"[study] realisations: {theirs.realisations} in the file, "
+        return (f"realisations differ: {theirs.realisations} in the file, "
                 f"{study.realisations} in {given}")
     a, b = list(theirs.axes), list(study.axes)
     for name in a + b:
         if (name in a) != (name in b):
             where = "the file" if name in a else given
-            return f"[axes] {name}: an axis only in {where}"
+            return f"axes differ: {name} is an axis only in {where}"
     if a != b:
-        return (f"the order of [axes]: {', '.join(a)} in the file, {', '.join(b)} in {given} "
-                "(it orders the points)")
+        return (f"axes differ in order: {', '.join(a)} in the file, {', '.join(b)} in {given} "
+                "(the order numbers the points)")
     zips = (sorted(sorted(g) for g in theirs.zipped), sorted(sorted(g) for g in study.zipped))
     if zips[0] != zips[1]:
-        return f"[study] zip: {zips[0]} in the file, {zips[1]} in {given}"
+        return f"zip differ: {zips[0]} in the file, {zips[1]} in {given}"
     for name in a:
         x, y = theirs.axes[name], study.axes[name]
         if len(x) != len(y) or any(u != v for u, v in zip(x, y)):
-            return f"[axes] {name}: {x} in the file, {y} in {given}"
+            return f"axes differ: {name} is {x} in the file, {y} in {given}"
     for sa, sb in zip(theirs.scenes, study.scenes):
         da, db = sa.to_dict(), sb.to_dict()
         for key in da:
             if da[key] != db[key]:
-                return f"[scene] {key}: {da[key]!r} in the file, {db[key]!r} in {given}"
+                return f"scene differ: {key} is {da[key]!r} in the file, {db[key]!r} in {given}"
     return ""

@@ -99,7 +99,11 @@ def write_tilt_file(path, result, overwrite: bool = True) -> None:
 
     safeio.check_output_name(path)
     data = tilt_file_bytes(result)
-    with OutputClaim(path):
+    with OutputClaim(path) as claim:
+        if claim.leftovers:
+            import warnings
+
+            warnings.warn(safeio.leftovers_note(claim.leftovers), stacklevel=3)
         safeio.publish_bytes(path, data, overwrite)
 
 
