@@ -11,16 +11,14 @@ subprocesses.
 from __future__ import annotations
 
 import fcntl
-import json
 import os
-import signal
+import stat
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 import h5py
-import numpy as np
 import pytest
 
 import sliders
@@ -28,7 +26,7 @@ from sliders.io import safeio, storage, study_file
 from sliders.io.filelock import ClaimError, OutputClaim
 from sliders.runs import ensemble, merge
 from sliders.scene import SceneError, available_memory, check_memory
-from test_ensemble import (BACKEND, MPIRUN, PY, SCENE_OPTS, _env, _Run, assert_same_file,
+from test_ensemble import (PY, SCENE_OPTS, _env, _Run, assert_same_file,
                            ensemble_args, one_error_line, run)
 from test_reliability import tilt_file  # noqa: F401 - a saved run (fixture)
 
@@ -87,7 +85,7 @@ def one_line(code: int, err: str) -> str:
     return lines[0]
 
 
-def done_rows(path) -> np.ndarray:
+def done_rows(path):
     return storage.read_realisations(path)["done"]
 
 
@@ -155,6 +153,25 @@ def test_merge_full_disk_keeps_the_old_output_and_names_it(chunks, capsys, monke
     assert out.read_bytes() == b"old" and temporaries(chunks) == []
 
 
+def test_merge_onto_a_full_disk_keeps_the_old_output(chunks, capsys, tmp_path):
+    """A real full disk (tmpfs): the old output stays, one line names the path."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    old = (chunks / "c0.h5").read_bytes()
+    size = (len(old) // 4096 + 4) * 4096  # the old file fits, the merged one does not
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(disk)]).returncode:
+        pytest.fail("cannot mount a tmpfs (the suite runs as root)")
+    try:
+        out = disk / "out.h5"
+        out.write_bytes(old)
+        code, err = merge_main(capsys, out, chunks / "c0.h5", chunks / "c1.h5", "--overwrite")
+        line = one_line(code, err)
+        assert "No space left on device" in line and str(out) in line
+        assert out.read_bytes() == old and temporaries(disk) == []
+    finally:
+        subprocess.run(["umount", "-l", str(disk)])
+
+
 def test_merge_refused_while_the_output_is_claimed(chunks, capsys):
     out = chunks / "whole.h5"
     fd = hold_claim(out)
@@ -217,7 +234,7 @@ def test_merge_refuses_an_output_that_is_not_a_regular_file(chunks, capsys, kind
     code, err = merge_main(capsys, out, chunks / "c0.h5", chunks / "c1.h5", "--overwrite")
     assert "not a regular file" in one_line(code, err)
     mode = os.stat(out).st_mode
-    assert (os.path.stat.S_ISFIFO(mode) if kind == "fifo" else os.path.stat.S_ISCHR(mode))
+    assert stat.S_ISFIFO(mode) if kind == "fifo" else stat.S_ISCHR(mode)
 
 
 @pytest.mark.parametrize("where, needle", [

@@ -218,10 +218,6 @@ def read_study_spec(path) -> dict[str, Any]:
 
 def _open_checked(path):
     """The study file open for reading, its kind and version checked (StorageError, one line)."""
-    import h5py
-
-    from .storage import _open_for_reading
-
     p = os.fspath(path)
     f = _open_for_reading(p)
     try:
