@@ -226,15 +226,22 @@ def test_merge_output_that_is_an_input_by_hard_link(chunks, capsys):
 
 @pytest.mark.parametrize("kind", ["fifo", "device"])
 def test_merge_refuses_an_output_that_is_not_a_regular_file(chunks, capsys, kind):
-    out = chunks / "node"
+    out = chunks / "node"  # never a system node: a broken merge would replace it
     if kind == "fifo":
         os.mkfifo(out)
     else:
-        out = Path("/dev/null")
+        os.mknod(out, 0o666 | stat.S_IFCHR, os.makedev(1, 3))  # a null device of our own
     code, err = merge_main(capsys, out, chunks / "c0.h5", chunks / "c1.h5", "--overwrite")
     assert "not a regular file" in one_line(code, err)
     mode = os.stat(out).st_mode
     assert stat.S_ISFIFO(mode) if kind == "fifo" else stat.S_ISCHR(mode)
+
+
+def test_ensemble_onto_a_fifo_is_refused_without_blocking(tmp_path, capsys):
+    os.mkfifo(tmp_path / "fifo")
+    code, err = ensemble_main(capsys, *TINY, "-R", 2, "--out", tmp_path / "fifo")
+    assert "not a regular file" in one_line(code, err)
+    assert stat.S_ISFIFO(os.stat(tmp_path / "fifo").st_mode)
 
 
 @pytest.mark.parametrize("where, needle", [

@@ -75,13 +75,15 @@ def check_output(path: str, overwrite: bool, option: str = "--out") -> None:
     empty, non-UTF-8 or too long name (``safeio.check_output_name``), a folder that is
     missing or not writable, or an existing file without ``--overwrite``.  A symlink is
     written through (``safeio.resolve_target``): the checks apply to the file it names."""
-    from ..io.safeio import check_output_name, resolve_target
+    from ..io.safeio import check_output_name, is_special, resolve_target
 
     try:
         check_output_name(path)
     except ValueError as exc:
         raise SceneError(f"{option}: {exc}") from None
     target = resolve_target(path)
+    if is_special(target.real):  # a fifo or device: written in place (or refused by the caller);
+        return                   # never opened here, where a fifo would block
     check_writable(option, target.real)
     if os.path.exists(target.real) and not overwrite:
         raise SceneError(f"{option} {path!r} exists; pass --overwrite to replace it")
