@@ -10,7 +10,7 @@ import sys
 from . import status
 from .runs.cli import ProgressLine, add_scene_arguments, check_output, fail, scene_from_args
 from .io.filelock import ClaimError, OutputClaim
-from .io.safeio import describe_os_error
+from .io.safeio import describe_os_error, leftovers_note
 from .scene import BACKENDS, SceneError, check_memory
 
 
@@ -52,6 +52,8 @@ def main(argv: list[str] | None = None) -> int:
         if claim.previous_holder and not args.quiet:
             print(f"note: {args.out} was held by {claim.previous_holder}, which is no longer "
                   "running; its stale claim is taken over", file=sys.stderr)
+        if claim.leftovers:
+            print(f"note: {leftovers_note(claim.leftovers)}", file=sys.stderr)
         return _run(args, scene)
     finally:
         claim.release()

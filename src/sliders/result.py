@@ -215,6 +215,10 @@ class TiltResult:
         512 bytes, which HDF5 skips) a CRC-32 of the whole rest of the file:
         ``load`` checks it before HDF5 parses anything, so that damaged HDF5
         metadata cannot crash the process.  The layout: ``sliders.io.tilt_file``.
+        While writing, the output is claimed (``sliders.io.filelock``): a run
+        writing the same file makes this raise; temporary files of an earlier,
+        killed save are removed (with a warning).  A symlink is written
+        through: the file it names is replaced, the link stays.
         """
         from .io.tilt_file import write_tilt_file
 

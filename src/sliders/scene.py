@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import sys
 from dataclasses import dataclass, field, fields
 from typing import Any
 
@@ -42,6 +43,8 @@ ALPHA_MAX_LIMIT = math.pi / 2 - 1e-6
 #    than dt, only happen at crossings, each of which changes the moving set.)
 #    At dt = 1e-3 this allows caps up to 1.1e12 tau.
 RESOLUTION_ULPS = 4
+# the lattice positions n*l (and sums of a few of them) must stay far below the largest float
+LATTICE_HEADROOM = 1e6
 
 # Memory estimate (``Scene.memory_estimate``), measured on this code: arrays
 # per slider (state, forces, kernel work arrays, initial and final states),
@@ -218,6 +221,12 @@ class Scene:
         _check_int("n_sliders", self.n_sliders, 1, None)
         _check_real("xi", self.xi, 0.0, None)
         _check_real("spring_length", self.spring_length, 0.0, None)
+        extent = float(self.n_sliders) * self.spring_length  # the last lattice position
+        if not math.isfinite(extent * LATTICE_HEADROOM):
+            longest = sys.float_info.max / LATTICE_HEADROOM / self.n_sliders
+            raise SceneError(f"spring_length={self.spring_length!r} is out of range for "
+                             f"n_sliders={self.n_sliders}: the lattice positions n*l would "
+                             f"overflow (allowed up to about {longest:.3g})")
         _check_real("mu_d", self.mu_d, 0.0, None)
         _check_real("mu_s_mean", self.mu_s_mean, 0.0, None)
         if not self.mu_s_mean > self.mu_d:
@@ -422,16 +431,18 @@ def check_tilt_statistics(scene: Scene) -> None:
                          "a time: python -m sliders tilt --loading pushed_end")
 
 
-def check_memory(scene: Scene) -> None:
-    """Refuse a scene whose run would need more memory than the machine has available."""
-    need = scene.memory_estimate()
+def check_memory(scene: Scene, ranks: int = 1) -> None:
+    """Refuse a scene whose run would need more memory than the machine has available;
+    ``ranks``: processes of one node running such scenes at once (their needs add up)."""
+    need = scene.memory_estimate() * max(1, int(ranks))
     available = available_memory()
     if available is not None and need > available:
+        each = f" ({ranks} ranks on this node, {need / ranks / 1e9:.3g} GB each)" if ranks > 1 else ""
         raise SceneError(
             f"n_sliders={scene.n_sliders} with record={scene.record!r} and "
-            f"max_events={scene.max_events} needs about {need / 1e9:.3g} GB, more than the "
+            f"max_events={scene.max_events} needs about {need / 1e9:.3g} GB{each}, more than the "
             f"{available / 1e9:.3g} GB available (MemAvailable); use record='summary', fewer "
-            "sliders or a lower max_events"
+            f"sliders{', fewer ranks per node' if ranks > 1 else ''} or a lower max_events"
         )
 
 

@@ -167,3 +167,57 @@ def load_study(path) -> Study:
 
     where = f"study file {os.fspath(path)!r}"
     return parse_study(read_toml(path, where, StudyError), where)
+
+
+def check_points_memory(study: Study, ranks: int = 1) -> None:
+    """Refuse (StudyError naming the point) a study with a point too large for the memory
+    available, ``ranks`` such runs at once on one node: checked before anything is created."""
+    from ..scene import check_memory
+
+    for p, (values, scene) in enumerate(zip(study.points, study.scenes)):
+        try:
+            check_memory(scene, ranks)
+        except SceneError as exc:
+            raise StudyError(f"point {p} ({_point_text(values)}): "
+                             f"{' '.join(str(exc).split())}") from None
+
+
+def spec_difference(stored: dict[str, Any], study: Study, given: str = "the study file") -> str:
+    """What differs in meaning between a stored study (``Study.spec`` as a file keeps it)
+    and ``study``: "" when they are the same study, else "<part> differ: <key> is ... in
+    the file, ... in <given>" for the first differing key (part: scene, axes, zip,
+    realisations).  Parsed, not textual: key order, ``0`` for ``0.0``, a default written
+    out or left implicit make no difference; the order of the axes does (it orders the
+    points and the file's dimensions)."""
+    data: dict[str, Any] = {"study": {"realisations": stored.get("realisations")},
+                            "scene": stored.get("scene", {}), "axes": stored.get("axes")}
+    if stored.get("zip"):
+        data["study"]["zip"] = stored["zip"]
+    try:
+        theirs = parse_study(data, "the file's study")
+    except StudyError as exc:
+        return f"the file's study cannot be read by this version ({exc})"
+    if theirs.realisations != study.realisations:
+        return (f"realisations differ: {theirs.realisations} in the file, "
+                f"{study.realisations} in {given}")
+    a, b = list(theirs.axes), list(study.axes)
+    for name in a + b:
+        if (name in a) != (name in b):
+            where = "the file" if name in a else given
+            return f"axes differ: {name} is an axis only in {where}"
+    if a != b:
+        return (f"axes differ in order: {', '.join(a)} in the file, {', '.join(b)} in {given} "
+                "(the order numbers the points)")
+    zips = (sorted(sorted(g) for g in theirs.zipped), sorted(sorted(g) for g in study.zipped))
+    if zips[0] != zips[1]:
+        return f"zip differ: {zips[0]} in the file, {zips[1]} in {given}"
+    for name in a:
+        x, y = theirs.axes[name], study.axes[name]
+        if len(x) != len(y) or any(u != v for u, v in zip(x, y)):
+            return f"axes differ: {name} is {x} in the file, {y} in {given}"
+    for sa, sb in zip(theirs.scenes, study.scenes):
+        da, db = sa.to_dict(), sb.to_dict()
+        for key in da:
+            if da[key] != db[key]:
+                return f"scene differ: {key} is {da[key]!r} in the file, {db[key]!r} in {given}"
+    return ""

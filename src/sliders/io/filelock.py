@@ -14,6 +14,16 @@ takes an exclusive ``flock`` on the sidecar file ``<path>.lock``, which holds
   FUSE mounts) ``locking`` is False: callers say so and refuse to replace an
   existing file, since a concurrent writer could not be seen.
 
+The claim is on the file the path names (``safeio.resolve_target``: symlinks
+resolved), so that two runs reaching one file through different paths meet
+at one lock.  The sidecar is opened without following a symlink
+(``O_NOFOLLOW``) and must be a regular file: a planted ``OUT.lock`` link
+never makes a run truncate the file it points to.  Within one process a
+claim is re-entrant (``tilt --out`` holds it while ``TiltResult.save``, which
+claims too, writes).  Whoever takes a claim removes the temporary files an
+earlier, killed writer of the same path left (``leftovers``: reported by the
+caller).
+
 The sidecar is removed on release.  A process that opened it just before
 that removal would lock an unlinked file, so ``acquire`` checks that the
 locked file is still the one at ``<path>.lock`` and retries otherwise.
@@ -25,6 +35,7 @@ import errno
 import fcntl
 import os
 import socket
+import stat
 
 LOCK_SUFFIX = ".lock"
 NO_LOCKING = (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL)
@@ -39,28 +50,62 @@ def holder_text() -> str:
     return f"pid {os.getpid()} on {socket.gethostname()}"
 
 
+_HELD: dict[str, "OutputClaim"] = {}  # real path -> the claim this process holds on it
+
+
+def current_holder(path) -> str | None:
+    """The run named by the claim file of ``path`` ("pid P on HOST"), else None (read only,
+    never locked: for messages about a file known to be busy)."""
+    from .safeio import resolve_target
+
+    lock_path = resolve_target(path).real + LOCK_SUFFIX
+    try:
+        fd = os.open(lock_path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    except OSError:
+        return None
+    try:
+        return _read(fd) or None if stat.S_ISREG(os.fstat(fd).st_mode) else None
+    finally:
+        os.close(fd)
+
+
 class OutputClaim:
     """Exclusive claim on an output path (see the module doc)."""
 
     def __init__(self, path):
+        from .safeio import resolve_target
+
         self.path = os.fspath(path)
-        self.lock_path = self.path + LOCK_SUFFIX
+        self.target = resolve_target(self.path)
+        self.lock_path = self.target.real + LOCK_SUFFIX
         self.fd: int | None = None
         self.locking = True
         self.previous_holder: str | None = None  # a dead run's stale claim, taken over
+        self.leftovers: list[tuple[str, int]] = []  # (name, bytes) of temporaries removed
+        self._nested = False
 
     def acquire(self) -> "OutputClaim":
         """Take the claim (an exclusive lock of ``<path>.lock``) or raise naming its holder; returns self."""
-        from .safeio import is_special
+        from .safeio import is_special, remove_leftovers
 
-        if is_special(self.path):  # a device (/dev/full) or fifo: no file of ours to protect
+        if is_special(self.target.real):  # a device (/dev/full) or fifo: no file of ours to protect
+            return self
+        if self.target.real in _HELD:  # this process holds it already (tilt --out, then save)
+            self._nested = True
             return self
         for _ in range(100):  # retried only when the sidecar was replaced under us
             try:
-                fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+                fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | os.O_NOFOLLOW,
+                             0o644)
             except OSError as exc:
+                why = ("it is a symbolic link; sliders never writes through a lock file: "
+                       "remove it" if exc.errno == errno.ELOOP else exc.strerror)
                 raise ClaimError(f"cannot create the claim file {self.lock_path!r} for "
-                                 f"{self.path!r}: {exc.strerror}") from None
+                                 f"{self.path!r}: {why}") from None
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                os.close(fd)
+                raise ClaimError(f"the claim file {self.lock_path!r} for {self.path!r} is not a "
+                                 "regular file; remove it")
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -83,13 +128,21 @@ class OutputClaim:
             except OSError:  # a full disk: the lock holds all the same, unnamed
                 pass
             self.fd = fd
+            _HELD[self.target.real] = self
+            if self.locking:  # no other writer alive: an earlier one's temporaries are garbage
+                self.leftovers = remove_leftovers(self.target.real)
             return self
         raise ClaimError(f"cannot take the claim {self.lock_path!r}: it keeps being replaced")
 
     def release(self) -> None:
-        """Give the claim up (unlock and close; the lock file stays)."""
+        """Give the claim up (unlock and close; the lock file is removed)."""
+        if self._nested:
+            self._nested = False
+            return
         if self.fd is None:
             return
+        if _HELD.get(self.target.real) is self:
+            del _HELD[self.target.real]
         try:
             if _same_file(self.fd, self.lock_path):
                 os.unlink(self.lock_path)  # while still locked: nobody holds a stale copy
@@ -114,7 +167,7 @@ def _read(fd: int) -> str:
 
 def _same_file(fd: int, path: str) -> bool:
     try:
-        a, b = os.fstat(fd), os.stat(path)
+        a, b = os.fstat(fd), os.lstat(path)
     except OSError:
         return False
     return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)

@@ -14,6 +14,20 @@ from dataclasses import dataclass
 TILT = "sliders.tilt"          # one run: TiltResult.save (tilt_file)
 ENSEMBLE = "sliders.ensemble"  # R realisations of one scene (storage)
 STUDY = "sliders.study"        # R realisations at every point of a sweep (study_file)
+KIND_NAMES = {TILT: "tilt file (one run)", ENSEMBLE: "ensemble file", STUDY: "study file"}
+READ_WITH = {TILT: "sliders.TiltResult.load", ENSEMBLE: "sliders.io.storage.read_realisations",
+             STUDY: "sliders.analysis.study_analysis.load_study_file"}
+
+
+def kind_text(found) -> str:
+    """How a file whose ``format`` attribute is ``found`` is named to the user:
+    "is a sliders tilt file (one run; read it with ...)", or "is an HDF5 file not written by
+    sliders"."""
+    if found in KIND_NAMES:
+        return f"is a sliders {KIND_NAMES[found]} (read it with {READ_WITH[found]})"
+    if found is None:
+        return "is an HDF5 file without a sliders format attribute (not written by sliders)"
+    return f"is an HDF5 file of format {found!r} (not a sliders file this version knows)"
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,16 @@
   complete; without ``overwrite`` the rename is a hard link, which fails
   atomically if another process created the target in the meantime (no
   check-then-create race).
+* ``resolve_target(path)``: what a path names (``FileTarget``: the real path,
+  symlinks resolved, and device + inode when the file exists).  Every claim,
+  alias check, lock and publication goes through it.  Writing to a symlink
+  writes *through* it: the file the link names is created or replaced
+  (atomically), the link stays.  A lock file is never followed.
+* ``check_output_name(path)``: a name every writer can use (UTF-8, short
+  enough for its temporary name), checked before anything is computed.
+* ``leftover_temporaries(path)`` / ``remove_leftovers(path)``: the temporary
+  files of an earlier, killed write of ``path`` (named
+  ``.NAME.XXXXXXXX.tmp``), which the next claim holder removes and reports.
 * ``describe_os_error(exc, path)``: "PATH: REASON" for an ``OSError``,
   including the ones h5py raises for HDF5's own I/O failures (which carry the
   errno only in their text).
@@ -22,6 +32,7 @@ import re
 import stat
 import tempfile
 import zlib
+from typing import NamedTuple
 
 import numpy as np
 
@@ -34,6 +45,127 @@ ATTRS_DIGEST = "attrs_crc32"
 
 class IntegrityError(OSError):
     """A file's content does not match its checksums (flipped bytes, truncation)."""
+
+
+class NewerFormatError(ValueError):
+    """A file written by a newer sliders (a ``format_version`` this one does not know)."""
+
+
+# ---------------------------------------------------------------------------
+# file identity
+# ---------------------------------------------------------------------------
+class FileTarget(NamedTuple):
+    """What a path names: as given, the real path (every symlink resolved, a dangling
+    last link included) and ``(st_dev, st_ino)`` of the file when it exists."""
+
+    given: str
+    real: str
+    identity: tuple[int, int] | None
+
+    def same_file(self, other: "FileTarget") -> bool:
+        """True if both name one file: same device and inode, or (not yet existing) same real path."""
+        if self.identity is not None and other.identity is not None:
+            return self.identity == other.identity
+        return self.real == other.real
+
+
+def resolve_target(path) -> FileTarget:
+    """The one notion of file identity (see the module doc)."""
+    given = os.fspath(path)
+    if isinstance(given, bytes):
+        given = os.fsdecode(given)
+    real = os.path.realpath(given) if given else given
+    try:
+        st = os.stat(real)
+        identity = (st.st_dev, st.st_ino)
+    except OSError:
+        identity = None
+    return FileTarget(given, real, identity)
+
+
+TEMP_RANDOM = 8  # characters of mkstemp's random part
+TEMP_SUFFIX = ".tmp"
+TEMP_EXTRA = 1 + 1 + TEMP_RANDOM + len(TEMP_SUFFIX)  # "." NAME "." XXXXXXXX ".tmp"
+
+
+def check_output_name(path) -> None:
+    """Refuse (ValueError, one line) an output name no writer could publish: empty, not
+    UTF-8 (HDF5 and the messages need text), or too long once ``.NAME.XXXXXXXX.tmp``
+    makes the temporary name (the file system's NAME_MAX, 255 on most)."""
+    p = os.fspath(path)
+    if isinstance(p, bytes):
+        p = os.fsdecode(p)
+    if not p:
+        raise ValueError("the output path is empty; give a file path to write")
+    try:
+        p.encode("utf-8")
+    except UnicodeEncodeError:
+        shown = os.fsencode(p).decode("utf-8", errors="backslashreplace")
+        raise ValueError(f"output {shown!r}: the file name is not valid UTF-8 (HDF5 and the "
+                         "messages need text); rename it") from None
+    target = resolve_target(p).real
+    folder = os.path.dirname(target) or "."
+    try:
+        name_max = os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    name = os.path.basename(target)
+    longest = name_max - TEMP_EXTRA
+    if len(os.fsencode(name)) > longest:
+        raise ValueError(f"output {name[:40]}...: its name has {len(os.fsencode(name))} bytes; "
+                         f"at most {longest} can be written safely here (the temporary file "
+                         f"beside it adds {TEMP_EXTRA} to the file system's limit of {name_max})")
+
+
+def _leftover_pattern(target: str) -> re.Pattern:
+    return re.compile(r"\." + re.escape(os.path.basename(target)) +
+                      r"\.[a-z0-9_]{%d}" % TEMP_RANDOM + re.escape(TEMP_SUFFIX) + r"\Z")
+
+
+def leftover_temporaries(path) -> list[str]:
+    """Temporary files an earlier write of ``path`` left behind (killed before it published)."""
+    target = resolve_target(path).real
+    folder = os.path.dirname(target) or "."
+    pattern = _leftover_pattern(target)
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return []
+    out = []
+    for name in sorted(names):
+        if pattern.match(name):
+            full = os.path.join(folder, name)
+            try:
+                if stat.S_ISREG(os.lstat(full).st_mode):
+                    out.append(full)
+            except OSError:
+                pass
+    return out
+
+
+def remove_leftovers(path) -> list[tuple[str, int]]:
+    """Remove the leftover temporaries of ``path`` (call only while holding its claim: no
+    live writer then owns one); returns ``(name, bytes)`` of each removed."""
+    removed = []
+    for tmp in leftover_temporaries(path):
+        try:
+            size = os.lstat(tmp).st_size
+            os.unlink(tmp)
+        except OSError:
+            continue
+        removed.append((tmp, size))
+    return removed
+
+
+def leftovers_note(removed: list[tuple[str, int]]) -> str:
+    """One line naming the removed leftovers ("" if none)."""
+    if not removed:
+        return ""
+    total = sum(size for _, size in removed)
+    names = ", ".join(os.path.basename(name) for name, _ in removed[:3])
+    more = f" and {len(removed) - 3} more" if len(removed) > 3 else ""
+    return (f"removed {len(removed)} temporary file(s) left by an interrupted write "
+            f"({names}{more}; {total / 1e6:.3g} MB)")
 
 
 # ---------------------------------------------------------------------------
@@ -105,12 +237,33 @@ def read_checked(ds, where: str) -> np.ndarray:
 
 
 def check_header(h5file, fmt: str, where: str, wrong_kind=ValueError,
-                 coordinates: bool = True) -> None:
-    """The file is of kind ``fmt`` (else ``wrong_kind``, one line), and its root
-    attributes (and coordinate variables) pass their checksums.  Every reader
-    (tilt, ensemble, study) opens a file through this, raising its own error."""
-    if h5file.attrs.get("format") != fmt:
-        raise wrong_kind(f"{where} is not a sliders {fmt.rpartition('.')[2]} file")
+                 coordinates: bool = True, versions=(1,)) -> None:
+    """The file is of kind ``fmt`` (else ``wrong_kind``, one line naming the kind it is),
+    of a ``format_version`` in ``versions`` (a newer one is refused, naming it and the
+    versions known), and its root attributes (and coordinate variables) pass their
+    checksums.  Every reader (tilt, ensemble, study) opens a file through this, raising
+    its own error."""
+    from . import formats
+
+    found = h5file.attrs.get("format")
+    if isinstance(found, bytes):
+        found = found.decode(errors="replace")
+    if found != fmt:
+        raise wrong_kind(f"{where} {formats.kind_text(found)}, not a sliders "
+                         f"{formats.KIND_NAMES.get(fmt, fmt)}")
+    version = h5file.attrs.get("format_version")
+    try:
+        version = int(version)
+    except (TypeError, ValueError):
+        version = None
+    if version not in versions:
+        known = ", ".join(str(v) for v in versions)
+        if version is not None and version > max(versions):
+            raise wrong_kind(f"{where} has format_version {version}, written by a newer sliders; "
+                             f"this one reads format_version {known}: upgrade sliders to read "
+                             "or resume it")
+        raise wrong_kind(f"{where} has format_version {version!r}; this sliders reads "
+                         f"format_version {known} (the file is damaged or not from sliders)")
     check_attrs(h5file, where)
     if coordinates:
         check_coordinates(h5file, where)
@@ -166,10 +319,11 @@ def is_special(path) -> bool:
 
 
 def temporary_beside(path) -> str:
-    """A new, empty temporary file in the target's directory (same file system: rename is atomic)."""
-    target = os.path.abspath(os.fspath(path))
+    """A new, empty temporary file beside the file ``path`` names (symlinks resolved: same
+    file system, so that the rename is atomic), named ``.NAME.XXXXXXXX.tmp``."""
+    target = resolve_target(path).real
     fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".",
-                               suffix=".tmp", dir=os.path.dirname(target))
+                               suffix=TEMP_SUFFIX, dir=os.path.dirname(target))
     try:
         os.fchmod(fd, 0o666 & ~_umask())  # what open() would give, not mkstemp's 0600
     finally:
@@ -188,9 +342,10 @@ def publish(tmp: str, path, overwrite: bool) -> None:
 
     ``overwrite``: atomic replace.  Otherwise a hard link, which fails with
     FileExistsError if ``path`` appeared meanwhile; the temporary file is then
-    removed and the existing file left as it was.
+    removed and the existing file left as it was.  A symlink is written through:
+    the file it names is created or replaced, the link stays.
     """
-    target = os.fspath(path)
+    target = resolve_target(path).real
     try:
         if is_special(target):  # never replace a device node (root could: /dev/full)
             raise IsADirectoryError(errno.EINVAL, "not a regular file", target)
@@ -219,7 +374,7 @@ def publish_bytes(path, data: bytes, overwrite: bool) -> None:
     A target that is a device or a fifo (``/dev/full``, ``/dev/stdout``) is
     written in place: it cannot be replaced, and it holds no file to lose.
     """
-    target = os.fspath(path)
+    target = resolve_target(path).real
     if is_special(target):
         with open(target, "wb") as fh:
             fh.write(data)

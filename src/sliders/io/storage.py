@@ -62,6 +62,7 @@ from . import formats, safeio
 
 FORMAT = formats.ENSEMBLE
 FORMAT_VERSION = 1
+KNOWN_VERSIONS = (1,)  # format_version values this reader understands (a newer one is refused)
 ROW_DIGEST = "row_crc32"
 STORAGES = ("auto", "mpio", "gather")
 NOT_RUN = -1  # status code of a row that has not been computed
@@ -436,6 +437,16 @@ class GatherFile(EnsembleFile):
         super().__init__(path, layout, comm)
         self._queue: list = []
 
+    @classmethod
+    def build(cls, path, layout: Layout) -> "GatherFile":
+        """One process: the file's structure and seeds at ``path`` itself, open for rows.
+
+        For a caller that publishes ``path`` (a temporary file of its own,
+        ``safeio.temporary_beside``) only once it is complete (``sliders.merge``)."""
+        self = cls(path, layout, _OneProcess())
+        self._create(self.path)
+        return self
+
     def _create(self, tmp: str) -> None:
         if self.comm.rank == 0:
             import h5py
@@ -500,24 +511,58 @@ class GatherFile(EnsembleFile):
             self.file = None
 
 
+class _OneProcess:
+    """The communicator of a writer that is alone (rank 0 of 1)."""
+
+    rank = 0
+    size = 1
+
+
 HANDLERS = {"mpio": MpioFile, "gather": GatherFile}
 ABANDONED: list = []  # parallel files whose creation failed (see EnsembleFile.abandon)
 SPACE_MARGIN = 1 << 18  # bytes of HDF5 metadata and slack beyond the datasets (~50 kB measured)
 
 
+def row_bytes(columns) -> int:
+    """Bytes of one row of these columns, with its seed, done flag and row checksums."""
+    row = sum(int(np.prod(c.shape, dtype=np.int64)) * c.dtype.itemsize for c in columns)
+    return row + 4 + 1 + 4 * len(columns)
+
+
+def statistics_row_bytes(statistics: dict[str, tuple[tuple[int, ...], np.dtype]]) -> int:
+    """``row_bytes`` of an ensemble row with these statistics (no layout, no seeds needed)."""
+    return row_bytes(make_layout(0, [], {}, statistics, {}).columns)
+
+
 def file_size_estimate(layout: Layout) -> int:
     """Bytes of an ensemble file: every dataset is allocated when the file is created."""
-    R = layout.n_realisations
-    row = sum(int(np.prod(c.shape, dtype=np.int64)) * c.dtype.itemsize for c in layout.columns)
-    row += 4 + 1 + 4 * len(layout.columns)  # seed, done, row checksums
     grids = sum(np.asarray(g).nbytes for g in layout.grids.values())
-    return R * row + grids + SPACE_MARGIN
+    return layout.n_realisations * row_bytes(layout.columns) + grids + SPACE_MARGIN
+
+
+def check_room(path: str, n_rows: int, bytes_per_row: int) -> None:
+    """Refuse at once (StorageError) ``n_rows`` rows that the file system of ``path`` cannot
+    hold: checked before any per-row array (seeds, done mask) is made, so that an absurd
+    count (``-R 99999999999999999999``) is refused in a blink instead of filling the memory."""
+    need = int(n_rows) * int(bytes_per_row) + SPACE_MARGIN
+    target = safeio.resolve_target(path).real
+    try:
+        st = os.statvfs(os.path.dirname(target) or ".")
+    except OSError as exc:
+        raise StorageError(safeio.describe_os_error(exc, os.path.dirname(target))) from None
+    free = st.f_bavail * st.f_frsize
+    size = st.f_blocks * st.f_frsize
+    if need > free:
+        whole = " (more than the whole file system holds)" if need > size else ""
+        raise StorageError(f"{n_rows} rows of {bytes_per_row} bytes need about {need / 1e6:.3g} "
+                           f"MB{whole}, and the file system of {path!r} has {free / 1e6:.3g} MB "
+                           "free (No space left on device)")
 
 
 def _check_space(path: str, layout: Layout) -> None:
     """Refuse up front a file that does not fit on its file system (not half-way)."""
     need = file_size_estimate(layout)
-    st = os.statvfs(os.path.dirname(os.path.abspath(path)))
+    st = os.statvfs(os.path.dirname(safeio.resolve_target(path).real))
     free = st.f_bavail * st.f_frsize
     if need > free:
         raise StorageError(f"it needs about {need / 1e6:.3g} MB and its file system has "
@@ -528,6 +573,9 @@ def _check_space(path: str, layout: Layout) -> None:
 # reading (serial, any process)
 # ---------------------------------------------------------------------------
 def _open_for_reading(path):
+    """An HDF5 file open for reading, or StorageError in one line: missing, busy (another
+    process writes it: HDF5's file lock, and the holder of its sliders claim named),
+    unreadable, not HDF5."""
     import h5py
 
     p = os.fspath(path)
@@ -536,8 +584,23 @@ def _open_for_reading(path):
     try:
         f = h5py.File(p, "r")
     except OSError as exc:
-        raise StorageError(f"{p!r} is not a readable HDF5 file ({' '.join(str(exc).split())})") \
-            from None
+        text = " ".join(str(exc).split())
+        if "unable to lock file" in text or "errno = 11" in text:
+            from .filelock import current_holder
+
+            holder = current_holder(p) or "another process"
+            raise StorageError(f"{p!r} is busy: {holder} is writing it (HDF5 locks a file "
+                               "while it is written); read it once that run has finished") \
+                from None
+        if os.path.isdir(p):
+            raise StorageError(f"{p!r} is a directory, not an HDF5 file") from None
+        try:
+            hdf5 = h5py.is_hdf5(p)
+        except OSError:
+            hdf5 = True
+        if not hdf5:
+            raise StorageError(f"{p!r} is not a readable HDF5 file (not HDF5 at all)") from None
+        raise StorageError(f"{p!r} is not a readable HDF5 file ({text})") from None
     return f
 
 
@@ -557,7 +620,7 @@ def read_header(path) -> dict[str, Any]:
     f = _open_for_reading(p)
     try:
         with f:
-            safeio.check_header(f, FORMAT, where, StorageError)
+            safeio.check_header(f, FORMAT, where, StorageError, versions=KNOWN_VERSIONS)
             attrs = {k: _plain(v) for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
             grids = {k: safeio.read_checked(ds, where) for k, ds in f["grids"].items()}
             rg = f["realisations"]
@@ -584,6 +647,8 @@ def read_rows(path) -> dict[str, np.ndarray]:
     f = _open_for_reading(p)
     try:
         with f:
+            safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
+                                versions=KNOWN_VERSIONS)
             rg = f["realisations"]
             rg.visititems(lambda name, obj: out.__setitem__(name, obj[()])
                           if isinstance(obj, h5py.Dataset) else None)
@@ -604,6 +669,8 @@ def damaged_rows(path) -> list[int]:
     f = _open_for_reading(p)
     try:
         with f:
+            safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
+                                versions=KNOWN_VERSIONS)
             rg = f["realisations"]
             order = json.loads(rg[ROW_DIGEST].attrs["columns"])
             out = {name: rg[name][()] for name in order + ["done", ROW_DIGEST]}

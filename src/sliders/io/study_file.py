@@ -28,10 +28,11 @@ import numpy as np
 
 from . import formats, safeio
 from .storage import (ROW_DIGEST, GatherFile, Layout, MpioFile, StorageError, _create_structure,
-                      _row_damage)
+                      _open_for_reading, _row_damage)
 
 FORMAT = formats.STUDY
 FORMAT_VERSION = 1
+KNOWN_VERSIONS = (1,)  # format_version values this reader understands (a newer one is refused)
 CRN_TEXT = ("common random numbers: realisation r has seed realisation_seed(base_seed, r) at "
             "every point (the same disorder draws); differences between points are paired")
 VIEW_COLUMNS = ("alpha_c", "n_events", "status", "done")
@@ -183,11 +184,11 @@ def read_study_header(path) -> dict[str, Any]:
     import h5py
 
     p = os.fspath(path)
-    if not os.path.exists(p):
-        raise StorageError(f"{p!r} does not exist")
+    f = _open_for_reading(p)
     try:
-        with h5py.File(p, "r") as f:
-            safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False)
+        with f:
+            safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
+                                versions=KNOWN_VERSIONS)
             attrs = {k: (v.decode() if isinstance(v, bytes) else
                          v.item() if isinstance(v, np.generic) else v)
                      for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
@@ -211,10 +212,21 @@ def read_study_header(path) -> dict[str, Any]:
 
 def read_study_spec(path) -> dict[str, Any]:
     """The study as the file stores it (root attribute ``study``): scene, axes, zip, realisations."""
-    import h5py
-
-    with h5py.File(os.fspath(path), "r") as f:
+    with _open_checked(path) as f:
         return json.loads(f.attrs["study"])
+
+
+def _open_checked(path):
+    """The study file open for reading, its kind and version checked (StorageError, one line)."""
+    p = os.fspath(path)
+    f = _open_for_reading(p)
+    try:
+        safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
+                            versions=KNOWN_VERSIONS)
+    except Exception:
+        f.close()
+        raise
+    return f
 
 
 def read_point_rows(path, p: int) -> dict[str, np.ndarray]:
@@ -222,7 +234,7 @@ def read_point_rows(path, p: int) -> dict[str, np.ndarray]:
     import h5py
 
     out: dict[str, np.ndarray] = {}
-    with h5py.File(os.fspath(path), "r") as f:
+    with _open_checked(path) as f:
         rg = f["points"][point_name(p)]["realisations"]
         rg.visititems(lambda name, obj: out.__setitem__(name, obj[()])
                       if isinstance(obj, h5py.Dataset) else None)

@@ -36,6 +36,7 @@ from . import formats, safeio
 
 FORMAT = formats.TILT
 FORMAT_VERSION = 1
+KNOWN_VERSIONS = (1,)  # format_version values this reader understands (a newer one is refused)
 STATE_FIELDS = ("elastic_force0", "spring_extension0", "cantilever_stretch0",
                 "lattice_position0", "mu_s", "displacement", "n_stops")
 WHOLE_FILE_BLOCK = 512  # bytes before the HDF5 superblock, which HDF5 leaves to the user
@@ -91,8 +92,19 @@ def tilt_file_bytes(result) -> bytes:
 
 
 def write_tilt_file(path, result, overwrite: bool = True) -> None:
-    """Write a ``TiltResult`` to ``path`` atomically (``safeio.publish_bytes``)."""
-    safeio.publish_bytes(path, tilt_file_bytes(result), overwrite)
+    """Write a ``TiltResult`` to ``path`` atomically (``safeio.publish_bytes``), holding the
+    claim on it (``filelock.OutputClaim``: refused while another run writes it; re-entrant
+    for ``tilt --out``, which holds it already); a symlink is written through."""
+    from .filelock import OutputClaim
+
+    safeio.check_output_name(path)
+    data = tilt_file_bytes(result)
+    with OutputClaim(path) as claim:
+        if claim.leftovers:
+            import warnings
+
+            warnings.warn(safeio.leftovers_note(claim.leftovers), stacklevel=3)
+        safeio.publish_bytes(path, data, overwrite)
 
 
 # ---------------------------------------------------------------------------
@@ -131,7 +143,7 @@ def read_datasets_checked(path):
         raise safeio.IntegrityError(f"{where} is not a readable HDF5 file ({exc})") from None
     try:
         with f:
-            safeio.check_header(f, FORMAT, where, ValueError)
+            safeio.check_header(f, FORMAT, where, ValueError, versions=KNOWN_VERSIONS)
             scene = Scene.from_dict(json.loads(f.attrs["scene"]))
             events = {name: safeio.read_checked(ds, where) for name, ds in f["events"].items()}
             disp = None

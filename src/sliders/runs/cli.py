@@ -70,11 +70,34 @@ def disagreements(stored: Scene, given: dict) -> str:
     return "; ".join(f"{k}={a[k]!r} in the file, {b[k]!r} given" for k in a if a[k] != b[k])
 
 
-def check_output(path: str, overwrite: bool) -> None:
-    """Refuse an unwritable output, or an existing one without --overwrite."""
-    check_writable("--out", path)
-    if os.path.exists(path) and not overwrite:
-        raise SceneError(f"--out {path!r} exists; pass --overwrite to replace it")
+def check_output(path: str, overwrite: bool, option: str = "--out") -> None:
+    """Refuse, before anything is computed, an output that could not be published: an
+    empty, non-UTF-8 or too long name (``safeio.check_output_name``), a folder that is
+    missing or not writable, or an existing file without ``--overwrite``.  A symlink is
+    written through (``safeio.resolve_target``): the checks apply to the file it names."""
+    from ..io.safeio import check_output_name, is_special, resolve_target
+
+    try:
+        check_output_name(path)
+    except ValueError as exc:
+        raise SceneError(f"{option}: {exc}") from None
+    target = resolve_target(path)
+    if is_special(target.real):  # a fifo or device: written in place (or refused by the caller);
+        return                   # never opened here, where a fifo would block
+    check_writable(option, target.real)
+    if os.path.exists(target.real) and not overwrite:
+        raise SceneError(f"{option} {path!r} exists; pass --overwrite to replace it")
+
+
+def ranks_on_this_node(comm) -> int:
+    """How many ranks of ``comm`` run on this rank's node (collective: every rank calls it);
+    their memory adds up against one MemAvailable."""
+    if comm.size == 1:
+        return 1
+    import socket
+
+    hosts = comm.allgather(socket.gethostname())
+    return hosts.count(socket.gethostname())
 
 
 class ProgressLine:

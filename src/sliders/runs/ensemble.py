@@ -158,8 +158,9 @@ def check_run_options(args, comm, have_mpi: bool) -> str:
         raise UsageError(str(exc)) from None
 
 
-def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
-    """Validate everything that can be checked locally (every rank, same answer)."""
+def _plan(args, comm, have_mpi: bool, node_ranks: int = 1) -> dict[str, Any]:
+    """Validate everything that can be checked locally (every rank, same answer);
+    ``node_ranks``: ranks on this node, whose memory adds up."""
     from .cli import scene_from_args
 
     scene = scene_from_args(args)
@@ -181,7 +182,7 @@ def _plan(args, comm, have_mpi: bool) -> dict[str, Any]:
     from ..scene import check_memory, check_tilt_statistics
 
     check_tilt_statistics(scene)
-    check_memory(scene)
+    check_memory(scene, node_ranks)
     return {"scene": scene, "storage": storage}
 
 
@@ -208,6 +209,10 @@ def _claim_output(args, program: str = "ensemble"):
     elif claim.previous_holder and not args.quiet:
         sys.stderr.write(f"{program}: note: {args.out} was held by {claim.previous_holder}, which "
                          "is no longer running; its stale claim is taken over\n")
+    if claim.leftovers:
+        from ..io.safeio import leftovers_note
+
+        sys.stderr.write(f"{program}: note: {leftovers_note(claim.leftovers)}\n")
     return claim
 
 
@@ -217,7 +222,8 @@ def _plan_root(args, plan) -> dict[str, Any]:
     from .cli import disagreements, given_scene_values
     from ..keyed_random import realisation_seed
     from ..analysis.observables import default_grids, statistics_layout
-    from ..io.storage import StorageError, damaged_rows, file_attributes, make_layout, read_header
+    from ..io.storage import (StorageError, check_room, damaged_rows, file_attributes, make_layout,
+                              read_header, statistics_row_bytes)
 
     scene: Scene = plan["scene"]
     backend = args.backend or DEFAULT_BACKEND
@@ -264,6 +270,14 @@ def _plan_root(args, plan) -> dict[str, Any]:
                              f"{attrs.get('first_realisation', 0)}, chunk {args.chunk[0]}/"
                              f"{args.chunk[1]} at {first}")
         first = int(attrs.get("first_realisation", 0))
+    # record = "summary": the per-realisation summary only (no displacements, no statistics)
+    stats = {} if scene.record == "summary" else statistics_layout(default_grids(scene),
+                                                                   scene.n_sliders)
+    if not resume:  # before any per-row array: an absurd count is refused at once
+        try:
+            check_room(out, R, statistics_row_bytes(stats))
+        except StorageError as exc:
+            raise UsageError(f"--realisations {R}: {exc}") from None
     grids = default_grids(scene).to_arrays()
     if resume:
         for k, v in grids.items():
@@ -284,9 +298,6 @@ def _plan_root(args, plan) -> dict[str, Any]:
         file_attrs = file_attributes(scene.to_dict(), scene.seed, R, backend)
         file_attrs["first_realisation"] = first
     seeds = np.array([realisation_seed(scene.seed, first + r) for r in range(R)], dtype=np.uint32)
-    # record = "summary": the per-realisation summary only (no displacements, no statistics)
-    stats = {} if scene.record == "summary" else statistics_layout(default_grids(scene),
-                                                                   scene.n_sliders)
     layout = make_layout(R, seeds, grids, stats, file_attrs)
     if resume:
         cols = head["columns"]
@@ -682,10 +693,13 @@ def main(argv: list[str] | None = None) -> int:
 
     # 1. validate (no collective before this point: every rank reaches the allgather)
     claims: list = []
+    from .cli import ranks_on_this_node
+
+    node_ranks = ranks_on_this_node(comm)  # collective, before any rank can fail
 
     def prepare():
         args = build_parser(rank).parse_args(argv)
-        plan = _plan(args, comm, have_mpi)
+        plan = _plan(args, comm, have_mpi, node_ranks)
         root_plan = None
         if rank == 0:
             claims.append(_claim_output(args))
@@ -735,6 +749,10 @@ def agree_on_plan(comm, prepare, claims: list):
         err = (1, str(exc))
     except Exception as exc:  # noqa: BLE001 - any failure here must reach every rank
         err = (1, f"{type(exc).__name__}: {exc}")
+    except BaseException:  # Ctrl-C while planning: no stale claim left behind
+        for claim in claims:
+            claim.release()
+        raise
     errors = comm.allgather(err)
     first = next((e for e in errors if e is not None), None)
     if first is None:

@@ -54,23 +54,91 @@ def _describe(path: str, head: dict) -> str:
     return f"{path} (realisations {first}..{first + int(head['attrs']['realisations']) - 1})"
 
 
-def merge(out, inputs, overwrite: bool = False) -> dict:
-    """Write the ensemble made of the chunk files ``inputs`` to ``out``; returns counts."""
-    from ..keyed_random import realisation_seed
-    from ..analysis.observables import StatisticsGrids, statistics_layout
-    from .parallel import SerialComm
-    from ..scene import Scene
-    from ..io.storage import GatherFile, StorageError, file_attributes, make_layout, read_header, read_rows
+def merge(out, inputs, overwrite: bool = False, notes=None) -> dict:
+    """Write the ensemble made of the chunk files ``inputs`` to ``out``; returns counts.
+
+    On the ensemble's footing: ``out`` is checked (name, folder) and claimed
+    (``OutputClaim``: refused while an ensemble or another merge writes it)
+    before anything is read; an output that is one of the inputs (the same
+    file, by device and inode or real path, whatever the path typed) or that
+    is not a regular file is refused; the merged file is built under a
+    temporary name beside ``out`` and renamed over it once complete, so that
+    an existing ``out`` stays as it was until then (an interruption or a full
+    disk leaves it untouched, and no temporary file).  ``notes``: a list that
+    receives lines for the user (temporary files of an earlier, killed merge
+    that were removed).
+    """
+    from ..io.filelock import ClaimError, OutputClaim
+    from ..io.safeio import check_output_name, is_special, resolve_target
 
     out = os.fspath(out)
     if not inputs:
         raise MergeError("no input files")
-    if os.path.exists(out) and not overwrite:
+    try:
+        check_output_name(out)
+    except ValueError as exc:
+        raise MergeError(str(exc)) from None
+    target = resolve_target(out)
+    if os.path.isdir(target.real):
+        raise MergeError(f"{out!r} is a directory; give the merged file's path")
+    if target.identity is not None and not os.path.isfile(target.real):
+        raise MergeError(f"{out!r} is not a regular file (a device, a fifo or a socket); the "
+                         "merged ensemble must be a file")
+    if target.identity is not None and not overwrite:
         raise MergeError(f"{out!r} exists; pass --overwrite to replace it")
-    heads = []
     for p in map(os.fspath, inputs):
-        if os.path.abspath(p) == os.path.abspath(out):
-            raise MergeError(f"{p!r} is both an input and the output")
+        if resolve_target(p).same_file(target):
+            raise MergeError(f"{p!r} is both an input and the output {out!r} (the same file); "
+                             "write the merged ensemble elsewhere")
+    _check_folder(out, target.real)
+    try:
+        claim = OutputClaim(out).acquire()
+    except ClaimError as exc:
+        raise MergeError(str(exc)) from None
+    try:
+        if not claim.locking and target.identity is not None:
+            raise MergeError(f"{out!r}: this file system does not support file locks, so a "
+                             "concurrent writer could not be detected; --overwrite is refused "
+                             "there (delete the file first, or write elsewhere)")
+        if claim.leftovers and notes is not None:
+            from ..io.safeio import leftovers_note
+
+            notes.append(leftovers_note(claim.leftovers))
+        if is_special(target.real):  # appeared meanwhile
+            raise MergeError(f"{out!r} is not a regular file")
+        return _merge_claimed(out, list(map(os.fspath, inputs)), overwrite)
+    finally:
+        claim.release()
+
+
+def _check_folder(out: str, real: str) -> None:
+    """The folder of ``out`` exists and takes a new file (probed, as for an ensemble)."""
+    import tempfile
+
+    folder = os.path.dirname(real) or "."
+    if not os.path.isdir(folder):
+        raise MergeError(f"{out!r}: directory {folder!r} does not exist")
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        from ..io.safeio import describe_os_error
+
+        raise MergeError(f"cannot create files beside {out!r}: "
+                         f"{describe_os_error(exc, folder)}") from None
+
+
+def _merge_claimed(out: str, inputs: list[str], overwrite: bool) -> dict:
+    """``merge`` once ``out`` is checked and claimed: read, build beside, publish by rename."""
+    from ..keyed_random import realisation_seed
+    from ..analysis.observables import StatisticsGrids, statistics_layout
+    from ..scene import Scene
+    from ..io import safeio
+    from ..io.storage import (GatherFile, StorageError, _check_space, file_attributes, make_layout,
+                              read_header, read_rows)
+
+    heads = []
+    for p in inputs:
         try:
             heads.append((p, read_header(p)))
         except StorageError as exc:
@@ -111,31 +179,51 @@ def merge(out, inputs, overwrite: bool = False) -> dict:
         missing = [n for n in names if n not in h["columns"]]
         if missing:
             raise MergeError(f"{p!r} lacks the column(s) {missing}")
-    if os.path.exists(out):
-        os.remove(out)
-    handler = GatherFile.create(out, layout, SerialComm(), overwrite=True)
-    n_done = 0
+        first = int(h["attrs"].get("first_realisation", 0))
+        if not np.array_equal(h["seeds"], seeds[first:first + h["seeds"].size]):
+            raise MergeError(f"{p!r} holds other seeds than realisations "
+                             f"{first}..{first + h['seeds'].size - 1} of this scene")
     try:
-        for p, h in heads:
-            first = int(h["attrs"].get("first_realisation", 0))
-            if not np.array_equal(h["seeds"], seeds[first:first + h["seeds"].size]):
-                raise MergeError(f"{p!r} holds other seeds than realisations "
-                                 f"{first}..{first + h['seeds'].size - 1} of this scene")
-            rows = read_rows(p)
-            for i in np.flatnonzero(h["done"]):
-                handler.write_row(first + int(i), {n: rows[n][i] for n in names})
-                handler.mark_done(first + int(i))
-                n_done += 1
-        handler.flush()
-    finally:
-        handler.close()
+        _check_space(out, layout)
+    except StorageError as exc:
+        raise MergeError(f"cannot write {out!r}: {exc}") from None
+    except OSError as exc:
+        raise MergeError(f"cannot write {safeio.describe_os_error(exc, out)}") from None
     from ..io.conventions import describe_ensemble_file
 
-    # the chunks' commands first; describe adds this merge
-    described = describe_ensemble_file(out, "\n".join(str(h["attrs"]["history"]) for _, h in heads
-                                                      if h["attrs"].get("history")))
-    if described is not True:
-        raise MergeError(f"cannot describe {out!r}: {described}")
+    tmp = None
+    try:
+        tmp = safeio.temporary_beside(out)
+        handler = GatherFile.build(tmp, layout)
+        n_done = 0
+        try:
+            for p, h in heads:
+                first = int(h["attrs"].get("first_realisation", 0))
+                rows = read_rows(p)
+                for i in np.flatnonzero(h["done"]):
+                    handler.write_row(first + int(i), {n: rows[n][i] for n in names})
+                    handler.mark_done(first + int(i))
+                    n_done += 1
+            handler.flush()
+        finally:
+            handler.close()
+        # the chunks' commands first; describe adds this merge
+        described = describe_ensemble_file(tmp, "\n".join(str(h["attrs"]["history"])
+                                                          for _, h in heads
+                                                          if h["attrs"].get("history")))
+        if described is not True:
+            raise MergeError(f"cannot write {out!r}: {described}")
+        safeio.fsync_path(tmp)
+        safeio.publish(tmp, out, overwrite=True)  # the old file stays until this rename
+    except StorageError as exc:
+        raise MergeError(str(exc)) from None
+    except OSError as exc:
+        raise MergeError(f"cannot write {safeio.describe_os_error(exc, out)}; "
+                         f"{'the existing file is unchanged' if overwrite else 'nothing written'}") \
+            from None
+    finally:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
     return {"realisations": n_total, "done": n_done, "inputs": len(heads)}
 
 
@@ -158,11 +246,29 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("inputs", metavar="IN.h5", nargs="+", help="chunk files, in any order")
     p.add_argument("--overwrite", action="store_true", help="replace an existing OUT.h5")
     args = p.parse_args(argv)
+    notes: list[str] = []
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    import signal
+
+    old = signal.signal(signal.SIGTERM, stop)  # a batch system's stop: as Ctrl-C, cleanly
     try:
-        counts = merge(args.out, args.inputs, overwrite=args.overwrite)
-    except (MergeError, OSError, ValueError) as exc:
+        counts = merge(args.out, args.inputs, overwrite=args.overwrite, notes=notes)
+    except (MergeError, OSError, ValueError, RuntimeError) as exc:
+        for note in notes:
+            sys.stderr.write(f"merge: note: {note}\n")
         sys.stderr.write("error: " + " ".join(str(exc).split()) + "\n")
         return 1
+    except KeyboardInterrupt:
+        sys.stderr.write(f"merge: interrupted; {args.out} is unchanged and no temporary file is "
+                         "left\n")
+        return 130
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    for note in notes:
+        sys.stderr.write(f"merge: note: {note}\n")
     sys.stderr.write(f"merge: {counts['inputs']} files, {counts['done']}/{counts['realisations']} "
                      f"realisations done -> {args.out}\n")
     if counts["done"] < counts["realisations"]:

@@ -45,7 +45,7 @@ from ..io.study_file import (HANDLERS, read_study_header, study_attributes, stud
 from .parallel import abort
 
 from ..analysis.study_spec import (NOT_AXES, STUDY_PREFIX, Study, StudyError,  # noqa: F401 - kept importable here
-                                      load_study, parse_study)
+                                      check_points_memory, load_study, parse_study)
 
 
 # ---------------------------------------------------------------------------
@@ -75,17 +75,25 @@ EXTRA_LAYOUT = {STUDY_PREFIX + k: ((), t) for k, t in (
     ("sync_event_share", np.float64))}
 
 
+def _point_statistics(scene, grids=None) -> dict:
+    """The statistics columns of one point's rows (the ensemble's plus the study's own)."""
+    from ..analysis.observables import default_grids, statistics_layout
+
+    stats = dict(statistics_layout(grids or default_grids(scene), scene.n_sliders))
+    stats.update(EXTRA_LAYOUT)
+    return stats
+
+
 def _point_layout(study: Study, p: int, backend: str):
     from ..keyed_random import realisation_seed
-    from ..analysis.observables import default_grids, statistics_layout
+    from ..analysis.observables import default_grids
     from ..io.storage import file_attributes, make_layout
 
     scene = study.scenes[p]
     R = study.realisations
     seeds = [realisation_seed(study.base_seed, r) for r in range(R)]  # the same at every point
     grids = default_grids(scene)
-    stats = dict(statistics_layout(grids, scene.n_sliders))
-    stats.update(EXTRA_LAYOUT)
+    stats = _point_statistics(scene, grids)
     attrs = file_attributes(scene.to_dict(), study.base_seed, R, backend)
     attrs.update({"point": p, "point_values": json.dumps(study.points[p])})
     return make_layout(R, seeds, grids.to_arrays(), stats, attrs)
@@ -127,7 +135,8 @@ def build_parser(rank: int = 0) -> argparse.ArgumentParser:
 def _plan_root(args, study: Study) -> dict[str, Any]:
     """Rank 0, holding the claim: new file or resume against the same study."""
     from .ensemble import DEFAULT_BACKEND, UsageError
-    from ..io.storage import StorageError
+    from ..analysis.study_spec import spec_difference
+    from ..io.storage import StorageError, check_room, statistics_row_bytes
 
     out = args.out
     backend = args.backend or DEFAULT_BACKEND
@@ -144,13 +153,11 @@ def _plan_root(args, study: Study) -> dict[str, Any]:
         except StorageError as exc:
             raise UsageError(f"--resume: {exc}") from None
         attrs = head["attrs"]
-        if attrs.get("study_digest") != study.digest:
-            theirs = json.loads(attrs["study"])
-            what = [k for k in ("scene", "axes", "zip", "realisations")
-                    if theirs.get(k) != study.spec[k]]
-            raise UsageError(f"--resume: {out!r} holds a different study ({', '.join(what)} "
-                             f"differ from {args.study!r}); start a new file or resume with the "
-                             "study file that made it")
+        differ = (spec_difference(json.loads(attrs["study"]), study, repr(args.study))
+                  if attrs.get("study_digest") != study.digest else "")
+        if differ:  # compared by meaning: the same study written differently is the same
+            raise UsageError(f"--resume: {out!r} holds a different study ({differ}); start a new "
+                             "file or resume with the study file that made it")
         if args.backend is not None and attrs["backend"] != args.backend:
             raise UsageError(f"--resume: {out!r} was computed with --backend {attrs['backend']}")
         backend = attrs["backend"]
@@ -159,6 +166,12 @@ def _plan_root(args, study: Study) -> dict[str, Any]:
         if n_bad:
             sys.stderr.write(f"study: note: {n_bad} finished row(s) of {out} fail their "
                              "checksums; recomputing them\n")
+    if not resume:  # before any per-row array: an absurd count is refused at once
+        try:
+            check_room(out, R, sum(statistics_row_bytes(_point_statistics(scene))
+                                   for scene in study.scenes))
+        except StorageError as exc:
+            raise UsageError(f"[study] realisations = {R}: {exc}") from None
     layout = make_study_layout(study, backend, attrs)
     # most expensive points first (then realisation order), so that the tail is short
     order = sorted(range(P), key=lambda p: (-study.cost(p), p))
@@ -179,11 +192,15 @@ def main(argv: list[str] | None = None) -> int:
     comm, have_mpi = world
     rank = comm.rank
     claims: list = []
+    from .cli import ranks_on_this_node
+
+    node_ranks = ranks_on_this_node(comm)  # collective, before any rank can fail
 
     def prepare():
         args = build_parser(rank).parse_args(argv)
         storage = check_run_options(args, comm, have_mpi)
         study = load_study(args.study)
+        check_points_memory(study, node_ranks)  # every point, before the file is created
         plan = None
         if rank == 0:
             claims.append(_claim_output(args, "study"))
