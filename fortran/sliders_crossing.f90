@@ -8,17 +8,17 @@
 !> starts.
 !>
 !> The bisection's trials test only the sliders that crossed in the full
-!> step (crossing_candidates; and their neighbours' positions; with xi > 0
-!> the mean through a rigorous enclosure, sliders_coupling_mean, exactly
-!> only when the enclosure leaves the test open): a crossing costs two full
-!> trials plus O(crossers) per bisection trial, not O(active) per trial,
-!> which was quadratic in the number of moving sliders for the large late
-!> events.  The bisection is bounded by max_halvings (status_refine_limit).
+!> step (sliders_steps, crossing_candidates; and their neighbours'
+!> positions; with xi > 0 the mean through a rigorous enclosure,
+!> sliders_coupling_mean, exactly only when the enclosure leaves the test
+!> open): a crossing costs two full trials plus O(crossers) per bisection
+!> trial, not O(active) per trial, which was quadratic in the number of
+!> moving sliders for the large late events.  The bisection is bounded by max_halvings (status_refine_limit).
 module sliders_crossing
   use sliders_kinds, only: dp, ip
   use sliders_workspace, only: tilt_params, workspace
-  use sliders_steps, only: step_spans, predict_run, predict_sum_runs, crossing_excess, &
-                           pool_crosses
+  use sliders_steps, only: step_spans, predict_neighbours, predict_sum_runs, &
+                           crossing_candidates, pool_crosses
   use sliders_coupling_mean, only: enclosure_sums, mean_sums, enclosed_trial
   implicit none
   private
@@ -76,33 +76,6 @@ contains
     resolved = .true.
   end subroutine refine_crossing
 
-  !> After a full trial step that crossed: the active sliders that crossed
-  !> (excess > 0, the test of step_spans) into ws%cand(1:n_cand), and
-  !> whether the pool crossed (its shift beyond a gap minimum) given the
-  !> trial's total displacement `sum_t`.
-  subroutine crossing_candidates(ws, sum_t, mean0, xi, n, n_cand, pool_crossed)
-    type(workspace), intent(inout) :: ws
-    real(dp), intent(in) :: sum_t, mean0, xi
-    integer(ip), intent(in) :: n
-    integer(ip), intent(out) :: n_cand
-    logical, intent(out) :: pool_crossed
-    integer(ip) :: r, i
-    real(dp) :: shift
-
-    n_cand = 0
-    do r = 1, ws%n_runs
-      do i = ws%run_lo(r), ws%run_hi(r)
-        if (crossing_excess(ws%dir(i), ws%v_t(i), ws%f_t(i), ws%thr(i)) > 0.0_dp) then
-          n_cand = n_cand + 1
-          ws%cand(n_cand) = i
-        end if
-      end do
-    end do
-    shift = 0.0_dp
-    if (xi /= 0.0_dp) shift = xi*(sum_t/real(n, dp) - mean0)
-    pool_crossed = pool_crosses(ws, shift)
-  end subroutine crossing_candidates
-
   !> The crossing test of trial_step restricted to the candidates (and the
   !> pool if pool_crossed): the same operations on the same numbers, so each
   !> candidate's excess is bit-identical to the full trial's.  With xi = 0
@@ -119,16 +92,10 @@ contains
     integer(ip), intent(in) :: n_cand
     logical, intent(in) :: pool_crossed
     logical, intent(out) :: crossed
-    integer(ip) :: k, i, lo, hi
     real(dp) :: mean_t, shift, excess, dsum_t
     logical :: decided
 
-    do k = 1, n_cand
-      i = ws%cand(k)
-      lo = max(i - 1, 1_ip)
-      hi = min(i + 1, p%chain%n)
-      call predict_run(lo, hi, h, du, ws%v, ws%acc, ws%du_t)
-    end do
+    call predict_neighbours(p%chain%n, n_cand, ws%cand, h, du, ws%v, ws%acc, ws%du_t)
     mean_t = mean0
     shift = 0.0_dp
     if (p%chain%xi /= 0.0_dp) then

@@ -29,8 +29,8 @@ module sliders_steps
   private
 
   public :: quiet_steps, trial_step, swap_state, count_step
-  public :: step_spans, predict_run, predict_sum_runs
-  public :: crossing_excess, pool_crosses
+  public :: step_spans, predict_neighbours, predict_sum_runs
+  public :: crossing_candidates, pool_crosses
 
   !> quiet_steps stores the forces (which only a crossing reads) in its first
   !> this many steps: a crossing that comes later pays one trial again, less
@@ -183,21 +183,27 @@ contains
                     v_t, excess)
   end subroutine trial_arrays
 
-  !> Velocity-Verlet positions over one run: du_t = du + v h + acc h**2/2.
-  pure subroutine predict_run(lo, hi, h, du, v, acc, du_t)
-    integer(ip), intent(in) :: lo, hi
+  !> Velocity-Verlet positions du_t = du + v h + acc h**2/2 of the sliders
+  !> cand(1:n_cand) and their neighbours (a bisection trial's candidates:
+  !> sliders_crossing, candidate_trial).
+  pure subroutine predict_neighbours(n, n_cand, cand, h, du, v, acc, du_t)
+    integer(ip), intent(in) :: n, n_cand
+    integer(ip), contiguous, intent(in) :: cand(:)
     real(dp), intent(in) :: h
     real(dp), contiguous, intent(in) :: du(:), v(:), acc(:)
     real(dp), contiguous, intent(inout) :: du_t(:)
-    integer(ip) :: i
+    integer(ip) :: k, i
 
-    do i = lo, hi
-      du_t(i) = verlet_position(du(i), v(i), acc(i), h)
+    do k = 1, n_cand
+      do i = max(cand(k) - 1, 1_ip), min(cand(k) + 1, n)
+        du_t(i) = verlet_position(du(i), v(i), acc(i), h)
+      end do
     end do
-  end subroutine predict_run
+  end subroutine predict_neighbours
 
-  !> predict_run over every run, fused with dsum = dsum + the sum of du_t -
-  !> du (xi > 0: the mean moves), run after run.  Four partial sums per
+  !> Velocity-Verlet positions (verlet_position) over every run, fused with
+  !> dsum = dsum + the sum of du_t - du (xi > 0: the mean moves), run after
+  !> run.  Four partial sums per
   !> run: the order of the additions is free, the chain of dependent
   !> additions short; it is fixed (slider lo + j goes to sum j mod 4), so
   !> every trial rounds alike.
@@ -318,6 +324,35 @@ contains
                           v_t(hi), excess)
     end if
   end subroutine end_sliders
+
+  ! ------------------------------------------------- the crossing test
+
+  !> After a full trial step that crossed: the active sliders that crossed
+  !> (excess > 0, the test of step_spans) into ws%cand(1:n_cand), and
+  !> whether the pool crossed (its shift beyond a gap minimum) given the
+  !> trial's total displacement `sum_t`.
+  subroutine crossing_candidates(ws, sum_t, mean0, xi, n, n_cand, pool_crossed)
+    type(workspace), intent(inout) :: ws
+    real(dp), intent(in) :: sum_t, mean0, xi
+    integer(ip), intent(in) :: n
+    integer(ip), intent(out) :: n_cand
+    logical, intent(out) :: pool_crossed
+    integer(ip) :: r, i
+    real(dp) :: shift
+
+    n_cand = 0
+    do r = 1, ws%n_runs
+      do i = ws%run_lo(r), ws%run_hi(r)
+        if (crossing_excess(ws%dir(i), ws%v_t(i), ws%f_t(i), ws%thr(i)) > 0.0_dp) then
+          n_cand = n_cand + 1
+          ws%cand(n_cand) = i
+        end if
+      end do
+    end do
+    shift = 0.0_dp
+    if (xi /= 0.0_dp) shift = xi*(sum_t/real(n, dp) - mean0)
+    pool_crossed = pool_crosses(ws, shift)
+  end subroutine crossing_candidates
 
   ! ------------------------------------------------- one slider's update
 
