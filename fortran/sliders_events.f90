@@ -21,14 +21,17 @@
 !>       sliders_active_set (the moving sliders and their neighbours as runs
 !>         and spans, the resting others as a pool tested through two gap
 !>         minima; starts, stops, the runs' update after a crossing),
-!>       sliders_steps (velocity-Verlet steps over the spans; the steps
-!>         between two crossings in one call, quiet_steps),
+!>       sliders_steps (velocity-Verlet steps over the spans and their
+!>         crossing test; the steps between two crossings in one call,
+!>         quiet_steps),
 !>       sliders_crossing (a step that crossed, cut back by bisection),
 !>         with sliders_coupling_mean (xi > 0: the trial mean's enclosure);
 !>       then the stops' redraws (sliders_friction) and the starts;
 !>     end_event (here): the caches after an event (forces, angles, sum).
 !>   sliders_workspace holds the parameters, the work arrays and the event
 !>   record that they all share.
+!> The modules are compiled with link-time optimisation (meson.build), so
+!> that the per-crossing calls between them are inlined as within one file.
 !>
 !> * The sum of du is kept incrementally during an event (recomputed exactly
 !>   between events).  A pool slider crossing is a start like any other (it

@@ -1,14 +1,15 @@
 !> The integration steps of an event: one velocity-Verlet trial step over
-!> the spans of active sliders, and the run of quiet steps between two
-!> crossings.
+!> the spans of active sliders with its crossing test, and the run of quiet
+!> steps between two crossings.
 !>
 !> In the event loop (sliders_events, run_event) every step is taken here:
 !> quiet_steps takes steps of dt, each accepted at once, until one crosses
 !> (a mover's velocity turns against its direction, a resting active slider
 !> passes its threshold, or the pool's shift passes a gap minimum) or a
 !> check of run_event is due.  A crossing step is then cut back by
-!> sliders_crossing, whose trials are step_spans on the crossing candidates
-!> alone, and accepted with trial_step, swap_state and count_step.
+!> sliders_crossing, whose trials are step_spans on the sliders that
+!> crossed in the full step (crossing_candidates) alone, and taken and
+!> accepted with trial_step, swap_state and count_step.
 !>
 !> Per span a step is two branch-free loops over contiguous memory
 !> (vectorised): predict (and, per run, the mean's sums when xi > 0), then
