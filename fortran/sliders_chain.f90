@@ -16,7 +16,7 @@
 !> with the missing neighbour term dropped at a free end and du = 0 for a
 !> wall.  `elastic_force` evaluates it with the same operations, in the same
 !> order, as the NumPy reference (so both round alike); the kernel's hot loop
-!> (sliders_events, step_spans) writes the same formula out for the
+!> (sliders_steps, step_spans) writes the same formula out for the
 !> interior sliders so that it fuses with the Verlet update.
 module sliders_chain
   use sliders_kinds, only: dp, ip

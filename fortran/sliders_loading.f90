@@ -13,8 +13,8 @@
 !>   the first event in which every slider moved, the onset of sliding.
 !>
 !> The event integrator (sliders_events) asks this module for the drive's
-!> terms once per event and for the next critical drive between events;
-!> nothing here runs per integration step.
+!> terms once per event and (with sliders_next_angle) for the next critical
+!> drive between events; nothing here runs per integration step.
 module sliders_loading
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_positive_inf
   use sliders_kinds, only: dp, ip
