@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-# Halvings of a crossing bracket, at most (sliders_events.max_halvings): a step
+# Halvings of a crossing bracket, at most (sliders_crossing.max_halvings): a step
 # of 1 tau closes to 3e-39 within them, so only a refine_tol below what the
 # step can resolve reaches the bound.
 MAX_HALVINGS = 128
