@@ -222,3 +222,22 @@ def test_file_opens_in_xarray(reference):
     got = read_prior_ensemble(reference)
     assert np.array_equal(ds["alpha"].values, got.columns["alpha"])
     assert np.array_equal(ds["n_events"].values, np.diff(got.offsets))
+
+
+def test_damaged_events_are_found_and_recomputed(small, reference, tmp_path):
+    """A flipped event value fails its row's checksum: the reader drops the row, --resume redoes it."""
+    import h5py
+
+    out = tmp_path / "damaged.h5"
+    shutil.copy(reference, out)
+    with h5py.File(out, "r+") as f:
+        r = 4
+        a = int(f["realisations/event_start"][r])
+        f["events/alpha"][a + 1] += 1e-9
+    got = read_prior_ensemble(out)
+    assert len(got) == 11 and 4 not in got.attrs["rows"]
+    with pytest.raises(Exception, match="row 4 .* fails its checksums"):
+        read_prior_row(out, 4)
+    done = run([small, "--out", out, "--resume", "--quiet"])
+    assert done.returncode == 0, done.stderr
+    assert_same_sets(read_prior_ensemble(reference), read_prior_ensemble(out))
