@@ -66,7 +66,8 @@ DISTRIBUTIONS = ("uniform", "loguniform", "choice")
 DERIVED = {"mu_s_minus_mu_d": "mu_s_mean"}  # drawn name -> the scene field it gives
 DRAWABLE = ("mu_d", "mu_s_mean", "mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders",
             "spring_length", "initial_forces")
-MATERIAL = ("mu_d", "mu_s_mean", "sigma_mu", "xi", "n_sliders")  # always in the file
+MATERIAL = ("mu_d", "mu_s_mean", "sigma_mu", "xi", "n_sliders",
+            "initial_forces")  # always in the file (the last: the preparation)
 PRIOR_KEYS = ("realisations", "design", "seed", "ceiling_step", "ceiling_k")
 DEFAULT_CEILING_STEP = 0.01
 DEFAULT_CEILING_K = 8
@@ -261,8 +262,8 @@ class Prior:
 
     def choices(self) -> dict[str, list]:
         """The choices of the string-valued parameters (stored as indices)."""
-        return {n: list(m.values) for n, m in self.marginals.items()
-                if m.kind in ("choice", "fixed") and isinstance(m.values[0], str)}
+        m = self.marginals.get("initial_forces")
+        return {"initial_forces": list(m.values) if m else [self.base_scene.initial_forces]}
 
 
 def parse_prior(data: dict, where: str = "prior") -> Prior:
