@@ -118,8 +118,10 @@ def test_drawn_parameters_follow_the_prior(tmp_path, design):
     assert np.allclose(v["mu_s_mean"], v["mu_d"] + v["mu_s_minus_mu_d"])
     # the KS test can tell: a wrong law is refused
     assert stats.kstest(v["mu_d"], stats.uniform(0.3, 0.45).cdf).pvalue < 1e-3
-    # a row depends on the seed and its index only: the first rows of a longer design agree
-    assert np.array_equal(prior.unit_design(16), prior.unit_design(4000)[:16]) or design != "random"
+    # sobol and random: a sequence, so the first rows of a longer design are the same rows
+    # (a Latin hypercube is stratified over all R rows at once)
+    if design != "latin":
+        assert np.array_equal(prior.unit_design(16), prior.unit_design(4000)[:16])
 
 
 @pytest.mark.parametrize("body, words", [

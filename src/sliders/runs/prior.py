@@ -24,7 +24,9 @@ Distributions: ``uniform = [a, b]``, ``loguniform = [a, b]`` (0 < a < b),
 ``choice = [v, ...]`` (equal weights; numbers or, for ``initial_forces``,
 names); ``zero = p`` adds an atom at 0 of weight p to a uniform or loguniform
 law.  The unit design (one column per drawn parameter, in name order) goes
-through each marginal's inverse CDF.  Every row's scene is built and checked
+through each marginal's inverse CDF (Sobol and random points are sequences:
+row r's values depend on r and the seed only; a Latin hypercube is
+stratified over all R rows, so its rows also depend on R).  Every row's scene is built and checked
 before anything runs; a bad prior or row is refused in one line naming it.
 
 Scheduling is the ensemble's (``ensemble._Root`` / ``ensemble._worker``, dynamic,
