@@ -134,27 +134,26 @@ def test_drawn_parameters_follow_the_prior(tmp_path, design):
     ("mu_d = { normal = [0.5, 0.1] }", "unknown distribution 'normal'"),
     ("sigma_mu = { loguniform = [0.0, 0.1] }", "needs 0 < low"),
 ])
-def test_bad_priors_are_refused_in_one_line(tmp_path, body, words):
+def test_bad_priors_are_refused_in_one_line(tmp_path, capsys, body, words):
     path = tmp_path / "bad.toml"
     path.write_text("[prior]\nrealisations = 4\n[parameters]\n" + body + "\n")
     with pytest.raises(prior_run.PriorError, match=words):
         prior_run.load_prior(path)
-    done = run([path, "--out", tmp_path / "x.h5"])
-    assert done.returncode == 1
-    lines = done.stderr.strip().splitlines()
+    assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 1
+    lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and words.split("'")[0] in lines[0]
     assert not (tmp_path / "x.h5").exists()
 
 
-def test_a_bad_row_is_named_before_anything_runs(tmp_path):
-    """Each scene is checked: a drawn xi that makes the default dt too long names the row."""
+def test_a_bad_row_is_named_before_anything_runs(tmp_path, capsys):
+    """Each scene is checked: a drawn xi that makes the given dt too long names the row."""
     path = tmp_path / "bad.toml"
     path.write_text("[prior]\nrealisations = 8\n[scene]\ndt = 0.05\n[parameters]\n"
                     "xi = { uniform = [0.0, 20.0] }\n")
-    done = run([path, "--out", tmp_path / "x.h5"])
-    assert done.returncode == 1
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and "row " in lines[0] and "dt=" in lines[0], done.stderr
+    assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 1
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "row " in lines[0] and "dt=" in lines[0], err
     assert not (tmp_path / "x.h5").exists()
 
 
