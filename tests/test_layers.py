@@ -27,7 +27,8 @@ LAYERS = [
     ("runs", ["sliders.runs"]),
     # the commands users type and the package's front door
     ("entry", ["sliders", "sliders.__main__", "sliders._forward", "sliders.ensemble",
-               "sliders.study", "sliders.merge", "sliders.reproduction", "sliders.forecast"]),
+               "sliders.study", "sliders.merge", "sliders.reproduction", "sliders.forecast",
+               "sliders.prior"]),
 ]
 
 

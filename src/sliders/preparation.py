@@ -27,15 +27,24 @@ Steps, and the choices made where the paper is silent:
    c_n = mean(x) + (n - (N+1)/2) l*, the coupling is switched on and the chain
    is relaxed at alpha = 0 with the dynamics (done by the driver, through the
    same event code as the tilt).
+
+``initial_forces="history"`` (``prepare_with_history``): a pile that was once
+brought near its avalanche angle and returned.  The same scene with another
+seed (``history_seed``) is prepared as above and tilted to its last stable
+state before the avalanche; it is then tilted back to alpha = 0 in steps of
+``UNLOAD_STEP``, the chain relaxed at every step by the event code (sliders
+that slip backwards, F_n < -mu_s,n cos alpha, move as in any event); the
+state reached at alpha = 0, its coefficients and stop counts included, is the
+prepared chain (rebased: its displacement folded into the reference state).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from . import keyed_random
-from .chain import ChainState
-from .scene import Scene
+from . import keyed_random, status
+from .chain import ChainState, elastic_force
+from .scene import ALPHA_MAX_LIMIT, Scene
 
 MAX_FORCE_ATTEMPTS = 1000
 ZERO_SUM_SWEEPS = 20
@@ -114,6 +123,8 @@ def prepare(scene: Scene) -> ChainState:
         uniform in ]-mu_s_mean, mu_s_mean[, each stable for its own slider and,
         for a free chain, summing to zero (docs/model.md, "Preparation").
     """
+    if scene.initial_forces == "history":
+        return prepare_with_history(scene)
     n = scene.n_sliders
     sliders = np.arange(n)
     mu_s = keyed_random.static_coefficient(
@@ -145,3 +156,110 @@ def prepare(scene: Scene) -> ChainState:
         lattice_position0=lattice,
         mu_s=mu_s,
     )
+
+
+HISTORY_REALISATION = 0x7FFFFFFF  # the history's seed: realisation_seed(seed, this)
+UNLOAD_STEP = 0.01  # rad: the steps of the tilt back to alpha = 0
+HISTORY_CHUNK = 512  # events per engine call of the history's tilt
+
+
+def history_seed(seed: int) -> int:
+    """The seed of the run that makes a ``"history"`` preparation (another disorder, keyed by ``seed``)."""
+    return keyed_random.realisation_seed(seed, HISTORY_REALISATION)
+
+
+def _history_engine(scene: Scene):
+    try:
+        from .engine.fortran_engine import FortranEngine
+
+        return FortranEngine(scene)
+    except (ImportError, AttributeError):  # the kernel is not built: the reference, same events
+        from .engine.reference import NumpyEngine
+
+        return NumpyEngine(scene)
+
+
+def _relaxed(engine, state: ChainState, scene: Scene, where: str) -> None:
+    relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
+    if relax.status != status.RELAXED:
+        raise RuntimeError(f"history preparation: the relaxation {where} ended with status "
+                           f"{status.NAMES.get(relax.status, relax.status)!r}")
+
+
+def last_stable_state(scene: Scene, engine=None) -> ChainState:
+    """The chain of ``scene`` (prepared as "uniform") just after its last event before the avalanche.
+
+    Tilted in chunks of events; the chunk in which the avalanche starts is run
+    again from its start up to the event before it.  A run that ends
+    otherwise (``alpha_max``, ``max_events``) gives its final state.
+    """
+    engine = engine or _history_engine(scene)
+    state = prepare(scene)
+    _relaxed(engine, state, scene, "at alpha = 0")
+    while True:
+        before = state.copy()
+        chunk = engine.advance(state, max_events=HISTORY_CHUNK)
+        if chunk.status in (status.RUNNING, status.SPARSE_FULL):
+            continue
+        if chunk.status == status.AVALANCHE:
+            state = before
+            if chunk.n_events:
+                engine.advance(state, max_events=chunk.n_events)
+            return state
+        if chunk.status in (status.ALPHA_MAX, status.MAX_EVENTS):
+            return state
+        raise RuntimeError(f"history preparation: the tilt ended with status "
+                           f"{status.NAMES.get(chunk.status, chunk.status)!r}")
+
+
+def tilt_back(state: ChainState, scene: Scene, engine=None, step: float = UNLOAD_STEP) -> ChainState:
+    """``state`` tilted back to alpha = 0 in steps of ``step`` rad, relaxed at every step (in place)."""
+    engine = engine or _history_engine(scene)
+    for alpha in np.arange(state.alpha, 0.0, -step)[1:].tolist() + [0.0]:
+        state.alpha = float(alpha)
+        _relaxed(engine, state, scene, f"at alpha = {alpha:.4f} on the way back")
+    return state
+
+
+def rebased(state: ChainState, scene: Scene) -> ChainState:
+    """The same chain with its displacement folded into the reference (displacement 0, alpha 0)."""
+    du = state.displacement
+    extension = state.spring_extension0.copy()
+    extension[1:-1] += np.diff(du)
+    if scene.walls:
+        extension[0] += du[0]
+        extension[-1] -= du[-1]
+    return ChainState(
+        elastic_force0=elastic_force(state, scene.xi, scene.walls),
+        spring_extension0=extension,
+        cantilever_stretch0=state.cantilever_stretch0 + (du - du.mean() if scene.xi > 0 else 0.0),
+        lattice_position0=state.lattice_position0 + du,
+        mu_s=state.mu_s.copy(),
+        n_stops=state.n_stops.copy(),
+    )
+
+
+def prepare_with_history(scene: Scene) -> ChainState:
+    """The ``"history"`` preparation (module docstring): a chain brought to its last stable
+    state before an avalanche (the same scene, seed ``history_seed(scene.seed)``), then
+    tilted back to alpha = 0.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene to prepare; its ``seed`` keys the history's seed, and every
+        other field but ``alpha_max`` is the history's too (the history is
+        tilted to its avalanche).
+
+    Returns
+    -------
+    ChainState
+        At rest at alpha = 0, displacement zero, with the history's static
+        coefficients and stop counts.
+    """
+    # to its avalanche whatever the scene's alpha_max (a run cut at angles keeps its history)
+    past = scene.replace(seed=history_seed(scene.seed), initial_forces="uniform",
+                         alpha_max=ALPHA_MAX_LIMIT)
+    engine = _history_engine(past)
+    state = tilt_back(last_stable_state(past, engine), past, engine)
+    return rebased(state, past)

@@ -17,7 +17,7 @@ from typing import Any
 ENDS = ("free", "walls")
 RECORDS = ("summary", "displacements", "forces")
 AVALANCHE_CRITERIA = ("sliding",)
-INITIAL_FORCES = ("uniform", "zero")
+INITIAL_FORCES = ("uniform", "zero", "history")
 BACKENDS = ("fortran", "numpy")
 LOADINGS = ("tilt", "pushed_end")
 
@@ -117,9 +117,11 @@ class Scene:
         Key of every random draw (0 to 2**32 - 1).
     ends : {"free", "walls"}
         A free chain, or a chain between two immobile walls.
-    initial_forces : {"uniform", "zero"}
+    initial_forces : {"uniform", "zero", "history"}
         The paper's preparation (forces uniform in ]-mu_s_mean, mu_s_mean[),
-        or every spring at rest (with sigma_mu = 0: a scene without disorder).
+        every spring at rest (with sigma_mu = 0: a scene without disorder), or
+        a chain with a history: brought to its last stable state before an
+        avalanche (another seed) and tilted back to 0 (``sliders.preparation``).
     mode : {"sketch", "explore", "statistics", "trajectory", "reference"}
         Named speed/accuracy setting (``SPEED_MODES``, docs/howto/speed_modes.md)
         that gives ``dt``, ``refine_tol`` and ``max_event_duration`` unless
@@ -240,6 +242,9 @@ class Scene:
             raise SceneError(f"ends={self.ends!r} must be one of {ENDS}")
         if self.initial_forces not in INITIAL_FORCES:
             raise SceneError(f"initial_forces={self.initial_forces!r} must be one of {INITIAL_FORCES}")
+        if self.initial_forces == "history" and (self.ends == "walls" or self.loading != "tilt"):
+            raise SceneError("initial_forces='history' tilts a free chain to its avalanche; it "
+                             "needs ends='free' and loading='tilt'")
         dt_max = max_time_step(self.xi)
         _check_real("dt", self.dt, 0.0, dt_max, open_low=True,
                     why=f"a thirtieth of the fastest spring period 2*pi/sqrt(4+xi) = "

@@ -120,7 +120,9 @@ class CatalogueSet:
         The flat event columns of ``EVENT_COLUMNS``, each (offsets[-1],).
     parameters : dict of str to numpy.ndarray
         Per row, (R,): at least ``mu_d``, ``mu_s_mean``, ``sigma_mu``, ``xi``,
-        ``n_sliders`` (the drawn material), and any other drawn parameter.
+        ``n_sliders`` (the drawn material), and any other drawn parameter;
+        a prior file (``read_prior_ensemble``) adds ``initial_forces`` (the
+        preparation, str: "uniform", "zero" or "history") and the row's scene ``seed``.
     alpha_c : numpy.ndarray
         (R,) the avalanche angle, radians (NaN unless the status is "avalanche").
     status : numpy.ndarray

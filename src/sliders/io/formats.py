@@ -1,4 +1,4 @@
-"""Which sliders file a path holds: the three format names, and one probe that never raises.
+"""Which sliders file a path holds: the format names, and one probe that never raises.
 
 Every file the package writes names its kind in the root attribute ``format``.
 Commands that take a file from the user (``figures --ensemble``, ``--study``)
@@ -14,9 +14,12 @@ from dataclasses import dataclass
 TILT = "sliders.tilt"          # one run: TiltResult.save (tilt_file)
 ENSEMBLE = "sliders.ensemble"  # R realisations of one scene (storage)
 STUDY = "sliders.study"        # R realisations at every point of a sweep (study_file)
-KIND_NAMES = {TILT: "tilt file (one run)", ENSEMBLE: "ensemble file", STUDY: "study file"}
+PRIOR = "sliders.prior"        # R realisations drawn from a prior, with catalogues (prior_file)
+KIND_NAMES = {TILT: "tilt file (one run)", ENSEMBLE: "ensemble file", STUDY: "study file",
+              PRIOR: "prior ensemble file"}
 READ_WITH = {TILT: "sliders.TiltResult.load", ENSEMBLE: "sliders.io.storage.read_realisations",
-             STUDY: "sliders.analysis.study_analysis.load_study_file"}
+             STUDY: "sliders.analysis.study_analysis.load_study_file",
+             PRIOR: "sliders.io.prior_file.read_prior_ensemble"}
 
 
 def kind_text(found) -> str:

@@ -383,8 +383,9 @@ class _Stop:
             raise KeyboardInterrupt
 
 
-def _tilt_interruptibly(scene: Scene, backend: str, progress):
-    """``tilt`` with ``_Stop.computing`` set except inside the progress callback."""
+def _tilt_interruptibly(scene: Scene, backend: str, progress, **options):
+    """``tilt`` with ``_Stop.computing`` set except inside the progress callback
+    (``options``: more of ``tilt``'s keywords, such as ``state``)."""
     from ..driver import tilt
 
     def callback(p):
@@ -399,7 +400,7 @@ def _tilt_interruptibly(scene: Scene, backend: str, progress):
     try:
         if _Stop.signum is not None:  # arrived just before
             raise Interrupted()
-        return tilt(scene, backend=backend, progress=callback)
+        return tilt(scene, backend=backend, progress=callback, **options)
     except KeyboardInterrupt:  # also when the kernel caught the signal itself: stop the run
         if _Stop.signum is None:
             _Stop.signum = signal.SIGINT

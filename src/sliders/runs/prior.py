@@ -1,0 +1,635 @@
+"""``python -m sliders.prior PRIOR.toml --out FILE.h5``: realisations whose material is drawn from a prior.
+
+    mpirun -n 2 python -m sliders.prior mpi_runs/priors/default.toml --out prior.h5
+    python -m sliders.prior small.toml --out small.h5 --resume
+
+A prior file::
+
+    [prior]
+    realisations = 4000
+    design = "sobol"            # "sobol", "latin" or "random" (scipy.stats.qmc), seeded by seed
+    seed = 0                    # base seed: row r has the scene seed realisation_seed(seed, r)
+    ceiling_step = 0.01         # the ceiling's grid of angles, rad (ceiling_step, 2 ceiling_step, ...)
+    ceiling_k = 8               # the smallest distances to threshold kept at each angle
+    [scene]                     # the base scene (keys of sliders.Scene; default mode "explore")
+    mode = "explore"
+    [parameters]                # name -> a number, or one distribution
+    mu_d = { uniform = [0.3, 0.8] }
+    mu_s_minus_mu_d = { loguniform = [0.02, 0.12] }   # derived: mu_s_mean = mu_d + this
+    sigma_mu = { uniform = [0.005, 0.03] }
+    xi = { loguniform = [1e-4, 1e-2], zero = 0.5 }    # 0 with probability 0.5
+    n_sliders = { choice = [100, 200, 400] }
+
+Distributions: ``uniform = [a, b]``, ``loguniform = [a, b]`` (0 < a < b),
+``choice = [v, ...]`` (equal weights; numbers or, for ``initial_forces``,
+names); ``zero = p`` adds an atom at 0 of weight p to a uniform or loguniform
+law.  The unit design (one column per drawn parameter, in name order) goes
+through each marginal's inverse CDF (Sobol and random points are sequences:
+row r's values depend on r and the seed only; a Latin hypercube is
+stratified over all R rows, so its rows also depend on R).  Every row's scene is built and checked
+before anything runs; a bad prior or row is refused in one line naming it.
+
+Scheduling is the ensemble's (``ensemble._Root`` / ``ensemble._worker``, dynamic,
+one file, ``--resume``); a row depends only on its index and the seed, so the
+file's content is the same with any number of ranks and after any
+interruption.  A row: the catalogue of every event to the avalanche
+(``catalogue.Catalogue``), the parameters, alpha_c, the status, and the
+"ceiling": at each grid angle below the row's end, the K smallest distances
+``mu_s,n cos(alpha) - |F_n|`` of a slider to its threshold.  The run is cut
+at every grid angle (the scene's ``alpha_max`` set to it, then the tilt
+continued from the state reached): the events are the same, bit for bit, as
+one uninterrupted ``sliders.tilt`` (``tests/test_prior.py``), and the state at
+the grid angle gives the thresholds (which change at every stop) and the
+forces.  The file: ``sliders.io.prior_file``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import math
+import os
+import signal
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .parallel import abort
+from ..io.prior_file import (HANDLERS, catalogue_events, prior_attributes, prior_layout,
+                             read_prior_header, write_view)
+
+DESIGNS = ("sobol", "latin", "random")
+DISTRIBUTIONS = ("uniform", "loguniform", "choice")
+DERIVED = {"mu_s_minus_mu_d": "mu_s_mean"}  # drawn name -> the scene field it gives
+DRAWABLE = ("mu_d", "mu_s_mean", "mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders",
+            "spring_length", "initial_forces")
+MATERIAL = ("mu_d", "mu_s_mean", "sigma_mu", "xi", "n_sliders",
+            "initial_forces")  # always in the file (the last: the preparation)
+PRIOR_KEYS = ("realisations", "design", "seed", "ceiling_step", "ceiling_k")
+DEFAULT_CEILING_STEP = 0.01
+DEFAULT_CEILING_K = 8
+
+
+class PriorError(ValueError):
+    """A bad prior file: one line naming the table, the parameter or the row."""
+
+
+# ---------------------------------------------------------------------------
+# the prior: marginals, design, rows
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Marginal:
+    """One parameter's law: ``kind`` in ("uniform", "loguniform", "choice", "fixed").
+
+    ``values`` are the bounds (uniform, loguniform), the choices, or the
+    fixed value; ``zero`` the weight of an atom at 0 (uniform, loguniform).
+    """
+
+    name: str
+    kind: str
+    values: tuple
+    zero: float = 0.0
+
+    @property
+    def drawn(self) -> bool:
+        """True unless the value is fixed."""
+        return self.kind != "fixed"
+
+    def ppf(self, u: np.ndarray) -> np.ndarray:
+        """The values at unit quantiles ``u`` (the inverse CDF)."""
+        from scipy import stats
+
+        u = np.asarray(u, dtype=np.float64)
+        if self.kind == "fixed":
+            return np.full(u.shape, self.values[0])
+        if self.kind == "choice":
+            idx = np.minimum((u * len(self.values)).astype(np.int64), len(self.values) - 1)
+            return np.asarray(self.values)[idx]
+        a, b = self.values
+        rest = np.clip((u - self.zero) / (1.0 - self.zero), 0.0, 1.0)
+        law = (stats.uniform(a, b - a) if self.kind == "uniform" else stats.loguniform(a, b))
+        return np.where(u < self.zero, 0.0, law.ppf(rest))
+
+    def support(self) -> tuple[float, float]:
+        """Smallest and largest value the law gives (numbers only)."""
+        vals = list(self.values) + ([0.0] if self.zero > 0 else [])
+        return min(vals), max(vals)
+
+
+def parse_marginal(name: str, spec) -> Marginal:
+    """One ``[parameters]`` entry: a number, a name, or a table with one distribution."""
+    where = f"[parameters] {name}"
+    if isinstance(spec, bool):
+        raise PriorError(f"{where} = {spec!r}: give a number or a distribution table")
+    if isinstance(spec, (int, float, str)):
+        return Marginal(name, "fixed", (spec,))
+    if not isinstance(spec, dict):
+        raise PriorError(f"{where}: give a number or a table such as {{ uniform = [a, b] }}")
+    kinds = [k for k in spec if k != "zero"]
+    unknown = [k for k in kinds if k not in DISTRIBUTIONS]
+    if unknown:
+        raise PriorError(f"{where}: unknown distribution {unknown[0]!r}; allowed are "
+                         f"{DISTRIBUTIONS} (and zero = p for an atom at 0)")
+    if len(kinds) != 1:
+        raise PriorError(f"{where}: give exactly one distribution of {DISTRIBUTIONS}")
+    kind = kinds[0]
+    values = spec[kind]
+    if not isinstance(values, list) or not values:
+        raise PriorError(f"{where}: {kind} needs a non-empty list")
+    zero = spec.get("zero", 0.0)
+    if isinstance(zero, bool) or not isinstance(zero, (int, float)) or not 0.0 <= zero < 1.0:
+        raise PriorError(f"{where}: zero = {zero!r} must be a weight in [0, 1)")
+    if kind == "choice":
+        if zero:
+            raise PriorError(f"{where}: zero = p goes with uniform or loguniform; put 0 among "
+                             "the choices instead")
+        if len({type(v) for v in values}) > 1 and not all(isinstance(v, (int, float)) for v in values):
+            raise PriorError(f"{where}: the choices mix numbers and names")
+        return Marginal(name, kind, tuple(values))
+    if len(values) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                   and math.isfinite(v) for v in values):
+        raise PriorError(f"{where}: {kind} needs [low, high], two finite numbers")
+    a, b = float(values[0]), float(values[1])
+    if not a < b:
+        raise PriorError(f"{where}: {kind} = [{a!r}, {b!r}] is an empty range (need low < high)")
+    if kind == "loguniform" and a <= 0:
+        raise PriorError(f"{where}: loguniform = [{a!r}, {b!r}] needs 0 < low")
+    return Marginal(name, kind, (a, b), float(zero))
+
+
+@dataclass
+class Prior:
+    """A parsed prior file: the base scene, the marginals, the design and the rows' settings."""
+
+    spec: dict
+    realisations: int
+    design: str
+    base_seed: int
+    base_scene: Any
+    marginals: dict
+    ceiling_step: float
+    ceiling_k: int
+    digest: str = ""
+    where: str = "prior"
+    _values: dict | None = field(default=None, repr=False)
+
+    @property
+    def drawn(self) -> list[str]:
+        """The names of the drawn parameters, in the design's column order."""
+        return sorted(n for n, m in self.marginals.items() if m.drawn)
+
+    def unit_design(self, n: int | None = None) -> np.ndarray:
+        """(n, d) points in the unit cube (n: the prior's realisations), seeded by ``base_seed``."""
+        from scipy.stats import qmc
+
+        n = self.realisations if n is None else n
+        d = len(self.drawn)
+        if d == 0:
+            return np.zeros((n, 0))
+        if self.design == "sobol":
+            with warnings.catch_warnings():  # balance needs n = 2^m; the points are valid anyway
+                warnings.simplefilter("ignore", UserWarning)
+                return qmc.Sobol(d, scramble=True, rng=self.base_seed).random(n)
+        if self.design == "latin":
+            return qmc.LatinHypercube(d, rng=self.base_seed).random(n)
+        return np.random.default_rng(self.base_seed).random((n, d))
+
+    def values(self, n: int | None = None) -> dict[str, np.ndarray]:
+        """Every parameter per row (drawn, fixed and derived), (n,) each."""
+        if n is None and self._values is not None:
+            return self._values
+        u = self.unit_design(n)
+        rows = u.shape[0]
+        out = {name: self.marginals[name].ppf(u[:, j]) for j, name in enumerate(self.drawn)}
+        for name, m in self.marginals.items():
+            if not m.drawn:
+                out[name] = m.ppf(np.zeros(rows))
+        for name in MATERIAL:
+            if name not in out and not (name == "mu_s_mean" and "mu_s_minus_mu_d" in out):
+                out[name] = np.full(rows, getattr(self.base_scene, name))
+        if "mu_s_minus_mu_d" in out:
+            out["mu_s_mean"] = out["mu_d"] + out["mu_s_minus_mu_d"]
+        if n is None:
+            self._values = out
+        return out
+
+    def seed(self, r: int) -> int:
+        """Row ``r``'s scene seed."""
+        from ..keyed_random import realisation_seed
+
+        return realisation_seed(self.base_seed, r)
+
+    def scene(self, r: int):
+        """Row ``r``'s scene (a SceneError names the parameter)."""
+        v = self.values()
+        changes = {}
+        for name, arr in v.items():
+            if name in DERIVED:
+                continue
+            x = arr[r]
+            changes[name] = (int(x) if name == "n_sliders" else str(x) if name == "initial_forces"
+                             else float(x))
+        return self.base_scene.replace(seed=self.seed(r), **changes)
+
+    def scenes(self) -> list:
+        """Every row's scene, each checked; the first bad one raises PriorError naming row and parameter."""
+        from ..scene import SceneError
+
+        out = []
+        for r in range(self.realisations):
+            try:
+                out.append(self.scene(r))
+            except SceneError as exc:
+                raise PriorError(f"{self.where}: row {r}: {exc}") from None
+        return out
+
+    def ceiling_alpha(self) -> np.ndarray:
+        """The ceiling's grid: multiples of ``ceiling_step`` up to the largest atan(mu_s_mean) + a step."""
+        top = float(np.arctan(np.max(self.values()["mu_s_mean"]))) + self.ceiling_step
+        n = int(math.ceil(top / self.ceiling_step))
+        return np.round(self.ceiling_step * np.arange(1, n + 1), 12)
+
+    def storage_types(self) -> dict[str, np.dtype]:
+        """The stored type of each parameter (strings: an index into the choices)."""
+        out = {}
+        for name, arr in self.values().items():
+            out[name] = (np.dtype(np.int8) if arr.dtype.kind in "US" else
+                         np.dtype(np.int64) if name == "n_sliders" else np.dtype(np.float64))
+        return out
+
+    def choices(self) -> dict[str, list]:
+        """The choices of the string-valued parameters (stored as indices)."""
+        m = self.marginals.get("initial_forces")
+        return {"initial_forces": list(m.values) if m else [self.base_scene.initial_forces]}
+
+
+def parse_prior(data: dict, where: str = "prior") -> Prior:
+    """A ``Prior`` from the TOML tables; every error is one line starting with ``where``."""
+    from ..scene import Scene, SceneError
+
+    unknown = sorted(set(data) - {"prior", "scene", "parameters"})
+    if unknown:
+        raise PriorError(f"{where}: unknown table [{unknown[0]}]; allowed are [prior], [scene], "
+                         "[parameters]")
+    head = data.get("prior", {})
+    bad = sorted(set(head) - set(PRIOR_KEYS))
+    if bad:
+        raise PriorError(f"{where}: unknown key {bad[0]!r} in [prior]; allowed are {PRIOR_KEYS}")
+    R = head.get("realisations")
+    if isinstance(R, bool) or not isinstance(R, int) or R < 1:
+        raise PriorError(f"{where}: [prior] realisations = {R!r} must be an integer >= 1")
+    design = head.get("design", "sobol")
+    if design not in DESIGNS:
+        raise PriorError(f"{where}: [prior] design = {design!r} must be one of {DESIGNS}")
+    seed = head.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
+        raise PriorError(f"{where}: [prior] seed = {seed!r} must be an integer in [0, 2**32)")
+    step = head.get("ceiling_step", DEFAULT_CEILING_STEP)
+    if isinstance(step, bool) or not isinstance(step, (int, float)) or not 0 < step <= 0.5:
+        raise PriorError(f"{where}: [prior] ceiling_step = {step!r} must be in (0, 0.5] rad")
+    k = head.get("ceiling_k", DEFAULT_CEILING_K)
+    if isinstance(k, bool) or not isinstance(k, int) or k < 1:
+        raise PriorError(f"{where}: [prior] ceiling_k = {k!r} must be an integer >= 1")
+    scene_values = dict(data.get("scene", {}))
+    params = data.get("parameters", {})
+    if not isinstance(params, dict) or not params:
+        raise PriorError(f"{where}: [parameters] is missing or empty: nothing is drawn")
+    for name in params:
+        if name not in DRAWABLE:
+            import difflib
+
+            close = difflib.get_close_matches(name, DRAWABLE, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise PriorError(f"{where}: unknown parameter {name!r}{hint}; allowed are {DRAWABLE}")
+        if name in scene_values or DERIVED.get(name) in scene_values:
+            raise PriorError(f"{where}: {name!r} is both in [scene] and in [parameters]")
+    if "mu_s_minus_mu_d" in params and "mu_s_mean" in params:
+        raise PriorError(f"{where}: give mu_s_mean or mu_s_minus_mu_d in [parameters], not both")
+    scene_values.setdefault("mode", "explore")
+    if scene_values.get("record", "displacements") != "displacements":
+        raise PriorError(f"{where}: [scene] record = {scene_values['record']!r}: a prior ensemble "
+                         "keeps the catalogues, which need record = 'displacements'")
+    scene_values["record"] = "displacements"
+    if "seed" in scene_values:
+        raise PriorError(f"{where}: [scene] seed: the rows' seeds come from [prior] seed")
+    try:
+        base = Scene.from_dict(scene_values)
+    except SceneError as exc:
+        raise PriorError(f"{where}: [scene] {exc}") from None
+    if base.loading != "tilt":
+        raise PriorError(f"{where}: [scene] loading = {base.loading!r}: a prior ensemble tilts")
+    marginals = {name: parse_marginal(name, spec) for name, spec in params.items()}
+    for name, m in marginals.items():
+        numeric = not (m.kind in ("choice", "fixed") and isinstance(m.values[0], str))
+        if (name == "initial_forces") == numeric:
+            raise PriorError(f"[parameters] {name}: {'give names' if numeric else 'give numbers'}")
+    _check_friction_ranges(marginals, base, where)
+    spec = {"prior": {"realisations": R, "design": design, "seed": seed, "ceiling_step": step,
+                      "ceiling_k": k}, "scene": scene_values, "parameters": params}
+    digest = hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
+    return Prior(spec, R, design, seed, base, marginals, float(step), k, digest, where)
+
+
+def _check_friction_ranges(marginals: dict, base, where: str) -> None:
+    """Refuse up front a prior whose ranges allow mu_d >= mu_s_mean (one line)."""
+    if "mu_s_minus_mu_d" in marginals:
+        low = marginals["mu_s_minus_mu_d"].support()[0]
+        if low <= 0:
+            raise PriorError(f"{where}: [parameters] mu_s_minus_mu_d reaches {low!r} <= 0, which "
+                             "gives mu_d >= mu_s_mean")
+        return
+    d_hi = marginals["mu_d"].support()[1] if "mu_d" in marginals else base.mu_d
+    s_lo = marginals["mu_s_mean"].support()[0] if "mu_s_mean" in marginals else base.mu_s_mean
+    if d_hi >= s_lo:
+        raise PriorError(f"{where}: [parameters] mu_d up to {d_hi!r} and mu_s_mean from {s_lo!r} "
+                         "allow mu_d >= mu_s_mean; draw mu_s_minus_mu_d > 0 instead")
+
+
+def load_prior(path) -> Prior:
+    """The prior of a TOML file (see the module's docstring); PriorError on any bad entry."""
+    from ..scene import read_toml
+
+    where = f"prior file {str(path)!r}"
+    return parse_prior(read_toml(path, where, PriorError), where)
+
+
+# ---------------------------------------------------------------------------
+# one row
+# ---------------------------------------------------------------------------
+def smallest_distances(distance: np.ndarray, k: int) -> np.ndarray:
+    """The ``k`` smallest of ``distance``, increasing (NaN-padded when there are fewer)."""
+    out = np.full(k, np.nan)
+    m = min(k, distance.size)
+    out[:m] = np.sort(np.partition(distance, m - 1)[:m]) if m else []
+    return out
+
+
+def run_with_ceiling(scene, grid: np.ndarray, k: int, backend: str = "fortran", progress=None,
+                     tilt=None):
+    """Tilt ``scene`` to its end, cut at every angle of ``grid``: the catalogue, the ceiling, the pieces.
+
+    Returns ``(catalogue, ceiling, pieces)``: the events (the same as one
+    uninterrupted tilt), the (G, k) smallest distances ``mu_s,n cos(alpha) -
+    |F_n|`` at each grid angle (NaN at and past the end of the run) and the
+    ``TiltResult`` of every piece (the last one has the run's status and
+    alpha_c).  ``tilt(scene, backend, progress, state=...)`` runs a piece
+    (default: ``sliders.driver.tilt``).
+    """
+    from ..io.catalogue import Catalogue
+
+    if tilt is None:
+        from ..driver import tilt as plain
+
+        def tilt(sc, be, pr, state=None):
+            return plain(sc, be, state=state, progress=pr)
+
+    ceiling = np.full((grid.size, k), np.nan)
+    pieces = []
+    state = None
+    for j, g in enumerate(grid):
+        if g >= scene.alpha_max:
+            break
+        piece = tilt(scene.replace(alpha_max=float(g)), backend, progress, state=state)
+        pieces.append(piece)
+        if piece.status != "alpha_max":
+            break
+        force = piece.force_at([g])[0]
+        ceiling[j] = smallest_distances(piece.final.mu_s * math.cos(g) - np.abs(force), k)
+        state = piece.final
+    if not pieces or pieces[-1].status == "alpha_max" and pieces[-1].scene.alpha_max < scene.alpha_max:
+        pieces.append(tilt(scene, backend, progress, state=state))
+    cats = [Catalogue.from_result(p) for p in pieces]
+    cat = Catalogue(*(np.concatenate([getattr(c, name) for c in cats])
+                      for name in ("alpha", "size", "displacement", "first", "last")))
+    return cat, ceiling, pieces
+
+
+def compute_prior_row(prior: Prior, r: int, backend: str, grid: np.ndarray, progress=None) -> dict:
+    """Row ``r`` of the prior file: its catalogue, parameters, alpha_c, status and ceiling."""
+    from .ensemble import STATUS_CODES, UNKNOWN_STATUS, _tilt_interruptibly
+    from ..io.prior_file import PARAMETERS
+
+    started = time.perf_counter()
+    delay = os.environ.get("SLIDERS_ENSEMBLE_TEST_DELAY")  # the ensemble's test hook
+    if delay:
+        time.sleep(float(delay))
+        if progress is not None:
+            progress(None)
+    scene = prior.scene(r)
+
+    def piece(sc, be, pr, state=None):
+        return _tilt_interruptibly(sc, be, pr, state=state)
+
+    cat, ceiling, pieces = run_with_ceiling(scene, grid, prior.ceiling_k, backend, progress, piece)
+    last = pieces[-1]
+    row: dict[str, Any] = {
+        "status": STATUS_CODES.get(last.status, UNKNOWN_STATUS),
+        "alpha_c": float(last.alpha_c),
+        "n_events": len(cat),
+        "slider_steps": int(sum(p.total_slider_steps for p in pieces)),
+        "ceiling_distance": ceiling,
+        "events": catalogue_events(cat),
+    }
+    choices = prior.choices()
+    for name, arr in prior.values().items():
+        x = arr[r]
+        row[PARAMETERS + name] = choices[name].index(str(x)) if name in choices else x
+    row["wall_time"] = time.perf_counter() - started
+    return row
+
+
+# ---------------------------------------------------------------------------
+# command line and run
+# ---------------------------------------------------------------------------
+def build_parser(rank: int = 0) -> argparse.ArgumentParser:
+    """The command line of ``python -m sliders.prior`` (help printed by rank 0 only)."""
+    from .ensemble import _Parser
+    from ..scene import BACKENDS
+
+    p = _Parser(prog="python -m sliders.prior",
+                description="Run a prior ensemble: every row draws its material from the prior "
+                            "(a seeded scipy.stats.qmc design) and keeps the catalogue of every "
+                            "event up to the avalanche and the ceiling, over MPI ranks with the "
+                            "ensemble's dynamic scheduling, into one HDF5 file.")
+    p.rank = rank
+    p.add_argument("prior", metavar="PRIOR.toml", help="prior file: [prior], [scene], [parameters]")
+    p.add_argument("--out", required=True, metavar="FILE.h5", help="output HDF5 file")
+    p.add_argument("--backend", choices=BACKENDS, default=None, help="tilt backend (default fortran)")
+    p.add_argument("--resume", action="store_true", help="complete the missing rows of --out")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    p.add_argument("--progress-interval", type=float, default=10.0, metavar="S",
+                   help="seconds between progress lines on rank 0 (0: one per row)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(storage="gather")  # ragged events: rank 0 writes (sliders.io.prior_file)
+    return p
+
+
+def _plan_root(args, prior: Prior) -> dict[str, Any]:
+    """Rank 0, holding the claim: a new file or a resume of the same prior."""
+    from .ensemble import DEFAULT_BACKEND, UsageError
+    from ..io.storage import StorageError
+
+    out = args.out
+    backend = args.backend or DEFAULT_BACKEND
+    resume = args.resume and os.path.exists(out)
+    if os.path.exists(out) and not (args.overwrite or resume):
+        raise UsageError(f"--out {out!r} exists; pass --resume to complete it or --overwrite "
+                         "to replace it")
+    R = prior.realisations
+    done = np.zeros(R, dtype=bool)
+    attrs = None
+    if resume:
+        try:
+            head = read_prior_header(out)
+        except StorageError as exc:
+            raise UsageError(f"--resume: {exc}") from None
+        attrs = head["attrs"]
+        if attrs.get("prior_digest") != prior.digest:
+            raise UsageError(f"--resume: {out!r} holds a different prior; start a new file or "
+                             "resume with the prior file that made it")
+        if args.backend is not None and attrs["backend"] != args.backend:
+            raise UsageError(f"--resume: {out!r} was computed with --backend {attrs['backend']}")
+        backend = attrs["backend"]
+        done = head["done"]
+        if head["damaged"]:
+            sys.stderr.write(f"prior: note: {len(head['damaged'])} finished row(s) of {out} fail "
+                             "their checksums; recomputing them\n")
+    if attrs is None:
+        attrs = prior_attributes(prior.spec, prior.digest, prior.base_seed, R, backend,
+                                 sorted(prior.values()), prior.ceiling_k)
+        attrs["parameter_choices"] = json.dumps(prior.choices())
+    seeds = [prior.seed(r) for r in range(R)]
+    layout = prior_layout(R, seeds, prior.storage_types(), prior.ceiling_alpha(),
+                          prior.ceiling_k, attrs)
+    # the largest chains first (cost ~ N^2), so that the last rows to finish are short ones
+    n = prior.values()["n_sliders"]
+    order = sorted(range(R), key=lambda r: (-int(n[r]), r))
+    pending = np.array([r for r in order if not done[r]], dtype=np.int64)
+    return {"layout": layout, "resume": resume, "done": done, "pending": pending,
+            "backend": backend}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m sliders.prior PRIOR.toml --out FILE.h5``: run (or resume) a prior ensemble; the exit code."""
+    from .ensemble import (_claim_output, agree_on_plan, check_run_options, world_or_none)
+    from ..scene import check_memory
+
+    world = world_or_none()
+    if world is None:
+        return 1
+    comm, have_mpi = world
+    rank = comm.rank
+    claims: list = []
+
+    def prepare():
+        args = build_parser(rank).parse_args(argv)
+        storage = check_run_options(args, comm, have_mpi)
+        prior = load_prior(args.prior)
+        scenes = prior.scenes()  # every row checked before anything runs
+        check_memory(max(scenes, key=lambda s: s.n_sliders))
+        plan = None
+        if rank == 0:
+            claims.append(_claim_output(args, "prior"))
+            plan = _plan_root(args, prior)
+        return args, prior, storage, plan
+
+    code, planned = agree_on_plan(comm, prepare, claims)  # a PriorError is a ValueError
+    if code is not None:
+        return code
+    args, prior, storage, plan = planned
+    plan = comm.bcast(plan, root=0)
+    try:
+        return _run(args, comm, prior, plan)
+    finally:
+        for claim in claims:
+            claim.release()
+
+
+def _run(args, comm, prior: Prior, plan) -> int:
+    from .ensemble import _error_line, _Root, _Stop, _worker
+    from ..io.safeio import os_reason
+
+    rank = comm.rank
+    layout = plan["layout"]
+    handler = err = None
+    try:
+        cls = HANDLERS["gather"]
+        if not plan["resume"]:
+            cls.create(args.out, layout, comm, overwrite=args.overwrite).close()
+        handler = cls.open_for_resume(args.out, layout, comm)
+    except Exception as exc:  # noqa: BLE001
+        err = f"cannot {'open' if plan['resume'] else 'create'} {args.out!r}: {os_reason(exc)}"
+    errors = comm.allgather(err)
+    if any(errors):
+        if rank == next(i for i, e in enumerate(errors) if e):
+            sys.stderr.write(_error_line(errors[rank]) + "\n")
+        if all(errors):
+            return 1
+        abort(comm)
+
+    grid = layout.grids["ceiling_alpha"]
+    backend = plan["backend"]
+
+    def compute(r: int, progress):
+        return compute_prior_row(prior, int(r), backend, grid, progress)
+
+    pending = plan["pending"]
+    total = prior.realisations
+    ctx = {"R": total, "compute_row": compute, "interval": args.progress_interval,
+           "quiet": args.quiet, "label": ("prior", "rows")}
+    if rank == 0 and not args.quiet:
+        verb = "resuming" if plan["resume"] else "starting"
+        sys.stderr.write(f"prior: {verb} {pending.size} of {total} rows (backend {backend}) on "
+                         f"{comm.size} rank(s) -> {args.out}\n")
+        sys.stderr.flush()
+    old = {s: signal.signal(s, _Stop.handler) for s in (signal.SIGTERM, signal.SIGINT)}
+    root = None
+    try:
+        if rank == 0:
+            root = _Root(comm, handler, pending, total - pending.size, ctx)
+            root.run()
+        else:
+            _worker(comm, handler, ctx)
+    except Exception as exc:  # noqa: BLE001 - nothing may hang
+        sys.stderr.write(_error_line(f"rank {rank}: {type(exc).__name__}: {exc}") + "\n")
+        sys.stderr.flush()
+        if comm.size > 1:
+            abort(comm)
+        handler.close()
+        return 1
+    try:
+        handler.close()
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    final = None
+    if rank == 0:
+        try:
+            write_view(args.out, prior.base_scene.to_dict())
+        except (OSError, KeyError, ValueError, RuntimeError) as exc:  # the rows are safe
+            sys.stderr.write(f"prior: warning: the xarray view of {args.out} was not written "
+                             f"({' '.join(str(exc).split())}); rerun with --resume to add it\n")
+        final = {"stop": root.stop_reason, "signum": root.signum}
+        elapsed = time.monotonic() - root.started
+        n_done = root.done_before + root.done_now
+        if root.stop_reason:
+            sys.stderr.write(f"prior: interrupted ({root.stop_reason}): {n_done}/{total} rows in "
+                             f"{args.out}; rerun with --resume to complete them\n")
+        elif not args.quiet:
+            stats = ", ".join(f"{k} {v}" for k, v in sorted(root.statuses.items())) or "none run"
+            sys.stderr.write(f"prior: {n_done}/{total} rows done, {root.done_now} in this run in "
+                             f"{elapsed:.1f} s on {comm.size} rank(s); statuses: {stats} -> "
+                             f"{args.out}\n")
+    final = comm.bcast(final, root=0)
+    if final["stop"]:
+        return 128 + int(final["signum"] or signal.SIGTERM)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,244 @@
+"""Prior ensembles (``python -m sliders.prior``): the design, the runner, the file, the reader.
+
+Small priors (a dozen rows of N = 20-40 sliders, explore mode) keep every run
+to a second or two; the design's distribution is tested on 4000 draws without
+simulating anything.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import sliders
+from sliders.io.catalogue import EVENT_COLUMNS, Catalogue, CatalogueSet
+from sliders.io.prior_file import read_prior_ensemble, read_prior_row
+from sliders.runs import prior as prior_run
+
+MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
+PY = sys.executable
+TIMEOUT = 180
+
+SMALL = """
+[prior]
+realisations = {R}
+design = "{design}"
+seed = 3
+[scene]
+mode = "explore"
+[parameters]
+mu_d = {{ uniform = [0.3, 0.8] }}
+mu_s_minus_mu_d = {{ loguniform = [0.02, 0.12] }}
+sigma_mu = {{ uniform = [0.005, 0.03] }}
+xi = {{ loguniform = [1e-4, 1e-2], zero = 0.5 }}
+n_sliders = {{ choice = [20, 30, 40] }}
+"""
+
+
+def _env(**extra):
+    env = dict(os.environ)
+    for k in ("SLIDERS_ENSEMBLE_STOP_AFTER", "SLIDERS_ENSEMBLE_TEST_DELAY",
+              "SLIDERS_ENSEMBLE_TEST_FAIL"):
+        env.pop(k, None)
+    env["PYTHONUNBUFFERED"] = "1"
+    env.update({k: str(v) for k, v in extra.items()})
+    return env
+
+
+def _command(args, n=None):
+    base = [PY, "-m", "sliders.prior"]
+    if n is not None:
+        assert MPIRUN, "mpirun not found (install Debian mpich: scripts/setup.sh)"
+        base = [MPIRUN, "-n", str(n)] + base
+    return base + [str(a) for a in args]
+
+
+def run(args, n=None, env=None):
+    return subprocess.run(_command(args, n), capture_output=True, text=True, env=env or _env(),
+                          timeout=TIMEOUT)
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    path = tmp_path_factory.mktemp("prior") / "small.toml"
+    path.write_text(SMALL.format(R=12, design="sobol"))
+    return path
+
+
+@pytest.fixture(scope="module")
+def reference(small):
+    """The small prior run once, serially (read only by the tests)."""
+    out = small.parent / "ref.h5"
+    done = run([small, "--out", out, "--quiet"])
+    assert done.returncode == 0, done.stderr
+    return out
+
+
+def assert_same_sets(a: CatalogueSet, b: CatalogueSet) -> None:
+    """Every event, parameter, alpha_c, status and ceiling value equal, bit for bit."""
+    assert np.array_equal(a.offsets, b.offsets)
+    for c in EVENT_COLUMNS:
+        assert np.array_equal(a.columns[c], b.columns[c]), c
+    assert sorted(a.parameters) == sorted(b.parameters)
+    for k in a.parameters:
+        assert np.array_equal(a.parameters[k], b.parameters[k]), k
+    assert np.array_equal(a.alpha_c, b.alpha_c, equal_nan=True)
+    assert np.array_equal(a.status, b.status)
+    assert np.array_equal(a.ceiling_alpha, b.ceiling_alpha)
+    assert np.array_equal(a.ceiling_distance, b.ceiling_distance, equal_nan=True)
+
+
+# ---------------------------------------------------------------------------
+# the design
+# ---------------------------------------------------------------------------
+@pytest.mark.parametrize("design", prior_run.DESIGNS)
+def test_drawn_parameters_follow_the_prior(tmp_path, design):
+    """Kolmogorov-Smirnov on 4000 draws of each marginal (no simulation), and the choices' shares."""
+    path = tmp_path / "p.toml"
+    path.write_text(SMALL.format(R=4000, design=design))
+    prior = prior_run.load_prior(path)
+    v = prior.values()
+    assert stats.kstest(v["mu_d"], stats.uniform(0.3, 0.5).cdf).pvalue > 1e-3
+    assert stats.kstest(v["mu_s_minus_mu_d"], stats.loguniform(0.02, 0.12).cdf).pvalue > 1e-3
+    assert stats.kstest(v["sigma_mu"], stats.uniform(0.005, 0.025).cdf).pvalue > 1e-3
+    xi = v["xi"]
+    assert abs(np.mean(xi == 0) - 0.5) < 0.04
+    assert stats.kstest(xi[xi > 0], stats.loguniform(1e-4, 1e-2).cdf).pvalue > 1e-3
+    shares = np.array([np.mean(v["n_sliders"] == n) for n in (20, 30, 40)])
+    assert np.all(np.abs(shares - 1 / 3) < 0.04)
+    assert np.allclose(v["mu_s_mean"], v["mu_d"] + v["mu_s_minus_mu_d"])
+    # the KS test can tell: a wrong law is refused
+    assert stats.kstest(v["mu_d"], stats.uniform(0.3, 0.45).cdf).pvalue < 1e-3
+    # sobol and random: a sequence, so the first rows of a longer design are the same rows
+    # (a Latin hypercube is stratified over all R rows at once)
+    if design != "latin":
+        assert np.array_equal(prior.unit_design(16), prior.unit_design(4000)[:16])
+
+
+@pytest.mark.parametrize("body, words", [
+    ("mu_q = { uniform = [0.3, 0.8] }", "unknown parameter 'mu_q'"),
+    ("mu_d = { uniform = [0.8, 0.3] }", "empty range"),
+    ("mu_d = { uniform = [0.5, 0.5] }", "empty range"),
+    ("mu_d = { uniform = [0.3, 0.8] }\nmu_s_mean = { uniform = [0.6, 0.9] }",
+     "allow mu_d >= mu_s_mean"),
+    ("mu_d = 0.5\nmu_s_minus_mu_d = { uniform = [-0.01, 0.1] }", "gives mu_d >= mu_s_mean"),
+    ("mu_d = { normal = [0.5, 0.1] }", "unknown distribution 'normal'"),
+    ("sigma_mu = { loguniform = [0.0, 0.1] }", "needs 0 < low"),
+])
+def test_bad_priors_are_refused_in_one_line(tmp_path, capsys, body, words):
+    path = tmp_path / "bad.toml"
+    path.write_text("[prior]\nrealisations = 4\n[parameters]\n" + body + "\n")
+    with pytest.raises(prior_run.PriorError, match=words):
+        prior_run.load_prior(path)
+    assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 1
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and words.split("'")[0] in lines[0]
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_bad_row_is_named_before_anything_runs(tmp_path, capsys):
+    """Each scene is checked: a drawn xi that makes the given dt too long names the row."""
+    path = tmp_path / "bad.toml"
+    path.write_text("[prior]\nrealisations = 8\n[scene]\ndt = 0.05\n[parameters]\n"
+                    "xi = { uniform = [0.0, 20.0] }\n")
+    assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 1
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "row " in lines[0] and "dt=" in lines[0], err
+    assert not (tmp_path / "x.h5").exists()
+
+
+# ---------------------------------------------------------------------------
+# the runner
+# ---------------------------------------------------------------------------
+def test_one_rank_equals_two_ranks(small, reference, tmp_path):
+    """The same rows, events, parameters and ceiling, bit for bit, with 1 and 2 ranks."""
+    out = tmp_path / "two.h5"
+    done = run([small, "--out", out, "--quiet"], n=2)
+    assert done.returncode == 0, done.stderr
+    a, b = read_prior_ensemble(reference), read_prior_ensemble(out)
+    assert len(a) == 12 and np.all(a.status == "avalanche")
+    assert_same_sets(a, b)
+
+
+def test_kill9_then_resume_equals_uninterrupted(small, reference, tmp_path):
+    out = tmp_path / "killed.h5"
+    proc = subprocess.Popen(_command([small, "--out", out, "--progress-interval", "0"]),
+                            stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            env=_env(SLIDERS_ENSEMBLE_TEST_DELAY=0.3))
+    try:
+        for line in proc.stderr:
+            if " 3/12 rows done" in line:
+                break
+        time.sleep(0.15)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    partial = read_prior_ensemble(out)
+    assert 3 <= len(partial) < 12
+    done = run([small, "--out", out, "--resume", "--quiet"])
+    assert done.returncode == 0, done.stderr
+    assert_same_sets(read_prior_ensemble(reference), read_prior_ensemble(out))
+
+
+def test_a_row_is_the_tilt_of_its_scene(small, reference):
+    """Row r's catalogue is ``sliders.tilt`` of its scene (same seed), its ceiling the chain's."""
+    prior = prior_run.load_prior(small)
+    got = read_prior_ensemble(reference)
+    for r in (0, 5):
+        scene = prior.scene(r)
+        assert scene.seed == int(got.parameters["seed"][r])
+        result = sliders.tilt(scene)
+        want = Catalogue.from_result(result)
+        row = read_prior_row(reference, r)
+        for c in EVENT_COLUMNS:
+            assert np.array_equal(getattr(row, c), getattr(want, c)), c
+        assert got.alpha_c[r] == result.alpha_c
+        assert np.all(row.first >= 0) and np.all(row.last >= row.first)
+        # the ceiling at one grid angle below alpha_c, from the uncut run's state there
+        j = int(np.searchsorted(got.ceiling_alpha, result.alpha_c)) - 3
+        g = got.ceiling_alpha[j]
+        cut = sliders.tilt(scene.replace(alpha_max=float(g)))
+        dist = cut.final.mu_s * math.cos(g) - np.abs(cut.force_at([g])[0])
+        assert np.array_equal(got.ceiling_distance[r, j], np.sort(dist)[:8])
+        assert np.all(np.isnan(got.ceiling_distance[r, j + 4:]))
+
+
+def test_file_opens_in_xarray(reference):
+    xr = pytest.importorskip("xarray")
+    ds = xr.open_dataset(reference, engine="h5netcdf")
+    assert {"row", "event"} <= set(ds.dims)
+    assert "mu_d" in ds.coords and ds["mu_d"].dims == ("row",)
+    assert ds["alpha"].attrs["units"] == "rad" and ds["ceiling_distance"].attrs["units"] == "m g"
+    assert "history" in ds.attrs and "prior" in ds.attrs
+    got = read_prior_ensemble(reference)
+    assert np.array_equal(ds["alpha"].values, got.columns["alpha"])
+    assert np.array_equal(ds["n_events"].values, np.diff(got.offsets))
+
+
+def test_damaged_events_are_found_and_recomputed(small, reference, tmp_path):
+    """A flipped event value fails its row's checksum: the reader drops the row, --resume redoes it."""
+    import h5py
+
+    out = tmp_path / "damaged.h5"
+    shutil.copy(reference, out)
+    with h5py.File(out, "r+") as f:
+        r = 4
+        a = int(f["realisations/event_start"][r])
+        f["events/alpha"][a + 1] += 1e-9
+    got = read_prior_ensemble(out)
+    assert len(got) == 11 and 4 not in got.attrs["rows"]
+    with pytest.raises(Exception, match="row 4 .* fails its checksums"):
+        read_prior_row(out, 4)
+    done = run([small, "--out", out, "--resume", "--quiet"])
+    assert done.returncode == 0, done.stderr
+    assert_same_sets(read_prior_ensemble(reference), read_prior_ensemble(out))
