@@ -145,6 +145,24 @@ def test_bad_priors_are_refused_in_one_line(tmp_path, capsys, body, words):
     assert not (tmp_path / "x.h5").exists()
 
 
+@pytest.mark.parametrize("count, words", [
+    (99999999999999999, "more than one file holds"),   # the design alone would not fit in memory
+    (90000000, "No space left on device"),             # fits in memory, no disk here holds it
+])
+def test_an_absurd_count_is_refused_at_once(tmp_path, capsys, count, words):
+    """A count that no memory or disk could hold is refused in one line, in well under a second
+    of work, before any row is drawn or any file made."""
+    path = tmp_path / "huge.toml"
+    path.write_text(f"[prior]\nrealisations = {count}\ndesign = 'random'\nceiling_k = 64\n"
+                    "[parameters]\nmu_d = { uniform = [0.3, 0.5] }\n")  # rows of >= 30 kB: petabytes
+    t0 = time.process_time()
+    assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 1
+    assert time.process_time() - t0 < 5.0
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], lines
+    assert os.listdir(tmp_path) == ["huge.toml"]
+
+
 def test_a_bad_row_is_named_before_anything_runs(tmp_path, capsys):
     """Each scene is checked: a drawn xi that makes the given dt too long names the row."""
     path = tmp_path / "bad.toml"

@@ -897,5 +897,82 @@ def _run(args, comm, plan, root_plan) -> int:
     return 0
 
 
+def serve_rows(comm, handler, pending, total: int, ctx: dict, kind: str, out: str,
+               write_view=None) -> int:
+    """Run the scheduler over ``pending`` rows of a study or a prior ensemble, then close and report.
+
+    Rank 0 serves the rows (``_Root``) and writes them, the other ranks compute
+    (``_worker``); SIGTERM and SIGINT stop after the rows in progress.  Then
+    ``write_view()`` (rank 0; the rows are safe if it fails) rewrites the
+    file's xarray view, and one line says what was done.
+
+    Parameters
+    ----------
+    comm : mpi4py communicator or SerialComm
+    handler : the open file handler (``io.storage.HANDLERS`` and kin)
+    pending : numpy.ndarray
+        Row indices still to compute, in the order to serve them.
+    total : int
+        Rows in the file.
+    ctx : dict
+        The scheduler's context (``compute_row``, ``interval``, ``quiet``, ``label``).
+    kind : str
+        "study" or "prior": the first word of every line.
+    out : str
+        The file, for the messages.
+    write_view : callable, optional
+        Called on rank 0 after the rows are closed.
+
+    Returns
+    -------
+    int
+        0, 1 after an error on a rank, 128 + signal after a stop.
+    """
+    rank = comm.rank
+    old = {s: signal.signal(s, _Stop.handler) for s in (signal.SIGTERM, signal.SIGINT)}
+    root = None
+    try:
+        if rank == 0:
+            root = _Root(comm, handler, pending, total - pending.size, ctx)
+            root.run()
+        else:
+            _worker(comm, handler, ctx)
+    except Exception as exc:  # noqa: BLE001 - nothing may hang
+        sys.stderr.write(_error_line(f"rank {rank}: {type(exc).__name__}: {exc}") + "\n")
+        sys.stderr.flush()
+        if comm.size > 1:
+            abort(comm)
+        handler.close()
+        return 1
+    try:
+        handler.close()
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    final = None
+    if rank == 0:
+        if write_view is not None:
+            try:
+                write_view()
+            except (OSError, KeyError, ValueError, RuntimeError) as exc:  # the rows are safe
+                sys.stderr.write(f"{kind}: warning: the xarray view of {out} was not written "
+                                 f"({' '.join(str(exc).split())}); rerun with --resume to add it\n")
+        final = {"stop": root.stop_reason, "signum": root.signum}
+        elapsed = time.monotonic() - root.started
+        n_done = root.done_before + root.done_now
+        if root.stop_reason:
+            sys.stderr.write(f"{kind}: interrupted ({root.stop_reason}): {n_done}/{total} rows in "
+                             f"{out}; rerun with --resume to complete them\n")
+        elif not ctx["quiet"]:
+            stats = ", ".join(f"{k} {v}" for k, v in sorted(root.statuses.items())) or "none run"
+            sys.stderr.write(f"{kind}: {n_done}/{total} rows done, {root.done_now} in this run in "
+                             f"{elapsed:.1f} s on {comm.size} rank(s); statuses: {stats} -> "
+                             f"{out}\n")
+    final = comm.bcast(final, root=0)
+    if final["stop"]:
+        return 128 + int(final["signum"] or signal.SIGTERM)
+    return 0
+
+
 if __name__ == "__main__":
     sys.exit(main())

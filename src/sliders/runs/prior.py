@@ -50,7 +50,6 @@ import hashlib
 import json
 import math
 import os
-import signal
 import sys
 import time
 import warnings
@@ -70,6 +69,7 @@ DRAWABLE = ("mu_d", "mu_s_mean", "mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders
             "spring_length", "initial_forces")
 MATERIAL = ("mu_d", "mu_s_mean", "sigma_mu", "xi", "n_sliders",
             "initial_forces")  # always in the file (the last: the preparation)
+MAX_REALISATIONS = 10**8  # rows of one file: the design is drawn in memory (5 x 8 bytes a row)
 PRIOR_KEYS = ("realisations", "design", "seed", "ceiling_step", "ceiling_k")
 DEFAULT_CEILING_STEP = 0.01
 DEFAULT_CEILING_K = 8
@@ -203,7 +203,13 @@ class Prior:
         """Every parameter per row (drawn, fixed and derived), (n,) each."""
         if n is None and self._values is not None:
             return self._values
-        u = self.unit_design(n)
+        out = self.values_at(self.unit_design(n))
+        if n is None:
+            self._values = out
+        return out
+
+    def values_at(self, u: np.ndarray) -> dict[str, np.ndarray]:
+        """Every parameter (drawn, fixed and derived) at the points ``u`` (rows, drawn) of the unit cube."""
         rows = u.shape[0]
         out = {name: self.marginals[name].ppf(u[:, j]) for j, name in enumerate(self.drawn)}
         for name, m in self.marginals.items():
@@ -214,8 +220,6 @@ class Prior:
                 out[name] = np.full(rows, getattr(self.base_scene, name))
         if "mu_s_minus_mu_d" in out:
             out["mu_s_mean"] = out["mu_d"] + out["mu_s_minus_mu_d"]
-        if n is None:
-            self._values = out
         return out
 
     def seed(self, r: int) -> int:
@@ -249,8 +253,18 @@ class Prior:
         return out
 
     def ceiling_alpha(self) -> np.ndarray:
-        """The ceiling's grid: multiples of ``ceiling_step`` up to the largest atan(mu_s_mean) + a step."""
-        top = float(np.arctan(np.max(self.values()["mu_s_mean"]))) + self.ceiling_step
+        """The ceiling's grid: multiples of ``ceiling_step`` up to the prior's largest
+        atan(mu_s_mean) + a step: the top of the law's support, so that the grid depends
+        neither on the draws nor on their number (no row is drawn)."""
+        m = self.marginals
+        if "mu_s_mean" in m:
+            mu_s_top = m["mu_s_mean"].support()[1]
+        elif "mu_s_minus_mu_d" in m:
+            mu_d_top = m["mu_d"].support()[1] if "mu_d" in m else self.base_scene.mu_d
+            mu_s_top = mu_d_top + m["mu_s_minus_mu_d"].support()[1]
+        else:
+            mu_s_top = self.base_scene.mu_s_mean
+        top = float(np.arctan(mu_s_top)) + self.ceiling_step
         n = int(math.ceil(top / self.ceiling_step))
         return np.round(self.ceiling_step * np.arange(1, n + 1), 12)
 
@@ -283,6 +297,11 @@ def parse_prior(data: dict, where: str = "prior") -> Prior:
     R = head.get("realisations")
     if isinstance(R, bool) or not isinstance(R, int) or R < 1:
         raise PriorError(f"{where}: [prior] realisations = {R!r} must be an integer >= 1")
+    if R > MAX_REALISATIONS:
+        raise PriorError(f"{where}: [prior] realisations = {R} is more than one file holds "
+                         f"(at most {MAX_REALISATIONS:.0e}: the design alone would need "
+                         f"{R * 5 * 8 / 1e9:.3g} GB of memory); split it into several priors "
+                         "with different seeds")
     design = head.get("design", "sobol")
     if design not in DESIGNS:
         raise PriorError(f"{where}: [prior] design = {design!r} must be one of {DESIGNS}")
@@ -516,7 +535,9 @@ def _plan_root(args, prior: Prior) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sliders.prior PRIOR.toml --out FILE.h5``: run (or resume) a prior ensemble; the exit code."""
+    from .cli import ranks_on_this_node
     from .ensemble import (_claim_output, agree_on_plan, check_run_options, world_or_none)
+    from ..io.storage import check_room
     from ..scene import check_memory
 
     world = world_or_none()
@@ -525,13 +546,19 @@ def main(argv: list[str] | None = None) -> int:
     comm, have_mpi = world
     rank = comm.rank
     claims: list = []
+    node_ranks = ranks_on_this_node(comm)  # collective, before any rank can fail
 
     def prepare():
         args = build_parser(rank).parse_args(argv)
         storage = check_run_options(args, comm, have_mpi)
         prior = load_prior(args.prior)
+        if not (args.resume and os.path.exists(args.out)):
+            # a count no disk could hold is refused before any row is drawn; a row holds at
+            # least its ceiling (G x K distances) and a few scalars, its events come on top
+            check_room(args.out, prior.realisations,
+                       8 * prior.ceiling_alpha().size * prior.ceiling_k + 256)
         scenes = prior.scenes()  # every row checked before anything runs
-        check_memory(max(scenes, key=lambda s: s.n_sliders))
+        check_memory(max(scenes, key=lambda s: s.n_sliders), node_ranks)
         plan = None
         if rank == 0:
             claims.append(_claim_output(args, "prior"))
@@ -551,7 +578,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args, comm, prior: Prior, plan) -> int:
-    from .ensemble import _error_line, _Root, _Stop, _worker
+    from .ensemble import _error_line, serve_rows
     from ..io.safeio import os_reason
 
     rank = comm.rank
@@ -587,48 +614,8 @@ def _run(args, comm, prior: Prior, plan) -> int:
         sys.stderr.write(f"prior: {verb} {pending.size} of {total} rows (backend {backend}) on "
                          f"{comm.size} rank(s) -> {args.out}\n")
         sys.stderr.flush()
-    old = {s: signal.signal(s, _Stop.handler) for s in (signal.SIGTERM, signal.SIGINT)}
-    root = None
-    try:
-        if rank == 0:
-            root = _Root(comm, handler, pending, total - pending.size, ctx)
-            root.run()
-        else:
-            _worker(comm, handler, ctx)
-    except Exception as exc:  # noqa: BLE001 - nothing may hang
-        sys.stderr.write(_error_line(f"rank {rank}: {type(exc).__name__}: {exc}") + "\n")
-        sys.stderr.flush()
-        if comm.size > 1:
-            abort(comm)
-        handler.close()
-        return 1
-    try:
-        handler.close()
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-    final = None
-    if rank == 0:
-        try:
-            write_view(args.out, prior.base_scene.to_dict())
-        except (OSError, KeyError, ValueError, RuntimeError) as exc:  # the rows are safe
-            sys.stderr.write(f"prior: warning: the xarray view of {args.out} was not written "
-                             f"({' '.join(str(exc).split())}); rerun with --resume to add it\n")
-        final = {"stop": root.stop_reason, "signum": root.signum}
-        elapsed = time.monotonic() - root.started
-        n_done = root.done_before + root.done_now
-        if root.stop_reason:
-            sys.stderr.write(f"prior: interrupted ({root.stop_reason}): {n_done}/{total} rows in "
-                             f"{args.out}; rerun with --resume to complete them\n")
-        elif not args.quiet:
-            stats = ", ".join(f"{k} {v}" for k, v in sorted(root.statuses.items())) or "none run"
-            sys.stderr.write(f"prior: {n_done}/{total} rows done, {root.done_now} in this run in "
-                             f"{elapsed:.1f} s on {comm.size} rank(s); statuses: {stats} -> "
-                             f"{args.out}\n")
-    final = comm.bcast(final, root=0)
-    if final["stop"]:
-        return 128 + int(final["signum"] or signal.SIGTERM)
-    return 0
+    return serve_rows(comm, handler, pending, total, ctx, "prior", args.out,
+                      lambda: write_view(args.out, prior.base_scene.to_dict()))
 
 
 if __name__ == "__main__":

@@ -33,9 +33,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import sys
-import time
 from typing import Any
 
 import numpy as np
@@ -183,8 +181,8 @@ def _plan_root(args, study: Study) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sliders.study STUDY.toml --out FILE.h5``: run (or resume) a study; the exit code."""
-    from .ensemble import (_claim_output, _Root, _Stop, _worker, agree_on_plan,
-                           check_run_options, compute_row, world_or_none)
+    from .ensemble import (_claim_output, agree_on_plan, check_run_options, compute_row,
+                           world_or_none)
 
     world = world_or_none()
     if world is None:
@@ -213,14 +211,14 @@ def main(argv: list[str] | None = None) -> int:
     args, study, storage, plan = planned
     plan = comm.bcast(plan, root=0)
     try:
-        return _run(args, comm, study, plan, storage, _Root, _worker, _Stop, compute_row)
+        return _run(args, comm, study, plan, storage, compute_row)
     finally:
         for claim in claims:
             claim.release()
 
 
-def _run(args, comm, study, plan, storage, _Root, _worker, _Stop, compute_row) -> int:
-    from .ensemble import _error_line
+def _run(args, comm, study, plan, storage, compute_row) -> int:
+    from .ensemble import _error_line, serve_rows
     from ..analysis.observables import StatisticsGrids
     from ..io.safeio import os_reason
 
@@ -261,47 +259,8 @@ def _run(args, comm, study, plan, storage, _Root, _worker, _Stop, compute_row) -
                          f"x {R} realisations, backend {backend}) on {comm.size} rank(s), storage "
                          f"{storage} -> {args.out}\n")
         sys.stderr.flush()
-    old = {s: signal.signal(s, _Stop.handler) for s in (signal.SIGTERM, signal.SIGINT)}
-    root = None
-    try:
-        if rank == 0:
-            root = _Root(comm, handler, pending, total - pending.size, ctx)
-            root.run()
-        else:
-            _worker(comm, handler, ctx)
-    except Exception as exc:  # noqa: BLE001 - nothing may hang
-        sys.stderr.write(_error_line(f"rank {rank}: {type(exc).__name__}: {exc}") + "\n")
-        sys.stderr.flush()
-        if comm.size > 1:
-            abort(comm)
-        handler.close()
-        return 1
-    try:
-        handler.close()
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-    final = None
-    if rank == 0:
-        try:
-            write_view(args.out, study)
-        except (OSError, KeyError, ValueError) as exc:  # the rows are safe; only the view is missing
-            sys.stderr.write(f"study: warning: the xarray view of {args.out} was not written "
-                             f"({' '.join(str(exc).split())}); rerun with --resume to add it\n")
-        final = {"stop": root.stop_reason, "signum": root.signum}
-        elapsed = time.monotonic() - root.started
-        n_done = root.done_before + root.done_now
-        if root.stop_reason:
-            sys.stderr.write(f"study: interrupted ({root.stop_reason}): {n_done}/{total} rows in "
-                             f"{args.out}; rerun with --resume to complete them\n")
-        elif not args.quiet:
-            stats = ", ".join(f"{k} {v}" for k, v in sorted(root.statuses.items())) or "none run"
-            sys.stderr.write(f"study: {n_done}/{total} rows done, {root.done_now} in this run in "
-                             f"{elapsed:.1f} s; statuses: {stats} -> {args.out}\n")
-    final = comm.bcast(final, root=0)
-    if final["stop"]:
-        return 128 + int(final["signum"] or signal.SIGTERM)
-    return 0
+    return serve_rows(comm, handler, pending, total, ctx, "study", args.out,
+                      lambda: write_view(args.out, study))
 
 
 if __name__ == "__main__":
