@@ -1,0 +1,21 @@
+"""Forecasting the avalanche angle from the event catalogue (issue 24; docs/forecasting.md).
+
+Pure computation on ``sliders.io.catalogue`` objects: no running, no plotting.
+
+* ``base``: the forecast's form (quantiles at ``LEVELS``), the ``Forecaster`` interface;
+* ``features``: catalogues cut at a tilt (``Cuts``), random training cuts, features;
+* ``baselines``: climatology, conditioned climatology, now, last event + lead;
+* ``inverse_rate``: the failure forecast method, least squares and point process;
+* ``physics``: the paper's half-angle rule and the model-based estimate of mu_d;
+* ``learned``: gradient-boosted quantile regressors, the ceiling and the told-mu_d variants;
+* ``evaluation``: the split, the cuts at leads, the metrics with bootstrap intervals, the alarm.
+"""
+
+from .base import LEVELS, Forecast, ForecastError, Forecaster
+from .baselines import Climatology, ConditionedClimatology, LastEventPlusLead, Now
+from .features import Cuts, training_cuts
+from .inverse_rate import LinearInverseRate, PointProcessInverseRate
+
+__all__ = ["LEVELS", "Forecast", "ForecastError", "Forecaster", "Climatology",
+           "ConditionedClimatology", "LastEventPlusLead", "Now", "Cuts", "training_cuts",
+           "LinearInverseRate", "PointProcessInverseRate"]

@@ -1,0 +1,199 @@
+"""The forecasters' common form: a predictive distribution of the avalanche angle.
+
+Every forecaster answers with the quantiles of ``alpha_c`` at the levels
+``LEVELS`` (5 % to 95 % in steps of 5 %).  From them: the point forecast (the
+median), the 80 % interval (10 % and 90 %), the CRPS (from the quantile scores)
+and the probability that the avalanche comes within the next ``delta`` of tilt.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: quantile levels of every forecast (uniform, so that twice their mean pinball
+#: loss approximates the CRPS)
+LEVELS = np.round(np.arange(1, 20) / 20.0, 2)
+#: index of the median and of the 80 % interval's ends in ``LEVELS``
+MEDIAN = int(np.flatnonzero(LEVELS == 0.5)[0])
+LOWER = int(np.flatnonzero(LEVELS == 0.1)[0])
+UPPER = int(np.flatnonzero(LEVELS == 0.9)[0])
+#: nominal coverage of ``Forecast.interval``
+NOMINAL_COVERAGE = 0.8
+
+
+class ForecastError(ValueError):
+    """A forecaster cannot be used as asked (not fitted, missing simulation data, bad input)."""
+
+
+@dataclass(frozen=True)
+class Forecast:
+    """One forecast of the avalanche angle.
+
+    Parameters
+    ----------
+    quantiles : numpy.ndarray
+        ``alpha_c`` (radians) at the levels ``LEVELS``, non-decreasing.
+    tilt_now : float
+        The tilt at which the forecast was made, radians.
+    forecaster : str
+        Name of the forecaster.
+    fallback : bool
+        True when the forecaster's own method gave no answer (e.g. an
+        inverse-rate fit without acceleration) and it fell back on the
+        conditioned climatology.
+    """
+
+    quantiles: np.ndarray
+    tilt_now: float
+    forecaster: str
+    fallback: bool = False
+
+    @property
+    def point(self) -> float:
+        """The point forecast: the median, radians."""
+        return float(self.quantiles[MEDIAN])
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        """The nominal 80 % predictive interval (10 % and 90 % quantiles), radians."""
+        return float(self.quantiles[LOWER]), float(self.quantiles[UPPER])
+
+    def probability_within(self, delta: float) -> float:
+        """Probability that the avalanche comes before the tilt reaches ``tilt_now + delta``."""
+        return float(probability_within(self.quantiles[None, :], np.array([self.tilt_now]), delta)[0])
+
+    def as_dict(self, delta: float) -> dict:
+        """The forecast as plain JSON-able values (radians), with the alarm for ``delta``."""
+        return {"forecaster": self.forecaster, "alpha_c": self.point,
+                "interval": list(self.interval), "coverage": NOMINAL_COVERAGE,
+                "tilt_now": self.tilt_now, "within": delta,
+                "probability_within": self.probability_within(delta),
+                "fallback": self.fallback}
+
+
+def probability_within(quantiles: np.ndarray, tilt_now: np.ndarray, delta: float) -> np.ndarray:
+    """P(alpha_c <= tilt_now + delta) from rows of quantiles at ``LEVELS``.
+
+    The distribution function is interpolated linearly between the quantiles,
+    from 0 at the lower end (the tilt reached, or the 5 % quantile if that is
+    lower, minus the 5-10 % spacing) to 1 beyond the 95 % quantile by the
+    same spacing as 90-95 %.
+    """
+    q = np.asarray(quantiles, dtype=float)
+    t = np.asarray(tilt_now, dtype=float) + delta
+    lo = np.minimum(q[:, :1] - (q[:, 1:2] - q[:, :1]), q[:, :1])
+    hi = q[:, -1:] + (q[:, -1:] - q[:, -2:-1])
+    xp = np.concatenate([lo, q, hi], axis=1)
+    fp = np.concatenate([[0.0], LEVELS, [1.0]])
+    out = np.empty(q.shape[0])
+    for i in range(q.shape[0]):
+        x = xp[i]
+        if x[-1] <= x[0]:  # a point mass
+            out[i] = float(t[i] >= x[0])
+        else:
+            out[i] = np.interp(t[i], x, fp)
+    return out
+
+
+def quantiles_of_sample(values, weights=None) -> np.ndarray:
+    """Quantiles at ``LEVELS`` of a sample (optionally weighted), the predictive form of an ensemble."""
+    values = np.asarray(values, dtype=float)
+    if weights is None:
+        return np.quantile(values, LEVELS)
+    return np.quantile(values, LEVELS, weights=np.asarray(weights, dtype=float),
+                       method="inverted_cdf")
+
+
+def quantiles_of_grid(grid: np.ndarray, log_density: np.ndarray) -> np.ndarray:
+    """Quantiles at ``LEVELS`` of a distribution given on a sorted grid by its log density.
+
+    Used for the likelihood profiles of the inverse-rate fits: the normalised
+    likelihood over the grid is read as the predictive distribution (a flat
+    prior on the grid's variable).
+    """
+    w = np.exp(log_density - np.nanmax(log_density))
+    w = np.where(np.isfinite(w), w, 0.0)
+    cdf = np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(grid))
+    cdf = np.concatenate([[0.0], cdf]) / cdf[-1]
+    return np.interp(LEVELS, cdf, grid)
+
+
+def pinball_crps(quantiles: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """CRPS of each row of quantiles at ``LEVELS`` against the truth, from the quantile scores.
+
+    CRPS = 2 * integral over levels of the pinball loss; the mean over the
+    uniform ``LEVELS`` approximates the integral (the tails beyond 5 % and
+    95 % left out), in radians.
+    """
+    q = np.asarray(quantiles, dtype=float)
+    y = np.asarray(truth, dtype=float)[:, None]
+    diff = y - q
+    loss = np.maximum(LEVELS * diff, (LEVELS - 1.0) * diff)
+    return 2.0 * loss.mean(axis=1)
+
+
+class Forecaster:
+    """A forecaster of ``alpha_c``: ``fit`` on training realisations, then ``quantiles`` of cuts.
+
+    Subclasses set ``name`` and ``label`` and implement ``_quantiles``;
+    those that learn override ``fit``.  ``needs`` lists what beyond the
+    catalogue a forecaster uses ("ceiling": every slider's distance to its
+    threshold; "mu_d": the true dynamic friction), which only a simulation
+    has.
+    """
+
+    name = "forecaster"
+    label = "forecaster"
+    needs: tuple[str, ...] = ()
+
+    def fit(self, train, rng=None) -> "Forecaster":
+        """Learn from a training ``CatalogueSet`` (default: nothing to learn).
+
+        Parameters
+        ----------
+        train : sliders.io.catalogue.CatalogueSet
+            The training realisations (whole runs, avalanche reached).
+        rng : numpy.random.Generator, optional
+            For the random cuts of the learned forecasters.
+        """
+        return self
+
+    def quantiles(self, cuts) -> tuple[np.ndarray, np.ndarray]:
+        """Forecasts of many cuts at once.
+
+        Parameters
+        ----------
+        cuts : sliders.analysis.forecast.features.Cuts
+            The catalogues as seen at their tilts (and the simulation's
+            extras, for the forecasters that need them).
+
+        Returns
+        -------
+        quantiles : numpy.ndarray
+            (n, len(LEVELS)) ``alpha_c`` in radians, sorted along axis 1.
+        fallback : numpy.ndarray
+            (n,) bool: where the method gave no answer of its own.
+        """
+        for need in self.needs:
+            if getattr(cuts, need) is None:
+                raise ForecastError(f"forecaster {self.name!r} needs {need!r}, which only a "
+                                    "simulated catalogue set has")
+        q, fb = self._quantiles(cuts)
+        q = np.sort(np.asarray(q, dtype=float), axis=1)
+        return q, np.asarray(fb, dtype=bool)
+
+    def predict(self, catalogue) -> Forecast:
+        """The forecast for one ``Catalogue`` (its ``tilt_now`` is the tilt reached)."""
+        from .features import Cuts
+
+        q, fb = self.quantiles(Cuts.from_catalogues([catalogue]))
+        return Forecast(q[0], float(catalogue.tilt_now), self.name, bool(fb[0]))
+
+    def _quantiles(self, cuts):
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        """The forecaster's name."""
+        return f"<Forecaster {self.name}>"

@@ -1,0 +1,214 @@
+"""Catalogues cut at a tilt, and what a learned forecaster sees of them.
+
+A *cut* is one realisation's catalogue as an experimenter holds it at the tilt
+``alpha_obs``: the events up to that tilt, nothing after.  ``Cuts`` holds many
+of them together with the realisation they come from (for the split and the
+truth) and, when they come from a simulation, what only a simulation knows:
+every slider's distance to its threshold at the last stored angle before the
+cut (``ceiling``) and the true ``mu_d``.  Forecasters of the catalogue never
+read those.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...io.catalogue import Catalogue, CatalogueSet
+
+#: the recent windows (radians of tilt before the cut) over which rates are counted
+WINDOWS = (0.005, 0.01, 0.02, 0.05, 0.1)
+#: the number of smallest threshold distances the ceiling forecaster sees
+CEILING_K = 16
+
+
+@dataclass
+class Cuts:
+    """Many catalogues as seen at their tilts.
+
+    Parameters
+    ----------
+    catalogues : list of Catalogue
+        Each cut (``tilt_now`` is the tilt reached).
+    row : numpy.ndarray
+        (n,) the realisation each cut comes from (-1: not from a set).
+    alpha_c : numpy.ndarray, optional
+        (n,) the truth, when known.
+    ceiling : numpy.ndarray, optional
+        (n, K) the K smallest distances of a slider to its threshold at the
+        last stored angle at or below the cut, m g (simulation only).
+    mu_d : numpy.ndarray, optional
+        (n,) the true dynamic friction coefficient (simulation only).
+    """
+
+    catalogues: list
+    row: np.ndarray
+    alpha_c: np.ndarray | None = None
+    ceiling: np.ndarray | None = None
+    mu_d: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        """Number of cuts."""
+        return len(self.catalogues)
+
+    @property
+    def tilt_now(self) -> np.ndarray:
+        """(n,) the tilt reached at each cut, radians."""
+        return np.array([c.tilt_now for c in self.catalogues], dtype=float)
+
+    @property
+    def last_event(self) -> np.ndarray:
+        """(n,) the angle of the last event seen (0 if none), radians."""
+        return np.array([c.alpha[-1] if len(c) else 0.0 for c in self.catalogues], dtype=float)
+
+    @classmethod
+    def from_catalogues(cls, catalogues) -> "Cuts":
+        """Cuts of catalogues from any source (no truth, no simulation extras)."""
+        catalogues = list(catalogues)
+        return cls(catalogues, np.full(len(catalogues), -1, dtype=np.int64))
+
+    @classmethod
+    def from_set(cls, cset: CatalogueSet, rows, alpha_obs) -> "Cuts":
+        """Cut row ``rows[j]`` of ``cset`` at ``alpha_obs[j]``, with the truth and the extras.
+
+        Parameters
+        ----------
+        cset : CatalogueSet
+            The realisations.
+        rows : array_like of int
+            The row of each cut (repeats allowed).
+        alpha_obs : array_like of float
+            The tilt of each cut, radians, below that row's ``alpha_c``.
+        """
+        rows = np.asarray(rows, dtype=np.int64)
+        alpha_obs = np.asarray(alpha_obs, dtype=float)
+        whole = {}
+        cats = []
+        for r, a in zip(rows, alpha_obs):
+            if r not in whole:
+                whole[r] = cset.catalogue(int(r))
+            cats.append(whole[r].cut(float(a)))
+        ceiling = None
+        if cset.ceiling_distance is not None and cset.ceiling_alpha is not None and rows.size:
+            g = np.searchsorted(cset.ceiling_alpha, alpha_obs, side="right") - 1
+            d = cset.ceiling_distance[rows, np.clip(g, 0, None), :CEILING_K]
+            ceiling = np.where((g >= 0)[:, None], d, np.nan)
+        mu_d = np.asarray(cset.parameters["mu_d"], dtype=float)[rows] if "mu_d" in cset.parameters else None
+        return cls(cats, rows, np.asarray(cset.alpha_c, dtype=float)[rows], ceiling, mu_d)
+
+
+def training_cuts(cset: CatalogueSet, draws_per_row: int, rng: np.random.Generator,
+                  alpha_max: float | None = None) -> Cuts:
+    """Cuts at tilts drawn over the whole run, independently of where the avalanche is.
+
+    Each row gets ``draws_per_row`` tilts uniform on [0, ``alpha_max``] (the
+    largest ``alpha_c`` of the set unless given); those below the row's
+    ``alpha_c`` are kept.  The tilt is drawn without looking at ``alpha_c``
+    (the rejection only says that the avalanche has not come yet, which an
+    experimenter knows too), so a model cannot learn "the catalogue ends a
+    fixed lead before the avalanche": conditioned on the tilt, the cuts hold
+    the prior's ``alpha_c`` above it.
+    """
+    ok = np.flatnonzero(np.isfinite(cset.alpha_c))
+    if ok.size == 0:
+        raise ValueError("no realisation of the set reached the avalanche")
+    top = float(np.max(cset.alpha_c[ok])) if alpha_max is None else float(alpha_max)
+    a = rng.uniform(0.0, top, size=(ok.size, draws_per_row))
+    keep = a < cset.alpha_c[ok, None]
+    rows = np.repeat(ok, draws_per_row).reshape(ok.size, draws_per_row)[keep]
+    return Cuts.from_set(cset, rows, a[keep])
+
+
+def _window_sums(alpha, values, tilt, windows):
+    lo = np.searchsorted(alpha, tilt - np.asarray(windows), side="left")
+    c = np.concatenate([[0.0], np.cumsum(values)])
+    return c[-1] - c[lo]
+
+
+def size_one_delta_mu(cat: Catalogue) -> float:
+    """Delta mu from the events in which one slider moved alone (the paper's single slider).
+
+    A slider slipping alone between resting neighbours starts at
+    ``mu_s,n cos(alpha)`` and stops at ``(2 mu_d - mu_s,n) cos(alpha)``: it moves
+    by ``(mu_s,n - mu_d) cos(alpha)``.  The median of displacement / cos(alpha)
+    over such events estimates Delta mu (NaN without any).
+    """
+    one = cat.size == 1
+    if not one.any():
+        return np.nan
+    return float(np.median(cat.displacement[one] / np.cos(cat.alpha[one])))
+
+
+def n_sliders_estimate(cat: Catalogue) -> float:
+    """Number of sliders from the slider indices seen (largest index + 1; NaN if unknown).
+
+    The sliders are numbered 0..N-1 and the first and last mover of each event
+    are recorded; the largest index seen, corrected for the finite sample like
+    the German-tank estimate, estimates N.
+    """
+    known = cat.last >= 0
+    if not known.any():
+        return np.nan
+    m = float(cat.last[known].max() + 1)
+    k = int(np.unique(np.concatenate([cat.first[known], cat.last[known]])).size)
+    return m + m / max(k, 1) - 1.0 if k > 1 else m
+
+
+def catalogue_features(cat: Catalogue) -> dict:
+    """What a learned forecaster sees of one cut: plain numbers from the events and the tilt.
+
+    Angles in radians.  Rates are counted over the recent windows
+    ``WINDOWS``; NaN where a feature cannot be computed (the regressor
+    handles missing values).
+    """
+    t = float(cat.tilt_now)
+    n = len(cat)
+    alpha, size, disp = cat.alpha, cat.size.astype(float), cat.displacement
+    f = {"tilt": t, "n_events": float(n)}
+    f["last_event"] = float(alpha[-1]) if n else 0.0
+    f["quiet"] = t - f["last_event"]
+    f["first_event"] = float(alpha[0]) if n else np.nan
+    f["moves"] = float(size.sum())
+    f["displacement"] = float(disp.sum())
+    n_est = n_sliders_estimate(cat)
+    f["n_sliders"] = n_est
+    scale = n_est if np.isfinite(n_est) and n_est > 0 else np.nan
+    ev = _window_sums(alpha, np.ones(n), t, WINDOWS)
+    mv = _window_sums(alpha, size, t, WINDOWS)
+    ds = _window_sums(alpha, disp, t, WINDOWS)
+    for w, e, m, d in zip(WINDOWS, ev, mv, ds):
+        f[f"events_{w:g}"] = e / w
+        f[f"moves_{w:g}"] = m / w
+        f[f"disp_{w:g}"] = d / w
+        f[f"moves_per_slider_{w:g}"] = m / w / scale
+    f["max_size"] = float(size.max()) if n else 0.0
+    f["max_size_frac"] = f["max_size"] / scale
+    recent = alpha >= t - 0.05
+    f["max_size_recent"] = float(size[recent].max()) if recent.any() else 0.0
+    f["mean_size_recent"] = float(size[recent].mean()) if recent.any() else 0.0
+    f["since_largest"] = t - float(alpha[np.argmax(size)]) if n else np.nan
+    dmu = size_one_delta_mu(cat)
+    f["delta_mu_single"] = dmu
+    # the early rate of first slips: N alpha / (2 mu_s) sliders destabilise before any returns
+    early = alpha <= min(t, 2 * dmu) if np.isfinite(dmu) else np.zeros(n, bool)
+    mu_s = (scale * min(t, 2 * dmu) / (2.0 * early.sum())) if early.sum() >= 3 else np.nan
+    f["mu_s_early"] = mu_s
+    f["atan_mu_d_model"] = float(np.arctan(mu_s - dmu)) if np.isfinite(mu_s - dmu) else np.nan
+    f["atan_mu_s_model"] = float(np.arctan(mu_s)) if np.isfinite(mu_s) else np.nan
+    return f
+
+
+def feature_matrix(cuts: Cuts) -> tuple[np.ndarray, list[str]]:
+    """(n, F) features of every cut (``catalogue_features``) and their names."""
+    rows = [catalogue_features(c) for c in cuts.catalogues]
+    names = list(rows[0]) if rows else list(catalogue_features(Catalogue([], [], [], [], [])))
+    return np.array([[r[k] for k in names] for r in rows], dtype=float).reshape(len(rows), len(names)), names
+
+
+def ceiling_features(cuts: Cuts) -> tuple[np.ndarray, list[str]]:
+    """(n, K) log10 of the K smallest threshold distances at the last stored angle (simulation only)."""
+    d = np.asarray(cuts.ceiling, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = np.log10(np.maximum(d, 1e-12))
+    return x, [f"log_distance_{k}" for k in range(x.shape[1])]

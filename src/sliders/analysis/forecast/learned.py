@@ -1,0 +1,129 @@
+"""Learned forecasters: gradient-boosted quantile regressors on catalogue features.
+
+The target is ``log(alpha_c - tilt_now)``, the remaining angle (quantiles are
+equivariant under this monotone map, and the forecast stays above the tilt
+reached).  One ``sklearn.ensemble.HistGradientBoostingRegressor`` with the
+quantile loss per level of ``LEVELS``.  Trained on ``training_cuts``: tilts
+drawn over the whole run, never at fixed leads.
+
+* ``Learned``: the catalogue's features only (``features.catalogue_features``).
+* ``Ceiling``: plus the K smallest distances of a slider to its threshold at
+  the last stored angle before the cut, which only a simulation knows.
+* ``ToldMuD``: plus the true ``mu_d``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import LEVELS, Forecaster
+from .features import ceiling_features, feature_matrix, training_cuts
+
+#: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
+TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
+#: features that are angles: each also enters as its distance to the tilt reached
+ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model")
+
+
+class Learned(Forecaster):
+    """Quantile gradient boosting on the catalogue's features.
+
+    Parameters
+    ----------
+    draws_per_row : int
+        Random training cuts per training realisation.
+    max_iter, learning_rate, max_leaf_nodes, min_samples_leaf : int or float
+        Of ``HistGradientBoostingRegressor``.
+    seed : int
+        Seeds the cuts (unless ``fit`` gets an ``rng``) and the regressors.
+    """
+
+    name = "learned"
+    label = "learned (gradient boosting)"
+
+    def __init__(self, draws_per_row: int = 20, max_iter: int = 300, learning_rate: float = 0.08,
+                 max_leaf_nodes: int = 31, min_samples_leaf: int = 40, seed: int = 0):
+        self.draws_per_row, self.max_iter, self.learning_rate = draws_per_row, max_iter, learning_rate
+        self.max_leaf_nodes, self.min_samples_leaf, self.seed = max_leaf_nodes, min_samples_leaf, seed
+
+    def design(self, cuts) -> tuple[np.ndarray, list[str]]:
+        """The regressor's input for ``cuts``: (n, F) and the feature names."""
+        x, names = feature_matrix(cuts)
+        t = cuts.tilt_now[:, None]
+        extra = [x[:, names.index(a)][:, None] - t for a in ANGLE_FEATURES]
+        return np.hstack([x, *extra]), names + [f"{a}_minus_tilt" for a in ANGLE_FEATURES]
+
+    def fit(self, train, rng=None):
+        """Train one quantile regressor per level on random cuts of the training runs."""
+        from sklearn.ensemble import HistGradientBoostingRegressor
+
+        rng = np.random.default_rng(self.seed) if rng is None else rng
+        cuts = training_cuts(train, self.draws_per_row, rng)
+        x, names = self.design(cuts)
+        self.columns_ = np.isfinite(x).any(axis=0)  # a feature never seen (e.g. no slider indices)
+        self.feature_names_ = [n for n, k in zip(names, self.columns_) if k]
+        y = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
+        self.models_ = []
+        self.shift_ = np.zeros(LEVELS.size)
+        for level in TRAINED_LEVELS:
+            m = HistGradientBoostingRegressor(
+                loss="quantile", quantile=float(level), max_iter=self.max_iter,
+                learning_rate=self.learning_rate, max_leaf_nodes=self.max_leaf_nodes,
+                min_samples_leaf=self.min_samples_leaf, early_stopping=False,
+                random_state=self.seed)
+            self.models_.append(m.fit(x[:, self.columns_], y))
+        self.n_training_cuts_ = len(cuts)
+        return self
+
+    def calibrate(self, validation, rng=None) -> "Learned":
+        """Shift each level so that it holds its share of validation cuts (quantile recalibration).
+
+        On random cuts of the validation runs (drawn as the training cuts),
+        level ``tau``'s log remaining angle is moved by the ``tau``-quantile of
+        (truth - forecast): afterwards exactly a share ``tau`` of validation
+        cuts lies below it.  The realisations are not those of training.
+        """
+        rng = np.random.default_rng(self.seed + 1) if rng is None else rng
+        cuts = training_cuts(validation, self.draws_per_row, rng)
+        z = self._log_remaining(cuts)
+        truth = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
+        self.shift_ = np.array([np.quantile(truth - z[:, j], lv) for j, lv in enumerate(LEVELS)])
+        return self
+
+    def _log_remaining(self, cuts):
+        x, _ = self.design(cuts)
+        z = np.sort(np.column_stack([m.predict(x[:, self.columns_]) for m in self.models_]), axis=1)
+        return np.column_stack([np.interp(LEVELS, TRAINED_LEVELS, row) for row in z]).T \
+            if len(cuts) else np.zeros((0, LEVELS.size))
+
+    def _quantiles(self, cuts):
+        z = np.sort(self._log_remaining(cuts) + self.shift_[None, :], axis=1)
+        return cuts.tilt_now[:, None] + np.exp(z), np.zeros(len(cuts), bool)
+
+
+class Ceiling(Learned):
+    """The learned forecaster also given every slider's distance to its threshold (simulation only)."""
+
+    name = "ceiling"
+    label = "ceiling (+ distances to threshold)"
+    needs = ("ceiling",)
+
+    def design(self, cuts):
+        """Catalogue features plus log10 of the smallest threshold distances."""
+        x, names = super().design(cuts)
+        c, cn = ceiling_features(cuts)
+        return np.hstack([x, c]), names + cn
+
+
+class ToldMuD(Learned):
+    """The learned forecaster also told the true ``mu_d`` (simulation only)."""
+
+    name = "told_mu_d"
+    label = "told mu_d"
+    needs = ("mu_d",)
+
+    def design(self, cuts):
+        """Catalogue features plus atan(mu_d) and its distance to the tilt."""
+        x, names = super().design(cuts)
+        a = np.arctan(cuts.mu_d)[:, None]
+        return np.hstack([x, a, a - cuts.tilt_now[:, None]]), names + ["atan_mu_d", "atan_mu_d_minus_tilt"]

@@ -1,0 +1,162 @@
+"""Forecasters of the avalanche angle (sliders.analysis.forecast): the issue's checks.
+
+Small synthetic catalogues (exact rate laws) and a few tiny simulated runs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sliders.analysis.forecast import (LEVELS, Climatology, ConditionedClimatology, Cuts,
+                                       LastEventPlusLead, LinearInverseRate, Now,
+                                       PointProcessInverseRate, training_cuts)
+from sliders.analysis.forecast.base import pinball_crps, probability_within
+from sliders.analysis.forecast.evaluation import split_rows
+from sliders.analysis.forecast.learned import Learned
+from sliders.analysis.forecast.physics import ModelBased, PaperRule, transition_angle
+from sliders.io.catalogue import Catalogue, CatalogueSet
+
+
+def rate_law_catalogue(alpha_c, rate_a, tilt, displacement=0.01):
+    """Events whose count grows as A log(alpha_c / (alpha_c - alpha)): rate A / (alpha_c - alpha)."""
+    i = np.arange(1, 100000)
+    alpha = alpha_c * (1.0 - np.exp(-i / rate_a))
+    alpha = alpha[alpha <= tilt]
+    n = alpha.size
+    return Catalogue(alpha, np.ones(n), np.full(n, displacement), -np.ones(n), -np.ones(n),
+                     tilt_now=tilt)
+
+
+def synthetic_set(n_rows, seed=0):
+    """Rows with rate-law catalogues (random alpha_c, rate and noise): fast training data."""
+    rng = np.random.default_rng(seed)
+    cats, ac = [], []
+    for _ in range(n_rows):
+        a_c = rng.uniform(0.3, 0.6)
+        i = np.arange(1, 3000)
+        alpha = a_c * (1.0 - np.exp(-(i + rng.uniform(0, 1, i.size)) / rng.uniform(30, 80)))
+        alpha = np.sort(alpha[alpha < a_c])
+        n = alpha.size
+        cats.append(Catalogue(alpha, rng.integers(1, 5, n), rng.exponential(0.01, n),
+                              -np.ones(n), -np.ones(n)))
+        ac.append(a_c)
+    return CatalogueSet.from_catalogues(cats, {"mu_d": np.tan(np.array(ac)) - 0.003}, ac,
+                                        ["avalanche"] * n_rows)
+
+
+@pytest.mark.parametrize("forecaster", [LinearInverseRate("events"), PointProcessInverseRate("events"),
+                                        LinearInverseRate("displacement"),
+                                        LinearInverseRate("events", exponent=None)])
+@pytest.mark.parametrize("tilt", [0.42, 0.47])
+def test_inverse_rate_recovers_alpha_c_of_an_exact_rate_law(forecaster, tilt):
+    alpha_c = 0.5
+    cat = rate_law_catalogue(alpha_c, 100.0, tilt)
+    forecaster.fit(synthetic_set(3))
+    f = forecaster.predict(cat)
+    assert not f.fallback
+    assert abs(f.point - alpha_c) < 0.15 * (alpha_c - tilt)
+    lo, hi = f.interval
+    assert lo <= alpha_c <= hi
+
+
+def test_inverse_rate_without_acceleration_falls_back():
+    alpha = np.linspace(0.01, 0.3, 200)  # a steady rate: no finite failure angle
+    n = alpha.size
+    cat = Catalogue(alpha, np.ones(n), np.full(n, 0.01), -np.ones(n), -np.ones(n), tilt_now=0.3)
+    f = PointProcessInverseRate("events").fit(synthetic_set(20)).predict(cat)
+    assert f.fallback and f.point > 0.3
+
+
+def test_point_mass_prior_gives_the_point():
+    rows = 12
+    cats = [rate_law_catalogue(0.5, 40.0, 0.499) for _ in range(rows)]
+    cset = CatalogueSet.from_catalogues(cats, {"mu_d": np.full(rows, 0.54)}, np.full(rows, 0.5),
+                                        ["avalanche"] * rows)
+    clim = Climatology().fit(cset)
+    q, fb = clim.quantiles(Cuts.from_set(cset, [0, 1], [0.1, 0.4]))
+    assert np.all(q == 0.5) and not fb.any()
+    assert clim.predict(cats[0]).interval == (0.5, 0.5)
+    q, _ = ConditionedClimatology().fit(cset).quantiles(Cuts.from_set(cset, [0], [0.3]))
+    assert np.all(q == 0.5)
+
+
+def test_now_and_conditioned_climatology_respect_the_tilt():
+    cset = synthetic_set(40)
+    cuts = Cuts.from_set(cset, np.arange(40), cset.alpha_c - 0.02)
+    qn, _ = Now().quantiles(cuts)
+    assert np.allclose(qn, cuts.tilt_now[:, None])
+    qc, _ = ConditionedClimatology().fit(cset).quantiles(cuts)
+    assert np.all(qc >= cuts.tilt_now[:, None])
+    ql, _ = LastEventPlusLead(draws_per_row=5).fit(cset).quantiles(cuts)
+    assert np.all(ql >= cuts.tilt_now[:, None])
+
+
+def test_learned_forecaster_is_deterministic_with_a_fixed_seed():
+    train = synthetic_set(30, seed=1)
+    test = synthetic_set(5, seed=2)
+    cuts = Cuts.from_set(test, np.arange(5), test.alpha_c - 0.03)
+    a = Learned(draws_per_row=8, max_iter=15, seed=3).fit(train).quantiles(cuts)[0]
+    b = Learned(draws_per_row=8, max_iter=15, seed=3).fit(train).quantiles(cuts)[0]
+    c = Learned(draws_per_row=8, max_iter=15, seed=4).fit(train).quantiles(cuts)[0]
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)
+    assert np.all(np.diff(a, axis=1) >= 0) and np.all(a > cuts.tilt_now[:, None])
+
+
+def test_split_has_no_leakage():
+    s = split_rows(103, seed=5)
+    parts = [set(s.train), set(s.validation), set(s.test)]
+    assert sum(map(len, parts)) == 103 and set().union(*parts) == set(range(103))
+    assert not (parts[0] & parts[1] or parts[0] & parts[2] or parts[1] & parts[2])
+    cset = synthetic_set(103)
+    train = cset.subset(s.train)
+    cuts = training_cuts(train, 6, np.random.default_rng(0))
+    # every training cut is a prefix of a training realisation, none of a test one
+    test_alpha_c = set(cset.alpha_c[s.test])
+    assert not test_alpha_c & set(cuts.alpha_c)
+    for cat, r in zip(cuts.catalogues[:50], cuts.row[:50]):
+        whole = train.catalogue(int(r))
+        assert np.array_equal(cat.alpha, whole.alpha[:len(cat)])
+
+
+def test_training_cuts_do_not_know_the_lead():
+    """Cut tilts are drawn without alpha_c: the lead spreads over the whole run, not a few values."""
+    cset = synthetic_set(200)
+    cuts = training_cuts(cset, 10, np.random.default_rng(1))
+    lead = cuts.alpha_c - cuts.tilt_now
+    assert np.all(lead > 0)
+    assert np.unique(np.round(lead, 3)).size > 100
+    assert np.corrcoef(cuts.tilt_now, cuts.alpha_c)[0, 1] < 0.5
+
+
+def test_probability_within_and_crps():
+    q = np.tile(np.linspace(0.4, 0.6, LEVELS.size), (2, 1))
+    p = probability_within(q, np.array([0.3, 0.5]), 0.0)
+    assert p[0] == 0.0 and 0.4 < p[1] < 0.6
+    assert probability_within(np.full((1, LEVELS.size), 0.5), np.array([0.5]), 0.01)[0] == 1.0
+    crps = pinball_crps(q, np.array([0.5, 0.9]))
+    assert crps[0] < crps[1]
+
+
+def test_paper_rule_and_model_based_on_simulated_runs():
+    from sliders.runs.forecast import dev_catalogue_set
+
+    prior = {"mu_d": ("uniform", (0.4, 0.6)), "mu_s_minus_mu_d": ("loguniform", (0.03, 0.08)),
+             "sigma_mu": ("uniform", (0.005, 0.02)), "xi": ("point", 0.0),
+             "n_sliders": ("choice", (40,))}
+    cset = dev_catalogue_set(16, seed=3, prior=prior)
+    assert np.isfinite(cset.alpha_c).all()
+    # the single-slider displacement measures mu_s - mu_d
+    from sliders.analysis.forecast.features import size_one_delta_mu
+
+    est = np.array([size_one_delta_mu(cset.catalogue(i)) for i in range(16)])
+    true = cset.parameters["mu_s_mean"] - cset.parameters["mu_d"]
+    assert np.corrcoef(est, true)[0, 1] > 0.8
+    at = np.array([transition_angle(cset.catalogue(i)) for i in range(16)])
+    assert np.isfinite(at).mean() > 0.5 and np.all(at[np.isfinite(at)] < cset.alpha_c[np.isfinite(at)])
+    train, test = cset.subset(np.arange(12)), cset.subset(np.arange(12, 16))
+    cuts = Cuts.from_set(test, np.arange(4), test.alpha_c - 0.02)
+    for f in (PaperRule(), ModelBased(draws_per_row=3)):
+        q, fb = f.fit(train).quantiles(cuts)
+        assert q.shape == (4, LEVELS.size) and np.all(q >= cuts.tilt_now[:, None])
