@@ -1,12 +1,43 @@
 """``python -m sliders.forecast``: evaluate the forecasters of the avalanche angle, or forecast a catalogue.
 
-(The command line is completed below; this part holds the serial development data.)
+    python -m sliders.forecast evaluate --data prior.h5 --robust zero=zero.h5 --out results/forecast
+    python -m sliders.forecast evaluate --dev 300 --out /tmp/forecast      # serial development data
+    python -m sliders.forecast predict CATALOGUE.csv [--tilt-now ANGLE] [--json] [--model FILE]
+
+``evaluate`` splits the prior ensemble by realisation (train, validation,
+test), fits every forecaster on the training part (the learned ones are
+recalibrated on the validation part), cuts the test realisations at leads
+before their avalanche and at fixed tilts, prints the table of metrics with
+bootstrap intervals, writes it (markdown and JSON, with provenance) and
+draws the figures; the catalogue-only learned forecaster is kept for
+``predict``.  The data are prior ensembles (``python -m sliders.prior``,
+``sliders.io.prior_file``) or, for development, a small set run here
+(``dev_catalogue_set``).
+
+``predict`` reads a measured catalogue (docs/forecasting.md, "Your own
+catalogue"): a CSV file with a header, one event per row, columns
+``angle [deg]`` or ``angle [rad]`` (increasing), ``size`` (sliders or grains
+moved, >= 1), optionally ``displacement``, ``first`` and ``last`` (0-based
+positions of the first and last mover).  Bad input gets one line naming the
+row and the column.
 """
 
 from __future__ import annotations
 
+import argparse
+import csv
+import io
+import json
+import math
+import os
+import pickle
+import sys
+import time
+import zlib
+
 import numpy as np
 
+from .._version import __version__
 from ..io.catalogue import Catalogue, CatalogueSet
 
 #: the issue's example prior (the prior ensembles' default): name -> (law, bounds)
@@ -74,3 +105,485 @@ def dev_catalogue_set(n: int, seed: int = 0, initial_forces: str = "uniform", mo
                                         attrs={"source": "sliders.runs.forecast.dev_catalogue_set",
                                                "seed": seed, "initial_forces": initial_forces,
                                                "mode": mode})
+
+
+# ---------------------------------------------------------------------------
+# the evaluation
+# ---------------------------------------------------------------------------
+#: leads before the avalanche at which the test runs are cut, degrees
+DEFAULT_LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0)
+#: fixed tilts at which the test runs are cut, radians
+DEFAULT_TILTS = (0.1, 0.2, 0.3, 0.4, 0.5)
+#: the alarm: "the avalanche within DELTA", judged every STEP over the last WINDOW, degrees
+ALARM_DELTA_DEG, ALARM_WINDOW_DEG, ALARM_STEP_DEG = 1.0, 6.0, 0.25
+#: forecasters whose alarm is run (the others are too slow to run at every step, or baselines)
+ALARM_FORECASTERS = ("conditioned", "ffm_linear_disp", "ffm_ml_disp_p", "paper_rule", "learned",
+                     "ceiling", "told_mu_d")
+#: the lead at which the issue's targets are stated, degrees
+TARGET_LEAD_DEG = 3.0
+
+
+class ForecastInputError(ValueError):
+    """Bad input to the command: one line, no traceback."""
+
+
+def make_forecasters(has_ceiling: bool, max_iter: int, seed: int) -> list:
+    """Every forecaster of the evaluation, unfitted (the ceiling only if the data hold it)."""
+    from ..analysis.forecast import (Climatology, ConditionedClimatology, LastEventPlusLead,
+                                     LinearInverseRate, Now, PointProcessInverseRate)
+    from ..analysis.forecast.learned import Ceiling, Learned, ToldMuD
+    from ..analysis.forecast.physics import ModelBased, PaperRule
+
+    fs = [Climatology(), ConditionedClimatology(), Now(), LastEventPlusLead(),
+          LinearInverseRate("events"), PointProcessInverseRate("events"),
+          LinearInverseRate("displacement"), PointProcessInverseRate("displacement", None),
+          PaperRule(), ModelBased(), Learned(max_iter=max_iter, seed=seed)]
+    if has_ceiling:
+        fs.append(Ceiling(max_iter=max_iter, seed=seed))
+    fs.append(ToldMuD(max_iter=max_iter, seed=seed))
+    return fs
+
+
+def load_set(path: str) -> CatalogueSet:
+    """A prior ensemble file (``sliders.io.prior_file``) as a ``CatalogueSet``."""
+    try:
+        from ..io.prior_file import read_prior_ensemble
+    except ImportError:
+        raise ForecastInputError("reading prior ensembles needs sliders.io.prior_file "
+                                 "(python -m sliders.prior), not in this installation") from None
+    if not os.path.exists(path):
+        raise ForecastInputError(f"{path}: no such file")
+    return read_prior_ensemble(path)
+
+
+def _fmt(triple, scale=1.0, nd=3):
+    v, lo, hi = triple
+    if not np.isfinite(v):
+        return "—"
+    return f"{v * scale:.{nd}f} [{lo * scale:.{nd}f}, {hi * scale:.{nd}f}]"
+
+
+def format_table(scores: dict, labels: dict, group_names: list, group: int) -> str:
+    """One markdown table: every forecaster's metrics on one group of cuts (one lead or tilt)."""
+    head = ("| forecaster | median abs err (deg) | p90 abs err (deg) | safe | 80 % coverage | "
+            "CRPS (deg) | skill vs clim. | / cond. clim. | / remaining | p90 / remaining | fallback |")
+    lines = [f"**{group_names[group]}** (n = {next(iter(scores.values()))[group]['n']})", "",
+             head, "|" + "---|" * 11]
+    deg = 180.0 / math.pi
+    for name, rows in scores.items():
+        m = rows[group]
+        lines.append(
+            f"| {labels[name]} | {_fmt(m['median_abs'], deg, 2)} | {_fmt(m['p90_abs'], deg, 2)} | "
+            f"{_fmt(m['safe'], 1, 2)} | {_fmt(m['coverage'], 1, 2)} | {_fmt(m['crps'], deg, 2)} | "
+            f"{_fmt(m['skill'], 1, 2)} | {_fmt(m['vs_conditioned'], 1, 2)} | "
+            f"{_fmt(m['vs_remaining'], 1, 2)} | {_fmt(m['p90_vs_remaining'], 1, 2)} | "
+            f"{m['fallback']:.2f} |")
+    return "\n".join(lines)
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        return float(x) if np.isfinite(x) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    return x
+
+
+def _publish_text(path: str, text: str) -> None:
+    from ..io.safeio import publish_bytes
+
+    publish_bytes(path, text.encode(), overwrite=True)
+
+
+def provenance(argv) -> dict:
+    """Versions and command of a file this command writes."""
+    import sklearn
+
+    return {"sliders": __version__, "numpy": np.__version__, "scikit-learn": sklearn.__version__,
+            "python": sys.version.split()[0], "command": "python -m sliders.forecast " + " ".join(argv),
+            "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+
+
+def evaluate(args, argv) -> int:
+    """The whole evaluation (module docstring); prints the table, writes files and figures."""
+    from ..analysis.forecast import Cuts
+    from ..analysis.forecast import evaluation as ev
+
+    t0 = time.time()
+    log = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr, flush=True))
+    if args.dev:
+        data = dev_catalogue_set(args.dev, seed=args.seed)
+        robust = {"zero": dev_catalogue_set(max(args.dev // 4, 4), seed=args.seed + 1,
+                                            initial_forces="zero")}
+    else:
+        data = load_set(args.data)
+        robust = {}
+        for spec in args.robust:
+            if "=" not in spec:
+                raise ForecastInputError(f"--robust {spec!r}: give LABEL=FILE.h5")
+            label, path = spec.split("=", 1)
+            robust[label] = load_set(path)
+    split = ev.split_rows(len(data), args.fractions, seed=args.seed)
+    train, valid = data.subset(split.train), data.subset(split.validation)
+    log(f"forecast: {len(data)} realisations ({len(split.train)} train, {len(split.validation)} "
+        f"validation, {len(split.test)} test) + robustness {[(k, len(v)) for k, v in robust.items()]}")
+    forecasters = make_forecasters(data.ceiling_distance is not None, args.max_iter, args.seed)
+    if args.only:
+        keep = set(args.only.split(",")) | {"climatology", "conditioned"}
+        forecasters = [f for f in forecasters if f.name in keep]
+    timing = {}
+    for f in forecasters:
+        t = time.time()
+        f.fit(train, rng=np.random.default_rng(args.seed))
+        if hasattr(f, "calibrate"):
+            f.calibrate(valid)
+        timing[f.name] = time.time() - t
+        log(f"forecast: fitted {f.name} in {timing[f.name]:.1f} s")
+    labels = {f.name: f.label for f in forecasters}
+    leads = np.radians(np.asarray(args.leads_deg, dtype=float))
+    tilts = np.asarray(args.tilts, dtype=float)
+    sets = {"test": (data, split.test)} | {k: (v, np.arange(len(v))) for k, v in robust.items()}
+    results = {"provenance": provenance(argv), "split": {k: v.size for k, v in vars(split).items()},
+               "leads_deg": list(args.leads_deg), "tilts": list(args.tilts),
+               "labels": labels, "fit_seconds": timing, "sets": {}}
+    tables = []
+    keep_predictions = {}
+    for set_name, (cset, rows) in sets.items():
+        for kind, (cuts, group, names) in {
+                "lead": (*ev.cuts_at_leads(cset, rows, leads),
+                         [f"{set_name}: {d:g}° before the avalanche" for d in args.leads_deg]),
+                "tilt": (*ev.cuts_at_tilts(cset, rows, tilts),
+                         [f"{set_name}: at tilt {a:g} rad" for a in args.tilts])}.items():
+            if set_name != "test" and kind == "tilt":
+                continue
+            preds = {}
+            for f in forecasters:
+                if any(getattr(cuts, n) is None for n in f.needs):
+                    continue
+                t = time.time()
+                preds[f.name] = f.quantiles(cuts)
+                log(f"forecast: {set_name}/{kind}: {f.name} on {len(cuts)} cuts in {time.time() - t:.1f} s")
+            sc = ev.score(preds, cuts, group, len(names), n_boot=args.boot, seed=args.seed)
+            results["sets"].setdefault(set_name, {})[kind] = {"groups": names, "scores": sc}
+            if set_name == "test" and kind == "lead":
+                keep_predictions = {"cuts": cuts, "group": group, "preds": preds}
+            for g, name in enumerate(names):
+                if kind == "lead" and args.leads_deg[g] != TARGET_LEAD_DEG and not args.all_tables:
+                    continue
+                if kind == "tilt" and not args.all_tables:
+                    continue
+                tables.append(format_table(sc, labels, names, g))
+    # the alarm, on the test set
+    delta = math.radians(ALARM_DELTA_DEG)
+    cuts, lead = ev.alarm_cuts(data, split.test[:args.alarm_rows], math.radians(ALARM_WINDOW_DEG),
+                               math.radians(ALARM_STEP_DEG))
+    alarm = {}
+    thresholds = np.linspace(0.0, 1.0, 101)
+    for f in forecasters:
+        if f.name not in ALARM_FORECASTERS or any(getattr(cuts, n) is None for n in f.needs):
+            continue
+        t = time.time()
+        q, _ = f.quantiles(cuts)
+        p = ev.alarm_probabilities(q, cuts, delta)
+        roc = ev.alarm_roc(p, lead, delta)
+        seq = ev.alarm_sequences(p, lead, cuts.row, thresholds)
+        rec = ev.recommended_threshold(seq)
+        k = int(np.argmin(np.abs(thresholds - rec)))
+        alarm[f.name] = {"auc": roc["auc"], "fpr": roc["fpr"], "tpr": roc["tpr"], "threshold": rec,
+                         "safe": seq["safe"][k], "median_warning_deg": math.degrees(seq["median_warning"][k])
+                         if np.isfinite(seq["median_warning"][k]) else None}
+        log(f"forecast: alarm {f.name} on {len(cuts)} cuts in {time.time() - t:.1f} s")
+    results["alarm"] = {"delta_deg": ALARM_DELTA_DEG, "window_deg": ALARM_WINDOW_DEG,
+                        "step_deg": ALARM_STEP_DEG, "rows": int(np.unique(cuts.row).size), **alarm}
+    alarm_lines = ["| forecaster | AUC | threshold | alarms before the avalanche | median warning (deg) |",
+                   "|---|---|---|---|---|"]
+    for name, a in alarm.items():
+        w = a["median_warning_deg"]
+        alarm_lines.append(f"| {labels[name]} | {a['auc']:.3f} | {a['threshold']:.2f} | {a['safe']:.2f} | "
+                           f"{'—' if w is None else f'{w:.2f}'} |")
+    pr = next((f for f in forecasters if f.name == "paper_rule"), None)
+    if pr is not None and pr.c_quantiles_ is not None:
+        from ..analysis.forecast.base import LOWER, MEDIAN, UPPER
+
+        results["paper_rule"] = {"c_median": pr.c_quantiles_[MEDIAN], "c_10": pr.c_quantiles_[LOWER],
+                                 "c_90": pr.c_quantiles_[UPPER], "detected_share": pr.detected_share_}
+    results["seconds"] = time.time() - t0
+    text = "\n\n".join(tables + [f"**alarm: the avalanche within {ALARM_DELTA_DEG:g}°** "
+                                 f"(last {ALARM_WINDOW_DEG:g}° every {ALARM_STEP_DEG:g}°, "
+                                 f"{results['alarm']['rows']} test realisations)", "\n".join(alarm_lines)])
+    if "paper_rule" in results:
+        c = results["paper_rule"]
+        text += (f"\n\npaper's rule: alpha_c / alpha_t = {c['c_median']:.2f} "
+                 f"(80 %: {c['c_10']:.2f}-{c['c_90']:.2f}), transition found in "
+                 f"{100 * c['detected_share']:.0f} % of training runs")
+    print(text)
+    os.makedirs(args.out, exist_ok=True)
+    _publish_text(os.path.join(args.out, "forecast_table.md"), text + "\n")
+    _publish_text(os.path.join(args.out, "forecast_metrics.json"),
+                  json.dumps(_jsonable(results), indent=1) + "\n")
+    learned = next((f for f in forecasters if f.name == "learned"), None)
+    if learned is not None:
+        save_model(os.path.join(args.out, "forecaster.pkl"), learned, provenance(argv))
+    if not args.no_figures:
+        from ..figures.forecast import draw_all
+
+        example = _convergence_example(data, split.test, forecasters, args.seed)
+        paths = draw_all(results, example, args.figures or args.out)
+        log("forecast: figures " + " ".join(paths))
+    log(f"forecast: done in {time.time() - t0:.0f} s")
+    return 0
+
+
+def _convergence_example(data, test_rows, forecasters, seed):
+    """One test realisation's forecasts along its tilt: {name: (tilts, quantiles)}, and the truth."""
+    from ..analysis.forecast import Cuts
+
+    rows = [int(r) for r in test_rows if np.isfinite(data.alpha_c[r])]
+    ac = data.alpha_c[rows]
+    r = rows[int(np.argsort(ac)[len(ac) // 2])]  # the median avalanche angle
+    a_c = float(data.alpha_c[r])
+    tilts = np.linspace(0.05, a_c - 1e-4, 60)
+    cuts = Cuts.from_set(data, np.full(tilts.size, r), tilts)
+    out = {}
+    for f in forecasters:
+        if f.name in ("learned", "conditioned", "ffm_ml_disp_p", "ffm_linear_disp", "paper_rule",
+                      "ceiling", "told_mu_d", "model_based") and \
+                not any(getattr(cuts, n) is None for n in f.needs):
+            out[f.name] = f.quantiles(cuts)[0]
+    return {"tilts": tilts, "alpha_c": a_c, "row": r, "forecasts": out,
+            "labels": {f.name: f.label for f in forecasters},
+            "events": data.catalogue(r).alpha}
+
+
+# ---------------------------------------------------------------------------
+# the model kept for predict
+# ---------------------------------------------------------------------------
+MODEL_FORMAT = "sliders-forecaster-1"
+
+
+def save_model(path: str, forecaster, prov: dict) -> None:
+    """Pickle a fitted forecaster with its provenance and a CRC-32 of the pickle (atomic write)."""
+    from ..io.safeio import publish_bytes
+
+    blob = pickle.dumps(forecaster, protocol=pickle.HIGHEST_PROTOCOL)
+    head = json.dumps({"format": MODEL_FORMAT, "crc32": zlib.crc32(blob), **prov}).encode()
+    publish_bytes(path, len(head).to_bytes(8, "little") + head + blob, overwrite=True)
+
+
+def load_model(path: str):
+    """A forecaster written by ``save_model`` (its checksum checked); returns (forecaster, header)."""
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read()
+    except OSError as exc:
+        raise ForecastInputError(f"{path}: {exc.strerror or exc}") from None
+    try:
+        n = int.from_bytes(raw[:8], "little")
+        head = json.loads(raw[8:8 + n])
+        blob = raw[8 + n:]
+    except (ValueError, UnicodeDecodeError):
+        raise ForecastInputError(f"{path}: not a forecaster file of sliders") from None
+    if head.get("format") != MODEL_FORMAT:
+        raise ForecastInputError(f"{path}: not a forecaster file of sliders")
+    if zlib.crc32(blob) != head.get("crc32"):
+        raise ForecastInputError(f"{path}: checksum mismatch (damaged file)")
+    return pickle.loads(blob), head
+
+
+# ---------------------------------------------------------------------------
+# a measured catalogue
+# ---------------------------------------------------------------------------
+ANGLE_UNITS = {"deg": math.pi / 180.0, "degree": math.pi / 180.0, "degrees": math.pi / 180.0,
+               "rad": 1.0, "radian": 1.0, "radians": 1.0}
+
+
+def _column_name(raw: str) -> tuple[str, str | None]:
+    raw = raw.strip()
+    if "[" in raw and raw.endswith("]"):
+        name, unit = raw[:-1].split("[", 1)
+        return name.strip().lower(), unit.strip().lower()
+    return raw.lower(), None
+
+
+def read_catalogue_csv(path: str, tilt_now_deg: float | None = None,
+                       tilt_now_text: str | None = None) -> Catalogue:
+    """A measured catalogue from CSV (module docstring); ``ForecastInputError`` names the row and column.
+
+    Parameters
+    ----------
+    path : str
+        The CSV file (header + one event per row; ``-`` reads standard input).
+    tilt_now_text : str, optional
+        The tilt reached, with its unit (``"27.5deg"``, ``"0.48rad"``); a bare
+        number takes the angle column's unit.
+    """
+    try:
+        text = sys.stdin.read() if path == "-" else open(path, encoding="utf-8").read()
+    except OSError as exc:
+        raise ForecastInputError(f"{path}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise ForecastInputError(f"{path}: not a text file (UTF-8)") from None
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise ForecastInputError(f"{path}: empty file (a header and one event per row expected)")
+    reader = list(csv.reader(io.StringIO("\n".join(lines))))
+    header = [_column_name(h) for h in reader[0]]
+    names = [h[0] for h in header]
+    if "angle" not in names:
+        raise ForecastInputError(f"{path}: missing column 'angle [deg]' or 'angle [rad]' "
+                                 f"(header: {', '.join(reader[0])})")
+    if "size" not in names:
+        raise ForecastInputError(f"{path}: missing column 'size' (header: {', '.join(reader[0])})")
+    unit = header[names.index("angle")][1]
+    if unit is None:
+        raise ForecastInputError(f"{path}: column 'angle' needs its unit: 'angle [deg]' or 'angle [rad]'")
+    if unit not in ANGLE_UNITS:
+        raise ForecastInputError(f"{path}: column 'angle': unit {unit!r} not understood (deg or rad)")
+    scale = ANGLE_UNITS[unit]
+    if len(reader) < 2:
+        raise ForecastInputError(f"{path}: no events (only a header)")
+    cols = {n: [] for n in ("angle", "size", "displacement", "first", "last")}
+    for i, rec in enumerate(reader[1:], start=2):
+        if len(rec) != len(names):
+            raise ForecastInputError(f"{path}: row {i}: {len(rec)} fields, the header has {len(names)}")
+        for n, v in zip(names, rec):
+            if n not in cols:
+                continue
+            try:
+                x = float(v)
+            except ValueError:
+                raise ForecastInputError(f"{path}: row {i}, column {n!r}: {v.strip()!r} is not a number") \
+                    from None
+            if not math.isfinite(x):
+                raise ForecastInputError(f"{path}: row {i}, column {n!r}: {v.strip()!r} is not finite")
+            if n == "size" and (x < 1 or x != int(x)):
+                raise ForecastInputError(f"{path}: row {i}, column 'size': {v.strip()!r} must be a whole "
+                                         "number >= 1")
+            if n == "displacement" and x < 0:
+                raise ForecastInputError(f"{path}: row {i}, column 'displacement': {v.strip()!r} is negative")
+            if n == "angle" and cols["angle"] and x * scale < cols["angle"][-1]:
+                raise ForecastInputError(f"{path}: row {i}, column 'angle': {v.strip()!r} is below the "
+                                         "previous row's (angles must increase)")
+            cols[n].append(x * scale if n == "angle" else x)
+    k = len(cols["angle"])
+    alpha = np.array(cols["angle"])
+    if alpha[0] < 0 or alpha[-1] >= math.pi / 2:
+        raise ForecastInputError(f"{path}: column 'angle': tilts must lie in [0, 90°)")
+    disp = np.array(cols["displacement"]) if cols["displacement"] else np.full(k, np.nan)
+    first = np.array(cols["first"], dtype=np.int64) if cols["first"] else np.full(k, -1)
+    last = np.array(cols["last"], dtype=np.int64) if cols["last"] else np.full(k, -1)
+    tilt_now = None
+    if tilt_now_text is not None:
+        tilt_now = parse_angle(tilt_now_text, scale)
+        if tilt_now < alpha[-1]:
+            raise ForecastInputError(f"--tilt-now {tilt_now_text}: below the last event's angle "
+                                     f"({alpha[-1] / scale:g} {unit})")
+    return Catalogue(alpha, np.array(cols["size"], dtype=np.int64), disp, first, last, tilt_now=tilt_now)
+
+
+def parse_angle(text: str, default_scale: float) -> float:
+    """``"27.5deg"``, ``"0.48 rad"`` or a bare number (in ``default_scale``) -> radians."""
+    t = text.strip().lower()
+    for u in sorted(ANGLE_UNITS, key=len, reverse=True):
+        if t.endswith(u):
+            num, scale = t[:-len(u)].strip(), ANGLE_UNITS[u]
+            break
+    else:
+        num, scale = t, default_scale
+    try:
+        x = float(num)
+    except ValueError:
+        raise ForecastInputError(f"angle {text!r} not understood (e.g. 27.5deg or 0.48rad)") from None
+    if not math.isfinite(x):
+        raise ForecastInputError(f"angle {text!r} is not finite")
+    return x * scale
+
+
+DEFAULT_MODEL = os.path.join("results", "forecast", "forecaster.pkl")
+
+
+def predict(args) -> int:
+    """Forecast a measured catalogue: print the forecast (or one JSON object)."""
+    cat = read_catalogue_csv(args.catalogue, tilt_now_text=args.tilt_now)
+    model, head = load_model(args.model)
+    if np.isnan(cat.displacement).any():
+        # no displacement column: the displacement features are unknown to the model
+        cat = Catalogue(cat.alpha, cat.size, np.zeros(len(cat)), cat.first, cat.last, cat.tilt_now)
+    f = model.predict(cat)
+    within = math.radians(args.within)
+    d = f.as_dict(within) | {"model": os.path.abspath(args.model), "events": len(cat)}
+    if args.json:
+        print(json.dumps(_jsonable(d)))
+    else:
+        lo, hi = f.interval
+        deg = math.degrees
+        print(f"forecaster: {model.label} ({args.model})")
+        print(f"events: {len(cat)}, tilt reached: {f.tilt_now:.4f} rad ({deg(f.tilt_now):.2f}°)")
+        print(f"avalanche angle: {f.point:.4f} rad ({deg(f.point):.2f}°), 80 % interval "
+              f"{lo:.4f}-{hi:.4f} rad ({deg(lo):.2f}-{deg(hi):.2f}°)")
+        print(f"probability of the avalanche within the next {args.within:g}°: "
+              f"{d['probability_within']:.2f}")
+    return 0
+
+
+# ---------------------------------------------------------------------------
+# command line
+# ---------------------------------------------------------------------------
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a bad option in one line."""
+
+    def error(self, message):
+        """Print one line and exit with status 2."""
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``evaluate`` and ``predict`` commands."""
+    p = _Parser(prog="python -m sliders.forecast", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    e = sub.add_parser("evaluate", help="fit, test and score every forecaster; table and figures")
+    src = e.add_mutually_exclusive_group(required=True)
+    src.add_argument("--data", metavar="PRIOR.h5", help="prior ensemble split into train/validation/test")
+    src.add_argument("--dev", type=int, metavar="R", help="run R realisations here instead (development)")
+    e.add_argument("--robust", action="append", default=[], metavar="LABEL=FILE.h5",
+                   help="a test-only set with another preparation (repeatable)")
+    e.add_argument("--out", default=os.path.join("results", "forecast"), help="output directory")
+    e.add_argument("--figures", default=None, help="where the figures go (default --out)")
+    e.add_argument("--fractions", type=float, nargs=3, default=(0.5, 0.1, 0.4),
+                   metavar=("TRAIN", "VALID", "TEST"), help="the split by realisation")
+    e.add_argument("--leads-deg", type=float, nargs="+", default=list(DEFAULT_LEADS_DEG))
+    e.add_argument("--tilts", type=float, nargs="+", default=list(DEFAULT_TILTS))
+    e.add_argument("--boot", type=int, default=400, help="bootstrap resamples")
+    e.add_argument("--alarm-rows", type=int, default=1000, help="test realisations for the alarm")
+    e.add_argument("--max-iter", type=int, default=300, help="boosting iterations")
+    e.add_argument("--only", default=None, help="comma-separated forecaster names (and the baselines)")
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--all-tables", action="store_true", help="print every lead and tilt")
+    e.add_argument("--no-figures", action="store_true")
+    e.add_argument("--quiet", action="store_true")
+    pr = sub.add_parser("predict", help="forecast the avalanche angle of a measured catalogue")
+    pr.add_argument("catalogue", metavar="CATALOGUE.csv")
+    pr.add_argument("--tilt-now", default=None, metavar="ANGLE",
+                    help="tilt reached, e.g. 27.5deg (default: the last event's angle)")
+    pr.add_argument("--within", type=float, default=ALARM_DELTA_DEG, metavar="DEG",
+                    help="the alarm's horizon, degrees")
+    pr.add_argument("--model", default=DEFAULT_MODEL, help="forecaster written by evaluate")
+    pr.add_argument("--json", action="store_true", help="one JSON object (radians)")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``python -m sliders.forecast``."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser().parse_args(argv)
+    try:
+        return evaluate(args, argv) if args.command == "evaluate" else predict(args)
+    except ForecastInputError as exc:
+        print(f"sliders.forecast: error: {exc}", file=sys.stderr)
+        return 2

@@ -11,7 +11,7 @@ read those.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -19,6 +19,8 @@ from ...io.catalogue import Catalogue, CatalogueSet
 
 #: the recent windows (radians of tilt before the cut) over which rates are counted
 WINDOWS = (0.005, 0.01, 0.02, 0.05, 0.1)
+#: the tilt up to which the early events measure mu_s (below the transition for mu_d >= 0.3)
+EARLY_ANGLE = 0.2
 #: the number of smallest threshold distances the ceiling forecaster sees
 CEILING_K = 16
 
@@ -40,6 +42,8 @@ class Cuts:
         last stored angle at or below the cut, m g (simulation only).
     mu_d : numpy.ndarray, optional
         (n,) the true dynamic friction coefficient (simulation only).
+    cache : dict
+        Features computed once for several forecasters.
     """
 
     catalogues: list
@@ -47,6 +51,7 @@ class Cuts:
     alpha_c: np.ndarray | None = None
     ceiling: np.ndarray | None = None
     mu_d: np.ndarray | None = None
+    cache: dict = field(default_factory=dict, repr=False)
 
     def __len__(self) -> int:
         """Number of cuts."""
@@ -190,9 +195,11 @@ def catalogue_features(cat: Catalogue) -> dict:
     f["since_largest"] = t - float(alpha[np.argmax(size)]) if n else np.nan
     dmu = size_one_delta_mu(cat)
     f["delta_mu_single"] = dmu
-    # the early rate of first slips: N alpha / (2 mu_s) sliders destabilise before any returns
-    early = alpha <= min(t, 2 * dmu) if np.isfinite(dmu) else np.zeros(n, bool)
-    mu_s = (scale * min(t, 2 * dmu) / (2.0 * early.sum())) if early.sum() >= 3 else np.nan
+    # the crude model's P_1 = (1 + alpha / (2 Delta mu)) / (2 mu_s) integrated: the events
+    # up to EARLY_ANGLE number N (a + a^2 / (4 Delta mu)) / (2 mu_s)
+    a_e = min(t, EARLY_ANGLE)
+    early = int(np.sum(alpha <= a_e))
+    mu_s = scale * (a_e + a_e ** 2 / (4 * dmu)) / (2.0 * early) if early >= 3 else np.nan
     f["mu_s_early"] = mu_s
     f["atan_mu_d_model"] = float(np.arctan(mu_s - dmu)) if np.isfinite(mu_s - dmu) else np.nan
     f["atan_mu_s_model"] = float(np.arctan(mu_s)) if np.isfinite(mu_s) else np.nan

@@ -116,10 +116,10 @@ class _InverseRate(Forecaster):
         if rate not in ("events", "displacement"):
             raise ValueError(f"rate={rate!r} must be 'events' or 'displacement'")
         self.rate, self.exponent, self.fraction, self.block = rate, exponent, fraction, block
-        kind = "p=1" if exponent == 1 else "p fitted"
         self.name = f"{self.kind}_{'event' if rate == 'events' else 'disp'}" + (
             "" if exponent == 1 else "_p")
-        self.label = f"{self.label_kind}, {'event' if rate == 'events' else 'displacement'} rate ({kind})"
+        self.label = (f"inverse rate {self.label_kind}, {'events' if rate == 'events' else 'displacement'}"
+                      + ("" if exponent == 1 else " (p fitted)"))
 
     def fit(self, train, rng=None):
         """Keep the prior's avalanche angles to fall back on where no acceleration is seen."""
@@ -128,6 +128,14 @@ class _InverseRate(Forecaster):
 
     def _profile(self, cat):
         raise NotImplementedError
+
+    def best_log_remaining(self, cat) -> float:
+        """log of the most likely remaining angle ``alpha_c - tilt_now`` (NaN: no fit, or none in reach)."""
+        ll = self._profile(cat)
+        if ll is None or not np.isfinite(ll).any():
+            return np.nan
+        k = int(np.nanargmax(ll))
+        return float(np.log(REMAINING_GRID[k])) if k < REMAINING_GRID.size - 3 else np.nan
 
     def _quantiles(self, cuts):
         t = cuts.tilt_now
@@ -174,7 +182,7 @@ class LinearInverseRate(_InverseRate):
         Events per inverse-rate point.
     """
 
-    kind, label_kind = "ffm_linear", "inverse rate, linear fit"
+    kind, label_kind = "ffm_linear", "LSQ"
 
     def _profile(self, cat):
         window = self._window(cat)
@@ -190,7 +198,7 @@ class PointProcessInverseRate(_InverseRate):
     Parameters as ``LinearInverseRate`` (``block`` unused).
     """
 
-    kind, label_kind = "ffm_ml", "inverse rate, max. likelihood"
+    kind, label_kind = "ffm_ml", "ML"
 
     def _profile(self, cat):
         window = self._window(cat)

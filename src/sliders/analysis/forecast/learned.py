@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from .base import LEVELS, Forecaster
+from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import ceiling_features, feature_matrix, training_cuts
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
@@ -39,7 +40,7 @@ class Learned(Forecaster):
     """
 
     name = "learned"
-    label = "learned (gradient boosting)"
+    label = "learned (boosting)"
 
     def __init__(self, draws_per_row: int = 20, max_iter: int = 300, learning_rate: float = 0.08,
                  max_leaf_nodes: int = 31, min_samples_leaf: int = 40, seed: int = 0):
@@ -47,11 +48,22 @@ class Learned(Forecaster):
         self.max_leaf_nodes, self.min_samples_leaf, self.seed = max_leaf_nodes, min_samples_leaf, seed
 
     def design(self, cuts) -> tuple[np.ndarray, list[str]]:
-        """The regressor's input for ``cuts``: (n, F) and the feature names."""
+        """The regressor's input for ``cuts``: (n, F) and the feature names.
+
+        The catalogue's features, the model's angles minus the tilt, and the
+        best remaining angle (log) of the displacement-rate inverse-rate fits.
+        """
+        if "learned_design" in cuts.cache:
+            return cuts.cache["learned_design"]
         x, names = feature_matrix(cuts)
         t = cuts.tilt_now[:, None]
         extra = [x[:, names.index(a)][:, None] - t for a in ANGLE_FEATURES]
-        return np.hstack([x, *extra]), names + [f"{a}_minus_tilt" for a in ANGLE_FEATURES]
+        fits = [LinearInverseRate("displacement"), PointProcessInverseRate("displacement", None)]
+        ffm = np.array([[f.best_log_remaining(c) for f in fits] for c in cuts.catalogues]).reshape(-1, 2)
+        cuts.cache["learned_design"] = (
+            np.hstack([x, *extra, ffm]),
+            names + [f"{a}_minus_tilt" for a in ANGLE_FEATURES] + [f"{f.name}_log_remaining" for f in fits])
+        return cuts.cache["learned_design"]
 
     def fit(self, train, rng=None):
         """Train one quantile regressor per level on random cuts of the training runs."""
@@ -105,7 +117,7 @@ class Ceiling(Learned):
     """The learned forecaster also given every slider's distance to its threshold (simulation only)."""
 
     name = "ceiling"
-    label = "ceiling (+ distances to threshold)"
+    label = "ceiling (+ thresholds)"
     needs = ("ceiling",)
 
     def design(self, cuts):
@@ -119,7 +131,7 @@ class ToldMuD(Learned):
     """The learned forecaster also told the true ``mu_d`` (simulation only)."""
 
     name = "told_mu_d"
-    label = "told mu_d"
+    label = "told μ_d"
     needs = ("mu_d",)
 
     def design(self, cuts):

@@ -12,8 +12,9 @@
 * ``ModelBased``: ``alpha_c ~ atan(mu_d)`` with ``mu_d = mu_s - Delta mu``
   estimated from the catalogue: ``Delta mu`` from the single-slider events,
   each of which moves by ``(mu_s,n - mu_d) cos(alpha)``, and ``mu_s`` from the
-  early rate of first slips, ``N / (2 mu_s)`` per unit tilt for a flat
-  initial force distribution (the crude limit of the model's P_1).
+  number of events up to ``features.EARLY_ANGLE``, which the crude limit of the
+  model's P_1, ``(1 + alpha / (2 Delta mu)) / (2 mu_s)`` per slider and unit
+  tilt, puts at ``N (a + a^2 / (4 Delta mu)) / (2 mu_s)``.
 """
 
 from __future__ import annotations
@@ -89,7 +90,7 @@ class PaperRule(Forecaster):
     """
 
     name = "paper_rule"
-    label = "paper's rule (c alpha_t)"
+    label = "paper's rule (c α_t)"
 
     def __init__(self, bin_width: float = 0.01):
         self.bin_width = bin_width
@@ -134,7 +135,7 @@ class ModelBased(Forecaster):
     """
 
     name = "model_based"
-    label = "model-based (mu_d estimated)"
+    label = "model-based (μ_d estimated)"
 
     def __init__(self, draws_per_row: int = 5):
         self.draws_per_row = draws_per_row

@@ -1,0 +1,180 @@
+"""Figures of the forecasting evaluation (``python -m sliders.forecast evaluate``, docs/forecasting.md).
+
+* ``forecast_error``: median |error| of alpha_c against the lead before the
+  avalanche, one line per forecaster (bootstrap 90 % band), the lead itself
+  (the "now" forecast) for scale;
+* ``forecast_coverage``: measured coverage of the nominal 80 % intervals against the lead;
+* ``forecast_convergence``: one test realisation's forecasts as the tilt grows, the truth marked;
+* ``forecast_roc``: ROC of the alarm "the avalanche within delta", with its AUC.
+
+They read the evaluation's results (the dict written to forecast_metrics.json),
+never the data.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .style import COLUMN_WIDTH, STYLE, panel_label, save_figure
+
+#: the forecasters drawn, in order, with their colours (baselines grey, dashed)
+SHOWN = {"climatology": ("0.55", ":"), "conditioned": ("0.35", "--"), "now": ("0.0", ":"),
+         "last_plus_lead": ("0.7", "-."),
+         "ffm_linear_event": ("#e6ab02", "-"), "ffm_ml_event": ("#a6761d", "-"),
+         "ffm_linear_disp": ("#66a61e", "-"), "ffm_ml_disp_p": ("#1b9e77", "-"),
+         "paper_rule": ("#7570b3", "-"), "model_based": ("#e7298a", "-"),
+         "learned": ("#d95f02", "-"), "ceiling": ("#1f78b4", "-"), "told_mu_d": ("#6a3d9a", "--")}
+
+
+def _style(name):
+    return SHOWN.get(name, ("0.5", "-"))
+
+
+def _legend_below(fig, ax, ncol):
+    """The legend of ``ax`` under the figure's panels."""
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=ncol, frameon=False)
+
+
+def _column(rows, metric, k=0):
+    """One metric (value k = 0, or its 5 % / 95 % bounds k = 1, 2) over the groups, NaN for none."""
+    return np.array([np.nan if r[metric][k] is None else r[metric][k] for r in rows], dtype=float)
+
+
+def _lead_scores(results, set_name="test"):
+    s = results["sets"][set_name]["lead"]["scores"]
+    return {k: v for k, v in s.items() if k in SHOWN}
+
+
+def figure_error(results, out_dir, name="forecast_error"):
+    """Median |error| (and its 90 % band) against the lead, one line per forecaster, log-log."""
+    import matplotlib.pyplot as plt
+
+    leads = np.asarray(results["leads_deg"], dtype=float)
+    deg = 180.0 / math.pi
+    with plt.rc_context(STYLE):
+        fig, axes = plt.subplots(1, 2, figsize=(2 * COLUMN_WIDTH, 0.78 * COLUMN_WIDTH * 2 / 1.4),
+                                 sharex=True)
+        for ax, metric, title in ((axes[0], "median_abs", "median |error|"),
+                                  (axes[1], "p90_abs", "90th percentile |error|")):
+            for nm, rows in _lead_scores(results).items():
+                if nm == "now":
+                    continue
+                c, ls = _style(nm)
+                v, lo, hi = (_column(rows, metric, k) * deg for k in range(3))
+                ax.plot(leads, v, ls, color=c, marker="o", ms=2, lw=1.0, label=results["labels"][nm])
+                ax.fill_between(leads, lo, hi, color=c, alpha=0.15, lw=0)
+            ax.plot(leads, leads, color="k", lw=0.8, ls=":", label="the lead (\"now\")")
+            ax.plot(leads, 0.25 * leads if metric == "median_abs" else 0.5 * leads, color="r", lw=0.6,
+                    ls=(0, (1, 2)), label="target: 0.25 × lead" if metric == "median_abs"
+                    else "target: 0.5 × lead")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_xlabel(r"lead $\alpha_c - \alpha_{obs}$ (deg)")
+            ax.set_ylabel(f"{title} of $\\alpha_c$ (deg)")
+            ax.axvline(3.0, color="0.8", lw=0.6, zorder=0)
+        panel_label(axes[0], "(a)")
+        panel_label(axes[1], "(b)")
+        _legend_below(fig, axes[0], 3)
+        paths = save_figure(fig, out_dir, name, palette_png=True)
+        plt.close(fig)
+    return paths
+
+
+def figure_coverage(results, out_dir, name="forecast_coverage"):
+    """Measured coverage of the 80 % intervals against the lead (test set, and robustness sets)."""
+    import matplotlib.pyplot as plt
+
+    leads = np.asarray(results["leads_deg"], dtype=float)
+    with plt.rc_context(STYLE):
+        fig, ax = plt.subplots(figsize=(COLUMN_WIDTH * 1.5, COLUMN_WIDTH * 1.15))
+        ax.axhspan(0.77, 0.83, color="0.9", lw=0, label="target 77-83 %")
+        ax.axhline(0.8, color="0.5", lw=0.6)
+        for nm, rows in _lead_scores(results).items():
+            if nm in ("now", "last_plus_lead"):
+                continue
+            c, ls = _style(nm)
+            ax.plot(leads, _column(rows, "coverage"), ls, color=c, marker="o", ms=2,
+                    label=results["labels"][nm])
+        for set_name in results["sets"]:
+            if set_name == "test":
+                continue
+            rows = results["sets"][set_name]["lead"]["scores"].get("learned")
+            if rows:
+                ax.plot(leads, _column(rows, "coverage"), ":", color=_style("learned")[0], marker="s", ms=2.5, mfc="none",
+                        label=f"learned, {set_name} preparation")
+        ax.set_xscale("log")
+        ax.set_ylim(0, 1.02)
+        ax.set_xlabel(r"lead before the avalanche (deg)")
+        ax.set_ylabel("coverage of the nominal 80 % interval")
+        _legend_below(fig, ax, 2)
+        paths = save_figure(fig, out_dir, name, palette_png=True)
+        plt.close(fig)
+    return paths
+
+
+def figure_convergence(example, out_dir, name="forecast_convergence"):
+    """One realisation: the forecasts (median, 80 % band) as the tilt grows; the truth and the events."""
+    import matplotlib.pyplot as plt
+
+    from ..analysis.forecast.base import LOWER, MEDIAN, UPPER
+
+    t = np.degrees(example["tilts"])
+    a_c = math.degrees(example["alpha_c"])
+    with plt.rc_context(STYLE):
+        fig, ax = plt.subplots(figsize=(COLUMN_WIDTH * 1.5, COLUMN_WIDTH * 1.15))
+        for nm in ("conditioned", "ffm_linear_disp", "paper_rule", "learned", "ceiling", "told_mu_d"):
+            if nm not in example["forecasts"]:
+                continue
+            q = np.degrees(example["forecasts"][nm])
+            c, ls = _style(nm)
+            ax.plot(t, q[:, MEDIAN], ls, color=c, label=example["labels"][nm])
+            if nm in ("learned", "conditioned", "ceiling"):
+                ax.fill_between(t, q[:, LOWER], q[:, UPPER], color=c, alpha=0.15, lw=0)
+        ax.axhline(a_c, color="k", lw=1.2, label=r"truth $\alpha_c$")
+        ax.plot(t, t, color="k", lw=0.6, ls=":", label=r"$\alpha_{obs}$ (now)")
+        ev = np.degrees(example["events"])
+        ax.plot(ev, np.full(ev.size, ax.get_ylim()[0]), "|", color="0.4", ms=3, mew=0.3)
+        ax.set_xlabel(r"tilt reached, $\alpha_{obs}$ (deg)")
+        ax.set_ylabel(r"forecast of $\alpha_c$ (deg)")
+        ax.set_xlim(t[0], t[-1] + 0.5)
+        ax.set_ylim(max(0.0, ax.get_ylim()[0]), min(ax.get_ylim()[1], a_c + 15))
+        _legend_below(fig, ax, 2)
+        paths = save_figure(fig, out_dir, name, palette_png=True)
+        plt.close(fig)
+    return paths
+
+
+def figure_roc(results, out_dir, name="forecast_roc"):
+    """ROC of the alarm "the avalanche within delta", one curve per forecaster, AUC in the legend."""
+    import matplotlib.pyplot as plt
+
+    a = results["alarm"]
+    with plt.rc_context(STYLE):
+        fig, ax = plt.subplots(figsize=(COLUMN_WIDTH * 1.5, COLUMN_WIDTH * 1.4))
+        for nm, v in a.items():
+            if not isinstance(v, dict) or "fpr" not in v:
+                continue
+            c, ls = _style(nm)
+            ax.plot(v["fpr"], v["tpr"], ls, color=c,
+                    label=f"{results['labels'][nm]} (AUC {v['auc']:.2f})")
+        ax.plot([0, 1], [0, 1], color="0.7", lw=0.6, ls=":")
+        ax.set_xlabel("false alarm rate")
+        ax.set_ylabel("hit rate")
+        ax.set_title(f"alarm: avalanche within {a['delta_deg']:g}° (last {a['window_deg']:g}°)")
+        _legend_below(fig, ax, 2)
+        paths = save_figure(fig, out_dir, name, palette_png=True)
+        plt.close(fig)
+    return paths
+
+
+def draw_all(results: dict, example: dict, out_dir) -> list[str]:
+    """Every forecasting figure into ``out_dir``; returns the paths written."""
+    paths = []
+    paths += figure_error(results, out_dir)
+    paths += figure_coverage(results, out_dir)
+    paths += figure_convergence(example, out_dir)
+    paths += figure_roc(results, out_dir)
+    return paths
