@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import LEVELS, Forecaster
+from .base import LEVELS, MEDIAN, Forecaster
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import ceiling_features, feature_matrix, training_cuts
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
+#: bins of the forecast median in which the validation set recalibrates the levels
+CALIBRATION_BINS = 6
 #: features that are angles: each also enters as its distance to the tilt reached
 ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model")
 
@@ -42,7 +44,7 @@ class Learned(Forecaster):
     name = "learned"
     label = "learned (boosting)"
 
-    def __init__(self, draws_per_row: int = 20, max_iter: int = 300, learning_rate: float = 0.08,
+    def __init__(self, draws_per_row: int = 30, max_iter: int = 300, learning_rate: float = 0.08,
                  max_leaf_nodes: int = 31, min_samples_leaf: int = 40, seed: int = 0):
         self.draws_per_row, self.max_iter, self.learning_rate = draws_per_row, max_iter, learning_rate
         self.max_leaf_nodes, self.min_samples_leaf, self.seed = max_leaf_nodes, min_samples_leaf, seed
@@ -93,13 +95,21 @@ class Learned(Forecaster):
         On random cuts of the validation runs (drawn as the training cuts),
         level ``tau``'s log remaining angle is moved by the ``tau``-quantile of
         (truth - forecast): afterwards exactly a share ``tau`` of validation
-        cuts lies below it.  The realisations are not those of training.
+        cuts lies below it, in each of up to ``CALIBRATION_BINS`` bins of the
+        forecast median (at least 400 cuts a bin).  The realisations are not
+        those of training.
         """
         rng = np.random.default_rng(self.seed + 1) if rng is None else rng
         cuts = training_cuts(validation, self.draws_per_row, rng)
         z = self._log_remaining(cuts)
         truth = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
-        self.shift_ = np.array([np.quantile(truth - z[:, j], lv) for j, lv in enumerate(LEVELS)])
+        # separately in bins of the forecast median (the remaining angle it expects), so that
+        # the intervals hold near the avalanche as far from it
+        n_bins = int(np.clip(len(cuts) // 400, 1, CALIBRATION_BINS))
+        self.bin_edges_ = np.quantile(z[:, MEDIAN], np.linspace(0, 1, n_bins + 1)[1:-1])
+        b = np.searchsorted(self.bin_edges_, z[:, MEDIAN])
+        self.shift_ = np.array([[np.quantile(truth[b == k] - z[b == k, j], lv)
+                                 for j, lv in enumerate(LEVELS)] for k in range(n_bins)])
         return self
 
     def _log_remaining(self, cuts):
@@ -109,7 +119,10 @@ class Learned(Forecaster):
             if len(cuts) else np.zeros((0, LEVELS.size))
 
     def _quantiles(self, cuts):
-        z = np.sort(self._log_remaining(cuts) + self.shift_[None, :], axis=1)
+        z = self._log_remaining(cuts)
+        shift = self.shift_[np.searchsorted(self.bin_edges_, z[:, MEDIAN])] if self.shift_.ndim == 2 \
+            else self.shift_[None, :]
+        z = np.sort(z + shift, axis=1)
         return cuts.tilt_now[:, None] + np.exp(z), np.zeros(len(cuts), bool)
 
 
