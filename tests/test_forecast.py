@@ -153,6 +153,13 @@ def test_paper_rule_and_model_based_on_simulated_runs():
     est = np.array([size_one_delta_mu(cset.catalogue(i)) for i in range(16)])
     true = cset.parameters["mu_s_mean"] - cset.parameters["mu_d"]
     assert np.corrcoef(est, true)[0, 1] > 0.8
+    # two lone slips of one slider (neighbours at rest) give mu_d exactly when xi = 0
+    from sliders.analysis.forecast.features import densest_value, single_slider_mu_d
+
+    mu_d = np.array([densest_value(single_slider_mu_d(cset.catalogue(i)))[0] for i in range(16)])
+    ok = np.isfinite(mu_d)
+    assert ok.mean() > 0.7
+    assert np.median(np.abs(mu_d[ok] - cset.parameters["mu_d"][ok])) < 1e-6
     at = np.array([transition_angle(cset.catalogue(i)) for i in range(16)])
     assert np.isfinite(at).mean() > 0.5 and np.all(at[np.isfinite(at)] < cset.alpha_c[np.isfinite(at)])
     train, test = cset.subset(np.arange(12)), cset.subset(np.arange(12, 16))

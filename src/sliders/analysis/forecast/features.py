@@ -11,6 +11,7 @@ read those.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,6 +22,8 @@ from ...io.catalogue import Catalogue, CatalogueSet
 WINDOWS = (0.005, 0.01, 0.02, 0.05, 0.1)
 #: the tilt up to which the early events measure mu_s (below the transition for mu_d >= 0.3)
 EARLY_ANGLE = 0.2
+#: lone-slider estimates of mu_d within this of each other agree
+AGREE_TOL = 1e-3
 #: the number of smallest threshold distances the ceiling forecaster sees
 CEILING_K = 16
 
@@ -145,6 +148,49 @@ def size_one_delta_mu(cat: Catalogue) -> float:
     return float(np.median(cat.displacement[one] / np.cos(cat.alpha[one])))
 
 
+def single_slider_mu_d(cat: Catalogue) -> np.ndarray:
+    """mu_d from every slider that slipped alone twice while its neighbours stayed at rest.
+
+    A slider slipping alone at ``alpha_i`` with threshold ``mu_1`` moves by
+    ``d_i = (mu_1 - mu_d) cos(alpha_i)`` and stops with the force
+    ``(2 mu_d - mu_1) cos(alpha_i)``; while nothing near it moves, only the tilt
+    changes that force, so it slips again at ``alpha_j`` where it reaches the
+    new threshold ``mu_2 = mu_d + d_j / cos(alpha_j)``.  Together:
+
+        mu_d = (d_i + d_j - (sin(alpha_j) - sin(alpha_i))) / (cos(alpha_i) - cos(alpha_j)),
+
+    the exact form of the paper's single-slider period
+    ``Delta alpha = 2 Delta mu / (1 + mu_s tan(alpha))``.  It needs the moved
+    sliders (``first``/``last``) and the displacement in the model's units
+    (g tau^2, i.e. the spring stiffness known).  One estimate per such pair
+    of slips, in the order of the second slip (empty without any); neglects
+    the cantilever springs (xi), whose plate moves with the chain.
+    """
+    n = len(cat)
+    if n < 2 or cat.first[0] < 0 and cat.first.max() < 0:
+        return np.zeros(0)
+    alpha, disp = cat.alpha.tolist(), cat.displacement.tolist()
+    first, last, size = cat.first.tolist(), cat.last.tolist(), cat.size.tolist()
+    width = max(last) + 3
+    previous = [-1] * width  # per slider: its last lone slip, if its neighbourhood kept still since
+    out = []
+    for i in range(n):
+        lo, hi = first[i], last[i]
+        if lo < 0:
+            continue
+        if size[i] == 1 and lo == hi:
+            j = previous[lo + 1]
+            if j >= 0:
+                den = math.cos(alpha[j]) - math.cos(alpha[i])
+                if den > 0:
+                    out.append((disp[j] + disp[i] - (math.sin(alpha[i]) - math.sin(alpha[j]))) / den)
+        for k in range(lo, hi + 3):  # sliders lo-1 .. hi+1, shifted by one
+            previous[k] = -1
+        if size[i] == 1 and lo == hi:
+            previous[lo + 1] = i
+    return np.array(out)
+
+
 def n_sliders_estimate(cat: Catalogue) -> float:
     """Number of sliders from the slider indices seen (largest index + 1; NaN if unknown).
 
@@ -203,7 +249,28 @@ def catalogue_features(cat: Catalogue) -> dict:
     f["mu_s_early"] = mu_s
     f["atan_mu_d_model"] = float(np.arctan(mu_s - dmu)) if np.isfinite(mu_s - dmu) else np.nan
     f["atan_mu_s_model"] = float(np.arctan(mu_s)) if np.isfinite(mu_s) else np.nan
+    pairs = single_slider_mu_d(cat)
+    mu_d, agree = densest_value(pairs)
+    f["single_slider_pairs"] = float(pairs.size)
+    f["single_slider_agree"] = float(agree)
+    f["atan_mu_d_single"] = float(np.arctan(mu_d)) if np.isfinite(mu_d) else np.nan
     return f
+
+
+def densest_value(estimates, tol: float = AGREE_TOL) -> tuple[float, int]:
+    """The value most estimates agree on (within ``tol``), and how many do: (NaN, 0) if none.
+
+    The lone-slider pairs give mu_d exactly when nothing but the tilt changed
+    the slider's force between its slips (xi = 0); the others scatter.  The
+    median of the densest cluster keeps the exact ones.
+    """
+    e = np.sort(np.asarray(estimates, dtype=float))
+    e = e[np.isfinite(e)]
+    if e.size == 0:
+        return np.nan, 0
+    count = np.searchsorted(e, e + tol, side="right") - np.searchsorted(e, e - tol, side="left")
+    k = int(np.argmax(count))
+    return float(np.median(e[np.abs(e - e[k]) <= tol])), int(count[k])
 
 
 def feature_matrix(cuts: Cuts) -> tuple[np.ndarray, list[str]]:

@@ -25,7 +25,7 @@ TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
 #: bins of the forecast median in which the validation set recalibrates the levels
 CALIBRATION_BINS = 6
 #: features that are angles: each also enters as its distance to the tilt reached
-ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model")
+ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model", "atan_mu_d_single")
 
 
 class Learned(Forecaster):

@@ -9,12 +9,16 @@
   ``bin_width``.  Online: a line fitted on the bins so far, the transition at
   the first bin which, with the next, lies 3 prediction errors above it.
   Then ``alpha_c = c alpha_t`` with ``c`` from training runs.
-* ``ModelBased``: ``alpha_c ~ atan(mu_d)`` with ``mu_d = mu_s - Delta mu``
-  estimated from the catalogue: ``Delta mu`` from the single-slider events,
-  each of which moves by ``(mu_s,n - mu_d) cos(alpha)``, and ``mu_s`` from the
-  number of events up to ``features.EARLY_ANGLE``, which the crude limit of the
-  model's P_1, ``(1 + alpha / (2 Delta mu)) / (2 mu_s)`` per slider and unit
-  tilt, puts at ``N (a + a^2 / (4 Delta mu)) / (2 mu_s)``.
+* ``ModelBased``: ``alpha_c ~ atan(mu_d)`` (the avalanche bound of the
+  paper; ``alpha_c - atan(mu_d)`` is small), with ``mu_d`` from the catalogue:
+  a slider that slips alone twice while its neighbours rest obeys the exact
+  form of the single-slider period, which gives ``mu_d`` from the two angles
+  and displacements (``features.single_slider_mu_d``).  Without such pairs:
+  ``mu_d = mu_s - Delta mu``, ``Delta mu`` from the lone slips' displacements
+  ``(mu_s,n - mu_d) cos(alpha)`` and ``mu_s`` from the number of events up to
+  ``features.EARLY_ANGLE``, which the crude limit of the model's P_1,
+  ``(1 + alpha / (2 Delta mu)) / (2 mu_s)`` per slider and unit tilt, puts at
+  ``N (a + a^2 / (4 Delta mu)) / (2 mu_s)``.
 """
 
 from __future__ import annotations
@@ -123,10 +127,15 @@ class PaperRule(Forecaster):
 
 
 class ModelBased(Forecaster):
-    """``alpha_c ~ atan(mu_s - Delta mu)`` from the single-slider displacements and the early rate.
+    """``alpha_c ~ atan(mu_d)``, with ``mu_d`` from the catalogue by the paper's single-slider physics.
 
-    The spread of ``alpha_c - atan(mu_d_hat)`` on training cuts gives the
-    interval (and its median the offset).
+    ``mu_d`` is the value on which most lone-slider pairs agree
+    (``features.single_slider_mu_d``, ``features.densest_value``); where no
+    pair exists, the cruder estimate from the early event rate and the
+    single-slider displacements (``atan_mu_d_model``).  The interval: the
+    spread of ``alpha_c - atan(mu_d_hat)`` on training cuts, separately for
+    estimates on which at least ``MIN_AGREE`` pairs agree, on which fewer do,
+    and the crude ones.
 
     Parameters
     ----------
@@ -135,34 +144,47 @@ class ModelBased(Forecaster):
     """
 
     name = "model_based"
-    label = "model-based (μ_d estimated)"
+    label = "model-based (μ_d from lone slips)"
+
+    #: agreeing pairs that make an estimate "firm"
+    MIN_AGREE = 3
 
     def __init__(self, draws_per_row: int = 5):
         self.draws_per_row = draws_per_row
 
-    @staticmethod
-    def estimate(cats) -> np.ndarray:
-        """atan of the estimated mu_d for each catalogue (NaN where it cannot be estimated)."""
-        return np.array([catalogue_features(c)["atan_mu_d_model"] for c in cats], dtype=float)
+    @classmethod
+    def estimate(cls, cats) -> tuple[np.ndarray, np.ndarray]:
+        """atan of the estimated mu_d of each catalogue, and its kind (0 firm, 1 loose, 2 crude, -1 none)."""
+        est, kind = np.full(len(cats), np.nan), np.full(len(cats), -1)
+        for i, c in enumerate(cats):
+            f = catalogue_features(c)
+            if np.isfinite(f["atan_mu_d_single"]):
+                est[i] = f["atan_mu_d_single"]
+                kind[i] = 0 if f["single_slider_agree"] >= cls.MIN_AGREE else 1
+            elif np.isfinite(f["atan_mu_d_model"]):
+                est[i], kind[i] = f["atan_mu_d_model"], 2
+        return est, kind
 
     def fit(self, train, rng=None):
-        """Residuals ``alpha_c - atan(mu_d_hat)`` on random training cuts."""
+        """Residuals ``alpha_c - atan(mu_d_hat)`` on random training cuts, per kind of estimate."""
         self._clim = Climatology().fit(train)
         rng = np.random.default_rng(0) if rng is None else rng
         cuts = training_cuts(train, self.draws_per_row, rng)
-        est = self.estimate(cuts.catalogues)
-        ok = np.isfinite(est)
-        self.residual_quantiles_ = quantiles_of_sample(cuts.alpha_c[ok] - est[ok]) if ok.any() else None
+        est, kind = self.estimate(cuts.catalogues)
+        self.residual_quantiles_ = {}
+        for k in (0, 1, 2):
+            m = kind == k
+            if m.sum() >= 10:
+                self.residual_quantiles_[k] = quantiles_of_sample(cuts.alpha_c[m] - est[m])
         return self
 
     def _quantiles(self, cuts):
         t = cuts.tilt_now
         q, _ = conditioned_quantiles(self._clim.alpha_c_, t)
         fb = np.ones(len(cuts), bool)
-        if self.residual_quantiles_ is None:
-            return q, fb
-        est = self.estimate(cuts.catalogues)
-        ok = np.isfinite(est)
-        q[ok] = np.maximum(est[ok, None] + self.residual_quantiles_[None, :], t[ok, None])
-        fb[ok] = False
+        est, kind = self.estimate(cuts.catalogues)
+        for k, res in self.residual_quantiles_.items():
+            m = kind == k
+            q[m] = np.maximum(est[m, None] + res[None, :], t[m, None])
+            fb[m] = False
         return q, fb
