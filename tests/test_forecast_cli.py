@@ -120,3 +120,20 @@ def test_alarm_sequences_and_roc():
     assert list(seq["safe"]) == [1.0, 0.0] and math.isclose(seq["median_warning"][0], 0.03)
     assert ev.recommended_threshold(seq) == 0.3
     assert ev.alarm_roc(prob, lead, 0.015)["auc"] == 1.0
+
+
+def test_evaluate_command_end_to_end(tmp_path, capsys):
+    """A tiny development evaluation: the table printed, the files and the four figures written."""
+    out = tmp_path / "fc"
+    code = rf.main(["evaluate", "--dev", "16", "--out", str(out), "--max-iter", "5", "--boot", "20",
+                    "--alarm-rows", "4", "--leads-deg", "1", "3", "--tilts", "0.2", "--quiet"])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "3° before the avalanche" in text and "learned (boosting)" in text and "AUC" in text
+    metrics = json.loads((out / "forecast_metrics.json").read_text())
+    assert metrics["split"] == {"train": 8, "validation": 2, "test": 6}
+    assert "zero" in metrics["sets"] and metrics["provenance"]["command"].startswith("python -m")
+    for name in ("forecast_error", "forecast_coverage", "forecast_convergence", "forecast_roc"):
+        assert (out / f"{name}.png").stat().st_size > 10000
+    model, head = rf.load_model(str(out / "forecaster.pkl"))
+    assert model.name == "learned" and head["format"] == rf.MODEL_FORMAT

@@ -23,7 +23,7 @@ from .features import ceiling_features, feature_matrix, training_cuts
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
 #: bins of the forecast median in which the validation set recalibrates the levels
-CALIBRATION_BINS = 6
+CALIBRATION_BINS = 10
 #: features that are angles: each also enters as its distance to the tilt reached
 ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model", "atan_mu_d_single")
 
@@ -96,7 +96,7 @@ class Learned(Forecaster):
         level ``tau``'s log remaining angle is moved by the ``tau``-quantile of
         (truth - forecast): afterwards exactly a share ``tau`` of validation
         cuts lies below it, in each of up to ``CALIBRATION_BINS`` bins of the
-        forecast median (at least 400 cuts a bin).  The realisations are not
+        forecast median (at least 500 cuts a bin).  The realisations are not
         those of training.
         """
         rng = np.random.default_rng(self.seed + 1) if rng is None else rng
@@ -105,7 +105,7 @@ class Learned(Forecaster):
         truth = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
         # separately in bins of the forecast median (the remaining angle it expects), so that
         # the intervals hold near the avalanche as far from it
-        n_bins = int(np.clip(len(cuts) // 400, 1, CALIBRATION_BINS))
+        n_bins = int(np.clip(len(cuts) // 500, 1, CALIBRATION_BINS))
         self.bin_edges_ = np.quantile(z[:, MEDIAN], np.linspace(0, 1, n_bins + 1)[1:-1])
         b = np.searchsorted(self.bin_edges_, z[:, MEDIAN])
         self.shift_ = np.array([[np.quantile(truth[b == k] - z[b == k, j], lv)
