@@ -58,16 +58,19 @@ def test_catalogue_units_and_tilt_now(tmp_path):
 
 
 def test_predict_command_prints_the_forecast_and_json(tmp_path):
-    model = Learned(draws_per_row=6, max_iter=10, seed=0).fit(synthetic_set(30))
+    train = synthetic_set(30)
+    models = {"learned": Learned(draws_per_row=6, max_iter=10, seed=0).fit(train),
+              "learned_blind": Learned(draws_per_row=6, max_iter=10, inputs="angles_sizes").fit(train)}
     path = str(tmp_path / "model.pkl")
-    rf.save_model(path, model, {"command": "test"})
+    rf.save_model(path, models, {"command": "test"})
     cat = write(tmp_path, "angle [deg],size,displacement\n"
                 + "".join(f"{a:.3f},1,0.01\n" for a in np.linspace(1, 20, 80)))
     run = [sys.executable, "-m", "sliders.forecast", "predict", cat, "--model", path]
     out = subprocess.run(run + ["--json", "--tilt-now", "21deg"], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     d = json.loads(out.stdout)
-    assert d["forecaster"] == "learned" and d["interval"][0] <= d["alpha_c"] <= d["interval"][1]
+    # no slider positions in the file: the forecaster of angles and sizes
+    assert d["forecaster"] == "learned_blind" and d["interval"][0] <= d["alpha_c"] <= d["interval"][1]
     assert d["alpha_c"] > math.radians(21) and 0 <= d["probability_within"] <= 1
     text = subprocess.run(run, capture_output=True, text=True)
     assert text.returncode == 0 and "80 % interval" in text.stdout
@@ -136,4 +139,4 @@ def test_evaluate_command_end_to_end(tmp_path, capsys):
     for name in ("forecast_error", "forecast_coverage", "forecast_convergence", "forecast_roc"):
         assert (out / f"{name}.png").stat().st_size > 10000
     model, head = rf.load_model(str(out / "forecaster.pkl"))
-    assert model.name == "learned" and head["format"] == rf.MODEL_FORMAT
+    assert set(model) == {"learned", "learned_blind"} and head["format"] == rf.MODEL_FORMAT

@@ -25,7 +25,7 @@ SHOWN = {"climatology": ("0.55", ":"), "conditioned": ("0.35", "--"), "now": ("0
          "ffm_linear_event": ("#e6ab02", "-"), "ffm_ml_event": ("#a6761d", "-"),
          "ffm_linear_disp": ("#66a61e", "-"), "ffm_ml_disp_p": ("#1b9e77", "-"),
          "paper_rule": ("#7570b3", "-"), "model_based": ("#e7298a", "-"),
-         "learned": ("#d95f02", "-"), "ceiling": ("#1f78b4", "-"), "told_mu_d": ("#6a3d9a", "--")}
+         "learned": ("#d95f02", "-"), "learned_blind": ("#fdae61", "-"), "ceiling": ("#1f78b4", "-"), "told_mu_d": ("#6a3d9a", "--")}
 
 
 def _style(name):
@@ -125,7 +125,8 @@ def figure_convergence(example, out_dir, name="forecast_convergence"):
     a_c = math.degrees(example["alpha_c"])
     with plt.rc_context(STYLE):
         fig, ax = plt.subplots(figsize=(COLUMN_WIDTH * 1.5, COLUMN_WIDTH * 1.15))
-        for nm in ("conditioned", "ffm_linear_disp", "paper_rule", "learned", "ceiling", "told_mu_d"):
+        for nm in ("conditioned", "ffm_linear_disp", "paper_rule", "learned_blind", "model_based",
+                   "learned", "ceiling", "told_mu_d"):
             if nm not in example["forecasts"]:
                 continue
             q = np.degrees(example["forecasts"][nm])

@@ -117,8 +117,8 @@ DEFAULT_TILTS = (0.1, 0.2, 0.3, 0.4, 0.5)
 #: the alarm: "the avalanche within DELTA", judged every STEP over the last WINDOW, degrees
 ALARM_DELTA_DEG, ALARM_WINDOW_DEG, ALARM_STEP_DEG = 1.0, 6.0, 0.25
 #: forecasters whose alarm is run (the others are too slow to run at every step, or baselines)
-ALARM_FORECASTERS = ("conditioned", "ffm_linear_disp", "ffm_ml_disp_p", "paper_rule", "learned",
-                     "ceiling", "told_mu_d")
+ALARM_FORECASTERS = ("conditioned", "ffm_linear_disp", "ffm_ml_disp_p", "paper_rule", "model_based",
+                     "learned", "learned_blind", "ceiling", "told_mu_d")
 #: the lead at which the issue's targets are stated, degrees
 TARGET_LEAD_DEG = 3.0
 
@@ -137,7 +137,8 @@ def make_forecasters(has_ceiling: bool, max_iter: int, seed: int) -> list:
     fs = [Climatology(), ConditionedClimatology(), Now(), LastEventPlusLead(),
           LinearInverseRate("events"), PointProcessInverseRate("events"),
           LinearInverseRate("displacement"), PointProcessInverseRate("displacement", None),
-          PaperRule(), ModelBased(), Learned(max_iter=max_iter, seed=seed)]
+          PaperRule(), ModelBased(), Learned(max_iter=max_iter, seed=seed),
+          Learned(max_iter=max_iter, seed=seed, inputs="angles_sizes")]
     if has_ceiling:
         fs.append(Ceiling(max_iter=max_iter, seed=seed))
     fs.append(ToldMuD(max_iter=max_iter, seed=seed))
@@ -327,9 +328,9 @@ def evaluate(args, argv) -> int:
     _publish_text(os.path.join(args.out, "forecast_table.md"), text + "\n")
     _publish_text(os.path.join(args.out, "forecast_metrics.json"),
                   json.dumps(_jsonable(results), indent=1) + "\n")
-    learned = next((f for f in forecasters if f.name == "learned"), None)
-    if learned is not None:
-        save_model(os.path.join(args.out, "forecaster.pkl"), learned, provenance(argv))
+    kept = {f.name: f for f in forecasters if f.name in ("learned", "learned_blind")}
+    if kept:
+        save_model(os.path.join(args.out, "forecaster.pkl"), kept, provenance(argv))
     if not args.no_figures:
         from ..figures.forecast import draw_all
 
@@ -352,8 +353,8 @@ def _convergence_example(data, test_rows, forecasters, seed):
     cuts = Cuts.from_set(data, np.full(tilts.size, r), tilts)
     out = {}
     for f in forecasters:
-        if f.name in ("learned", "conditioned", "ffm_ml_disp_p", "ffm_linear_disp", "paper_rule",
-                      "ceiling", "told_mu_d", "model_based") and \
+        if f.name in ("learned", "learned_blind", "conditioned", "ffm_ml_disp_p", "ffm_linear_disp",
+                      "paper_rule", "ceiling", "told_mu_d", "model_based") and \
                 not any(getattr(cuts, n) is None for n in f.needs):
             out[f.name] = f.quantiles(cuts)[0]
     return {"tilts": tilts, "alpha_c": a_c, "row": r, "forecasts": out,
@@ -511,10 +512,16 @@ DEFAULT_MODEL = os.path.join("results", "forecast", "forecaster.pkl")
 def predict(args) -> int:
     """Forecast a measured catalogue: print the forecast (or one JSON object)."""
     cat = read_catalogue_csv(args.catalogue, tilt_now_text=args.tilt_now)
-    model, head = load_model(args.model)
-    if np.isnan(cat.displacement).any():
-        # no displacement column: the displacement features are unknown to the model
-        cat = Catalogue(cat.alpha, cat.size, np.zeros(len(cat)), cat.first, cat.last, cat.tilt_now)
+    models, head = load_model(args.model)
+    complete = not np.isnan(cat.displacement).any() and (cat.first >= 0).all()
+    # displacement (in g tau^2) and positions: every feature; else angles and sizes only
+    model = models["learned"] if complete and "learned" in models else models.get("learned_blind")
+    if model is None:
+        raise ForecastInputError(f"{args.model}: no forecaster for a catalogue without displacement "
+                                 "and first/last columns")
+    if not complete:
+        cat = Catalogue(cat.alpha, cat.size, np.zeros(len(cat)), np.full(len(cat), -1),
+                        np.full(len(cat), -1), cat.tilt_now)
     f = model.predict(cat)
     within = math.radians(args.within)
     d = f.as_dict(within) | {"model": os.path.abspath(args.model), "events": len(cat)}

@@ -245,7 +245,7 @@ def catalogue_features(cat: Catalogue) -> dict:
     # up to EARLY_ANGLE number N (a + a^2 / (4 Delta mu)) / (2 mu_s)
     a_e = min(t, EARLY_ANGLE)
     early = int(np.sum(alpha <= a_e))
-    mu_s = scale * (a_e + a_e ** 2 / (4 * dmu)) / (2.0 * early) if early >= 3 else np.nan
+    mu_s = scale * (a_e + a_e ** 2 / (4 * dmu)) / (2.0 * early) if early >= 3 and dmu > 0 else np.nan
     f["mu_s_early"] = mu_s
     f["atan_mu_d_model"] = float(np.arctan(mu_s - dmu)) if np.isfinite(mu_s - dmu) else np.nan
     f["atan_mu_s_model"] = float(np.arctan(mu_s)) if np.isfinite(mu_s) else np.nan

@@ -6,7 +6,8 @@ reached).  One ``sklearn.ensemble.HistGradientBoostingRegressor`` with the
 quantile loss per level of ``LEVELS``.  Trained on ``training_cuts``: tilts
 drawn over the whole run, never at fixed leads.
 
-* ``Learned``: the catalogue's features only (``features.catalogue_features``).
+* ``Learned``: the catalogue's features only (``features.catalogue_features``);
+  with ``inputs="angles_sizes"`` only those of the events' angles and sizes.
 * ``Ceiling``: plus the K smallest distances of a slider to its threshold at
   the last stored angle before the cut, which only a simulation knows.
 * ``ToldMuD``: plus the true ``mu_d``.
@@ -22,6 +23,11 @@ from .features import ceiling_features, feature_matrix, training_cuts
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
+#: what a learned forecaster sees: every feature, or only those of the angles and sizes of
+#: the events (no displacement, no slider positions: what any experiment records)
+INPUTS = ("all", "angles_sizes")
+ANGLES_SIZES_FEATURES = ("tilt", "n_events", "last_event", "quiet", "first_event", "moves",
+                         "max_size", "max_size_recent", "mean_size_recent", "since_largest")
 #: bins of the forecast median in which the validation set recalibrates the levels
 CALIBRATION_BINS = 10
 #: features that are angles: each also enters as its distance to the tilt reached
@@ -39,15 +45,32 @@ class Learned(Forecaster):
         Of ``HistGradientBoostingRegressor``.
     seed : int
         Seeds the cuts (unless ``fit`` gets an ``rng``) and the regressors.
+    inputs : {"all", "angles_sizes"}
+        Every catalogue feature, or only those of the events' angles and
+        sizes (``ANGLES_SIZES_FEATURES``, the event and move rates).
     """
 
     name = "learned"
     label = "learned (boosting)"
 
     def __init__(self, draws_per_row: int = 30, max_iter: int = 300, learning_rate: float = 0.08,
-                 max_leaf_nodes: int = 31, min_samples_leaf: int = 40, seed: int = 0):
+                 max_leaf_nodes: int = 31, min_samples_leaf: int = 40, seed: int = 0,
+                 inputs: str = "all"):
+        if inputs not in INPUTS:
+            raise ValueError(f"inputs={inputs!r} must be one of {INPUTS}")
         self.draws_per_row, self.max_iter, self.learning_rate = draws_per_row, max_iter, learning_rate
         self.max_leaf_nodes, self.min_samples_leaf, self.seed = max_leaf_nodes, min_samples_leaf, seed
+        self.inputs = inputs
+        if inputs == "angles_sizes":
+            self.name, self.label = "learned_blind", "learned, angles + sizes only"
+
+    def _selected(self, x, names):
+        """The columns this forecaster may see (all, or those of angles and sizes only)."""
+        if self.inputs == "all":
+            return x, names
+        keep = [i for i, n in enumerate(names) if n in ANGLES_SIZES_FEATURES
+                or n.startswith(("events_", "moves_")) and not n.startswith("moves_per_slider")]
+        return x[:, keep], [names[i] for i in keep]
 
     def design(self, cuts) -> tuple[np.ndarray, list[str]]:
         """The regressor's input for ``cuts``: (n, F) and the feature names.
@@ -56,7 +79,7 @@ class Learned(Forecaster):
         best remaining angle (log) of the displacement-rate inverse-rate fits.
         """
         if "learned_design" in cuts.cache:
-            return cuts.cache["learned_design"]
+            return self._selected(*cuts.cache["learned_design"])
         x, names = feature_matrix(cuts)
         t = cuts.tilt_now[:, None]
         extra = [x[:, names.index(a)][:, None] - t for a in ANGLE_FEATURES]
@@ -65,7 +88,7 @@ class Learned(Forecaster):
         cuts.cache["learned_design"] = (
             np.hstack([x, *extra, ffm]),
             names + [f"{a}_minus_tilt" for a in ANGLE_FEATURES] + [f"{f.name}_log_remaining" for f in fits])
-        return cuts.cache["learned_design"]
+        return self._selected(*cuts.cache["learned_design"])
 
     def fit(self, train, rng=None):
         """Train one quantile regressor per level on random cuts of the training runs."""
