@@ -182,6 +182,18 @@ def format_table(scores: dict, labels: dict, group_names: list, group: int) -> s
     return "\n".join(lines)
 
 
+def format_compact(scores: dict, labels: dict, columns: list, metric: str, scale: float,
+                   title: str, nd: int = 2) -> str:
+    """One metric of every forecaster (rows) over the groups (columns: leads or tilts)."""
+    lines = [f"**{title}**", "", "| forecaster | " + " | ".join(columns) + " |",
+             "|---|" + "---|" * len(columns)]
+    for name, rows in scores.items():
+        vals = [m[metric][0] if isinstance(m[metric], tuple) else m[metric] for m in rows]
+        lines.append(f"| {labels[name]} | " + " | ".join(
+            "—" if not np.isfinite(v) else f"{v * scale:.{nd}f}" for v in vals) + " |")
+    return "\n".join(lines)
+
+
 def _jsonable(x):
     if isinstance(x, dict):
         return {str(k): _jsonable(v) for k, v in x.items()}
@@ -274,6 +286,20 @@ def evaluate(args, argv) -> int:
             results["sets"].setdefault(set_name, {})[kind] = {"groups": names, "scores": sc}
             if set_name == "test" and kind == "lead":
                 keep_predictions = {"cuts": cuts, "group": group, "preds": preds}
+            cols = ([f"{d:g}°" for d in args.leads_deg] if kind == "lead"
+                    else [f"{a:g} rad" for a in args.tilts])
+            where = "before the avalanche" if kind == "lead" else "at the tilt"
+            deg = 180.0 / math.pi
+            tables.append(format_compact(sc, labels, cols, "median_abs", deg,
+                                         f"{set_name}: median |error| (deg) {where}"))
+            tables.append(format_compact(sc, labels, cols, "coverage", 1.0,
+                                         f"{set_name}: coverage of the 80 % interval {where}"))
+            if kind == "lead":
+                tables.append(format_compact(sc, labels, cols, "vs_conditioned", 1.0,
+                                             f"{set_name}: median |error| / that of the conditioned "
+                                             f"climatology {where}"))
+                tables.append(format_compact(sc, labels, cols, "skill", 1.0,
+                                             f"{set_name}: CRPS skill against climatology {where}"))
             for g, name in enumerate(names):
                 if kind == "lead" and args.leads_deg[g] != TARGET_LEAD_DEG and not args.all_tables:
                     continue
