@@ -111,7 +111,7 @@ def dev_catalogue_set(n: int, seed: int = 0, initial_forces: str = "uniform", mo
 # the evaluation
 # ---------------------------------------------------------------------------
 #: leads before the avalanche at which the test runs are cut, degrees
-DEFAULT_LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0)
+DEFAULT_LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0)
 #: fixed tilts at which the test runs are cut, radians
 DEFAULT_TILTS = (0.1, 0.2, 0.3, 0.4, 0.5)
 #: the alarm: "the avalanche within DELTA", judged every STEP over the last WINDOW, degrees
