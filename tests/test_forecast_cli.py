@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from sliders.analysis.forecast import LEVELS, Cuts
+from sliders.analysis.forecast import LEVELS
 from sliders.analysis.forecast import evaluation as ev
 from sliders.analysis.forecast.learned import Learned
 from sliders.runs import forecast as rf

@@ -225,7 +225,6 @@ def provenance(argv) -> dict:
 
 def evaluate(args, argv) -> int:
     """The whole evaluation (module docstring); prints the table, writes files and figures."""
-    from ..analysis.forecast import Cuts
     from ..analysis.forecast import evaluation as ev
 
     t0 = time.time()
@@ -251,11 +250,20 @@ def evaluate(args, argv) -> int:
         keep = set(args.only.split(",")) | {"climatology", "conditioned"}
         forecasters = [f for f in forecasters if f.name in keep]
     timing = {}
+    shared = {}  # the learned forecasters' training and validation cuts, drawn once
     for f in forecasters:
         t = time.time()
-        f.fit(train, rng=np.random.default_rng(args.seed))
         if hasattr(f, "calibrate"):
-            f.calibrate(valid)
+            if not shared:
+                from ..analysis.forecast import training_cuts
+
+                shared["train"] = training_cuts(train, f.draws_per_row, np.random.default_rng(args.seed))
+                shared["valid"] = training_cuts(valid, f.draws_per_row,
+                                                np.random.default_rng(args.seed + 1))
+            f.fit(train, cuts=shared["train"])
+            f.calibrate(valid, cuts=shared["valid"])
+        else:
+            f.fit(train, rng=np.random.default_rng(args.seed))
         timing[f.name] = time.time() - t
         log(f"forecast: fitted {f.name} in {timing[f.name]:.1f} s")
     labels = {f.name: f.label for f in forecasters}
@@ -266,7 +274,6 @@ def evaluate(args, argv) -> int:
                "leads_deg": list(args.leads_deg), "tilts": list(args.tilts),
                "labels": labels, "fit_seconds": timing, "sets": {}}
     tables = []
-    keep_predictions = {}
     for set_name, (cset, rows) in sets.items():
         for kind, (cuts, group, names) in {
                 "lead": (*ev.cuts_at_leads(cset, rows, leads),
@@ -284,8 +291,6 @@ def evaluate(args, argv) -> int:
                 log(f"forecast: {set_name}/{kind}: {f.name} on {len(cuts)} cuts in {time.time() - t:.1f} s")
             sc = ev.score(preds, cuts, group, len(names), n_boot=args.boot, seed=args.seed)
             results["sets"].setdefault(set_name, {})[kind] = {"groups": names, "scores": sc}
-            if set_name == "test" and kind == "lead":
-                keep_predictions = {"cuts": cuts, "group": group, "preds": preds}
             cols = ([f"{d:g}°" for d in args.leads_deg] if kind == "lead"
                     else [f"{a:g} rad" for a in args.tilts])
             where = "before the avalanche" if kind == "lead" else "at the tilt"

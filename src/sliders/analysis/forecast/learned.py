@@ -92,12 +92,16 @@ class Learned(Forecaster):
             names + [f"{a}_minus_tilt" for a in ANGLE_FEATURES] + [f"{f.name}_log_remaining" for f in fits])
         return self._selected(*cuts.cache["learned_design"])
 
-    def fit(self, train, rng=None):
-        """Train one quantile regressor per level on random cuts of the training runs."""
+    def fit(self, train, rng=None, cuts=None):
+        """Train one quantile regressor per level on random cuts of the training runs.
+
+        ``cuts``: the training cuts already drawn (``training_cuts`` of
+        ``train``), shared by several learned forecasters with their features.
+        """
         from sklearn.ensemble import HistGradientBoostingRegressor
 
         rng = np.random.default_rng(self.seed) if rng is None else rng
-        cuts = training_cuts(train, self.draws_per_row, rng)
+        cuts = training_cuts(train, self.draws_per_row, rng) if cuts is None else cuts
         x, names = self.design(cuts)
         self.columns_ = np.isfinite(x).any(axis=0)  # a feature never seen (e.g. no slider indices)
         self.feature_names_ = [n for n, k in zip(names, self.columns_) if k]
@@ -114,7 +118,7 @@ class Learned(Forecaster):
         self.n_training_cuts_ = len(cuts)
         return self
 
-    def calibrate(self, validation, rng=None) -> "Learned":
+    def calibrate(self, validation, rng=None, cuts=None) -> "Learned":
         """Shift each level so that it holds its share of validation cuts (quantile recalibration).
 
         On random cuts of the validation runs (drawn as the training cuts),
@@ -122,10 +126,10 @@ class Learned(Forecaster):
         (truth - forecast): afterwards exactly a share ``tau`` of validation
         cuts lies below it, in each of up to ``CALIBRATION_BINS`` bins of the
         forecast median (at least 500 cuts a bin).  The realisations are not
-        those of training.
+        those of training.  ``cuts``: validation cuts already drawn.
         """
         rng = np.random.default_rng(self.seed + 1) if rng is None else rng
-        cuts = training_cuts(validation, self.draws_per_row, rng)
+        cuts = training_cuts(validation, self.draws_per_row, rng) if cuts is None else cuts
         z = self._log_remaining(cuts)
         truth = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
         # separately in bins of the forecast median (the remaining angle it expects), so that
