@@ -167,3 +167,17 @@ def test_paper_rule_and_model_based_on_simulated_runs():
     for f in (PaperRule(), ModelBased(draws_per_row=3)):
         q, fb = f.fit(train).quantiles(cuts)
         assert q.shape == (4, LEVELS.size) and np.all(q >= cuts.tilt_now[:, None])
+
+
+def test_learned_forecaster_falls_back_outside_its_training_domain():
+    """A pile silent at a tilt where every training run had events (another preparation) gets the
+    conditioned climatology, marked as a fallback, not an extrapolation."""
+    train = synthetic_set(40, seed=1)
+    f = Learned(draws_per_row=8, max_iter=10, seed=0).fit(train)
+    silent = Catalogue([], [], [], [], [], tilt_now=0.35)
+    q, fb = f.quantiles(Cuts.from_catalogues([silent]))
+    assert fb[0] and np.all(q >= 0.35)
+    qc, _ = ConditionedClimatology().fit(train).quantiles(Cuts.from_catalogues([silent]))
+    assert np.allclose(q, qc)
+    busy = train.catalogue(0).cut(0.2)
+    assert not f.quantiles(Cuts.from_catalogues([busy]))[1][0]

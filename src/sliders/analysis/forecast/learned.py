@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from .base import LEVELS, MEDIAN, Forecaster
+from .baselines import Climatology, conditioned_quantiles
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import ceiling_features, feature_matrix, training_cuts
 
@@ -28,6 +29,9 @@ TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
 INPUTS = ("all", "angles_sizes")
 ANGLES_SIZES_FEATURES = ("tilt", "n_events", "last_event", "quiet", "first_event", "moves",
                          "max_size", "max_size_recent", "mean_size_recent", "since_largest")
+#: the domain of the training cuts: bins of tilt, and the share of training cuts (per bin) that
+#: may have fewer events than a catalogue the regressors still forecast
+DOMAIN_BINS, DOMAIN_QUANTILE = 20, 0.01
 #: bins of the forecast median in which the validation set recalibrates the levels.  One: on
 #: development runs (800 rows) 5 or 10 bins of the median, or of the interval's width, made the
 #: coverage at fixed leads worse (0.92-0.95 at 1-3 degrees), not better (0.87-0.90 with one)
@@ -103,6 +107,7 @@ class Learned(Forecaster):
         rng = np.random.default_rng(self.seed) if rng is None else rng
         cuts = training_cuts(train, self.draws_per_row, rng) if cuts is None else cuts
         x, names = self.design(cuts)
+        self._fit_domain(train, cuts)
         self.columns_ = np.isfinite(x).any(axis=0)  # a feature never seen (e.g. no slider indices)
         self.feature_names_ = [n for n, k in zip(names, self.columns_) if k]
         y = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
@@ -117,6 +122,26 @@ class Learned(Forecaster):
             self.models_.append(m.fit(x[:, self.columns_], y))
         self.n_training_cuts_ = len(cuts)
         return self
+
+    def _fit_domain(self, train, cuts):
+        """The fewest events a training cut had for its tilt (1st percentile in bins of tilt).
+
+        A catalogue far quieter than any training run at the same tilt (a pile
+        prepared otherwise, e.g. with a history: the Kaiser effect) lies outside
+        what the regressors learned; there the forecaster gives the conditioned
+        climatology instead (counted as ``fallback``).
+        """
+        self._clim = Climatology().fit(train)
+        t, n = cuts.tilt_now, np.array([len(c) for c in cuts.catalogues], dtype=float)
+        self.domain_edges_ = np.quantile(t, np.linspace(0, 1, DOMAIN_BINS + 1)[1:-1])
+        b = np.searchsorted(self.domain_edges_, t)
+        self.domain_min_events_ = np.array([np.quantile(n[b == k], DOMAIN_QUANTILE) if (b == k).any()
+                                            else 0.0 for k in range(DOMAIN_BINS)])
+
+    def outside(self, cuts) -> np.ndarray:
+        """(n,) bool: cuts with fewer events than the training cuts' ``DOMAIN_QUANTILE`` at that tilt."""
+        n = np.array([len(c) for c in cuts.catalogues], dtype=float)
+        return n < self.domain_min_events_[np.searchsorted(self.domain_edges_, cuts.tilt_now)]
 
     def calibrate(self, validation, rng=None, cuts=None) -> "Learned":
         """Shift each level so that it holds its share of validation cuts (quantile recalibration).
@@ -152,7 +177,11 @@ class Learned(Forecaster):
         shift = self.shift_[np.searchsorted(self.bin_edges_, z[:, MEDIAN])] if self.shift_.ndim == 2 \
             else self.shift_[None, :]
         z = np.sort(z + shift, axis=1)
-        return cuts.tilt_now[:, None] + np.exp(z), np.zeros(len(cuts), bool)
+        q = cuts.tilt_now[:, None] + np.exp(z)
+        out = self.outside(cuts)
+        if out.any():
+            q[out] = conditioned_quantiles(self._clim.alpha_c_, cuts.tilt_now[out])[0]
+        return q, out
 
 
 class Ceiling(Learned):
