@@ -1,6 +1,6 @@
 """Figures of the forecasting evaluation (``python -m sliders.forecast evaluate``, docs/forecasting.md).
 
-* ``forecast_error``: median |error| of alpha_c against the lead before the
+* ``forecast_error``: median absolute error of alpha_c against the lead before the
   avalanche, one line per forecaster (bootstrap 90 % band), the lead itself
   (the "now" forecast) for scale;
 * ``forecast_coverage``: measured coverage of the nominal 80 % intervals against the lead;
@@ -49,7 +49,7 @@ def _lead_scores(results, set_name="test"):
 
 
 def figure_error(results, out_dir, name="forecast_error"):
-    """Median |error| (and its 90 % band) against the lead, one line per forecaster, log-log."""
+    """Median absolute error (and its 90 % band) against the lead, one line per forecaster, log-log."""
     import matplotlib.pyplot as plt
 
     leads = np.asarray(results["leads_deg"], dtype=float)

@@ -116,9 +116,9 @@ def score_group(q: np.ndarray, fallback: np.ndarray, truth: np.ndarray, tilt: np
         ``median_abs``, ``p90_abs`` (radians), ``safe`` (share of point
         forecasts before the avalanche), ``coverage`` (80 % interval),
         ``crps`` (radians), ``skill`` (1 - CRPS / CRPS of climatology),
-        ``vs_conditioned`` (median |error| / that of the conditioned
-        climatology), ``vs_remaining`` (median |error| / median remaining
-        angle), ``p90_vs_remaining`` (90th percentile |error| / median
+        ``vs_conditioned`` (median absolute error / that of the conditioned
+        climatology), ``vs_remaining`` (median absolute error / median remaining
+        angle), ``p90_vs_remaining`` (90th percentile absolute error / median
         remaining angle), ``fallback`` (share), ``n``.
     """
     n = truth.size
