@@ -39,6 +39,7 @@ GOOD = "angle [deg],size,displacement\n1.0,1,0.01\n2.5,3,0.05\n4.0,2,0.02\n"
     ("angle [deg],size\n1,1\n2,0\n", "row 3, column 'size': '0' must be a whole number"),
     ("angle [deg],size\n1,1,3\n", "row 2: 3 fields"),
     ("angle [deg],size\n", "no events"),
+    ("# a comment line\nangle [deg],size\n\n1,1\n2,y\n", "row 5, column 'size'"),
 ])
 def test_bad_catalogues_get_one_line_naming_row_and_column(tmp_path, text, message):
     with pytest.raises(rf.ForecastInputError, match=message):

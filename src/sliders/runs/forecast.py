@@ -461,10 +461,12 @@ def read_catalogue_csv(path: str, tilt_now_deg: float | None = None,
         raise ForecastInputError(f"{path}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
         raise ForecastInputError(f"{path}: not a text file (UTF-8)") from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
+    numbered = [(k, ln) for k, ln in enumerate(text.splitlines(), start=1)
+                if ln.strip() and not ln.lstrip().startswith("#")]
+    if not numbered:
         raise ForecastInputError(f"{path}: empty file (a header and one event per row expected)")
-    reader = list(csv.reader(io.StringIO("\n".join(lines))))
+    line_of = [k for k, _ in numbered]  # "row" in messages: the line of the file
+    reader = list(csv.reader(io.StringIO("\n".join(ln for _, ln in numbered))))
     header = [_column_name(h) for h in reader[0]]
     names = [h[0] for h in header]
     if "angle" not in names:
@@ -481,7 +483,8 @@ def read_catalogue_csv(path: str, tilt_now_deg: float | None = None,
     if len(reader) < 2:
         raise ForecastInputError(f"{path}: no events (only a header)")
     cols = {n: [] for n in ("angle", "size", "displacement", "first", "last")}
-    for i, rec in enumerate(reader[1:], start=2):
+    for j, rec in enumerate(reader[1:], start=1):
+        i = line_of[j]
         if len(rec) != len(names):
             raise ForecastInputError(f"{path}: row {i}: {len(rec)} fields, the header has {len(names)}")
         for n, v in zip(names, rec):
