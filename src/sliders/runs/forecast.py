@@ -398,6 +398,10 @@ DEFAULT_MODEL = os.path.join("results", "forecast", "forecaster.pkl")
 def predict(args) -> int:
     """Forecast a measured catalogue: print the forecast (or one JSON object)."""
     cat = read_catalogue_csv(args.catalogue, tilt_now_text=args.tilt_now)
+    if not os.path.exists(args.model):
+        raise ForecastInputError(f"{args.model}: no fitted forecaster there; train one with "
+                                 "`bash mpi_runs/forecast.sh` (or python -m sliders.forecast "
+                                 "evaluate), or pass --model FILE")
     models, head = load_model(args.model)
     complete = not np.isnan(cat.displacement).any() and (cat.first >= 0).all()
     # displacement (in g tau^2) and positions: every feature; else angles and sizes only
