@@ -686,37 +686,71 @@ def _error_line(message: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``python -m sliders.ensemble`` with ``argv``; returns the exit code (0: every realisation done)."""
-    world = world_or_none()
-    if world is None:
-        return 1
-    comm, have_mpi = world
-    rank = comm.rank
 
-    # 1. validate (no collective before this point: every rank reaches the allgather)
-    claims: list = []
-    from .cli import ranks_on_this_node
-
-    node_ranks = ranks_on_this_node(comm)  # collective, before any rank can fail
-
-    def prepare():
-        args = build_parser(rank).parse_args(argv)
+    def prepare(comm, have_mpi, node_ranks, claims):
+        args = build_parser(comm.rank).parse_args(argv)
         plan = _plan(args, comm, have_mpi, node_ranks)
         root_plan = None
-        if rank == 0:
+        if comm.rank == 0:
             claims.append(_claim_output(args))
             root_plan = _plan_root(args, plan)
         return args, plan, root_plan
 
-    code, planned = agree_on_plan(comm, prepare, claims)
+    return run_planned(prepare, lambda comm, args, plan, root_plan: _run(args, comm, plan, root_plan))
+
+
+def run_planned(prepare, run) -> int:
+    """The shape of every run command (ensemble, study, prior ensemble); the exit code.
+
+    Sets up the world (one line and exit 1 without a working MPI), counts the
+    ranks of this node (collective, before any rank can fail), runs
+    ``prepare(comm, have_mpi, node_ranks, claims)`` on every rank and agrees
+    on whether it failed anywhere (``agree_on_plan``), broadcasts rank 0's
+    plan, then runs ``run(comm, *values, root_plan)``.  The output claims are
+    released after ``run``: the next writer finds the file complete.
+
+    Parameters
+    ----------
+    prepare : callable
+        Parses and checks the command (no collective step); rank 0 appends
+        its output claim to ``claims``.  Returns a tuple whose last item is
+        rank 0's plan (None on the other ranks).
+    run : callable
+        Computes the rows; returns the exit code.
+    """
+    from .cli import ranks_on_this_node
+
+    world = world_or_none()
+    if world is None:
+        return 1
+    comm, have_mpi = world
+    node_ranks = ranks_on_this_node(comm)  # collective, before any rank can fail
+    claims: list = []
+    code, planned = agree_on_plan(comm, lambda: prepare(comm, have_mpi, node_ranks, claims),
+                                  claims)
     if code is not None:
         return code
-    args, plan, root_plan = planned
+    *values, root_plan = planned
     root_plan = comm.bcast(root_plan, root=0)
     try:
-        return _run(args, comm, plan, root_plan)
+        return run(comm, *values, root_plan)
     finally:
         for claim in claims:
             claim.release()  # after the file is closed: the next writer finds it complete
+
+
+def add_output_options(p: argparse.ArgumentParser) -> None:
+    """The options of a run into one file that studies and prior ensembles share:
+    ``--out``, ``--backend``, ``--resume``, ``--overwrite``, ``--progress-interval``, ``--quiet``."""
+    from ..scene import BACKENDS
+
+    p.add_argument("--out", required=True, metavar="FILE.h5", help="output HDF5 file")
+    p.add_argument("--backend", choices=BACKENDS, default=None, help="tilt backend (default fortran)")
+    p.add_argument("--resume", action="store_true", help="complete the missing rows of --out")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    p.add_argument("--progress-interval", type=float, default=10.0, metavar="S",
+                   help="seconds between progress lines on rank 0 (0: one per row)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
 def world_or_none():

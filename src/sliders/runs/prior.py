@@ -467,8 +467,7 @@ def compute_prior_row(prior: Prior, r: int, backend: str, grid: np.ndarray, prog
 # ---------------------------------------------------------------------------
 def build_parser(rank: int = 0) -> argparse.ArgumentParser:
     """The command line of ``python -m sliders.prior`` (help printed by rank 0 only)."""
-    from .ensemble import _Parser
-    from ..scene import BACKENDS
+    from .ensemble import _Parser, add_output_options
 
     p = _Parser(prog="python -m sliders.prior",
                 description="Run a prior ensemble: every row draws its material from the prior "
@@ -477,13 +476,7 @@ def build_parser(rank: int = 0) -> argparse.ArgumentParser:
                             "ensemble's dynamic scheduling, into one HDF5 file.")
     p.rank = rank
     p.add_argument("prior", metavar="PRIOR.toml", help="prior file: [prior], [scene], [parameters]")
-    p.add_argument("--out", required=True, metavar="FILE.h5", help="output HDF5 file")
-    p.add_argument("--backend", choices=BACKENDS, default=None, help="tilt backend (default fortran)")
-    p.add_argument("--resume", action="store_true", help="complete the missing rows of --out")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
-    p.add_argument("--progress-interval", type=float, default=10.0, metavar="S",
-                   help="seconds between progress lines on rank 0 (0: one per row)")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    add_output_options(p)
     p.set_defaults(storage="gather")  # ragged events: rank 0 writes (sliders.io.prior_file)
     return p
 
@@ -535,22 +528,13 @@ def _plan_root(args, prior: Prior) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sliders.prior PRIOR.toml --out FILE.h5``: run (or resume) a prior ensemble; the exit code."""
-    from .cli import ranks_on_this_node
-    from .ensemble import (_claim_output, agree_on_plan, check_run_options, world_or_none)
+    from .ensemble import _claim_output, check_run_options, run_planned
     from ..io.storage import check_room
     from ..scene import check_memory
 
-    world = world_or_none()
-    if world is None:
-        return 1
-    comm, have_mpi = world
-    rank = comm.rank
-    claims: list = []
-    node_ranks = ranks_on_this_node(comm)  # collective, before any rank can fail
-
-    def prepare():
-        args = build_parser(rank).parse_args(argv)
-        storage = check_run_options(args, comm, have_mpi)
+    def prepare(comm, have_mpi, node_ranks, claims):  # a PriorError is a ValueError
+        args = build_parser(comm.rank).parse_args(argv)
+        check_run_options(args, comm, have_mpi)
         prior = load_prior(args.prior)
         if not (args.resume and os.path.exists(args.out)):
             # a count no disk could hold is refused before any row is drawn; a row holds at
@@ -560,21 +544,12 @@ def main(argv: list[str] | None = None) -> int:
         scenes = prior.scenes()  # every row checked before anything runs
         check_memory(max(scenes, key=lambda s: s.n_sliders), node_ranks)
         plan = None
-        if rank == 0:
+        if comm.rank == 0:
             claims.append(_claim_output(args, "prior"))
             plan = _plan_root(args, prior)
-        return args, prior, storage, plan
+        return args, prior, plan
 
-    code, planned = agree_on_plan(comm, prepare, claims)  # a PriorError is a ValueError
-    if code is not None:
-        return code
-    args, prior, storage, plan = planned
-    plan = comm.bcast(plan, root=0)
-    try:
-        return _run(args, comm, prior, plan)
-    finally:
-        for claim in claims:
-            claim.release()
+    return run_planned(prepare, lambda comm, args, prior, plan: _run(args, comm, prior, plan))
 
 
 def _run(args, comm, prior: Prior, plan) -> int:

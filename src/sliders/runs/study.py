@@ -108,8 +108,7 @@ def make_study_layout(study: Study, backend: str, attrs: dict | None = None):
 # ---------------------------------------------------------------------------
 def build_parser(rank: int = 0) -> argparse.ArgumentParser:
     """The command line of ``python -m sliders.study`` (help printed by rank 0 only)."""
-    from .ensemble import _Parser
-    from ..scene import BACKENDS
+    from .ensemble import _Parser, add_output_options
     from ..io.storage import STORAGES
 
     p = _Parser(prog="python -m sliders.study",
@@ -119,14 +118,8 @@ def build_parser(rank: int = 0) -> argparse.ArgumentParser:
                             "file (one group per point).")
     p.rank = rank
     p.add_argument("study", metavar="STUDY.toml", help="study file: [study], [scene], [axes]")
-    p.add_argument("--out", required=True, metavar="FILE.h5", help="output HDF5 file")
-    p.add_argument("--backend", choices=BACKENDS, default=None, help="tilt backend (default fortran)")
-    p.add_argument("--resume", action="store_true", help="complete the missing rows of --out")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    add_output_options(p)
     p.add_argument("--storage", choices=STORAGES, default="auto", help="file writer (as ensemble)")
-    p.add_argument("--progress-interval", type=float, default=10.0, metavar="S",
-                   help="seconds between progress lines on rank 0 (0: one per row)")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
     return p
 
 
@@ -181,40 +174,21 @@ def _plan_root(args, study: Study) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sliders.study STUDY.toml --out FILE.h5``: run (or resume) a study; the exit code."""
-    from .ensemble import (_claim_output, agree_on_plan, check_run_options, compute_row,
-                           world_or_none)
+    from .ensemble import _claim_output, check_run_options, compute_row, run_planned
 
-    world = world_or_none()
-    if world is None:
-        return 1
-    comm, have_mpi = world
-    rank = comm.rank
-    claims: list = []
-    from .cli import ranks_on_this_node
-
-    node_ranks = ranks_on_this_node(comm)  # collective, before any rank can fail
-
-    def prepare():
-        args = build_parser(rank).parse_args(argv)
+    def prepare(comm, have_mpi, node_ranks, claims):  # a StudyError is a ValueError
+        args = build_parser(comm.rank).parse_args(argv)
         storage = check_run_options(args, comm, have_mpi)
         study = load_study(args.study)
         check_points_memory(study, node_ranks)  # every point, before the file is created
         plan = None
-        if rank == 0:
+        if comm.rank == 0:
             claims.append(_claim_output(args, "study"))
             plan = _plan_root(args, study)
         return args, study, storage, plan
 
-    code, planned = agree_on_plan(comm, prepare, claims)  # a StudyError is a ValueError
-    if code is not None:
-        return code
-    args, study, storage, plan = planned
-    plan = comm.bcast(plan, root=0)
-    try:
-        return _run(args, comm, study, plan, storage, compute_row)
-    finally:
-        for claim in claims:
-            claim.release()
+    return run_planned(prepare, lambda comm, args, study, storage, plan:
+                       _run(args, comm, study, plan, storage, compute_row))
 
 
 def _run(args, comm, study, plan, storage, compute_row) -> int:
