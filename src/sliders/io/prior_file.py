@@ -48,7 +48,7 @@ from .. import status
 from . import formats, safeio
 from .catalogue import EVENT_COLUMNS, Catalogue, CatalogueSet
 from .storage import (BASE_COLUMNS, ROW_DIGEST, Column, GatherFile, Layout, StorageError,
-                      _done_mask, _open_for_reading, _row_damage)
+                      _done_mask, _open_for_reading, _plain, _row_damage)
 
 FORMAT = formats.PRIOR
 FORMAT_VERSION = 1
@@ -203,9 +203,7 @@ def _read(path, with_events: bool = True) -> dict[str, Any]:
     try:
         with f:
             safeio.check_header(f, FORMAT, where, StorageError, coordinates=False)
-            attrs = {k: (v.decode() if isinstance(v, bytes) else
-                         v.item() if isinstance(v, np.generic) else v)
-                     for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
+            attrs = {k: _plain(v) for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
             grid = safeio.read_checked(f["grids"]["ceiling_alpha"], where)
             rg = f["realisations"]
             rows: dict[str, np.ndarray] = {}
