@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import LEVELS, MEDIAN, Forecaster
+from .base import LEVELS, Forecaster
 from .baselines import Climatology, conditioned_quantiles
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import ceiling_features, feature_matrix, training_cuts
@@ -32,10 +32,9 @@ ANGLES_SIZES_FEATURES = ("tilt", "n_events", "last_event", "quiet", "first_event
 #: the domain of the training cuts: bins of tilt, and the share of training cuts (per bin) that
 #: may have fewer events than a catalogue the regressors still forecast
 DOMAIN_BINS, DOMAIN_QUANTILE = 20, 0.01
-#: bins of the forecast median in which the validation set recalibrates the levels.  One: on
-#: development runs (800 rows) 5 or 10 bins of the median, or of the interval's width, made the
-#: coverage at fixed leads worse (0.92-0.95 at 1-3 degrees), not better (0.87-0.90 with one)
-CALIBRATION_BINS = 1
+# The validation set recalibrates each level by one shift: on development runs (800 rows) 5 or
+# 10 bins of the forecast median, or of the interval's width, made the coverage at fixed leads
+# worse (0.92-0.95 at 1-3 degrees), not better (0.87-0.90 with one shift per level).
 #: features that are angles: each also enters as its distance to the tilt reached
 ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model", "atan_mu_d_single")
 
@@ -149,21 +148,16 @@ class Learned(Forecaster):
         On random cuts of the validation runs (drawn as the training cuts),
         level ``tau``'s log remaining angle is moved by the ``tau``-quantile of
         (truth - forecast): afterwards exactly a share ``tau`` of validation
-        cuts lies below it, in each of up to ``CALIBRATION_BINS`` bins of the
-        forecast median (at least 500 cuts a bin).  The realisations are not
-        those of training.  ``cuts``: validation cuts already drawn.
+        cuts lies below it.  One shift per level: shifts in bins of the
+        forecast made the coverage at fixed leads worse (docs/forecasting.md).
+        The realisations are not those of training.  ``cuts``: validation
+        cuts already drawn.
         """
         rng = np.random.default_rng(self.seed + 1) if rng is None else rng
         cuts = training_cuts(validation, self.draws_per_row, rng) if cuts is None else cuts
         z = self._log_remaining(cuts)
         truth = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
-        # separately in bins of the forecast median (the remaining angle it expects), so that
-        # the intervals hold near the avalanche as far from it
-        n_bins = int(np.clip(len(cuts) // 500, 1, CALIBRATION_BINS))
-        self.bin_edges_ = np.quantile(z[:, MEDIAN], np.linspace(0, 1, n_bins + 1)[1:-1])
-        b = np.searchsorted(self.bin_edges_, z[:, MEDIAN])
-        self.shift_ = np.array([[np.quantile(truth[b == k] - z[b == k, j], lv)
-                                 for j, lv in enumerate(LEVELS)] for k in range(n_bins)])
+        self.shift_ = np.array([np.quantile(truth - z[:, j], lv) for j, lv in enumerate(LEVELS)])
         return self
 
     def _log_remaining(self, cuts):
@@ -174,9 +168,7 @@ class Learned(Forecaster):
 
     def _quantiles(self, cuts):
         z = self._log_remaining(cuts)
-        shift = self.shift_[np.searchsorted(self.bin_edges_, z[:, MEDIAN])] if self.shift_.ndim == 2 \
-            else self.shift_[None, :]
-        z = np.sort(z + shift, axis=1)
+        z = np.sort(z + self.shift_, axis=1)
         q = cuts.tilt_now[:, None] + np.exp(z)
         out = self.outside(cuts)
         if out.any():
