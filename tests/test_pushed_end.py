@@ -121,7 +121,11 @@ def test_tilt_scenes_unchanged_by_the_new_keys():
     ({"loading": "pushed_end", "tilt": 0.6}, "tilt=0.6 is out of range"),
     ({"loading": "pushed_end", "drive_stiffness": 0.0}, "drive_stiffness=0.0 is out of range"),
     ({"loading": "pushed_end", "drive_max": -1.0}, "drive_max=-1.0 is out of range"),
-    ({"tilt": 0.1}, "tilt=0.1 is the fixed incline of loading='pushed_end'"),
+    ({"tilt": 0.1}, "tilt=0.1 is a parameter of loading='pushed_end'; with loading='tilt' leave it out"),
+    ({"drive_stiffness": 2.0}, "drive_stiffness=2.0 is a parameter of loading='pushed_end'"),
+    ({"loading": "pushed_end", "alpha_max": 1.0}, "alpha_max=1.0 is a parameter of loading='tilt'"),
+    ({"loading": sliders.PushedEnd(incline=0.1), "tilt": 0.2},
+     "tilt=0.2 is a parameter of loading=PushedEnd(incline=0.1): give it there"),
     ({"loading": "pushed_end", "mu_d": 0.0}, "tilt=0.0 must be below atan(mu_d)=0"),
     ({"loading": "pushed_end", "record": "forces"}, "record='forces' rebuilds the forces of the tilt"),
 ])
@@ -165,7 +169,7 @@ def test_command_line_runs_the_pushed_end_on_the_kernel(tmp_path, capsys):
     assert main(["tilt", "--loading", "pushed_end", "--tilt", "0.2", "--n-sliders", "6",
                  "--out", str(out), "--quiet"]) == 0
     result = sliders.TiltResult.load(out)
-    assert result.status == "sliding" and result.scene.loading == "pushed_end"
+    assert result.status == "sliding" and result.scene.loading == sliders.PushedEnd(incline=0.2)
     assert result.events["n_moved"][-1] == 6
     assert capsys.readouterr().out.startswith(
         f"sliding: last drive D={result.events['alpha'][-1]:.5f}")

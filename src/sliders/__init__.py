@@ -3,9 +3,11 @@
 Amon, Blanc & Geminard, "Avalanche precursors in a frictional model".  The
 public API:
 
-* ``Scene``: one configured run (validated on construction);
-* ``tilt(scene, backend="fortran"|"numpy")``: tilt to the avalanche, returns a
-  ``TiltResult`` (save/load in HDF5);
+* ``Scene``: one configured run (validated on construction), composed of its
+  friction law (``Coulomb``) and its loading (``Tilt``, ``PushedEnd``);
+* ``run(scene, backend="fortran"|"numpy")``: drive the loading to the run's
+  end, returns a ``Result`` (save/load in HDF5); ``tilt`` and ``TiltResult``
+  are their names for the paper's tilt (the same function and class);
 * ``prepare(scene)``: the prepared chain at alpha = 0;
 * ``analysis``, ``figures``, ``runs``: the layers above (docs/architecture.md).
 """
@@ -13,12 +15,14 @@ public API:
 from ._version import __version__
 
 from .chain import ChainState
-from .driver import Interrupted, Progress, tilt
+from .driver import Interrupted, Progress, run, tilt
+from .engine.friction import Coulomb
+from .engine.loading import PushedEnd, Tilt
 from .preparation import prepare
-from .result import EventSparse, TiltResult
+from .result import EventSparse, Result, TiltResult
 from .scene import Scene, SceneError
 
 __all__ = [
-    "ChainState", "EventSparse", "Interrupted", "Progress", "Scene", "SceneError", "TiltResult",
-    "__version__", "prepare", "tilt",
+    "ChainState", "Coulomb", "EventSparse", "Interrupted", "Progress", "PushedEnd", "Result",
+    "Scene", "SceneError", "Tilt", "TiltResult", "__version__", "prepare", "run", "tilt",
 ]

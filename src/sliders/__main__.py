@@ -97,7 +97,7 @@ def _run(args, scene) -> int:
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-    if scene.loading == "pushed_end":  # the run ends at a driver position, not an angle
+    if not scene.loading.drive_is_angle:  # the run ends at a driver position, not an angle
         last = f"{result.events['alpha'][-1]:.5f}" if result.n_events else "n/a"
         reached = f"last drive D={last}"
     else:

@@ -1,4 +1,7 @@
-"""The quasi-static tilt driver: prepare, relax, then tilt to the avalanche.
+"""The quasi-static driver: prepare, relax, then drive the loading to the run's end.
+
+``run`` drives the scene's loading (the tilt to the avalanche, the pushed end
+to the onset of sliding); ``tilt`` is its name for the paper's tilt.
 
 Both backends implement the same ``advance(state, max_events, relax_only)``
 method (see ``reference.NumpyEngine``); the driver calls it in chunks so that
@@ -20,7 +23,7 @@ from .engine.contract import INTERRUPTED_MESSAGE, Chunk, join_chunks
 from .keyed_random import realisation_seed
 from .preparation import prepare
 from .engine.reference import NumpyEngine
-from .result import EventSparse, TiltResult
+from .result import EventSparse, Result
 from .scene import BACKENDS, Scene, SceneError, check_memory
 
 CHUNK_EVENTS = {"numpy": 16, "fortran": 512}
@@ -45,17 +48,17 @@ class Progress:
 
 
 class Interrupted(KeyboardInterrupt):
-    """Ctrl-C (or a SIGTERM the caller turned into KeyboardInterrupt) stopped ``tilt``.
+    """Ctrl-C (or a SIGTERM the caller turned into KeyboardInterrupt) stopped ``run``.
 
     A KeyboardInterrupt, so that a script looping over runs stops too, with a
     non-zero exit, unless it catches this on purpose.  ``partial`` is the
-    ``TiltResult`` of the events completed before the interrupt (status
+    ``Result`` of the events completed before the interrupt (status
     "interrupted"; its state is the one after the last completed event).
     """
 
-    def __init__(self, partial: TiltResult):
-        super().__init__(f"tilt interrupted after {partial.n_events} completed events "
-                         "(their TiltResult is the exception's .partial)")
+    def __init__(self, partial: Result):
+        super().__init__(f"run interrupted after {partial.n_events} completed events "
+                         "(their Result is the exception's .partial)")
         self.partial = partial
 
 
@@ -70,15 +73,17 @@ def make_engine(scene: Scene, backend: str):
     raise SceneError(f"backend={backend!r} must be one of {BACKENDS}")
 
 
-def tilt(
+def run(
     scene: Scene,
     backend: str = "fortran",
     *,
     state: ChainState | None = None,
     progress: Callable[[Progress], None] | None = None,
     keep_partial: bool = False,
-) -> TiltResult:
-    """Tilt a prepared chain quasi-statically until the avalanche.
+) -> Result:
+    """Drive a prepared chain quasi-statically to the end of its run: the
+    tilt to the avalanche, the pushed end to the onset of sliding (or to the
+    loading's limit, ``max_events``, ...).  ``sliders.tilt`` is the same function.
 
     Parameters
     ----------
@@ -98,8 +103,9 @@ def tilt(
 
     Returns
     -------
-    TiltResult
-        Every completed rearrangement (angles in radians, displacements in
+    Result
+        Every completed rearrangement (drives: angles in radians or driver
+        positions in g tau^2, ``Result.drive``; displacements in
         g tau^2, durations in tau), how the run ended (``status``) and the
         avalanche angle ``alpha_c`` (NaN unless it ended in the avalanche).
 
@@ -184,14 +190,14 @@ def _to_the_end(work: Callable[[], Any]) -> tuple[Any, bool]:
     around the engine (building it, drawing the chain, assembling the result):
     a Ctrl-C there lets ``work`` run again to the end (it has no side
     effects), and the caller then stops as if the engine had been
-    interrupted, so that tilt always answers Ctrl-C with ``Interrupted``."""
+    interrupted, so that run always answers Ctrl-C with ``Interrupted``."""
     try:
         return work(), False
     except KeyboardInterrupt:
         return work(), True
 
 
-def _interrupt_or_return(result: TiltResult, keep_partial: bool) -> TiltResult:
+def _interrupt_or_return(result: Result, keep_partial: bool) -> Result:
     if result.status == status.NAMES[status.INTERRUPTED]:
         if not result.message:
             result.message = INTERRUPTED_MESSAGE
@@ -209,7 +215,7 @@ def _finish(scene, backend, code, message, alpha_c, chunks, initial, final, rela
                                    scene.n_sliders)
     if not message and code in status.ERRORS:
         message = status.NAMES[code]
-    return TiltResult(
+    return Result(
         scene=scene, backend=backend, status=status.NAMES[code], message=message,
         alpha_c=float(alpha_c), events=run.events, displacement=displacement,
         initial=initial, final=final, relaxation=relaxation,
@@ -223,8 +229,12 @@ def realisation_scene(scene: Scene, r: int) -> Scene:
 
 
 def tilt_realisations(scene: Scene, runs: int, backend: str = "fortran", first: int = 0):
-    """The serial ensemble loop: yields ``(r, TiltResult)`` for realisations
+    """The serial ensemble loop: yields ``(r, Result)`` for realisations
     ``first`` .. ``first + runs - 1`` of ``scene`` (``realisation_scene``), the
     same runs as the rows of ``python -m sliders.ensemble``."""
     for r in range(first, first + runs):
-        yield r, tilt(realisation_scene(scene, r), backend=backend)
+        yield r, run(realisation_scene(scene, r), backend=backend)
+
+
+# The paper's name of ``run``: its loading is the tilt (it runs any loading alike).
+tilt = run

@@ -1,4 +1,4 @@
-"""The record of one tilt run (its HDF5 form: ``sliders.io.tilt_file``)."""
+"""The record of one run, tilt or pushed end (its HDF5 form: ``sliders.io.tilt_file``)."""
 
 from __future__ import annotations
 
@@ -52,11 +52,14 @@ class EventSparse:
 
 
 @dataclass
-class TiltResult:
-    """Everything a tilt run recorded.
+class Result:
+    """Everything a run recorded (``TiltResult`` is the same class, the name of
+    the tilt's result).
 
-    ``alpha`` is the angle of every completed rearrangement (increasing);
-    ``alpha_c`` the avalanche angle (NaN if the run ended otherwise, see
+    ``drive`` is the drive of every completed rearrangement (increasing): the
+    tilt angle alpha, or for the pushed end the driver position D
+    (``scene.loading.drive_label``); ``alpha`` is the same array (the name
+    of the event column in files); ``alpha_c`` the avalanche angle (NaN if the run ended otherwise, see
     ``status``).  Per-event scalars: ``n_moved``, ``n_stops``, ``n_steps``,
     ``slider_steps``, ``duration`` (tau), ``work_gravity``, ``elastic_change``
     and ``dissipation``.  ``displacement`` holds the displacement of each
@@ -81,7 +84,7 @@ class TiltResult:
         Avalanche angle, radians (NaN unless ``status == "avalanche"``).
     events : dict of str to ndarray
         Per-event arrays of length K, also readable as attributes:
-        ``alpha`` (radians), ``n_moved``, ``n_stops``, ``n_steps``,
+        ``alpha`` (the drive: radians, or D in g tau^2), ``n_moved``, ``n_stops``, ``n_steps``,
         ``slider_steps``, ``duration`` (tau), ``work_gravity``,
         ``elastic_change``, ``dissipation`` (m g x g tau^2).
     displacement : EventSparse or None
@@ -117,12 +120,14 @@ class TiltResult:
     final_event: dict[str, float] = field(default_factory=dict)
 
     def __repr__(self) -> str:
-        """One line: the scene, how the run ended, alpha_c, the events and what was recorded."""
+        """One line: the scene, how the run ended, alpha_c or the last drive, the events
+        and what was recorded (named ``TiltResult`` for the tilt, ``Result`` otherwise)."""
+        load = self.scene.loading
         end = (f"alpha_c={self.alpha_c:.4f} rad" if math.isfinite(self.alpha_c)
-               else f"last event at alpha={self.alpha[-1]:.4f} rad" if self.n_events else "no event")
-        if self.scene.loading == "pushed_end" and self.n_events:  # the drive is D, not an angle
-            end = f"last event at driver position D={self.alpha[-1]:.4f} g tau^2"
-        return (f"<TiltResult {self.scene!r}: {self.status}, {end}, {self.n_events} events, "
+               else f"last event at {load.drive_label}={self.drive[-1]:.4f} {load.drive_unit}"
+               if self.n_events else "no event")
+        kind = "TiltResult" if load.drive_is_angle else "Result"
+        return (f"<{kind} {self.scene!r}: {self.status}, {end}, {self.n_events} events, "
                 f"recorded {self.scene.record}, backend {self.backend}>")
 
     def __getattr__(self, name):
@@ -130,6 +135,12 @@ class TiltResult:
         if name in events:
             return events[name]
         raise AttributeError(name)
+
+    @property
+    def drive(self) -> np.ndarray:
+        """The drive of every completed rearrangement: the tilt angle alpha (rad), or the
+        driver position D (g tau^2) of the pushed end; the event column ``alpha``."""
+        return self.events["alpha"]
 
     @property
     def n_events(self) -> int:
@@ -149,10 +160,8 @@ class TiltResult:
         return e["work_gravity"] - e["elastic_change"] - e["dissipation"]
 
     def _loading(self):
-        """The scene's loading protocol: the forces are its (tilt or pushed end)."""
-        from .engine.loading import loading_for
-
-        return loading_for(self.scene)
+        """The scene's loading: the forces are its (tilt or pushed end)."""
+        return self.scene.loading
 
     def _need_displacements(self, what: str) -> EventSparse:
         if self.displacement is None:
@@ -231,7 +240,7 @@ class TiltResult:
         return tilt_file_bytes(self)
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> "TiltResult":
+    def load(cls, path: str | os.PathLike[str]) -> "Result":
         """Read a saved run; every checksum is verified.
 
         A damaged or truncated file raises ``safeio.IntegrityError`` (an
@@ -244,3 +253,7 @@ class TiltResult:
         if fields["displacement"] is not None:
             fields["displacement"] = EventSparse(*fields["displacement"], fields["scene"].n_sliders)
         return cls(**fields)
+
+
+# The tilt's name of a run's result (the pushed end's runs are the same class).
+TiltResult = Result

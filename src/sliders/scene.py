@@ -1,7 +1,10 @@
-"""A scene: one configured run (system, loading, integrator, what to record).
+"""A scene: one configured run (chain, friction law, loading, integrator, what to record).
 
-Every field is checked on construction; a bad value raises ``SceneError``
-whose message names the parameter and the allowed range.  Units are the
+The friction law and the loading are parts of the scene that own their
+parameters and checks (``engine.friction``, ``engine.loading``); scene files
+and the command line hold their flat keys (``scene_keys``).  Every value is
+checked on construction; a bad value raises ``SceneError`` whose message
+names the parameter and the allowed range.  Units are the
 paper's dimensionless ones: time in tau = sqrt(m/k), length in g tau^2.
 """
 
@@ -12,21 +15,21 @@ import math
 import os
 import sys
 from dataclasses import dataclass, field, fields
-from typing import Any
+from typing import Any, NamedTuple
+
+from .engine.friction import FRICTIONS, Coulomb, Friction
+from .engine.loading import ALPHA_MAX_LIMIT, LOADINGS, Loading, PushedEnd, Tilt  # noqa: F401
+from .engine.parameters import (SceneError, check_choice, check_int, check_real,  # noqa: F401
+                                plain_value)
 
 ENDS = ("free", "walls")
 RECORDS = ("summary", "displacements", "forces")
 AVALANCHE_CRITERIA = ("sliding",)
 INITIAL_FORCES = ("uniform", "zero", "history")
 BACKENDS = ("fortran", "numpy")
-LOADINGS = ("tilt", "pushed_end")
 
 # Verlet needs dt well below the fastest spring period 2 pi / sqrt(4 + xi).
 DT_PERIOD_FRACTION = 1.0 / 30.0
-# Between walls the rearrangement angles pile up towards pi/2 (Delta alpha is
-# proportional to cos alpha: infinitely many events before pi/2), and the
-# displacement per event, (mu_s - mu_d) cos alpha, sinks below rounding.
-ALPHA_MAX_LIMIT = math.pi / 2 - 1e-6
 
 # What double precision can resolve (the integrator converges or is refused).
 # 1. The crossing bisection halves [lo, hi] within one step [0, dt] until
@@ -79,10 +82,6 @@ SPEED_MODES: dict[str, dict[str, float]] = {
 DEFAULT_MODE = "trajectory"
 
 
-class SceneError(ValueError):
-    """An invalid scene parameter; the message names it and its allowed range."""
-
-
 def fastest_period(xi: float) -> float:
     """Shortest normal-mode period of the chain, 2 pi / sqrt(4 + xi) (in tau)."""
     return 2.0 * math.pi / math.sqrt(4.0 + xi)
@@ -93,13 +92,22 @@ def max_time_step(xi: float) -> float:
     return DT_PERIOD_FRACTION * fastest_period(xi)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Scene:
-    """One configured tilt run, validated on construction.
+    """One configured run, composed of its chain, its friction law and its
+    loading, validated on construction.
 
     Units: time tau = sqrt(m/k), length g tau^2, force m g, angles in radians.
     The defaults are the paper's values.  An invalid value raises
     ``SceneError`` naming it and its allowed range.
+
+    The friction law and the loading are parts (``Coulomb``, ``Tilt``,
+    ``PushedEnd``) that own their parameters and checks.  Their parameters
+    can also be given as flat keywords, the keys of scene files and of the
+    command line, which build the parts: ``Scene(mu_d=0.5)`` is
+    ``Scene(friction=Coulomb(mu_d=0.5))``, ``Scene(loading="pushed_end",
+    tilt=0.2)`` is ``Scene(loading=PushedEnd(incline=0.2))``; the flat values
+    are readable as attributes (``scene.mu_d``, ``scene.tilt``, ...).
 
     Parameters
     ----------
@@ -110,9 +118,10 @@ class Scene:
         the springs between neighbours (paper: 0 or 0.001).
     spring_length : float
         Natural length l of the springs between neighbours, g tau^2.
-    mu_d, mu_s_mean, sigma_mu : float
-        Dynamic friction coefficient; mean and width of the Gaussian static
-        coefficients (each drawn above ``mu_d``).
+    friction : Coulomb
+        The friction law (flat keys ``mu_d``, ``mu_s_mean``, ``sigma_mu``:
+        dynamic coefficient; mean and width of the Gaussian static
+        coefficients, each drawn above ``mu_d``).
     seed : int
         Key of every random draw (0 to 2**32 - 1).
     ends : {"free", "walls"}
@@ -136,26 +145,19 @@ class Scene:
         run with status ``"event_duration_cap"``, never taken for the avalanche.
     max_events : int
         Stop after this many rearrangements.
-    alpha_max : float
-        Stop tilting at this angle, radians (needed between walls, which
-        never avalanche); at most pi/2 - 1e-6.
     force_tol : float
         Tolerance, m g, of the stability test of a resting slider.
     avalanche : str
         Avalanche criterion ("sliding": every slider moving downwards with
         tan(alpha) > mu_d).
-    loading : {"tilt", "pushed_end"}
-        The paper's quasi-static tilt (the drive is the angle alpha), or the
-        Burridge-Knopoff loading: the incline fixed at ``tilt`` and slider 1
-        pushed down the chain by a driver on a spring; the drive is then the
-        driver's position D (g tau^2), stored where the tilt's alpha is.
-    tilt : float
-        pushed_end only: the fixed incline, radians, in [0, atan(mu_d)) so
-        that every slip stops.
-    drive_stiffness : float
-        pushed_end only: stiffness K of the driver's spring, units of k.
-    drive_max : float
-        pushed_end only: the driver's limit, g tau^2 (the run ends there).
+    loading : Tilt, PushedEnd or their name {"tilt", "pushed_end"}
+        The paper's quasi-static tilt, the drive the angle alpha (flat key
+        ``alpha_max``: the end of the tilt, radians, at most pi/2 - 1e-6);
+        or the Burridge-Knopoff loading: the incline fixed and slider 1
+        pushed down the chain by a driver on a spring, the drive the
+        driver's position D, g tau^2 (flat keys ``tilt``: the fixed incline
+        in [0, atan(mu_d)); ``drive_stiffness``: K, units of k;
+        ``drive_max``: the driver's limit).  docs/loadings.md.
     record : {"summary", "displacements", "forces"}
         Per-event scalars only; plus the displacement of every slider that
         moved, stored sparsely; or the same storage with the tangential force
@@ -167,14 +169,14 @@ class Scene:
     --------
     >>> Scene(n_sliders=400, xi=0.001, seed=1).replace(mode="explore")
     Scene(n_sliders=400, xi=0.001, seed=1, mode='explore')
+    >>> Scene(n_sliders=8, loading="pushed_end", tilt=0.2, drive_stiffness=2.0)
+    Scene(n_sliders=8, loading=PushedEnd(incline=0.2, stiffness=2.0))
     """
 
     n_sliders: int = 100
     xi: float = 0.0
     spring_length: float = 10.0
-    mu_d: float = 0.55
-    mu_s_mean: float = 0.6
-    sigma_mu: float = 0.01
+    friction: Friction = Coulomb()
     seed: int = 0
     ends: str = "free"
     initial_forces: str = "uniform"
@@ -183,28 +185,42 @@ class Scene:
     refine_tol: float | None = None
     max_event_duration: float | None = None
     max_events: int = 10_000_000
-    alpha_max: float = ALPHA_MAX_LIMIT
     force_tol: float = 1e-12
     avalanche: str = "sliding"
-    loading: str = "tilt"
-    tilt: float = 0.0
-    drive_stiffness: float = 1.0
-    drive_max: float = 1e9
+    loading: Loading = Tilt()
     record: str = "displacements"
     output: str | None = field(default=None, compare=False)
 
+    def __init__(self, n_sliders: int = 100, *, xi: float = 0.0, spring_length: float = 10.0,
+                 friction: Friction | str | None = None, seed: int = 0, ends: str = "free",
+                 initial_forces: str = "uniform", mode: str = DEFAULT_MODE,
+                 dt: float | None = None, refine_tol: float | None = None,
+                 max_event_duration: float | None = None, max_events: int = 10_000_000,
+                 force_tol: float = 1e-12, avalanche: str = "sliding",
+                 loading: Loading | str | None = None, record: str = "displacements",
+                 output: str | None = None, **flat: Any) -> None:
+        given = dict(locals())
+        for f in fields(self):
+            if f.name not in PARTS:
+                object.__setattr__(self, f.name, plain_value(f.type, given[f.name]))
+        for role in PARTS:
+            keys = _part_keys(role, given[role])
+            own = {k: flat.pop(k) for k in list(flat) if k in keys}
+            object.__setattr__(self, role, build_part(role, given[role], own).bound(self))
+        if flat:
+            raise TypeError(f"Scene() got an unexpected keyword argument {next(iter(flat))!r}")
+        self._fill_from_mode()
+
     def __repr__(self) -> str:
         """Only what differs from the defaults (integrator values: from the mode's),
-        so that ``eval(repr(scene)) == scene``."""
+        so that ``eval(repr(scene)) == scene`` (with the parts' names at hand)."""
         defaults = {f.name: f.default for f in fields(self)}
         defaults.update(SPEED_MODES[self.mode])
         changed = [f"{f.name}={getattr(self, f.name)!r}" for f in fields(self)
                    if f.name != "output" and getattr(self, f.name) != defaults[f.name]]
         return f"Scene({', '.join(changed)})"
 
-    def __post_init__(self) -> None:
-        for f in fields(self):
-            object.__setattr__(self, f.name, _plain_value(f.name, f.type, getattr(self, f.name)))
+    def _fill_from_mode(self) -> None:
         if self.mode not in SPEED_MODES:
             raise SceneError(f"mode={self.mode!r} must be one of {tuple(SPEED_MODES)}")
         from_mode = [name for name in SPEED_MODES[self.mode] if getattr(self, name) is None]
@@ -220,39 +236,40 @@ class Scene:
                              f"give {named[0]} explicitly") from None
 
     def _check(self) -> None:
-        _check_int("n_sliders", self.n_sliders, 1, None)
-        _check_real("xi", self.xi, 0.0, None)
-        _check_real("spring_length", self.spring_length, 0.0, None)
+        check_int("n_sliders", self.n_sliders, 1, None)
+        check_real("xi", self.xi, 0.0, None)
+        check_real("spring_length", self.spring_length, 0.0, None)
         extent = float(self.n_sliders) * self.spring_length  # the last lattice position
         if not math.isfinite(extent * LATTICE_HEADROOM):
             longest = sys.float_info.max / LATTICE_HEADROOM / self.n_sliders
             raise SceneError(f"spring_length={self.spring_length!r} is out of range for "
                              f"n_sliders={self.n_sliders}: the lattice positions n*l would "
                              f"overflow (allowed up to about {longest:.3g})")
-        _check_real("mu_d", self.mu_d, 0.0, None)
-        _check_real("mu_s_mean", self.mu_s_mean, 0.0, None)
-        if not self.mu_s_mean > self.mu_d:
-            raise SceneError(
-                f"mu_s_mean={self.mu_s_mean!r} must exceed mu_d={self.mu_d!r} "
-                "(static friction above dynamic: mu_d < mu_s_mean)"
-            )
-        _check_real("sigma_mu", self.sigma_mu, 0.0, None)
-        _check_int("seed", self.seed, 0, 2**32 - 1)
-        if self.ends not in ENDS:
-            raise SceneError(f"ends={self.ends!r} must be one of {ENDS}")
-        if self.initial_forces not in INITIAL_FORCES:
-            raise SceneError(f"initial_forces={self.initial_forces!r} must be one of {INITIAL_FORCES}")
-        if self.initial_forces == "history" and (self.ends == "walls" or self.loading != "tilt"):
+        check_int("seed", self.seed, 0, 2**32 - 1)
+        check_choice("ends", self.ends, ENDS)
+        check_choice("initial_forces", self.initial_forces, INITIAL_FORCES)
+        if self.initial_forces == "history" and (self.walls or not self.loading.drive_is_angle):
             raise SceneError("initial_forces='history' tilts a free chain to its avalanche; it "
                              "needs ends='free' and loading='tilt'")
+        self._check_integrator()
+        check_int("max_events", self.max_events, 1, None)
+        check_real("force_tol", self.force_tol, 0.0, 1e-6)
+        check_choice("avalanche", self.avalanche, AVALANCHE_CRITERIA)
+        check_choice("record", self.record, RECORDS)
+        self.friction.check(self)
+        self.loading.check(self)
+        if self.output is not None:
+            check_writable("output", self.output)
+
+    def _check_integrator(self) -> None:
         dt_max = max_time_step(self.xi)
-        _check_real("dt", self.dt, 0.0, dt_max, open_low=True,
-                    why=f"a thirtieth of the fastest spring period 2*pi/sqrt(4+xi) = "
-                        f"{fastest_period(self.xi):.4g} tau")
-        _check_real("refine_tol", self.refine_tol, RESOLUTION_ULPS * math.ulp(self.dt), self.dt,
-                    why="at least 4 ulps of dt (double precision cannot halve a narrower "
-                        "bracket) and at most one time step")
-        _check_real("max_event_duration", self.max_event_duration, 0.0, None, open_low=True)
+        check_real("dt", self.dt, 0.0, dt_max, open_low=True,
+                   why=f"a thirtieth of the fastest spring period 2*pi/sqrt(4+xi) = "
+                       f"{fastest_period(self.xi):.4g} tau")
+        check_real("refine_tol", self.refine_tol, RESOLUTION_ULPS * math.ulp(self.dt), self.dt,
+                   why="at least 4 ulps of dt (double precision cannot halve a narrower "
+                       "bracket) and at most one time step")
+        check_real("max_event_duration", self.max_event_duration, 0.0, None, open_low=True)
         if self.max_event_duration < 100 * self.dt:
             raise SceneError(
                 f"max_event_duration={self.max_event_duration!r} tau must be at least "
@@ -266,32 +283,34 @@ class Scene:
                 f"up to about {longest:.3g} tau at dt={self.dt!r} (beyond, a time step of dt is "
                 "below 4 ulps of the event clock, which would stop advancing before the cap)"
             )
-        _check_int("max_events", self.max_events, 1, None)
-        _check_real("alpha_max", self.alpha_max, 0.0, ALPHA_MAX_LIMIT, open_low=True,
-                    why="pi/2 - 1e-6: towards pi/2 the rearrangements pile up without end "
-                        "(Delta alpha ~ cos alpha) and cos alpha sinks below rounding")
-        _check_real("force_tol", self.force_tol, 0.0, 1e-6)
-        if self.avalanche not in AVALANCHE_CRITERIA:
-            raise SceneError(f"avalanche={self.avalanche!r} must be one of {AVALANCHE_CRITERIA}")
-        if self.loading not in LOADINGS:
-            raise SceneError(f"loading={self.loading!r} must be one of {LOADINGS}")
-        _check_real("tilt", self.tilt, 0.0, math.atan(self.mu_d), why="below atan(mu_d), "
-                    "so that every slip of the pushed chain stops")
-        if self.loading == "tilt" and self.tilt != 0.0:
-            raise SceneError(f"tilt={self.tilt!r} is the fixed incline of loading='pushed_end'; "
-                             "with loading='tilt' the angle is the drive (leave tilt at 0)")
-        if self.loading == "pushed_end" and self.tilt == math.atan(self.mu_d):
-            raise SceneError(f"tilt={self.tilt!r} must be below atan(mu_d)={math.atan(self.mu_d):.10g}"
-                             " (at it the pushed chain never stops sliding)")
-        if self.loading == "pushed_end" and self.record == "forces":
-            raise SceneError("record='forces' rebuilds the forces of the tilt; with "
-                             "loading='pushed_end' use record='displacements'")
-        _check_real("drive_stiffness", self.drive_stiffness, 0.0, None, open_low=True)
-        _check_real("drive_max", self.drive_max, 0.0, None, open_low=True)
-        if self.record not in RECORDS:
-            raise SceneError(f"record={self.record!r} must be one of {RECORDS}")
-        if self.output is not None:
-            check_writable("output", self.output)
+
+    # -- the parts' flat values (the keys of scene files) ------------------
+    def flat_value(self, key: str) -> Any:
+        """The value of a part's flat key: its part's, or the default of the loading
+        (friction law) that owns the key when the scene has another one."""
+        for role in PARTS:
+            part = getattr(self, role)
+            if key in part.flat_keys:
+                return getattr(part, part.flat_keys[key])
+        return _flat_defaults()[key]
+
+    mu_d = property(lambda self: self.flat_value("mu_d"),
+                    doc="Dynamic friction coefficient (``friction.mu_d``).")
+    mu_s_mean = property(lambda self: self.flat_value("mu_s_mean"),
+                         doc="Mean static friction coefficient (``friction.mu_s_mean``).")
+    sigma_mu = property(lambda self: self.flat_value("sigma_mu"),
+                        doc="Width of the static coefficients (``friction.sigma_mu``).")
+    alpha_max = property(lambda self: self.flat_value("alpha_max"),
+                         doc="End of the tilt, radians (``Tilt.alpha_max``).")
+    incline = property(lambda self: self.flat_value("tilt"),
+                       doc="The fixed incline of the pushed end, radians (``PushedEnd.incline``; "
+                           "0 under the tilt, whose angle is the drive).")
+    tilt = property(lambda self: self.flat_value("tilt"),
+                    doc="The flat key of ``incline`` (scene files, ``--tilt``).")
+    drive_stiffness = property(lambda self: self.flat_value("drive_stiffness"),
+                               doc="K of the pushed end's driver spring (``PushedEnd.stiffness``).")
+    drive_max = property(lambda self: self.flat_value("drive_max"),
+                         doc="The pushed end's driver limit (``PushedEnd.drive_max``).")
 
     # -- convenience -------------------------------------------------------
     @property
@@ -311,12 +330,20 @@ class Scene:
         return math.atan(self.mu_d), math.atan(self.mu_s_mean)
 
     def replace(self, **changes: Any) -> "Scene":
-        """A copy with ``changes``; a new ``mode`` brings its own integrator
-        settings, except those given in the same call."""
+        """A copy with ``changes`` (fields, parts or flat keys); a new ``mode``
+        brings its own integrator settings, except those given in the same
+        call; flat keys of a part change that part's values only."""
         if "mode" in changes:
             for name in SPEED_MODES[DEFAULT_MODE]:
                 changes.setdefault(name, None)
-        return dataclasses.replace(self, **changes)
+        values = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in PARTS}
+        for role in PARTS:
+            current = getattr(self, role)
+            given = changes.pop(role, None)
+            keys = _part_keys(role, given if given is not None else current)
+            own = {k: changes.pop(k) for k in list(changes) if k in keys}
+            values[role] = build_part(role, given, own, current)
+        return Scene(**{**values, **changes})
 
     def memory_estimate(self) -> int:
         """Bytes a run of this scene needs (an upper estimate; see BYTES_PER_* above).
@@ -334,15 +361,23 @@ class Scene:
         return int(total)
 
     def to_dict(self) -> dict[str, Any]:
-        """Every field but ``output`` as plain Python values (the scene files' keys)."""
-        d = dataclasses.asdict(self)
-        d.pop("output")
-        return d
+        """The scene's flat keys as plain Python values (the scene files' keys): the
+        fields but the parts and ``output``, the parts' names and flat keys, and the
+        other registered parts' flat keys at their defaults."""
+        flat = {f.name: getattr(self, f.name) for f in fields(self)
+                if f.name not in PARTS and f.name != "output"}
+        flat.update(_flat_defaults())
+        for role in PARTS:
+            part = getattr(self, role)
+            if role != "friction" or part.name != Coulomb.name:  # files name only a loading
+                flat[role] = part.name
+            flat.update(part.flat())
+        return {k: flat[k] for k in sorted(flat, key=_file_order)}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "Scene":
         """The scene of ``to_dict``'s keys; an unknown key raises SceneError with a close match."""
-        known = {f.name for f in fields(cls)}
+        known = {key.name for key in scene_keys()} | {"output"}
         unknown = sorted(set(d) - known)
         if unknown:
             raise SceneError(f"unknown scene key(s) {unknown}{_hint(unknown[0], known)}; allowed "
@@ -353,6 +388,85 @@ class Scene:
     def from_toml(cls, path: str | os.PathLike[str]) -> "Scene":
         """The scene of a TOML file (keys of ``to_dict``, at top level or under ``[scene]``)."""
         return cls.from_dict(toml_values(path))
+
+
+# The scene's parts: the field, its base class, the registry of its kinds by
+# name (what a scene file's key names) and the default kind.
+PARTS = {"friction": (Friction, FRICTIONS, Coulomb), "loading": (Loading, LOADINGS, Tilt)}
+# The order of the keys in a scene file (keys of parts added later follow, sorted).
+FILE_KEYS = ("n_sliders", "xi", "spring_length", "mu_d", "mu_s_mean", "sigma_mu", "seed", "ends",
+             "initial_forces", "mode", "dt", "refine_tol", "max_event_duration", "max_events",
+             "alpha_max", "force_tol", "avalanche", "loading", "tilt", "drive_stiffness",
+             "drive_max", "record")
+
+
+def _file_order(key: str) -> tuple:
+    return (0, FILE_KEYS.index(key), "") if key in FILE_KEYS else (1, 0, key)
+
+
+def _flat_defaults() -> dict[str, Any]:
+    """Every registered part's flat keys with their defaults."""
+    return {key: value for _, registry, _ in PARTS.values() for cls in registry.values()
+            for key, value in cls.flat_defaults().items()}
+
+
+def _part_keys(role: str, given) -> set[str]:
+    """The flat keys that belong to the part ``role``: every registered kind's,
+    and those of the given part object."""
+    _, registry, _ = PARTS[role]
+    keys = {key for cls in registry.values() for key in cls.flat_keys}
+    return keys | set(getattr(given, "flat_keys", ()))
+
+
+def build_part(role: str, given, flat: dict[str, Any], current=None):
+    """The part ``role`` ("friction" or "loading") of a scene: ``given`` (a part
+    object, its name, or None for ``current``'s kind, else the default) with the
+    flat keys ``flat`` of its own; a flat key of another kind must keep its
+    default (files hold them all)."""
+    base, registry, default = PARTS[role]
+    if isinstance(given, base):
+        part = given
+        clash = sorted(set(flat) & set(part.flat_keys))
+        if clash:
+            raise SceneError(f"{clash[0]}={flat[clash[0]]!r} is a parameter of {role}={part!r}: "
+                             "give it there, not beside it")
+    else:
+        kind = type(current) if given is None and current is not None else default
+        if given is not None:
+            if not isinstance(given, str) or given not in registry:
+                raise SceneError(f"{role}={given!r} must be one of {tuple(registry)}")
+            kind = registry[given]
+        part = kind.from_flat(flat, current if type(current) is kind else None)
+    for key, value in flat.items():
+        if key not in part.flat_keys and value != _flat_defaults()[key]:
+            owner = next(cls.name for cls in registry.values() if key in cls.flat_keys)
+            raise SceneError(f"{key}={value!r} is a parameter of {role}={owner!r}; with "
+                             f"{role}={part.name!r} leave it out")
+    return part
+
+
+class SceneKey(NamedTuple):
+    """One flat key of a scene file and of the command line."""
+
+    name: str
+    type: type
+    default: Any
+
+
+def scene_keys() -> tuple[SceneKey, ...]:
+    """The flat keys of a scene (file order): the fields but the parts and ``output``,
+    the parts' names and every registered kind's flat keys, with type and default."""
+    kinds = {"int": int, "float": float, "str": str}
+    keys = {f.name: SceneKey(f.name, kinds[f.type.split(" ")[0]], f.default)
+            for f in fields(Scene) if f.name not in PARTS and f.name != "output"}
+    for role, (_, registry, default) in PARTS.items():
+        if len(registry) > 1:
+            keys[role] = SceneKey(role, str, default.name)
+        for cls in registry.values():
+            types = {f.name: f.type for f in fields(cls)}
+            for key, attr in cls.flat_keys.items():
+                keys[key] = SceneKey(key, kinds[types[attr]], cls.flat_defaults()[key])
+    return tuple(keys[k] for k in sorted(keys, key=_file_order))
 
 
 def read_toml(path, where: str, error: type[Exception]) -> dict[str, Any]:
@@ -375,7 +489,7 @@ def toml_values(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The scene keys of a TOML file (its [scene] table, or the top level), as written."""
     where = f"scene file {str(path)!r}"
     data = read_toml(path, where, SceneError)
-    known = {f.name for f in fields(Scene)} - {"output"}
+    known = {key.name for key in scene_keys()}
     if "scene" in data:
         outside = [k for k in data if k != "scene"]
         if outside:
@@ -402,36 +516,10 @@ def _hint(key: str, known) -> str:
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
-def _plain_value(name: str, kind: str, value):
-    """Python and NumPy scalars alike, as plain Python numbers and strings.
-
-    A NumPy float becomes the shortest decimal that round-trips in its own
-    precision (np.float32(0.001) -> 0.001, not 0.0010000000474974513), which is
-    what was written.  Booleans are left for the checks to refuse.
-    """
-    try:
-        import numpy as np
-    except ImportError:  # pragma: no cover - numpy is a dependency
-        return value
-    if isinstance(value, (bool, np.bool_)) or value is None:
-        return value
-    if kind.startswith("int"):
-        if isinstance(value, np.integer):
-            return int(value)
-    elif kind.startswith("float"):
-        if isinstance(value, np.floating):
-            return float(str(value))
-        if isinstance(value, (int, np.integer)):
-            return float(value)
-    elif kind.startswith("str") and isinstance(value, np.str_):
-        return str(value)
-    return value
-
-
 def check_tilt_statistics(scene: Scene) -> None:
     """Refuse a loading whose runs the tilt's statistics cannot describe (ensembles, studies)."""
-    if scene.loading != "tilt":
-        raise SceneError(f"loading={scene.loading!r}: ensembles and studies gather the tilt's "
+    if not scene.loading.drive_is_angle:
+        raise SceneError(f"loading={scene.loading.name!r}: ensembles and studies gather the tilt's "
                          "statistics (alpha_c, precursors by angle); run it one realisation at "
                          "a time: python -m sliders tilt --loading pushed_end")
 
@@ -461,40 +549,6 @@ def available_memory() -> int | None:
     except (OSError, ValueError, IndexError):
         return None
     return None
-
-
-def _check_real(name, value, low, high, *, open_low=False, why=None) -> None:
-    rng = _range_text(low, high, open_low)
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SceneError(f"{name}={value!r} must be a real number in {rng}")
-    if not math.isfinite(value):
-        raise SceneError(f"{name}={value!r} must be finite, in {rng}")
-    too_low = low is not None and (value <= low if open_low else value < low)
-    too_high = high is not None and value > high
-    if too_low or too_high:
-        extra = f" ({why})" if why else ""
-        raise SceneError(f"{name}={value!r} is out of range: allowed {rng}{extra}")
-
-
-def _check_int(name, value, low, high) -> None:
-    rng = _range_text(low, high, False)
-    if isinstance(value, bool) or not isinstance(value, int):
-        try:
-            import numpy as np
-
-            ok = isinstance(value, np.integer)
-        except ImportError:  # pragma: no cover
-            ok = False
-        if not ok:
-            raise SceneError(f"{name}={value!r} must be an integer in {rng}")
-    if (low is not None and value < low) or (high is not None and value > high):
-        raise SceneError(f"{name}={value!r} is out of range: allowed {rng}")
-
-
-def _range_text(low, high, open_low) -> str:
-    lo = "-inf" if low is None else f"{low:.10g}"
-    hi = "+inf" if high is None else f"{high:.10g}"
-    return f"{'(' if open_low or low is None else '['}{lo}, {hi}{')' if high is None else ']'}"
 
 
 def check_writable(name: str, path: str | os.PathLike[str]) -> None:

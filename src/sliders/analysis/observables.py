@@ -186,9 +186,9 @@ def default_grids(scene, n_alpha: int = 55, n_force_bins: int = 120,
 
 def _tilt_only(result, what: str) -> None:
     """These observables read the drive as the tilt (sin and cos of it)."""
-    if result.scene.loading != "tilt":
+    if not result.scene.loading.drive_is_angle:
         raise ValueError(f"{what} is an observable of the tilt (it takes sin and cos of the "
-                         f"drive); this run has loading={result.scene.loading!r}")
+                         f"drive); this run has loading={result.scene.loading.name!r}")
 
 
 def valid_limit(result) -> tuple[float, bool]:

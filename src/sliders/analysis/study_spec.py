@@ -12,10 +12,10 @@ import hashlib
 import itertools
 import json
 import os
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any
 
-from ..scene import Scene, SceneError, check_tilt_statistics
+from ..scene import Scene, SceneError, check_tilt_statistics, scene_keys
 
 STUDY_PREFIX = "study_"  # extra per-realisation statistics (burst periods, synchronisation)
 NOT_AXES = ("seed", "output", "record")  # seed: common random numbers; record: statistics needed
@@ -81,7 +81,7 @@ def parse_study(data: dict, where: str = "study") -> Study:
     """Validate a study (the parsed TOML); every point's scene is built, nothing is run."""
     from ..analysis.observables import default_grids
 
-    known = {f.name for f in fields(Scene)} - {"output"}
+    known = {key.name for key in scene_keys()}
     for k in data:
         if k not in ("study", "scene", "axes"):
             raise StudyError(f"{where}: unknown table or key {k!r}{_hint(k, ['study', 'scene', 'axes'])}; "

@@ -8,8 +8,9 @@ Declared once here:
   numbers and tests/test_contract.py checks them against this table.
 * ``REAL_PARAMETERS`` / ``INT_PARAMETERS``: the packed parameters of one
   kernel call (the f2py boundary takes two parameter arrays, not one argument
-  per scene value), with ``pack_parameters`` filling them from a scene.
-  Their defaults are the scene's (``scene.py``): the kernel has none.
+  per scene value), with ``pack_parameters`` filling them from a scene: the
+  friction law and the loading pack their own (``packed()``), the rest are
+  the scene's fields.  Their defaults are the scene's: the kernel has none.
 * ``Chunk``: what one ``advance`` call returns, and ``join_chunks``, the one
   merge of consecutive chunks (the CSR pointers shifted).
 """
@@ -20,6 +21,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .loading import LOADINGS
 
 # Halvings of a crossing bracket, at most (sliders_crossing.max_halvings): a step
 # of 1 tau closes to 3e-39 within them, so only a refine_tol below what the
@@ -54,8 +57,8 @@ REAL_PARAMETERS = ("xi", "mu_d", "mu_s_mean", "sigma_mu", "dt", "refine_tol",
                    "tilt", "drive_stiffness", "drive_max")
 INT_PARAMETERS = ("walls", "seed", "record_sparse", "relax_only", "max_events", "loading")
 # The loading protocols' codes in the int parameter "loading" (sliders_contract:
-# loading_tilt, loading_pushed_end).
-LOADING_CODES = {"tilt": 0, "pushed_end": 1}
+# loading_tilt, loading_pushed_end), declared by each loading (``Loading.code``).
+LOADING_CODES = {name: cls.code for name, cls in LOADINGS.items()}
 
 
 def pack_parameters(scene, alpha: float, record_sparse: bool, relax_only: bool,
@@ -63,7 +66,7 @@ def pack_parameters(scene, alpha: float, record_sparse: bool, relax_only: bool,
     """The kernel's two parameter arrays (float64, int64) for one call."""
     calls = {"alpha": alpha, "walls": int(scene.walls), "record_sparse": int(record_sparse),
              "relax_only": int(relax_only), "max_events": max_events,
-             "loading": LOADING_CODES[scene.loading]}
+             **scene.friction.packed(), **scene.loading.packed()}
     real = np.array([float(calls[k]) if k in calls else float(getattr(scene, k))
                      for k in REAL_PARAMETERS], dtype=np.float64)
     ints = np.array([int(calls[k]) if k in calls else int(getattr(scene, k))

@@ -1,5 +1,9 @@
 """Friction laws: static threshold, kinetic force and what is drawn at a stop.
 
+A friction law is a part of the scene (``Scene(friction=Coulomb(...))``,
+``engine.parameters.Part``): it owns its parameters, their checks and their
+packing for the kernel.
+
 The event integrator asks the friction law three things, each at event level
 (the per-step loop only uses the numbers they return):
 
@@ -15,39 +19,83 @@ The Fortran twin is ``fortran/sliders_friction.f90`` (bit-identical rounding).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .. import keyed_random
+from .parameters import Part, SceneError, check_real
 
 
-class CoulombFriction:
-    """Coulomb friction with a static coefficient redrawn at every stop.
-
-    Threshold mu_s N, kinetic force mu_d N; at its k-th stop slider n draws
-    mu_s(seed, n, k) from the keyed Gaussian (mu_s_mean, sigma_mu) above mu_d.
-    """
-
-    name = "coulomb"
-
-    def __init__(self, scene):
-        self.scene = scene
+class Friction(Part):
+    """What every friction law provides (``Coulomb`` is the one): a part
+    (``Part``) with the three answers the event integrator asks for."""
 
     def static_threshold(self, mu_s, normal: float):
         """abs(F) beyond which a resting slider starts."""
+        raise NotImplementedError
+
+    def kinetic_force(self, normal: float) -> float:
+        """Friction on a moving slider (opposite to its motion)."""
+        raise NotImplementedError
+
+    def draw_at_stop(self, sliders: np.ndarray, n_stops: np.ndarray) -> np.ndarray:
+        """Static coefficients of ``sliders`` at their ``n_stops``-th stop."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True, repr=False)
+class Coulomb(Friction):
+    """Coulomb friction with a static coefficient redrawn at every stop.
+
+    Threshold mu_s N, kinetic force ``mu_d`` N; at its k-th stop slider n draws
+    mu_s(seed, n, k) from the keyed Gaussian (``mu_s_mean``, ``sigma_mu``)
+    above ``mu_d`` (static friction above dynamic: mu_d < mu_s_mean).
+    """
+
+    mu_d: float = 0.55
+    mu_s_mean: float = 0.6
+    sigma_mu: float = 0.01
+
+    name = "coulomb"
+    flat_keys = {"mu_d": "mu_d", "mu_s_mean": "mu_s_mean", "sigma_mu": "sigma_mu"}
+
+    def check_own(self) -> None:
+        """mu_d >= 0, mu_s_mean > mu_d, sigma_mu >= 0, all finite."""
+        check_real("mu_d", self.mu_d, 0.0, None)
+        check_real("mu_s_mean", self.mu_s_mean, 0.0, None)
+        if not self.mu_s_mean > self.mu_d:
+            raise SceneError(
+                f"mu_s_mean={self.mu_s_mean!r} must exceed mu_d={self.mu_d!r} "
+                "(static friction above dynamic: mu_d < mu_s_mean)"
+            )
+        check_real("sigma_mu", self.sigma_mu, 0.0, None)
+
+    @property
+    def delta_mu(self) -> float:
+        """Delta mu = mu_s_mean - mu_d, the paper's bin half-width."""
+        return self.mu_s_mean - self.mu_d
+
+    def static_threshold(self, mu_s, normal: float):
+        """abs(F) beyond which a resting slider starts (plus the scene's force_tol,
+        so that a slider exactly at threshold stays put)."""
         return mu_s * normal + self.scene.force_tol
 
     def kinetic_force(self, normal: float) -> float:
         """Friction on a moving slider (opposite to its motion)."""
-        return self.scene.mu_d * normal
+        return self.mu_d * normal
 
     def draw_at_stop(self, sliders: np.ndarray, n_stops: np.ndarray) -> np.ndarray:
         """Static coefficients of ``sliders`` at their ``n_stops``-th stop
         (RuntimeError if the keyed draw fails)."""
-        sc = self.scene
-        return keyed_random.static_coefficient(sc.seed, sliders, n_stops, sc.mu_s_mean,
-                                               sc.sigma_mu, sc.mu_d)
+        return keyed_random.static_coefficient(self.scene.seed, sliders, n_stops, self.mu_s_mean,
+                                               self.sigma_mu, self.mu_d)
+
+
+# The friction laws a scene file can name (``friction = "..."``), by name.
+FRICTIONS = {cls.name: cls for cls in (Coulomb,)}
 
 
 def friction_for(scene):
-    """The friction law of a scene."""
-    return CoulombFriction(scene)
+    """The friction law of a scene (bound to it)."""
+    return scene.friction

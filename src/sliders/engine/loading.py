@@ -1,6 +1,9 @@
-"""Loading protocols: how the drive parameter lambda enters the chain.
+"""Loadings: how the drive parameter lambda enters the chain.
 
-A loading owns everything the event integrator must know about the drive:
+A loading is a part of the scene (``Scene(loading=Tilt(...))`` or
+``PushedEnd(...)``, ``engine.parameters.Part``): it owns its parameters,
+their checks, their packing for the kernel, what it allows, and everything
+the event integrator must know about the drive:
 
 * the tangential force it adds to every slider's elastic force (``weight``)
   and the normal load that scales friction (``normal``), both functions of
@@ -21,8 +24,15 @@ import math
 
 import numpy as np
 
-from ..chain import elastic_force, tangential_force
+from dataclasses import dataclass
 
+from ..chain import elastic_force, tangential_force
+from .parameters import Part, SceneError, check_real
+
+# Between walls the rearrangement angles pile up towards pi/2 (Delta alpha is
+# proportional to cos alpha: infinitely many events before pi/2), and the
+# displacement per event, (mu_s - mu_d) cos alpha, sinks below rounding.
+ALPHA_MAX_LIMIT = math.pi / 2 - 1e-6
 TIE_TOL = 1e-12  # sliders whose instability angles tie within this start together
 # The transcendentals of next_instability: NumPy's; a caller may put the C
 # library's here (as keyed_random.TRANSCENDENTALS).
@@ -55,30 +65,99 @@ def next_instability(elastic: np.ndarray, mu: np.ndarray, alpha: float):
     return angle, triggers, directions
 
 
-class TiltLoading:
-    """The paper's loading: lambda = alpha, the incline's tilt.
+class Loading(Part):
+    """What every loading provides (``Tilt`` and ``PushedEnd`` are the two).
 
-    Every slider feels its weight's component sin(alpha) along the incline
-    and presses with cos(alpha) on it (units of m g).
+    Beyond a part's parameters, checks and packing (``Part``): the kernel's
+    code of the protocol (``code``), what the drive is (``drive_is_angle``,
+    ``drive_label``, ``drive_unit``) and the physics the
+    event integrator asks for, each method below.  A loading that only the
+    NumPy reference runs needs no ``code`` (tests/test_scene_parts.py adds one).
     """
 
-    name = "tilt"
+    code: int | None = None
+    drive_is_angle = False  # the drive is the incline's angle: the tilt's statistics apply
+    drive_label = "drive lambda"  # the drive in words, as results print it
+    drive_unit = ""
 
-    def __init__(self, scene):
-        self.scene = scene
+    def packed(self) -> dict:
+        """Every loading slot of the kernel's parameters: the protocol's code, its
+        own values, and the other loadings' slots at their defaults (unread)."""
+        if self.code is None:
+            raise SceneError(f"loading={self.name!r} has no Fortran twin: run it with "
+                             "backend='numpy'")
+        slots = {key: value for cls in LOADINGS.values() for key, value in cls.flat_defaults().items()}
+        return {**slots, **self.flat(), "loading": self.code}
 
-    @staticmethod
-    def tangential(elastic: np.ndarray, weight: float, drive: float, du: np.ndarray):
+    def tangential(self, elastic: np.ndarray, weight: float, drive: float, du: np.ndarray):
         """Tangential force on every slider: elastic force plus the weight."""
         return elastic + weight
 
-    @staticmethod
-    def weight(alpha: float) -> float:
+    def weight(self, drive: float) -> float:
+        """Tangential force the drive adds to every slider."""
+        raise NotImplementedError
+
+    def normal(self, drive: float) -> float:
+        """Normal load that scales friction."""
+        raise NotImplementedError
+
+    def forces(self, state, drives, displacement=None) -> np.ndarray:
+        """F_t of every slider at rest at each drive (``tangential`` in the same
+        order); broadcasts over drives and (G, N) displacements, for analysis."""
+        raise NotImplementedError
+
+    def next_instability(self, elastic: np.ndarray, mu: np.ndarray, drive: float, du: np.ndarray):
+        """The next critical drive >= ``drive``: (drive, trigger indices, directions)."""
+        raise NotImplementedError
+
+    def beyond_limit(self, drive: float) -> bool:
+        """The drive went past the scene's end of loading."""
+        raise NotImplementedError
+
+    def work(self, weight: float, step: np.ndarray, drive: float, du_start: np.ndarray) -> float:
+        """Work of the loading on the event's displacements (gravity's)."""
+        return weight * float(step.sum())
+
+    def spanning_ends_run(self) -> bool:
+        """Whether the first event in which every slider moved ends the run."""
+        return False
+
+    def runaway(self, moving: np.ndarray, direction: np.ndarray, weight: float,
+                kinetic: float) -> bool:
+        """Whether the event has become a runaway that ends the run (the avalanche)."""
+        return False
+
+
+@dataclass(frozen=True, repr=False)
+class Tilt(Loading):
+    """The paper's loading: lambda = alpha, the incline's tilt, up to ``alpha_max``.
+
+    Every slider feels its weight's component sin(alpha) along the incline
+    and presses with cos(alpha) on it (units of m g).  ``alpha_max``
+    (radians, at most pi/2 - 1e-6) ends the run (needed between walls, which
+    never avalanche).
+    """
+
+    alpha_max: float = ALPHA_MAX_LIMIT
+
+    name = "tilt"
+    code = 0  # sliders_contract: loading_tilt
+    flat_keys = {"alpha_max": "alpha_max"}
+    drive_is_angle = True
+    drive_label = "alpha"
+    drive_unit = "rad"
+
+    def check_own(self) -> None:
+        """alpha_max in (0, pi/2 - 1e-6]."""
+        check_real("alpha_max", self.alpha_max, 0.0, ALPHA_MAX_LIMIT, open_low=True,
+                   why="pi/2 - 1e-6: towards pi/2 the rearrangements pile up without end "
+                       "(Delta alpha ~ cos alpha) and cos alpha sinks below rounding")
+
+    def weight(self, alpha: float) -> float:
         """Tangential force the drive adds to every slider (sin alpha)."""
         return math.sin(alpha)
 
-    @staticmethod
-    def normal(alpha: float) -> float:
+    def normal(self, alpha: float) -> float:
         """Normal load that scales friction (cos alpha)."""
         return math.cos(alpha)
 
@@ -93,17 +172,7 @@ class TiltLoading:
 
     def beyond_limit(self, alpha: float) -> bool:
         """The drive went past the scene's end of loading (alpha_max)."""
-        return alpha > self.scene.alpha_max
-
-    @staticmethod
-    def work(weight: float, step: np.ndarray, drive: float, du_start: np.ndarray) -> float:
-        """Work of gravity on the event's displacements."""
-        return weight * float(step.sum())
-
-    @staticmethod
-    def spanning_ends_run() -> bool:
-        """The tilt runs on after system-spanning events (the avalanche ends it)."""
-        return False
+        return alpha > self.alpha_max
 
     def runaway(self, moving: np.ndarray, direction: np.ndarray, weight: float,
                 kinetic: float) -> bool:
@@ -113,24 +182,63 @@ class TiltLoading:
                 and weight > kinetic)
 
 
-class PushedEndLoading:
+@dataclass(frozen=True, repr=False, init=False)
+class PushedEnd(Loading):
     """The Burridge-Knopoff loading: lambda = D, the position of a driver tied
-    by a spring of stiffness K (``drive_stiffness``, units of k) to slider 1.
+    by a spring of stiffness K (``stiffness``, units of k) to slider 1.
 
-    The incline's tilt is fixed (``scene.tilt``): every slider feels sin(tilt)
-    and presses with cos(tilt).  Slider 1 (index 0) also feels K (D - du_1),
-    which changes during an event as it moves (the driver stands still).
-    Only slider 1's force depends on D, so the next instability is its
-    threshold crossing, D = du_1 + (mu_1 cos(tilt) - E_1 - sin(tilt)) / K.
-    The run ends after the first event in which every slider moved: the
-    system-spanning slip, the onset of sliding.
+    The incline is fixed at ``incline`` (radians, below atan(mu_d) so that
+    every slip stops; ``tilt=`` is accepted for it): every slider feels
+    sin(incline) and presses with cos(incline).  Slider 1 (index 0) also
+    feels K (D - du_1), which changes during an event as it moves (the
+    driver stands still).  Only slider 1's force depends on D, so the next
+    instability is its threshold crossing,
+    D = du_1 + (mu_1 cos(incline) - E_1 - sin(incline)) / K.
+    The run ends after the first event in which every slider moved (the
+    system-spanning slip, the onset of sliding) or beyond ``drive_max``
+    (g tau^2).  Flat scene keys: ``tilt``, ``drive_stiffness``, ``drive_max``.
     """
 
-    name = "pushed_end"
+    incline: float = 0.0
+    stiffness: float = 1.0
+    drive_max: float = 1e9
 
-    def __init__(self, scene):
-        self.scene = scene
-        self.stiffness = scene.drive_stiffness
+    name = "pushed_end"
+    code = 1  # sliders_contract: loading_pushed_end
+    flat_keys = {"tilt": "incline", "drive_stiffness": "stiffness", "drive_max": "drive_max"}
+    drive_label = "driver position D"
+    drive_unit = "g tau^2"
+
+    def __init__(self, incline: float = 0.0, stiffness: float = 1.0, drive_max: float = 1e9, *,
+                 tilt: float | None = None):
+        if tilt is not None:
+            if incline != 0.0:
+                raise SceneError(f"tilt={tilt!r} and incline={incline!r} name the same fixed "
+                                 "incline: give one")
+            incline = tilt
+        object.__setattr__(self, "incline", incline)
+        object.__setattr__(self, "stiffness", stiffness)
+        object.__setattr__(self, "drive_max", drive_max)
+        self.__post_init__()
+
+    def check_own(self) -> None:
+        """incline >= 0 (its upper bound, atan(mu_d), is the friction's: ``check``),
+        stiffness > 0, drive_max > 0."""
+        check_real("tilt", self.incline, 0.0, None)
+        check_real("drive_stiffness", self.stiffness, 0.0, None, open_low=True)
+        check_real("drive_max", self.drive_max, 0.0, None, open_low=True)
+
+    def check(self, scene) -> None:
+        """The incline below atan(mu_d) (every slip stops), and no record='forces'."""
+        bound = math.atan(scene.friction.mu_d)
+        check_real("tilt", self.incline, 0.0, bound,
+                   why="below atan(mu_d), so that every slip of the pushed chain stops")
+        if self.incline == bound:
+            raise SceneError(f"tilt={self.incline!r} must be below atan(mu_d)={bound:.10g}"
+                             " (at it the pushed chain never stops sliding)")
+        if scene.record == "forces":
+            raise SceneError("record='forces' rebuilds the forces of the tilt; with "
+                             "loading='pushed_end' use record='displacements'")
 
     def tangential(self, elastic: np.ndarray, weight: float, drive: float, du: np.ndarray):
         """Elastic force plus the weight, plus the driver's spring on slider 1."""
@@ -139,12 +247,12 @@ class PushedEndLoading:
         return force
 
     def weight(self, drive: float) -> float:
-        """Tangential component of the weight at the fixed tilt."""
-        return math.sin(self.scene.tilt)
+        """Tangential component of the weight at the fixed incline."""
+        return math.sin(self.incline)
 
     def normal(self, drive: float) -> float:
-        """Normal load at the fixed tilt."""
-        return math.cos(self.scene.tilt)
+        """Normal load at the fixed incline."""
+        return math.cos(self.incline)
 
     def forces(self, state, drives, displacement=None) -> np.ndarray:
         """F_t of every slider at rest at each driver position (``tangential``
@@ -152,7 +260,7 @@ class PushedEndLoading:
         sc = self.scene
         drives = np.asarray(drives, dtype=float)
         du = state.displacement if displacement is None else np.asarray(displacement, dtype=float)
-        force = elastic_force(state, sc.xi, sc.walls, du) + math.sin(sc.tilt)
+        force = elastic_force(state, sc.xi, sc.walls, du) + math.sin(self.incline)
         force = np.array(np.broadcast_to(force, np.broadcast_shapes(force.shape,
                                                                     drives.shape + (1,))))
         force[..., 0] += self.stiffness * (drives - du[..., 0])
@@ -166,14 +274,13 @@ class PushedEndLoading:
         """The drive at which slider 1 starts downwards (every other slider is
         stable and does not feel D): its force E_1 + sin + K (D - du_1)
         reaches mu_1 cos + force_tol."""
-        sc = self.scene
-        threshold = mu[0] * math.cos(sc.tilt) + sc.force_tol
-        critical = du[0] + (threshold - elastic[0] - math.sin(sc.tilt)) / self.stiffness
+        threshold = mu[0] * math.cos(self.incline) + self.scene.force_tol
+        critical = du[0] + (threshold - elastic[0] - math.sin(self.incline)) / self.stiffness
         return max(critical, drive), np.array([0]), np.array([1.0])
 
     def beyond_limit(self, drive: float) -> bool:
         """The driver went past its limit (drive_max)."""
-        return drive > self.scene.drive_max
+        return drive > self.drive_max
 
     def work(self, weight: float, step: np.ndarray, drive: float, du_start: np.ndarray) -> float:
         """Work of gravity plus the work of the driver's spring on slider 1 as
@@ -181,20 +288,16 @@ class PushedEndLoading:
         s = float(step[0])
         return weight * float(step.sum()) + self.stiffness * ((drive - du_start[0]) * s - 0.5 * s * s)
 
-    def runaway(self, moving, direction, weight, kinetic) -> bool:
-        """Never during an event: the tilt is below the avalanche angle, so every
-        slip stops; the run ends after a system-spanning slip instead."""
-        return False
-
-    @staticmethod
-    def spanning_ends_run() -> bool:
-        """The first event in which every slider moved is the onset of sliding."""
+    def spanning_ends_run(self) -> bool:
+        """The first event in which every slider moved is the onset of sliding
+        (the incline is below the avalanche angle, so every slip stops: no runaway)."""
         return True
 
 
-LOADINGS = {"tilt": TiltLoading, "pushed_end": PushedEndLoading}
+# The loadings a scene file can name (``loading = "..."``), by name.
+LOADINGS = {cls.name: cls for cls in (Tilt, PushedEnd)}
 
 
 def loading_for(scene):
-    """The loading protocol of a scene."""
-    return LOADINGS[scene.loading](scene)
+    """The loading of a scene (bound to it)."""
+    return scene.loading

@@ -48,10 +48,9 @@ from ..chain import ChainState, elastic_energy, elastic_force
 from ..scene import Scene
 from .contract import (INTERRUPTED_MESSAGE, MAX_HALVINGS, Chunk, events_from_records,
                        refine_limit_message)
-from .friction import friction_for
 # next_instability, TIE_TOL and TRANSCENDENTALS live with the tilt loading;
-# re-exported here, where callers and tests have always found them.
-from .loading import TIE_TOL, TRANSCENDENTALS, loading_for, next_instability  # noqa: F401
+# re-exported here for the callers and tests that import them from the reference.
+from .loading import TIE_TOL, TRANSCENDENTALS, next_instability  # noqa: F401
 
 
 @dataclass
@@ -69,8 +68,8 @@ class NumpyEngine:
 
     def __init__(self, scene: Scene):
         self.scene = scene
-        self.loading = loading_for(scene)
-        self.friction = friction_for(scene)
+        self.loading = scene.loading  # the scene's parts, bound to it
+        self.friction = scene.friction
 
     # -- public -----------------------------------------------------------
     def advance(self, state: ChainState, max_events: int, relax_only: bool = False) -> Chunk:

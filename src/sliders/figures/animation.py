@@ -36,8 +36,8 @@ def animation_scene(path=None):
     if path is None:
         return Scene(n_sliders=10, xi=0.0, seed=1, record="displacements")
     scene = Scene.from_toml(path)
-    if scene.loading != "tilt":
-        raise SceneError(f"{path}: loading={scene.loading!r}: the animation draws the forces "
+    if not scene.loading.drive_is_angle:
+        raise SceneError(f"{path}: loading={scene.loading.name!r}: the animation draws the forces "
                          "against the tilt's stability limits; the pushed chain has its own "
                          "figure (--only pushed_end)")
     return scene if scene.record != "summary" else scene.replace(record="displacements")

@@ -24,7 +24,7 @@ from .style import COLUMN_WIDTH, ORDER_CMAP, STYLE, panel_label, save_figure
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib import colors as mcolors  # noqa: E402
 
-from ..engine.loading import loading_for  # noqa: E402
+from ..engine.loading import PushedEnd, loading_for  # noqa: E402
 from ..scene import Scene  # noqa: E402
 
 NAME = "pushed_end"
@@ -75,8 +75,8 @@ def profile_events(arrest: np.ndarray, n_sliders: int,
 def fig_pushed_end(result, out_dir="figures", name: str = NAME):
     """The precursor lengths against the drive, and the force profiles before them."""
     sc = result.scene
-    if sc.loading != "pushed_end":
-        raise ValueError(f"fig_pushed_end needs a run of loading='pushed_end', not {sc.loading!r}")
+    if not isinstance(sc.loading, PushedEnd):
+        raise ValueError(f"fig_pushed_end needs a run of loading='pushed_end', not {sc.loading.name!r}")
     drive = result.events["alpha"]
     arrest = arrest_positions(result)
     growing = record_fronts(arrest)

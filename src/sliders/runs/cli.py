@@ -3,28 +3,22 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import sys
 import time
 import typing
 
-from ..scene import DEFAULT_MODE, SPEED_MODES, Scene, SceneError, check_writable, toml_values
-
-_SKIP = {"output"}
+from ..scene import (DEFAULT_MODE, SPEED_MODES, Scene, SceneError, check_writable, scene_keys,
+                     toml_values)
 
 
 def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
-    """One option per Scene field (``--n-sliders``, ``--xi``, ...) plus ``--scene FILE.toml``."""
+    """One option per flat scene key (``--n-sliders``, ``--xi``, ...) plus ``--scene FILE.toml``."""
     group = parser.add_argument_group("scene (defaults: the paper's parameters)")
     group.add_argument("--scene", metavar="FILE.toml",
                        help="read the scene from a TOML file; options given here override it")
-    hints = typing.get_type_hints(Scene)
-    for f in dataclasses.fields(Scene):
-        if f.name in _SKIP:
-            continue
-        kinds = typing.get_args(hints[f.name]) or (hints[f.name],)
-        conv = int if int in kinds else float if float in kinds else str
+    for f in scene_keys():
+        conv = f.type
         default = (f"from --mode (default {DEFAULT_MODE!r}: {SPEED_MODES[DEFAULT_MODE][f.name]!r})"
                    if f.default is None else f"default {f.default!r}")
         choices = tuple(SPEED_MODES) if f.name == "mode" else None
@@ -48,9 +42,9 @@ def given_scene_values(args: argparse.Namespace) -> dict:
     if args.scene:
         values.update(toml_values(args.scene))
         Scene.from_dict(values)  # the file alone must be a valid scene
-    for f in dataclasses.fields(Scene):
+    for f in scene_keys():
         given = getattr(args, f.name, None)
-        if f.name not in _SKIP and given is not None:
+        if given is not None:
             values[f.name] = given
     return values
 

@@ -340,8 +340,8 @@ def parse_prior(data: dict, where: str = "prior") -> Prior:
         base = Scene.from_dict(scene_values)
     except SceneError as exc:
         raise PriorError(f"{where}: [scene] {exc}") from None
-    if base.loading != "tilt":
-        raise PriorError(f"{where}: [scene] loading = {base.loading!r}: a prior ensemble tilts")
+    if not base.loading.drive_is_angle:
+        raise PriorError(f"{where}: [scene] loading = {base.loading.name!r}: a prior ensemble tilts")
     marginals = {name: parse_marginal(name, spec) for name, spec in params.items()}
     for name, m in marginals.items():
         numeric = not (m.kind in ("choice", "fixed") and isinstance(m.values[0], str))
