@@ -362,14 +362,14 @@ class Scene:
 
     def to_dict(self) -> dict[str, Any]:
         """The scene's flat keys as plain Python values (the scene files' keys): the
-        fields but the parts and ``output``, the parts' names and flat keys, and the
-        other registered parts' flat keys at their defaults."""
+        fields but the parts and ``output``, the parts' names (where there is a choice)
+        and flat keys, and the other registered kinds' flat keys at their defaults."""
         flat = {f.name: getattr(self, f.name) for f in fields(self)
                 if f.name not in PARTS and f.name != "output"}
         flat.update(_flat_defaults())
-        for role in PARTS:
+        for role, (_, registry, _) in PARTS.items():
             part = getattr(self, role)
-            if role != "friction" or part.name != Coulomb.name:  # files name only a loading
+            if len(registry) > 1 or part.name not in registry:  # one law: files need not name it
                 flat[role] = part.name
             flat.update(part.flat())
         return {k: flat[k] for k in sorted(flat, key=_file_order)}
