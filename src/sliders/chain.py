@@ -41,7 +41,7 @@ class ChainState:
     mu_s: np.ndarray
     displacement: np.ndarray = field(default=None)  # du, since preparation
     n_stops: np.ndarray = field(default=None)  # stops so far (key of the next draw)
-    alpha: float = 0.0
+    alpha: float = 0.0  # the drive: the tilt, or the pushed end's driver position (``drive``)
 
     def __post_init__(self) -> None:
         n = self.mu_s.size
@@ -54,6 +54,12 @@ class ChainState:
     def n_sliders(self) -> int:
         """Number of sliders N."""
         return self.mu_s.size
+
+    @property
+    def drive(self) -> float:
+        """The drive the chain rests at: the tilt alpha (rad), or the pushed end's
+        driver position D (g tau^2); stored as ``alpha``."""
+        return self.alpha
 
     def copy(self) -> "ChainState":
         """An independent copy (every array copied)."""

@@ -39,12 +39,18 @@ def chunk_events(scene: Scene, backend: str) -> int:
 
 @dataclass
 class Progress:
-    """What a progress callback receives after every chunk."""
+    """What a progress callback receives after every chunk (``alpha``: the drive,
+    also readable as ``drive``: the tilt, or the pushed end's driver position)."""
 
     alpha: float
     n_events: int
     elapsed: float
     slider_steps: int
+
+    @property
+    def drive(self) -> float:
+        """The drive reached: the tilt alpha (rad), or the driver position D (g tau^2)."""
+        return self.alpha
 
 
 class Interrupted(KeyboardInterrupt):

@@ -92,6 +92,11 @@ def max_time_step(xi: float) -> float:
     return DT_PERIOD_FRACTION * fastest_period(xi)
 
 
+def _flat_key(key: str, doc: str) -> property:
+    """A read-only attribute of the scene: the value of a part's flat key (``flat_value``)."""
+    return property(lambda scene: scene.flat_value(key), doc=doc)
+
+
 @dataclass(frozen=True, init=False)
 class Scene:
     """One configured run, composed of its chain, its friction law and its
@@ -294,23 +299,16 @@ class Scene:
                 return getattr(part, part.flat_keys[key])
         return _flat_defaults()[key]
 
-    mu_d = property(lambda self: self.flat_value("mu_d"),
-                    doc="Dynamic friction coefficient (``friction.mu_d``).")
-    mu_s_mean = property(lambda self: self.flat_value("mu_s_mean"),
-                         doc="Mean static friction coefficient (``friction.mu_s_mean``).")
-    sigma_mu = property(lambda self: self.flat_value("sigma_mu"),
-                        doc="Width of the static coefficients (``friction.sigma_mu``).")
-    alpha_max = property(lambda self: self.flat_value("alpha_max"),
-                         doc="End of the tilt, radians (``Tilt.alpha_max``).")
-    incline = property(lambda self: self.flat_value("tilt"),
-                       doc="The fixed incline of the pushed end, radians (``PushedEnd.incline``; "
-                           "0 under the tilt, whose angle is the drive).")
-    tilt = property(lambda self: self.flat_value("tilt"),
-                    doc="The flat key of ``incline`` (scene files, ``--tilt``).")
-    drive_stiffness = property(lambda self: self.flat_value("drive_stiffness"),
-                               doc="K of the pushed end's driver spring (``PushedEnd.stiffness``).")
-    drive_max = property(lambda self: self.flat_value("drive_max"),
-                         doc="The pushed end's driver limit (``PushedEnd.drive_max``).")
+    mu_d = _flat_key("mu_d", "Dynamic friction coefficient (``friction.mu_d``).")
+    mu_s_mean = _flat_key("mu_s_mean", "Mean static friction coefficient (``friction.mu_s_mean``).")
+    sigma_mu = _flat_key("sigma_mu", "Width of the static coefficients (``friction.sigma_mu``).")
+    alpha_max = _flat_key("alpha_max", "End of the tilt, radians (``Tilt.alpha_max``).")
+    incline = _flat_key("tilt", "The fixed incline of the pushed end, radians "
+                                "(``PushedEnd.incline``; 0 under the tilt, whose angle is the drive).")
+    tilt = _flat_key("tilt", "The flat key of ``incline`` (scene files, ``--tilt``).")
+    drive_stiffness = _flat_key("drive_stiffness",
+                                "K of the pushed end's driver spring (``PushedEnd.stiffness``).")
+    drive_max = _flat_key("drive_max", "The pushed end's driver limit (``PushedEnd.drive_max``).")
 
     # -- convenience -------------------------------------------------------
     @property

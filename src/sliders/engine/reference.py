@@ -145,126 +145,171 @@ class NumpyEngine:
 
     # -- one rearrangement ------------------------------------------------
     def _event(self, state: ChainState, triggers, directions) -> _EventOutcome:
+        """Integrate one rearrangement from its triggers until every slider rests
+        (or the run ends inside it)."""
         sc = self.scene
-        n = state.n_sliders
-        load, law = self.loading, self.friction
-        # the drive is fixed during an event: its terms are numbers here
-        weight, normal = load.weight(state.alpha), load.normal(state.alpha)
-        friction = law.kinetic_force(normal)
-        threshold = law.static_threshold(state.mu_s, normal)
-
-        du_start = state.displacement.copy()
-        du = du_start.copy()
-        v = np.zeros(n)
-        direction = np.zeros(n)
-        moving = np.zeros(n, dtype=bool)
-        moving[triggers] = True
-        direction[triggers] = directions
-        moved = moving.copy()
-        drive = state.alpha
-        force = load.tangential(elastic_force(state, sc.xi, sc.walls, du), weight, drive, du)
-        acc = np.where(moving, force - friction * direction, 0.0)
-
-        def substep(h):
-            """Velocity-Verlet step of size h from (du, v, acc); only movers move."""
-            du1 = du + np.where(moving, v * h + 0.5 * acc * h * h, 0.0)
-            force1 = load.tangential(elastic_force(state, sc.xi, sc.walls, du1), weight, drive, du1)
-            acc1 = np.where(moving, force1 - friction * direction, 0.0)
-            v1 = np.where(moving, v + 0.5 * (acc + acc1) * h, 0.0)
-            return du1, v1, force1
-
-        def crossings(trial):
-            """Mask of the sliders that cross in this trial (stop or start)."""
-            _, v1, force1 = trial
-            stops = moving & (direction * v1 < 0.0)
-            starts = ~moving & (np.abs(force1) > threshold)
-            return stops | starts
-
-        t = 0.0
-        n_steps = slider_steps = n_stops = 0
-        path = 0.0
-
-        mu_start, stops_start = state.mu_s.copy(), state.n_stops.copy()
-
-        def unfinished(code, message=""):
-            """The event ends the run: its status and the work it did.  On an
-            error the state is the one before the event (draws undone too)."""
-            if code != status.AVALANCHE:
-                state.mu_s[:], state.n_stops[:] = mu_start, stops_start
-            record = {"duration": t, "n_steps": n_steps, "slider_steps": slider_steps}
-            if message:
-                record["message"] = message
-            return _EventOutcome(code, record)
-
-        while moving.any():
-            h = sc.dt
-            trial = substep(h)
-            candidates = crossings(trial)
-            if candidates.any():
-                lo, hi = 0.0, h
-                halvings = 0
-                while hi - lo > sc.refine_tol:
-                    if halvings == MAX_HALVINGS:  # refine_tol below the step's resolution
-                        return unfinished(status.REFINE_LIMIT,
-                                          refine_limit_message(sc, state.alpha))
-                    halvings += 1
-                    mid = 0.5 * (lo + hi)
-                    trial_mid = substep(mid)
-                    if crossings(trial_mid)[candidates].any():
-                        hi, trial = mid, trial_mid
-                    else:
-                        lo = mid
-                h = hi
-            du1, v1, force1 = trial
-            n_steps += 1
-            slider_steps += int(moving.sum())
-            t += h
-            if not (np.all(np.isfinite(du1)) and np.all(np.isfinite(v1))):
-                return unfinished(status.NON_FINITE, f"non-finite state at alpha={state.alpha}")
-            path += float(np.sum(np.where(moving, direction * (du1 - du), 0.0)))
-            du, v, force = du1, v1, force1
-
-            stops = np.flatnonzero(moving & (direction * v < 0.0))
-            if stops.size:
-                n_stops += stops.size
-                v[stops] = 0.0
-                moving[stops] = False
-                direction[stops] = 0.0
-                state.n_stops[stops] += 1
-                try:
-                    state.mu_s[stops] = law.draw_at_stop(stops, state.n_stops[stops])
-                except RuntimeError as exc:
-                    return unfinished(status.RANDOM_FAILURE, str(exc))
-                threshold[stops] = law.static_threshold(state.mu_s[stops], normal)
-            starts = np.flatnonzero(~moving & (np.abs(force) > threshold))
-            moving[starts] = True
-            direction[starts] = np.sign(force[starts])
-            moved[starts] = True
-            acc = np.where(moving, force - friction * direction, 0.0)
-
-            if t > sc.max_event_duration:
-                return unfinished(
+        event = _Rearrangement(self, state, triggers, directions)
+        while event.moving.any():
+            trial = event.refined_step()
+            if trial is None:  # refine_tol below the step's resolution
+                return event.unfinished(status.REFINE_LIMIT, refine_limit_message(sc, state.alpha))
+            if not (np.all(np.isfinite(trial[0])) and np.all(np.isfinite(trial[1]))):
+                event.count_step(trial)
+                return event.unfinished(status.NON_FINITE, f"non-finite state at alpha={state.alpha}")
+            event.accept(trial)
+            try:
+                event.stop_and_start()
+            except RuntimeError as exc:
+                return event.unfinished(status.RANDOM_FAILURE, str(exc))
+            if event.t > sc.max_event_duration:
+                return event.unfinished(
                     status.EVENT_DURATION_CAP,
                     f"rearrangement at alpha={state.alpha:.6f} still moving after "
-                    f"{t:.1f} tau (max_event_duration={sc.max_event_duration} tau)",
+                    f"{event.t:.1f} tau (max_event_duration={sc.max_event_duration} tau)",
                 )
-            if load.runaway(moving, direction, weight, friction):
-                state.displacement[:] = du
-                return unfinished(status.AVALANCHE)
+            if self.loading.runaway(event.moving, event.direction, event.weight, event.friction):
+                state.displacement[:] = event.du
+                return event.unfinished(status.AVALANCHE)
+        return event.finished()
 
-        step = du - du_start
+
+class _Rearrangement:
+    """One rearrangement in progress at a fixed drive: the moving sliders' state.
+
+    The drive's terms (weight, normal, kinetic friction) are numbers here; a
+    moving slider keeps its direction d while it runs, so its friction is
+    -friction * d.  ``du``, ``v``, ``force`` and ``acc`` are the state at the
+    end of the last accepted step.
+    """
+
+    def __init__(self, engine: NumpyEngine, state: ChainState, triggers, directions):
+        sc, load, law = engine.scene, engine.loading, engine.friction
+        self.scene, self.state, self.loading, self.law = sc, state, load, law
+        n = state.n_sliders
+        self.weight, self.normal = load.weight(state.alpha), load.normal(state.alpha)
+        self.friction = law.kinetic_force(self.normal)
+        self.threshold = law.static_threshold(state.mu_s, self.normal)
+        self.drive = state.alpha
+        self.du_start = state.displacement.copy()
+        self.du = self.du_start.copy()
+        self.v = np.zeros(n)
+        self.direction = np.zeros(n)
+        self.moving = np.zeros(n, dtype=bool)
+        self.moving[triggers] = True
+        self.direction[triggers] = directions
+        self.moved = self.moving.copy()
+        self.force = self.tangential(self.du)
+        self.acc = np.where(self.moving, self.force - self.friction * self.direction, 0.0)
+        self.t = 0.0
+        self.n_steps = self.slider_steps = self.n_stops = 0
+        self.path = 0.0
+        self.mu_start, self.stops_start = state.mu_s.copy(), state.n_stops.copy()
+
+    def tangential(self, du):
+        """Tangential force on every slider at displacements du."""
+        sc = self.scene
+        return self.loading.tangential(elastic_force(self.state, sc.xi, sc.walls, du),
+                                       self.weight, self.drive, du)
+
+    def substep(self, h):
+        """Velocity-Verlet step of size h from (du, v, acc); only movers move."""
+        moving, v, acc = self.moving, self.v, self.acc
+        du1 = self.du + np.where(moving, v * h + 0.5 * acc * h * h, 0.0)
+        force1 = self.tangential(du1)
+        acc1 = np.where(moving, force1 - self.friction * self.direction, 0.0)
+        v1 = np.where(moving, v + 0.5 * (acc + acc1) * h, 0.0)
+        return du1, v1, force1, h
+
+    def crossings(self, trial):
+        """Mask of the sliders that cross in this trial (stop or start)."""
+        _, v1, force1, _ = trial
+        stops = self.moving & (self.direction * v1 < 0.0)
+        starts = ~self.moving & (np.abs(force1) > self.threshold)
+        return stops | starts
+
+    def refined_step(self):
+        """The next step: a full dt, or, when a slider crosses within it, the upper
+        end of the crossing's bracket closed by bisection to refine_tol (only the
+        sliders that crossed in the full step are tested).  None when the bracket
+        cannot close within MAX_HALVINGS halvings."""
+        sc = self.scene
+        trial = self.substep(sc.dt)
+        candidates = self.crossings(trial)
+        if not candidates.any():
+            return trial
+        lo, hi = 0.0, sc.dt
+        halvings = 0
+        while hi - lo > sc.refine_tol:
+            if halvings == MAX_HALVINGS:
+                return None
+            halvings += 1
+            mid = 0.5 * (lo + hi)
+            trial_mid = self.substep(mid)
+            if self.crossings(trial_mid)[candidates].any():
+                hi, trial = mid, trial_mid
+            else:
+                lo = mid
+        return trial
+
+    def count_step(self, trial) -> None:
+        """Count an integration step (steps, slider-steps, the event clock)."""
+        self.n_steps += 1
+        self.slider_steps += int(self.moving.sum())
+        self.t += trial[3]
+
+    def accept(self, trial) -> None:
+        """Take the step: counters, the path of the movers, the new state."""
+        self.count_step(trial)
+        du1, v1, force1, _ = trial
+        self.path += float(np.sum(np.where(self.moving, self.direction * (du1 - self.du), 0.0)))
+        self.du, self.v, self.force = du1, v1, force1
+
+    def stop_and_start(self) -> None:
+        """Stop the movers whose velocity changed sign (each draws its new static
+        coefficient, RuntimeError if the draw fails), then start every resting
+        slider beyond its threshold in the direction of its force."""
+        state, moving, direction = self.state, self.moving, self.direction
+        stops = np.flatnonzero(moving & (direction * self.v < 0.0))
+        if stops.size:
+            self.n_stops += stops.size
+            self.v[stops] = 0.0
+            moving[stops] = False
+            direction[stops] = 0.0
+            state.n_stops[stops] += 1
+            state.mu_s[stops] = self.law.draw_at_stop(stops, state.n_stops[stops])
+            self.threshold[stops] = self.law.static_threshold(state.mu_s[stops], self.normal)
+        starts = np.flatnonzero(~moving & (np.abs(self.force) > self.threshold))
+        moving[starts] = True
+        direction[starts] = np.sign(self.force[starts])
+        self.moved[starts] = True
+        self.acc = np.where(moving, self.force - self.friction * direction, 0.0)
+
+    def unfinished(self, code, message="") -> _EventOutcome:
+        """The event ends the run: its status and the work it did.  On an error
+        the state is the one before the event (draws undone too)."""
+        if code != status.AVALANCHE:
+            self.state.mu_s[:], self.state.n_stops[:] = self.mu_start, self.stops_start
+        record = {"duration": self.t, "n_steps": self.n_steps, "slider_steps": self.slider_steps}
+        if message:
+            record["message"] = message
+        return _EventOutcome(code, record)
+
+    def finished(self) -> _EventOutcome:
+        """Every slider rests: the event's record, the state moved to its end."""
+        sc, state, du = self.scene, self.state, self.du
+        step = du - self.du_start
         record = {
             "alpha": state.alpha,
-            "n_moved": int(moved.sum()),
-            "n_stops": n_stops,
-            "n_steps": n_steps,
-            "slider_steps": slider_steps,
-            "duration": t,
-            "work_gravity": load.work(weight, step, drive, du_start),
+            "n_moved": int(self.moved.sum()),
+            "n_stops": self.n_stops,
+            "n_steps": self.n_steps,
+            "slider_steps": self.slider_steps,
+            "duration": self.t,
+            "work_gravity": self.loading.work(self.weight, step, self.drive, self.du_start),
             "elastic_change": elastic_energy(state, sc.xi, sc.walls, du)
-            - elastic_energy(state, sc.xi, sc.walls, du_start),
-            "dissipation": friction * path,
+            - elastic_energy(state, sc.xi, sc.walls, self.du_start),
+            "dissipation": self.friction * self.path,
         }
         state.displacement[:] = du
-        moved_index = np.flatnonzero(moved)
+        moved_index = np.flatnonzero(self.moved)
         return _EventOutcome(status.RUNNING, record, moved_index, step[moved_index])
