@@ -293,6 +293,13 @@ def describe(h5file, variables: dict[str, Variable], coordinates: dict, title: s
             if len(ds.dims[axis]) == 0:
                 ds.dims[axis].attach_scale(scales[dim])
         ds.attrs["units"], ds.attrs["long_name"] = var.units, var.long_name
+    add_provenance(h5file, title, scene)
+
+
+def add_provenance(h5file, title: str, scene: dict | None) -> None:
+    """Write ``provenance`` into the root attributes of an open (serial) h5py file: the
+    first creation time is kept (a later writer sets ``date_modified``) and this command
+    becomes the last line of ``history``."""
     prov = provenance(title, scene)
     history_line = prov.pop("_history_line")
     old = h5file.attrs.get("history", "")

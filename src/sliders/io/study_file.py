@@ -27,8 +27,9 @@ from typing import Any
 import numpy as np
 
 from . import formats, safeio
-from .storage import (ROW_DIGEST, GatherFile, Layout, MpioFile, StorageError, _create_structure,
-                      _open_for_reading, _row_damage)
+from .h5tools import (ROW_DIGEST, StorageError, damaged, open_for_reading, plain_attributes,
+                      row_damage)
+from .storage import GatherFile, Layout, MpioFile, create_structure
 
 FORMAT = formats.STUDY
 FORMAT_VERSION = 1
@@ -94,7 +95,7 @@ class _StudyRows:
         safeio.seal_attrs(f)
         pts = f.create_group("points")
         for name, lay in zip(study.names, study.points):
-            _create_structure(pts.create_group(name), lay)
+            create_structure(pts.create_group(name), lay)
 
     def _write_seeds(self) -> None:
         for name, lay in zip(self.study.names, self.study.points):
@@ -184,29 +185,26 @@ def read_study_header(path) -> dict[str, Any]:
     import h5py
 
     p = os.fspath(path)
-    f = _open_for_reading(p)
+    f = open_for_reading(p)
     try:
         with f:
             safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
                                 versions=KNOWN_VERSIONS)
-            attrs = {k: (v.decode() if isinstance(v, bytes) else
-                         v.item() if isinstance(v, np.generic) else v)
-                     for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
+            attrs = plain_attributes(f)
             done, damaged = [], []
             for name in sorted(f["points"]):
                 rg = f["points"][name]["realisations"]
                 order = json.loads(rg[ROW_DIGEST].attrs["columns"])
                 out = {n: rg[n][()] for n in order + ["done", ROW_DIGEST]}
                 d = out["done"].astype(bool)
-                bad = sorted({r for r, _ in _row_damage(out, order, d)})
+                bad = sorted({r for r, _ in row_damage(out, order, d)})
                 d[bad] = False
                 done.append(d)
                 damaged.append(bad)
     except StorageError:
         raise
     except Exception as exc:  # noqa: BLE001 - whatever HDF5 makes of a damaged file: one line
-        raise StorageError(f"{p!r} is damaged ({type(exc).__name__}: "
-                           f"{' '.join(str(exc).split())})") from None
+        raise damaged(p, exc) from None
     return {"attrs": attrs, "done": done, "damaged": damaged}
 
 
@@ -219,7 +217,7 @@ def read_study_spec(path) -> dict[str, Any]:
 def _open_checked(path):
     """The study file open for reading, its kind and version checked (StorageError, one line)."""
     p = os.fspath(path)
-    f = _open_for_reading(p)
+    f = open_for_reading(p)
     try:
         safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
                             versions=KNOWN_VERSIONS)
