@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -108,10 +109,37 @@ def row_damage(rows: dict, order: list[str], done: np.ndarray) -> list[tuple[int
 # ---------------------------------------------------------------------------
 # dimension scales
 # ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Stored:
+    """Coordinate values the file already holds: the dataset ``path`` (relative to the
+    group being described), its first ``stop`` entries if ``stop`` is given."""
+
+    path: str
+    stop: int | None = None
+
+
+def view(group, name: str, source: Stored):
+    """``group/name``: an HDF5 virtual dataset showing ``source`` of the same file, so
+    that a coordinate equal to a stored grid is not stored a second time."""
+    import h5py
+
+    src = group[source.path]
+    part = slice(None, source.stop)
+    n = len(range(*part.indices(src.shape[0])))
+    layout = h5py.VirtualLayout(shape=(n,) + src.shape[1:], dtype=src.dtype)
+    layout[...] = h5py.VirtualSource(".", src.name, shape=src.shape)[part]
+    return group.create_virtual_dataset(name, layout)
+
+
 def coordinate(group, name: str, values, units: str, long_name: str):
-    """A coordinate variable ``group/name`` (checksummed), made the dimension scale ``name``."""
-    values = np.asarray(values)
-    ds = group.create_dataset(name, data=values)
+    """A coordinate variable ``group/name`` (checksummed), made the dimension scale ``name``;
+    ``values`` an array, or ``Stored`` (a virtual dataset showing what the file holds)."""
+    if isinstance(values, Stored):
+        ds = view(group, name, values)
+        values = ds[()]
+    else:
+        values = np.asarray(values)
+        ds = group.create_dataset(name, data=values)
     safeio.seal_dataset(ds, values)
     ds.make_scale(name)
     ds.attrs["units"], ds.attrs["long_name"] = units, long_name

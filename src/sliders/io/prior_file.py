@@ -209,9 +209,9 @@ class PriorFile(GatherFile):
             with h5py.File(self.path, "r") as f:
                 version = f.attrs.get("format_version")
             if version != FORMAT_VERSION:
-                raise StorageError(f"{self.path!r} has format_version {version}; --resume "
-                                   f"completes format_version {FORMAT_VERSION} files only: start "
-                                   "a new file (the old one still reads)")
+                raise StorageError(f"it has format_version {version} and --resume completes "
+                                   f"format_version {FORMAT_VERSION} files only; start a new file "
+                                   "(this one still reads)")
             super()._open()
 
     def write_row(self, r, row):
