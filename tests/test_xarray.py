@@ -146,13 +146,14 @@ def test_readme_example_gives_the_package_force_pdf(tmp_path, monkeypatch):
 STUDY_TOML = """
 [study]
 realisations = 2
+zip = [["mu_d", "sigma_mu"]]
 [scene]
 n_sliders = 12
 mode = "explore"
-seed = 5
 [axes]
 xi = [0.0, 0.001]
 mu_d = [0.5, 0.55]
+sigma_mu = [0.01, 0.02]
 """
 PRIOR_TOML = """
 [prior]
@@ -269,10 +270,12 @@ def test_study_tree_has_the_axes_and_each_point_its_grids(files):
     tree = xr.open_datatree(files["study"], engine="h5netcdf")
     root = tree.to_dataset()
     assert root.alpha_c.dims == ("xi", "mu_d", "realisation")
+    assert root.sigma_mu.dims == ("mu_d",) and list(root.sigma_mu.values) == [0.01, 0.02]
     assert root.alpha_c.attrs["units"] == "rad"
     point = tree["points/p001/realisations/statistics"].to_dataset()
     assert point.force_counts.dims == ("realisation", "alpha", "force_bin")
     assert point.force_bin.attrs["units"] == "m g"
-    rows = tree["points/p001/realisations"].to_dataset()
-    assert np.array_equal(root.alpha_c.sel(xi=0.0, mu_d=0.55).values, rows.alpha_c.values,
-                          equal_nan=True)
+    # the root view shows point p's rows at the p-th place of the axes, row-major
+    rows = [tree[f"points/p{p:03d}/realisations"].to_dataset().alpha_c.values for p in range(4)]
+    assert np.array_equal(root.alpha_c.values.reshape(4, -1), np.stack(rows), equal_nan=True)
+    assert root.alpha_c.sel(xi=0.001, mu_d=0.5).values.tolist() == rows[2].tolist()
