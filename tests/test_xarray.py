@@ -245,6 +245,13 @@ def test_tilt_events_have_alpha_as_coordinate_and_the_recipe_gives_dense_displac
     assert np.flatnonzero(dense[k]).size == result.events["n_moved"][k] > 1
 
 
+def test_the_drive_of_a_pushed_end_is_a_length(files):
+    events = xr.open_datatree(files["pushed_end"], engine="h5netcdf")["events"].to_dataset()
+    assert events.alpha.attrs["units"] == "g tau^2" and "driver" in events.alpha.attrs["long_name"]
+    tilted = xr.open_datatree(files["tilt"], engine="h5netcdf")["events"].to_dataset()
+    assert tilted.alpha.attrs["units"] == "rad"
+
+
 def dense_recipe() -> str:
     """The how-to's line that makes the dense (event, slider) displacements of a tilt file."""
     text = (ROOT / "docs" / "howto" / "xarray.md").read_text()

@@ -79,10 +79,17 @@ TILT_STATE_VARIABLES = {
 }
 
 
+# a loading whose drive is not the tilt stores its drive where the tilt's alpha is
+DRIVE_EVENT_VARIABLE = {"pushed_end": (LENGTH, "driver position D at which the rearrangement "
+                                               "happened")}
+
+
 def tilt_variables(h5file) -> dict[str, Variable]:
     """Dimensions, units and long name of every dataset of a tilt-result file (path: Variable)."""
+    drive = DRIVE_EVENT_VARIABLE.get(json.loads(h5file.attrs["scene"]).get("loading"))
+    events = dict(TILT_EVENT_VARIABLES, **({"alpha": drive} if drive else {}))
     out = {f"events/{k}": Variable(("event",), u, ln, None if k == "alpha" else "alpha")
-           for k, (u, ln) in TILT_EVENT_VARIABLES.items()}  # alpha: a coordinate of event
+           for k, (u, ln) in events.items()}  # alpha: a coordinate of event
     out["displacement/ptr"] = Variable(("event_boundary",), "1",
                                        "start of each event's entries in index/value (CSR)")
     out["displacement/index"] = Variable(("entry",), "1", "slider that moved (0-based)")
