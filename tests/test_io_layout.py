@@ -12,6 +12,7 @@ import ast
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import sliders
 
@@ -126,7 +127,20 @@ def stored_datasets(path) -> dict:
     return out
 
 
-def test_prior_file_is_the_same_on_one_and_two_ranks_and_stores_each_thing_once(tmp_path):
+@pytest.fixture(scope="module")
+def prior_files(tmp_path_factory):
+    """A small prior run on 1 rank and on 2 ranks."""
+    d = tmp_path_factory.mktemp("prior")
+    toml = d / "prior.toml"
+    toml.write_text(PRIOR_TOML)
+    one, two = d / "one.h5", d / "two.h5"
+    for out, n in ((one, 1), (two, 2)):
+        done = run_prior([toml, "--out", out], n)
+        assert done.returncode == 0, done.stderr
+    return one, two
+
+
+def test_prior_file_is_the_same_on_one_and_two_ranks_and_stores_each_thing_once(prior_files):
     """Every dataset byte for byte, but the measured wall time of each row (and its CRC-32 in
     row_crc32); no two datasets hold the same values; the events are in row order."""
     import json
@@ -135,12 +149,7 @@ def test_prior_file_is_the_same_on_one_and_two_ranks_and_stores_each_thing_once(
 
     from sliders.io.prior_file import read_prior_ensemble
 
-    toml = tmp_path / "prior.toml"
-    toml.write_text(PRIOR_TOML)
-    one, two = tmp_path / "one.h5", tmp_path / "two.h5"
-    for out, n in ((one, 1), (two, 2)):
-        done = run_prior([toml, "--out", out], n)
-        assert done.returncode == 0, done.stderr
+    one, two = prior_files
     a, b = stored_datasets(one), stored_datasets(two)
     assert sorted(a) == sorted(b)
     with h5py.File(one, "r") as f:
@@ -183,3 +192,32 @@ def test_a_prior_file_of_format_1_still_reads_and_is_not_resumed(tmp_path):
     done = run_prior([tmp_path / "prior.toml", "--out", copy, "--resume"])
     lines = done.stderr.strip().splitlines()
     assert done.returncode != 0 and len(lines) == 1 and "format_version 1" in lines[0], lines
+
+
+def test_putting_a_prior_file_in_row_order_is_atomic_and_resumable(prior_files, tmp_path,
+                                                                     monkeypatch):
+    """Events a killed writer left past the last row are dropped when the file is put in row
+    order; a kill before the rename leaves the file as it was, and the next run orders it."""
+    import shutil
+
+    import h5py
+
+    from sliders.io import prior_file, safeio
+
+    path = tmp_path / "p.h5"
+    shutil.copy(prior_files[0], path)
+    with h5py.File(path, "r+") as f:  # a row's events written, the row itself never
+        prior_file.append_events(f, prior_file.file_events(
+            {c: np.arange(3) for c in ("alpha", "size", "displacement", "first", "last")}))
+    before = path.read_bytes()
+
+    def killed(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(safeio, "publish", killed)
+    with pytest.raises(KeyboardInterrupt):
+        prior_file.write_view(path)
+    assert path.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["p.h5"]
+    monkeypatch.undo()
+    prior_file.write_view(path)
+    a, b = stored_datasets(prior_files[0]), stored_datasets(path)
+    assert {k for k in a if a[k] != b[k]} == set()
