@@ -26,7 +26,7 @@ import pytest
 
 import sliders
 from sliders.runs import ensemble
-from sliders.io import storage
+from sliders.io import h5tools, storage
 from sliders.keyed_random import realisation_seed
 from sliders.analysis.observables import default_grids, realisation_statistics, statistics_layout
 
@@ -212,7 +212,7 @@ def read_all(path):
     data = {}
     with h5py.File(path, "r") as f:
         f.visititems(lambda n, o: data.__setitem__(n, o[()]) if isinstance(o, h5py.Dataset) else None)
-        attrs = {k: storage._plain(v) for k, v in f.attrs.items()}
+        attrs = {k: h5tools.plain_value(v) for k, v in f.attrs.items()}
     return data, attrs
 
 

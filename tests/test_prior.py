@@ -233,14 +233,19 @@ def test_a_row_is_the_tilt_of_its_scene(small, reference):
 
 def test_file_opens_in_xarray(reference):
     xr = pytest.importorskip("xarray")
-    ds = xr.open_dataset(reference, engine="h5netcdf")
-    assert {"row", "event"} <= set(ds.dims)
-    assert "mu_d" in ds.coords and ds["mu_d"].dims == ("row",)
-    assert ds["alpha"].attrs["units"] == "rad" and ds["ceiling_distance"].attrs["units"] == "m g"
-    assert "history" in ds.attrs and "prior" in ds.attrs
+    tree = xr.open_datatree(reference, engine="h5netcdf")
+    rows, events = tree["realisations"].to_dataset(), tree["events"].to_dataset()
+    assert rows.sizes["row"] == 12 and "event" in events.dims
+    assert "mu_d" in rows.coords and rows["mu_d"].dims == ("row",)
+    assert "alpha" in events.coords and events["size"].dims == ("event",)
+    assert events["alpha"].attrs["units"] == "rad"
+    assert rows["ceiling_distance"].attrs["units"] == "m g"
+    assert rows["ceiling_distance"].dims == ("row", "ceiling_alpha", "nearest")
+    assert "history" in tree.attrs and "prior" in tree.attrs
     got = read_prior_ensemble(reference)
-    assert np.array_equal(ds["alpha"].values, got.columns["alpha"])
-    assert np.array_equal(ds["n_events"].values, np.diff(got.offsets))
+    assert np.array_equal(events["alpha"].values, got.columns["alpha"])  # row order
+    assert np.array_equal(rows["n_events"].values, np.diff(got.offsets))
+    assert np.array_equal(rows["event_start"].values, got.offsets[:-1])
 
 
 def test_damaged_events_are_found_and_recomputed(small, reference, tmp_path):

@@ -138,3 +138,151 @@ def test_readme_example_gives_the_package_force_pdf(tmp_path, monkeypatch):
     g = int(np.argmin(np.abs(grids.alpha - 0.3)))
     assert np.allclose(namespace["pdf"].values, summary.force_pdf[g], rtol=1e-12, atol=0)
     assert namespace["pdf"].dims == ("force_bin",)
+
+
+# ---------------------------------------------------------------------------
+# every kind of file: the whole tree opens with named dimensions, no warning
+# ---------------------------------------------------------------------------
+STUDY_TOML = """
+[study]
+realisations = 2
+zip = [["mu_d", "sigma_mu"]]
+[scene]
+n_sliders = 12
+mode = "explore"
+[axes]
+xi = [0.0, 0.001]
+mu_d = [0.5, 0.55]
+sigma_mu = [0.01, 0.02]
+"""
+PRIOR_TOML = """
+[prior]
+realisations = 4
+seed = 2
+ceiling_step = 0.05
+ceiling_k = 3
+[parameters]
+mu_d = { uniform = [0.4, 0.6] }
+mu_s_minus_mu_d = { loguniform = [0.02, 0.12] }
+n_sliders = { choice = [12, 16] }
+initial_forces = { choice = ["uniform", "zero"] }
+"""
+
+
+def command(module, *args, n_ranks=1):
+    cmd = [sys.executable, "-m", module, *map(str, args), "--quiet"]
+    if n_ranks > 1:
+        cmd = ["mpirun", "-n", str(n_ranks)] + cmd
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+
+
+def every_kind_of_file(d: Path) -> dict[str, Path]:
+    """One file of every kind the package writes, in ``d``."""
+    files = {}
+    for name, scene in (("tilt", sliders.Scene(n_sliders=20, seed=1, mode="explore")),
+                        ("tilt_summary", sliders.Scene(n_sliders=20, seed=1, record="summary")),
+                        ("pushed_end", sliders.Scene(n_sliders=20, seed=1, loading="pushed_end",
+                                                     tilt=0.2, mode="explore"))):
+        files[name] = d / f"{name}.h5"
+        sliders.tilt(scene).save(files[name])
+    files["ensemble"], files["ensemble_mpio"] = ensemble_file(d, 1), ensemble_file(d, 2)
+    chunks = [d / f"chunk{i}.h5" for i in range(2)]
+    for i, chunk in enumerate(chunks):
+        command("sliders.ensemble", *SCENE_ARGS, "--realisations", R, "--chunk", f"{i}/2",
+                "--out", chunk)
+    files["merged"] = d / "merged.h5"
+    res = subprocess.run([sys.executable, "-m", "sliders.merge", files["merged"], *chunks],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    for kind, text in (("study", STUDY_TOML), ("prior", PRIOR_TOML)):
+        (d / f"{kind}.toml").write_text(text)
+        files[kind] = d / f"{kind}.h5"
+        command(f"sliders.{kind}", d / f"{kind}.toml", "--out", files[kind])
+    return files
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    return every_kind_of_file(tmp_path_factory.mktemp("kinds"))
+
+
+KINDS = ("tilt", "tilt_summary", "pushed_end", "ensemble", "ensemble_mpio", "merged", "study",
+         "prior")
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_file_opens_as_a_tree_with_named_dimensions_and_no_warning(files, kind):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # phony dimensions, undecodable attributes, ...
+        tree = xr.open_datatree(files[kind], engine="h5netcdf")
+        nodes = {node.path: node.to_dataset() for node in tree.subtree}
+    phony = {path: [d for d in ds.dims if str(d).startswith("phony_dim")]
+             for path, ds in nodes.items()}
+    assert not any(phony.values()), phony
+    variables = {f"{path}/{v}": ds[v] for path, ds in nodes.items() for v in ds.variables}
+    assert len(variables) > 5
+    unitless = [name for name, v in variables.items() if v.ndim and "units" not in v.attrs]
+    assert not unitless, unitless
+
+
+def test_tilt_events_have_alpha_as_coordinate_and_the_recipe_gives_dense_displacements(
+        files, tmp_path, monkeypatch):
+    result = sliders.TiltResult.load(files["tilt"])
+    tree = xr.open_datatree(files["tilt"], engine="h5netcdf")
+    events = tree["events"].to_dataset()
+    assert "alpha" in events.coords and events.coords["alpha"].dims == ("event",)
+    assert np.array_equal(events.n_moved.sel(event=events.alpha < 0.3).values,
+                          result.events["n_moved"][result.events["alpha"] < 0.3])
+    monkeypatch.chdir(tmp_path)
+    Path("run.h5").symlink_to(files["tilt"])
+    namespace = {"xr": xr, "np": np}
+    exec(dense_recipe(), namespace)  # noqa: S102 - the how-to's own line
+    dense = namespace["dense"]
+    assert dense.shape == (result.n_events, result.scene.n_sliders)
+    assert np.array_equal(dense, result.displacement.dense())
+    k = int(np.argmax(result.events["n_moved"]))
+    assert np.flatnonzero(dense[k]).size == result.events["n_moved"][k] > 1
+
+
+def test_the_drive_of_a_pushed_end_is_a_length(files):
+    events = xr.open_datatree(files["pushed_end"], engine="h5netcdf")["events"].to_dataset()
+    assert events.alpha.attrs["units"] == "g tau^2" and "driver" in events.alpha.attrs["long_name"]
+    tilted = xr.open_datatree(files["tilt"], engine="h5netcdf")["events"].to_dataset()
+    assert tilted.alpha.attrs["units"] == "rad"
+
+
+def dense_recipe() -> str:
+    """The how-to's line that makes the dense (event, slider) displacements of a tilt file."""
+    text = (ROOT / "docs" / "howto" / "xarray.md").read_text()
+    return re.search(r"```python\n(# dense displacements.*?)```", text, flags=re.S).group(1)
+
+
+def test_prior_tree_is_the_catalogue_set(files):
+    from sliders.io.prior_file import read_prior_ensemble
+
+    got = read_prior_ensemble(files["prior"])
+    tree = xr.open_datatree(files["prior"], engine="h5netcdf")
+    rows, events = tree["realisations"].to_dataset(), tree["events"].to_dataset()
+    assert np.array_equal(events.alpha.values, got.columns["alpha"])
+    assert "mu_d" in rows.coords and np.array_equal(rows.mu_d.values, got.parameters["mu_d"])
+    assert rows.ceiling_distance.dims == ("row", "ceiling_alpha", "nearest")
+    r = 2  # one row's events through the offsets
+    first, n = int(rows.event_start[r]), int(rows.n_events[r])
+    assert np.array_equal(events.size.isel(event=slice(first, first + n)).values,
+                          got.catalogue(r).size)
+
+
+def test_study_tree_has_the_axes_and_each_point_its_grids(files):
+    tree = xr.open_datatree(files["study"], engine="h5netcdf")
+    root = tree.to_dataset()
+    assert root.alpha_c.dims == ("xi", "mu_d", "realisation")
+    assert root.sigma_mu.dims == ("mu_d",) and list(root.sigma_mu.values) == [0.01, 0.02]
+    assert root.alpha_c.attrs["units"] == "rad"
+    point = tree["points/p001/realisations/statistics"].to_dataset()
+    assert point.force_counts.dims == ("realisation", "alpha", "force_bin")
+    assert point.force_bin.attrs["units"] == "m g"
+    # the root view shows point p's rows at the p-th place of the axes, row-major
+    rows = [tree[f"points/p{p:03d}/realisations"].to_dataset().alpha_c.values for p in range(4)]
+    assert np.array_equal(root.alpha_c.values.reshape(4, -1), np.stack(rows), equal_nan=True)
+    assert root.alpha_c.sel(xi=0.001, mu_d=0.5).values.tolist() == rows[2].tolist()

@@ -38,7 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .safeio import seal_dataset
+from . import h5tools
+from .h5tools import Stored
 
 FORCE, LENGTH, TIME = "m g", "g tau^2", "tau"
 ENERGY = "m g^2 tau^2"
@@ -50,6 +51,7 @@ class Variable:
     dims: tuple[str, ...]
     units: str
     long_name: str
+    coordinates: str | None = None  # CF: variables of the same group that label its axes
 
 
 # ---------------------------------------------------------------------------
@@ -77,9 +79,17 @@ TILT_STATE_VARIABLES = {
 }
 
 
+# a loading whose drive is not the tilt stores its drive where the tilt's alpha is
+DRIVE_EVENT_VARIABLE = {"pushed_end": (LENGTH, "driver position D at which the rearrangement "
+                                               "happened")}
+
+
 def tilt_variables(h5file) -> dict[str, Variable]:
     """Dimensions, units and long name of every dataset of a tilt-result file (path: Variable)."""
-    out = {f"events/{k}": Variable(("event",), u, ln) for k, (u, ln) in TILT_EVENT_VARIABLES.items()}
+    drive = DRIVE_EVENT_VARIABLE.get(json.loads(h5file.attrs["scene"]).get("loading"))
+    events = dict(TILT_EVENT_VARIABLES, **({"alpha": drive} if drive else {}))
+    out = {f"events/{k}": Variable(("event",), u, ln, None if k == "alpha" else "alpha")
+           for k, (u, ln) in events.items()}  # alpha: a coordinate of event
     out["displacement/ptr"] = Variable(("event_boundary",), "1",
                                        "start of each event's entries in index/value (CSR)")
     out["displacement/index"] = Variable(("entry",), "1", "slider that moved (0-based)")
@@ -166,6 +176,14 @@ def ensemble_variables(h5file) -> dict[str, Variable]:
     return out
 
 
+def _n_model_bins(h5file) -> int:
+    """nu(0): the grid's scalar, or (a study point keeps no scalar grids) the statistic's width."""
+    if "grids/n_model_bins" in h5file:
+        return int(h5file["grids/n_model_bins"][()])
+    counts = "realisations/statistics/model_bin_counts"
+    return h5file[counts].shape[-1] if counts in h5file else 0
+
+
 def ensemble_coordinates(h5file) -> dict[str, tuple[np.ndarray, str, str]]:
     """Coordinates of an ensemble file's dimensions (alpha in radians, force bins in m g, ...): name -> (values, units, long name)."""
     g = h5file["grids"]
@@ -177,19 +195,20 @@ def ensemble_coordinates(h5file) -> dict[str, tuple[np.ndarray, str, str]]:
     return {
         "realisation": (first + np.arange(n_rows), "1", "realisation number (its seed is "
                         "realisation_seed(scene seed, realisation))"),
-        "alpha": (alpha, "rad", "tilt angle"),
-        "force_edge": (fe, FORCE, "edge of a force bin"),
+        "alpha": (Stored("grids/alpha"), "rad", "tilt angle"),
+        "force_edge": (Stored("grids/force_edges"), FORCE, "edge of a force bin"),
         "force_bin": (_centres(fe), FORCE, "tangential force F_t (bin centre)"),
-        "ratio_edge": (re_, "1", "edge of an F_t/F_t* bin"),
+        "ratio_edge": (Stored("grids/ratio_edges"), "1", "edge of an F_t/F_t* bin"),
         "ratio_bin": (_centres(re_), "1", "F_t/F_t* of a stopped slider (bin centre), "
                       "F_t* = (2 mu_d - mu_s_mean) cos alpha"),
-        "stop_alpha_edge": (se, "rad", "edge of an event-angle bin"),
+        "stop_alpha_edge": (Stored("grids/stop_alpha_edges"), "rad", "edge of an event-angle bin"),
         "stop_alpha_bin": (_centres(se), "rad", "event angle (bin centre)"),
-        "model_bin": (np.arange(1, int(g["n_model_bins"][()]) + 1), "1",
+        "model_bin": (np.arange(1, _n_model_bins(h5file) + 1), "1",
                       "model bin i (width 2 dmu, counted down from mu_s_mean)"),
         "event_size": (np.arange(1, int(scene["n_sliders"]) + 1), "1",
                        "number of distinct sliders that moved in an event"),
-        "alpha_interval": (alpha[:-1], "rad", "lower end of the angle interval [alpha_g, alpha_g+1)"),
+        "alpha_interval": (Stored("grids/alpha", alpha.size - 1), "rad",
+                           "lower end of the angle interval [alpha_g, alpha_g+1)"),
         **({"checksummed_column": (np.arange(h5file["realisations/row_crc32"].shape[1]), "1",
                                    "index into the attribute 'columns' of row_crc32")}
            if "realisations/row_crc32" in h5file else {}),
@@ -272,27 +291,41 @@ def provenance(title: str, scene: dict | None) -> dict[str, str]:
 def describe(h5file, variables: dict[str, Variable], coordinates: dict, title: str,
              scene: dict | None) -> None:
     """Attach scales, units and long names, and add provenance, to an open (serial) h5py file."""
-    scales = {}
+    attach_dimensions(h5file, variables, coordinates)
+    add_provenance(h5file, title, scene)
+
+
+def attach_dimensions(group, variables: dict[str, Variable], coordinates: dict,
+                      inherited: dict | None = None) -> None:
+    """Create the coordinates (scales) in ``group`` and attach them to every variable's axes,
+    with units and long names; ``inherited``: scales of a parent group, used as they are.
+
+    ``coordinates``: name -> (values or ``h5tools.Stored``, units, long name).  An axis
+    no table names gets a numbered scale of its own.
+    """
+    scales = dict(inherited or {})
     for name, (values, units, long_name) in coordinates.items():
-        if name not in h5file:
-            ds = h5file.create_dataset(name, data=np.asarray(values))
-            seal_dataset(ds, np.asarray(values))  # checksummed like every dataset written
-            ds.make_scale(name)
-            ds.attrs["units"], ds.attrs["long_name"] = units, long_name
-        scales[name] = h5file[name]
-    for path, var in variables.items():
-        if path not in h5file:
+        if name in scales:
             continue
-        ds = h5file[path]
+        if name not in group:
+            h5tools.coordinate(group, name, values, units, long_name)
+        scales[name] = group[name]
+    for path, var in variables.items():
+        if path not in group:
+            continue
+        ds = group[path]
         for axis, dim in enumerate(var.dims):
             if dim not in scales:  # an axis the tables do not name: number its entries
-                ds_dim = h5file.create_dataset(dim, data=np.arange(ds.shape[axis]))
-                seal_dataset(ds_dim, np.arange(ds.shape[axis]))
-                ds_dim.make_scale(dim)
-                scales[dim] = ds_dim
-            if len(ds.dims[axis]) == 0:
-                ds.dims[axis].attach_scale(scales[dim])
-        ds.attrs["units"], ds.attrs["long_name"] = var.units, var.long_name
+                scales[dim] = h5tools.coordinate(group, dim, np.arange(ds.shape[axis]), "1",
+                                                 f"index of {dim}")
+        h5tools.attach(ds, *(scales[dim] for dim in var.dims))
+        h5tools.describe(ds, var.units, var.long_name, var.coordinates)
+
+
+def add_provenance(h5file, title: str, scene: dict | None) -> None:
+    """Write ``provenance`` into the root attributes of an open (serial) h5py file: the
+    first creation time is kept (a later writer sets ``date_modified``) and this command
+    becomes the last line of ``history``."""
     prov = provenance(title, scene)
     history_line = prov.pop("_history_line")
     old = h5file.attrs.get("history", "")

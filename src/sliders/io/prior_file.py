@@ -1,38 +1,45 @@
-"""The prior-ensemble file (``python -m sliders.prior``): layout, writer, readers, xarray view.
+"""The prior-ensemble file (``python -m sliders.prior``): layout, writer, readers.
 
 One file holds R rows, each a realisation whose material parameters were
-drawn from a prior, with its whole event catalogue::
+drawn from a prior, with its whole event catalogue; every quantity is stored
+once, with the named dimensions and coordinates xarray needs::
 
-    /                       attrs: format = "sliders.prior", prior (JSON of the TOML), prior_digest,
-                            base_seed, realisations, backend, parameters (JSON list of names),
-                            ceiling_k, software_version, created; provenance (title, history, ...)
-    /grids/ceiling_alpha    (G,) the angles at which the ceiling was taken, rad
-    /realisations/          the ensemble layout (``storage``): seed, done, status, alpha_c,
-                            n_events, slider_steps, wall_time, row_crc32, and
-      parameters/<name>     (R,) each drawn or derived parameter (strings: index into
-                            attr "choices")
-      ceiling_distance      (R, G, K) the K smallest distances mu_s,n cos(alpha) - |F_n| (m g)
-      event_start           (R,) where the row's events start in /events/*
-      event_crc32           (R,) CRC-32 of the row's events (all five columns)
-    /events/<column>        (E,) the catalogue columns (``catalogue.EVENT_COLUMNS``), rows
-                            appended in the order they finished (resizable, chunked)
-    /row, /event, ...       the xarray view (below), rewritten by rank 0 at the end of every run
+    /                       attrs: format = "sliders.prior", format_version = 2, prior (JSON of
+                            the TOML), prior_digest, base_seed, realisations, backend,
+                            parameters (JSON list of names), parameter_choices, ceiling_k,
+                            software_version, created; provenance (title, history, ...)
+    /row                    (R,) coordinate: the row number
+    /ceiling_alpha          (G,) coordinate: the angles at which the ceiling was taken, rad
+    /nearest, /event, /checksummed_column    dimensions without values (no storage)
+    /realisations/          dims (row, ...): the ensemble layout (``storage``): seed, done,
+                            status, alpha_c, n_events, slider_steps, wall_time, row_crc32, and
+      <parameter>           each drawn or derived parameter (a coordinate of ``row``; strings:
+                            index into the root attribute "parameter_choices")
+      ceiling_distance      (row, ceiling_alpha, nearest) the K smallest distances
+                            mu_s,n cos(alpha) - |F_n| (m g)
+      event_start           where the row's events start in /events/*
+      event_crc32           CRC-32 of the row's events (all five columns)
+    /events/<column>        (event,) the catalogue columns (``catalogue.EVENT_COLUMNS``),
+                            ``alpha`` a coordinate of ``event``
 
 Writer: ``PriorFile``, the ensemble's ``GatherFile`` (rank 0 writes every
 row; the other ranks ship theirs with their "done" message), which also
 appends the row's events before the row (its ``event_start`` and
 ``event_crc32`` are then part of the row's checksummed values) and before
-``done[r] = 1``.  A process killed between two rows leaves events past the
+``done[r] = 1``.  While a run goes on, the events follow the order in which
+the rows finished; a process killed between two rows leaves events past the
 last row that no row points to: ignored by the readers, and a resume appends
-after them.  The events are ragged, so they cannot go through parallel HDF5's
-fixed, preallocated rows: the prior file is always written by rank 0
+after them.  The events are ragged, so they cannot go through parallel
+HDF5's fixed, preallocated rows: the prior file is always written by rank 0
 (``--storage gather``).
 
-The view: the finished rows in row order, so that the same prior and seed give
-the same view whatever the number of ranks or interruptions.  Dimensions
-``row`` (every row of the file), ``event`` (the done rows' events, in row
-order), ``ceiling_alpha`` and ``nearest`` (the K smallest distances); the
-parameters are coordinates of ``row``; units and long names on every variable.
+At the end of every run (``write_view``, rank 0, writers closed) the file is
+put in row order: the done rows' events one row after the other, nothing
+else.  The ordered file is written beside the old one and renamed over it
+(atomic: a kill leaves the old file, which the next run orders), so the same
+prior and seed give the same datasets whatever the number of ranks or
+interruptions.  Format version 1 (a flat copy of everything at the root)
+still reads; it is not resumed.
 """
 
 from __future__ import annotations
@@ -40,20 +47,26 @@ from __future__ import annotations
 import datetime
 import json
 import os
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from .. import status
-from . import formats, safeio
+from . import formats, h5tools, safeio
 from .catalogue import EVENT_COLUMNS, Catalogue, CatalogueSet
-from .storage import (BASE_COLUMNS, ROW_DIGEST, Column, GatherFile, Layout, StorageError,
-                      _done_mask, _open_for_reading, _plain, _row_damage)
+from .conventions import ENSEMBLE_ROW_VARIABLES, add_provenance
+from .h5tools import (ROW_DIGEST, StorageError, done_mask, open_for_reading, plain_attributes,
+                      row_damage)
+from .storage import BASE_COLUMNS, Column, GatherFile, Layout, create_structure
 
 FORMAT = formats.PRIOR
-FORMAT_VERSION = 1
-PARAMETERS = "parameters/"
+FORMAT_VERSION = 2
+KNOWN_VERSIONS = (1, 2)  # 1: every quantity twice (groups and a root view); read, not resumed
+PARAMETERS = ""  # prefix of the parameters' column names: they sit beside the other columns
+PARAMETERS_V1 = "parameters/"
 EVENTS = "events"
+EVENT_CHUNK = 16384
 FILE_EVENT_DTYPES = {"alpha": np.float64, "size": np.int32, "displacement": np.float64,
                      "first": np.int32, "last": np.int32}
 EVENT_UNITS = {"alpha": ("rad", "tilt of the rearrangement"),
@@ -67,9 +80,16 @@ PARAMETER_UNITS = {"mu_d": ("1", "dynamic friction coefficient"),
                    "sigma_mu": ("1", "width of the static coefficients"),
                    "xi": ("1", "stiffness of the cantilever springs (units of k)"),
                    "n_sliders": ("1", "number of sliders N"),
-                   "seed": ("1", "seed of the row's scene (realisation_seed(base_seed, row))")}
-VIEW_NAMES = ("row", "event", "ceiling_alpha", "nearest", "event_row", "first_event",
-              "n_events", "alpha_c", "status", "done", "ceiling_distance") + EVENT_COLUMNS
+                   "spring_length": ("g tau^2", "rest length of the springs"),
+                   "initial_forces": ("1", "preparation (index into the root attribute "
+                                           "parameter_choices)")}
+ROW_UNITS = {**ENSEMBLE_ROW_VARIABLES,
+             "ceiling_distance": ("m g", "K smallest distances mu_s,n cos(alpha) - |F_n| of a "
+                                         "slider to its threshold"),
+             "event_start": ("1", "index of the row's first event in /events"),
+             "event_crc32": ("1", "CRC-32 of the row's events (all five columns)"),
+             ROW_DIGEST: ("1", "CRC-32 of the row in each column (column names: attribute "
+                               "'columns')")}
 
 
 def prior_layout(n_rows: int, seeds, parameters: dict[str, np.dtype], ceiling_alpha,
@@ -125,7 +145,41 @@ def _events_crc(events: dict[str, np.ndarray]) -> int:
 
 def catalogue_events(catalogue: Catalogue) -> dict[str, np.ndarray]:
     """A catalogue's columns in the file's types (what a row carries to the writer)."""
-    return {c: np.asarray(getattr(catalogue, c), dtype=FILE_EVENT_DTYPES[c]) for c in EVENT_COLUMNS}
+    return file_events({c: getattr(catalogue, c) for c in EVENT_COLUMNS})
+
+
+def create_prior_structure(f, layout: Layout, n_events: int = 0) -> None:
+    """A new prior file's structure in the open (serial) file ``f``: the layout's rows,
+    the coordinates and dimensions at the root, ``n_events`` events (not written), and
+    every dataset's dimension scales, units and long name."""
+    grid = np.asarray(layout.grids["ceiling_alpha"], dtype=np.float64)
+    create_structure(f, replace(layout, grids={}))
+    rg = f["realisations"]
+    rg["seed"][:] = layout.seeds
+    del rg["statistics"]  # a prior row has no binned statistics
+    names = json.loads(rg[ROW_DIGEST].attrs["columns"])
+    row = h5tools.coordinate(f, "row", np.arange(layout.n_realisations), "1",
+                             "row of the prior ensemble")
+    ceiling_alpha = h5tools.coordinate(f, "ceiling_alpha", grid, "rad",
+                                       "angle at which the ceiling was taken")
+    nearest = h5tools.dimension(f, "nearest", layout.column("ceiling_distance").shape[1])
+    checksummed = h5tools.dimension(f, "checksummed_column", len(names))
+    event = h5tools.dimension(f, "event", n_events, growing=True)
+    parameters = sorted(n for n in names if n not in ROW_UNITS)
+    for name in ["seed", "done", ROW_DIGEST] + names:
+        ds = rg[name]
+        h5tools.attach(ds, row, *{"ceiling_distance": (ceiling_alpha, nearest),
+                                  ROW_DIGEST: (checksummed,)}.get(name, ()))
+        if name in ROW_UNITS:
+            h5tools.describe(ds, *ROW_UNITS[name], coordinates=" ".join(parameters))
+        else:
+            h5tools.describe(ds, *PARAMETER_UNITS.get(name, ("1", f"drawn parameter {name}")))
+    g = f.create_group(EVENTS)
+    for c in EVENT_COLUMNS:
+        ds = g.create_dataset(c, shape=(n_events,), maxshape=(None,), chunks=(EVENT_CHUNK,),
+                              dtype=FILE_EVENT_DTYPES[c], compression="gzip", shuffle=True)
+        h5tools.attach(ds, event)
+        h5tools.describe(ds, *EVENT_UNITS[c], coordinates=None if c == "alpha" else "alpha")
 
 
 class PriorFile(GatherFile):
@@ -139,18 +193,26 @@ class PriorFile(GatherFile):
     kind = "gather"
 
     def _create(self, tmp: str) -> None:
-        super()._create(tmp)
         if self.comm.rank == 0:
-            g = self.file.create_group(EVENTS)
-            for c in EVENT_COLUMNS:
-                g.create_dataset(c, shape=(0,), maxshape=(None,), chunks=(8192,),
-                                 dtype=FILE_EVENT_DTYPES[c])
+            import h5py
+
+            self.file = h5py.File(tmp, "w")
+            create_prior_structure(self.file, self.layout)
             self.file.flush()
+            self._bind()
 
     def _open(self) -> None:
-        super()._open()
-        if self.comm.rank == 0 and EVENTS not in self.file:
-            raise StorageError(f"{self.path!r} has no /{EVENTS} group; it is not a prior file")
+        if self.comm.rank == 0:
+            import h5py
+
+            version = None
+            with h5py.File(self.path, "r") as f:
+                version = f.attrs.get("format_version")
+            if version != FORMAT_VERSION:
+                raise StorageError(f"it has format_version {version} and --resume completes "
+                                   f"format_version {FORMAT_VERSION} files only; start a new file "
+                                   "(this one still reads)")
+            super()._open()
 
     def write_row(self, r, row):
         """Rank 0: append the row's events, then write the row; other ranks queue both."""
@@ -173,18 +235,29 @@ class PriorFile(GatherFile):
 
     def _append(self, r: int, row: dict[str, Any]) -> None:
         row = dict(row)
-        given = row.pop("events")
-        events = {c: np.asarray(given[c], dtype=FILE_EVENT_DTYPES[c]) for c in EVENT_COLUMNS}
-        g = self.file[EVENTS]
-        start = g["alpha"].shape[0]
-        k = events["alpha"].size
-        for c in EVENT_COLUMNS:
-            g[c].resize((start + k,))
-            if k:
-                g[c][start:start + k] = events[c]
+        events = file_events(row.pop("events"))
+        start = append_events(self.file, events)
         row["event_start"] = np.int64(start)
         row["event_crc32"] = np.uint32(_events_crc(events))
         self._write_local(r, row)
+
+
+def file_events(given: dict) -> dict[str, np.ndarray]:
+    """Event columns in the file's types."""
+    return {c: np.asarray(given[c], dtype=FILE_EVENT_DTYPES[c]) for c in EVENT_COLUMNS}
+
+
+def append_events(f, events: dict[str, np.ndarray]) -> int:
+    """Append events (``file_events``) to /events of the open file ``f``; where they start."""
+    g = f[EVENTS]
+    start = g["alpha"].shape[0]
+    k = events["alpha"].size
+    for c in EVENT_COLUMNS:
+        g[c].resize((start + k,))
+        if k:
+            g[c][start:start + k] = events[c]
+    f["event"].resize((start + k,))
+    return start
 
 
 HANDLERS = {"gather": PriorFile}
@@ -199,25 +272,26 @@ def _read(path, with_events: bool = True) -> dict[str, Any]:
 
     p = os.fspath(path)
     where = repr(p)
-    f = _open_for_reading(p)
+    f = open_for_reading(p)
     try:
         with f:
-            safeio.check_header(f, FORMAT, where, StorageError, coordinates=False)
-            attrs = {k: _plain(v) for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
-            grid = safeio.read_checked(f["grids"]["ceiling_alpha"], where)
+            safeio.check_header(f, FORMAT, where, StorageError, coordinates=False,
+                                versions=KNOWN_VERSIONS)
+            attrs = plain_attributes(f)
+            grid = safeio.read_checked(f["ceiling_alpha"] if int(attrs["format_version"]) > 1
+                                       else f["grids"]["ceiling_alpha"], where)
             rg = f["realisations"]
             rows: dict[str, np.ndarray] = {}
             rg.visititems(lambda name, obj: rows.__setitem__(name, obj[()])
                           if isinstance(obj, h5py.Dataset) else None)
             order = json.loads(rg[ROW_DIGEST].attrs["columns"])
-            done = _done_mask(rows["done"], where)
-            damaged = {r for r, _ in _row_damage(rows, order, done)}
+            done = done_mask(rows["done"], where)
+            damaged = {r for r, _ in row_damage(rows, order, done)}
             events = {c: f[EVENTS][c][()] for c in EVENT_COLUMNS} if with_events else None
     except StorageError:
         raise
     except Exception as exc:  # noqa: BLE001 - whatever HDF5 makes of a damaged file: one line
-        raise StorageError(f"{p!r} is damaged ({type(exc).__name__}: "
-                           f"{' '.join(str(exc).split())})") from None
+        raise h5tools.damaged(p, exc) from None
     choices = json.loads(attrs.get("parameter_choices", "{}"))
     if events is not None:
         total = events["alpha"].size
@@ -230,7 +304,7 @@ def _read(path, with_events: bool = True) -> dict[str, Any]:
                 damaged.add(int(r))
     done[sorted(damaged)] = False
     return {"attrs": attrs, "grid": grid, "rows": rows, "done": done, "damaged": sorted(damaged),
-            "events": events, "choices": choices}
+            "events": events, "choices": choices, "order": order}
 
 
 def read_prior_header(path) -> dict[str, Any]:
@@ -240,11 +314,10 @@ def read_prior_header(path) -> dict[str, Any]:
 
 
 def _parameters(d: dict) -> dict[str, np.ndarray]:
+    prefix = PARAMETERS_V1 if int(d["attrs"]["format_version"]) == 1 else PARAMETERS
     out = {}
-    for name, v in d["rows"].items():
-        if not name.startswith(PARAMETERS):
-            continue
-        key = name[len(PARAMETERS):]
+    for key in json.loads(d["attrs"]["parameters"]):
+        v = d["rows"][prefix + key]
         if key in d["choices"]:
             names = np.array([str(x) for x in d["choices"][key]] + [""])
             v = names[np.where(v >= 0, v, -1)]
@@ -253,9 +326,13 @@ def _parameters(d: dict) -> dict[str, np.ndarray]:
     return out
 
 
-def _row_catalogue(d: dict, r: int) -> Catalogue:
+def _row_events(d: dict, r: int) -> dict[str, np.ndarray]:
     a, k = int(d["rows"]["event_start"][r]), int(d["rows"]["n_events"][r])
-    return Catalogue(*(d["events"][c][a:a + k] for c in EVENT_COLUMNS))
+    return {c: d["events"][c][a:a + k] for c in EVENT_COLUMNS}
+
+
+def _row_catalogue(d: dict, r: int) -> Catalogue:
+    return Catalogue(**_row_events(d, r))
 
 
 def read_prior_row(path, r: int) -> Catalogue:
@@ -279,7 +356,7 @@ def read_prior_ensemble(path, unfinished: bool = False) -> CatalogueSet:
     Parameters
     ----------
     path : str or os.PathLike
-        A file of ``python -m sliders.prior``.
+        A file of ``python -m sliders.prior`` (format version 1 or 2).
     unfinished : bool
         Also return the rows not done (status "not_run", no events, NaN
         ceiling); ``attrs["done"]`` then says which rows are complete.
@@ -311,77 +388,75 @@ def read_prior_ensemble(path, unfinished: bool = False) -> CatalogueSet:
 
 
 # ---------------------------------------------------------------------------
-# the xarray view
+# the events in row order, at the end of every run
 # ---------------------------------------------------------------------------
-def write_view(path, scene: dict | None = None) -> None:
-    """Rank 0, writers closed: the root datasets xarray opens (dims ``row``, ``event``,
-    ``ceiling_alpha``, ``nearest``), the parameters as coordinates of ``row``, units,
-    long names and provenance; derived from the checked rows and rewritten at every run's end.
+def _in_row_order(d: dict) -> bool:
+    """True if /events holds the done rows' events one row after the other and nothing else."""
+    done = np.flatnonzero(d["done"])
+    counts = d["rows"]["n_events"][done]
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if done.size else counts
+    return (np.array_equal(d["rows"]["event_start"][done], starts)
+            and d["events"]["alpha"].size == int(counts.sum()))
 
-    ``xr.open_dataset(path, engine="h5netcdf")`` shows it.
+
+def _layout_of(path, d: dict) -> tuple[Layout, dict]:
+    """The layout a file was made with (its columns, seeds, grid and sealed attributes),
+    and the root attributes added after the seal (provenance)."""
+    with open_for_reading(path) as f:
+        rg = f["realisations"]
+        columns = [Column(n, rg[n].shape[1:], rg[n].dtype, rg[n].fillvalue) for n in d["order"]]
+        sealed = json.loads(f.attrs[safeio.ATTRS_DIGEST])["names"]
+        attrs = {k: f.attrs[k] for k in sealed}
+        later = {k: f.attrs[k] for k in f.attrs if k not in sealed and k != safeio.ATTRS_DIGEST}
+    return Layout(d["done"].size, columns, d["rows"]["seed"], {"ceiling_alpha": d["grid"]},
+                  attrs), later
+
+
+def _write_in_row_order(f, layout: Layout, later_attrs: dict, d: dict) -> None:
+    """Fill a new file's structure with ``d``'s rows, the done rows' events in row order."""
+    done = d["done"]
+    create_prior_structure(f, layout, 0)
+    for k, v in later_attrs.items():
+        f.attrs[k] = v
+    rg = f["realisations"]
+    rows = dict(d["rows"])
+    rows["event_start"] = np.full(done.size, -1, dtype=np.int64)
+    digest = rows[ROW_DIGEST].copy()
+    j = d["order"].index("event_start")
+    for r in np.flatnonzero(done):
+        rows["event_start"][r] = append_events(f, _row_events(d, r))
+        digest[r, j] = safeio.crc32_of(np.int64(rows["event_start"][r]))
+    rows[ROW_DIGEST] = digest
+    rows["done"] = done.astype(np.uint8)
+    for name in d["order"] + ["done", ROW_DIGEST]:
+        rg[name][...] = rows[name]
+
+
+def write_view(path, scene: dict | None = None) -> None:
+    """Rank 0, writers closed: put the file in row order (the done rows' events one row
+    after the other, damaged rows marked not done) and add this run to its provenance.
+
+    The ordered file is built beside ``path`` and renamed over it (atomic);
+    a file already in row order only gains the history line.
+    ``xr.open_datatree(path, engine="h5netcdf")`` shows it.
     """
     import h5py
 
-    from .conventions import provenance
-
-    d = _read(path)
-    done = d["done"]
-    R = done.size
-    params = _parameters(d)
-    order = np.flatnonzero(done)
-    cats = [_row_catalogue(d, r) for r in order]
-    counts = np.zeros(R, dtype=np.int64)
-    counts[order] = [len(c) for c in cats]
-    first_event = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-    ev = {c: (np.concatenate([getattr(k, c) for k in cats]) if cats else np.zeros(0))
-          .astype(FILE_EVENT_DTYPES[c]) for c in EVENT_COLUMNS}
-    event_row = np.repeat(np.arange(R), counts)
-    ceiling = d["rows"]["ceiling_distance"].copy()
-    ceiling[~done] = np.nan
-    K = ceiling.shape[2]
-    coords = " ".join(sorted(params))
-    with h5py.File(os.fspath(path), "r+") as f:
-        for name in VIEW_NAMES + tuple(params):
-            if name in f:
-                del f[name]
-
-        def put(name, data, dims, units, long_name, scale=False):
-            ds = f.create_dataset(name, data=data)
-            safeio.seal_dataset(ds, np.asarray(data))
-            if scale:
-                ds.make_scale(name)
-            else:
-                for i, dim in enumerate(dims):
-                    ds.dims[i].attach_scale(f[dim])
-            ds.attrs["units"], ds.attrs["long_name"] = units, long_name
-            return ds
-
-        put("row", np.arange(R), ("row",), "1", "row of the prior ensemble", scale=True)
-        put("event", np.arange(event_row.size), ("event",), "1",
-            "event of the done rows, in row order", scale=True)
-        put("ceiling_alpha", d["grid"], (), "rad", "angle of the ceiling", scale=True)
-        put("nearest", np.arange(K), (), "1", "rank of the distance (0: smallest)", scale=True)
-        for c in EVENT_COLUMNS:
-            put(c, ev[c], ("event",), *EVENT_UNITS[c])
-        put("event_row", event_row, ("event",), "1", "row of the event")
-        for name, v in params.items():
-            units, long_name = PARAMETER_UNITS.get(name, ("1", f"drawn parameter {name}"))
-            put(name, v.astype("S") if v.dtype.kind == "U" else v, ("row",), units, long_name)
-        for name, data, units, long_name in (
-                ("first_event", first_event, "1", "index of the row's first event"),
-                ("n_events", counts, "1", "events of the row (0 unless done)"),
-                ("alpha_c", np.where(done, d["rows"]["alpha_c"], np.nan), "rad",
-                 "avalanche angle"),
-                ("status", np.where(done, d["rows"]["status"], -1).astype(np.int8), "1",
-                 "sliders.status code of the run (-1: not run); attr codes"),
-                ("done", done.astype(np.uint8), "1", "1 if the row is complete")):
-            ds = put(name, data, ("row",), units, long_name)
-            ds.attrs["coordinates"] = coords
-        f["status"].attrs["codes"] = json.dumps({str(k): v for k, v in status.NAMES.items()})
-        ds = put("ceiling_distance", ceiling, ("row", "ceiling_alpha", "nearest"), "m g",
-                 "K smallest distances mu_s,n cos(alpha) - |F_n| of a slider to its threshold")
-        ds.attrs["coordinates"] = coords
-        if "title" not in f.attrs:
-            for k, v in provenance(f"sliders prior ensemble: {R} rows", scene).items():
-                f.attrs["history" if k == "_history_line" else k] = v
-            safeio.seal_attrs(f)
+    p = os.fspath(path)
+    d = _read(p)
+    title = f"sliders prior ensemble: {d['done'].size} rows"
+    if _in_row_order(d) and not d["damaged"]:
+        with h5py.File(p, "r+") as f:
+            add_provenance(f, title, scene)
+        return
+    layout, later_attrs = _layout_of(p, d)
+    tmp = safeio.temporary_beside(p)
+    try:
+        with h5py.File(tmp, "w") as f:
+            _write_in_row_order(f, layout, later_attrs, d)
+            add_provenance(f, title, scene)
+        safeio.fsync_path(tmp)
+        safeio.publish(tmp, p, overwrite=True)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)

@@ -59,17 +59,14 @@ import numpy as np
 
 from .. import status
 from . import formats, safeio
+from .h5tools import (ROW_DIGEST, StorageError, damaged, done_mask, open_for_reading,
+                      plain_attributes, row_damage)
 
 FORMAT = formats.ENSEMBLE
 FORMAT_VERSION = 1
 KNOWN_VERSIONS = (1,)  # format_version values this reader understands (a newer one is refused)
-ROW_DIGEST = "row_crc32"
 STORAGES = ("auto", "mpio", "gather")
 NOT_RUN = -1  # status code of a row that has not been computed
-
-
-class StorageError(RuntimeError):
-    """The file cannot be created, opened or does not match the requested ensemble."""
 
 
 class CollectiveFailure(StorageError):
@@ -182,13 +179,18 @@ def _dcpl():
     return dcpl
 
 
-def _create_structure(f, layout: Layout) -> None:
+def create_structure(f, layout: Layout) -> None:
+    """The layout's datasets in the open file or group ``f``: attributes (sealed), the grids
+    (``/grids``, none if the layout has none), and every row dataset, allocated and filled
+    (seeds, ``done``, ``row_crc32``, the columns).  Collective under mpio."""
     for k, v in layout.attrs.items():
         f.attrs[k] = v
     safeio.seal_attrs(f)
-    g = f.create_group("grids")
-    for name in sorted(layout.grids):
-        safeio.seal_dataset(g.create_dataset(name, data=layout.grids[name]), layout.grids[name])
+    if layout.grids:
+        g = f.create_group("grids")
+        for name in sorted(layout.grids):
+            safeio.seal_dataset(g.create_dataset(name, data=layout.grids[name]),
+                                layout.grids[name])
     rg = f.create_group("realisations")
     rg.create_group("statistics")
     R = layout.n_realisations
@@ -395,7 +397,7 @@ class MpioFile(EnsembleFile):
         import h5py
 
         self.file = h5py.File(tmp, "w", driver="mpio", comm=self.comm)
-        _create_structure(self.file, self.layout)
+        create_structure(self.file, self.layout)
         if self.comm.rank == 0:
             self.file["realisations"]["seed"][:] = self.layout.seeds
         self.file.flush()  # collective: structure and seeds on disk before any row
@@ -452,7 +454,7 @@ class GatherFile(EnsembleFile):
             import h5py
 
             self.file = h5py.File(tmp, "w")
-            _create_structure(self.file, self.layout)
+            create_structure(self.file, self.layout)
             self.file["realisations"]["seed"][:] = self.layout.seeds
             self.file.flush()
             self._bind()
@@ -572,65 +574,26 @@ def _check_space(path: str, layout: Layout) -> None:
 # ---------------------------------------------------------------------------
 # reading (serial, any process)
 # ---------------------------------------------------------------------------
-def _open_for_reading(path):
-    """An HDF5 file open for reading, or StorageError in one line: missing, busy (another
-    process writes it: HDF5's file lock, and the holder of its sliders claim named),
-    unreadable, not HDF5."""
-    import h5py
-
-    p = os.fspath(path)
-    if not os.path.exists(p):
-        raise StorageError(f"{p!r} does not exist")
-    try:
-        f = h5py.File(p, "r")
-    except OSError as exc:
-        text = " ".join(str(exc).split())
-        if "unable to lock file" in text or "errno = 11" in text:
-            from .filelock import current_holder
-
-            holder = current_holder(p) or "another process"
-            raise StorageError(f"{p!r} is busy: {holder} is writing it (HDF5 locks a file "
-                               "while it is written); read it once that run has finished") \
-                from None
-        if os.path.isdir(p):
-            raise StorageError(f"{p!r} is a directory, not an HDF5 file") from None
-        try:
-            hdf5 = h5py.is_hdf5(p)
-        except OSError:
-            hdf5 = True
-        if not hdf5:
-            raise StorageError(f"{p!r} is not a readable HDF5 file (not HDF5 at all)") from None
-        raise StorageError(f"{p!r} is not a readable HDF5 file ({text})") from None
-    return f
-
-
-def _damaged(path, exc: Exception) -> StorageError:
-    text = " ".join(str(exc).split())
-    if isinstance(exc, (StorageError, safeio.IntegrityError)):
-        return StorageError(text)
-    return StorageError(f"{os.fspath(path)!r} is damaged ({type(exc).__name__}: {text})")
-
-
 def read_header(path) -> dict[str, Any]:
     """Attributes, grids, done mask and column shapes of an ensemble file (checksums verified)."""
     import h5py
 
     p = os.fspath(path)
     where = repr(p)
-    f = _open_for_reading(p)
+    f = open_for_reading(p)
     try:
         with f:
             safeio.check_header(f, FORMAT, where, StorageError, versions=KNOWN_VERSIONS)
-            attrs = {k: _plain(v) for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
+            attrs = plain_attributes(f)
             grids = {k: safeio.read_checked(ds, where) for k, ds in f["grids"].items()}
             rg = f["realisations"]
             columns = {}
             rg.visititems(lambda name, obj: columns.__setitem__(name, (obj.shape[1:], obj.dtype))
                           if isinstance(obj, h5py.Dataset) else None)
-            done = _done_mask(rg["done"][()], where)
+            done = done_mask(rg["done"][()], where)
             seeds = safeio.read_checked(rg["seed"], where)
     except Exception as exc:  # noqa: BLE001 - whatever HDF5 makes of a damaged file: one line
-        raise _damaged(p, exc) from None
+        raise damaged(p, exc) from None
     return {"attrs": attrs, "grids": grids, "columns": columns, "done": done, "seeds": seeds}
 
 
@@ -644,7 +607,7 @@ def read_rows(path) -> dict[str, np.ndarray]:
 
     p = os.fspath(path)
     out: dict[str, np.ndarray] = {}
-    f = _open_for_reading(p)
+    f = open_for_reading(p)
     try:
         with f:
             safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
@@ -653,20 +616,20 @@ def read_rows(path) -> dict[str, np.ndarray]:
             rg.visititems(lambda name, obj: out.__setitem__(name, obj[()])
                           if isinstance(obj, h5py.Dataset) else None)
             order = json.loads(rg[ROW_DIGEST].attrs["columns"])
-        damage = _row_damage(out, order, _done_mask(out["done"], repr(p)))
+        damage = row_damage(out, order, done_mask(out["done"], repr(p)))
         if damage:
             r, name = damage[0]
             raise StorageError(f"{p!r}: row {r} of dataset /realisations/{name} fails its "
                                "checksum (the file is damaged; --resume recomputes such rows)")
     except Exception as exc:  # noqa: BLE001
-        raise _damaged(p, exc) from None
+        raise damaged(p, exc) from None
     return out
 
 
 def damaged_rows(path) -> list[int]:
     """The rows marked done whose values fail their checksums (``--resume`` recomputes them)."""
     p = os.fspath(path)
-    f = _open_for_reading(p)
+    f = open_for_reading(p)
     try:
         with f:
             safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
@@ -674,31 +637,9 @@ def damaged_rows(path) -> list[int]:
             rg = f["realisations"]
             order = json.loads(rg[ROW_DIGEST].attrs["columns"])
             out = {name: rg[name][()] for name in order + ["done", ROW_DIGEST]}
-        return sorted({r for r, _ in _row_damage(out, order, _done_mask(out["done"], repr(p)))})
+        return sorted({r for r, _ in row_damage(out, order, done_mask(out["done"], repr(p)))})
     except Exception as exc:  # noqa: BLE001 - whatever HDF5 makes of a damaged file: one line
-        raise _damaged(p, exc) from None
-
-
-def _row_damage(out: dict, order: list[str], done: np.ndarray) -> list[tuple[int, str]]:
-    """(row, column) of every done row whose value fails its CRC-32 in ``row_crc32``."""
-    digests = out[ROW_DIGEST]
-    return [(int(r), name) for r in np.flatnonzero(done) for j, name in enumerate(order)
-            if safeio.crc32_of(out[name][r]) != int(digests[r, j])]
-
-
-def _done_mask(done: np.ndarray, where: str) -> np.ndarray:
-    if done.dtype != np.uint8 or not np.isin(done, (0, 1)).all():
-        raise StorageError(f"{where}: /realisations/done holds values other than 0 and 1 "
-                           "(the file is damaged)")
-    return done.astype(bool)
-
-
-def _plain(v):
-    if isinstance(v, bytes):
-        return v.decode()
-    if isinstance(v, np.generic):
-        return v.item()
-    return v
+        raise damaged(p, exc) from None
 
 
 # ---------------------------------------------------------------------------

@@ -2,13 +2,21 @@
 
 One file holds R realisations at every point of a parameter sweep::
 
-    /                     attrs: format = "sliders.study", study (JSON: scene, axes, zip,
-                          realisations), study_digest, dims, n_points, common_random_numbers, ...
-    /points/p000/...      the ensemble layout (storage module) of point 0: grids,
-                          realisations/{seed, done, status, alpha_c, ..., statistics/, row_crc32}
+    /                     attrs: format = "sliders.study", format_version = 2, study (JSON:
+                          scene, axes, zip, realisations), study_digest, dims, n_points,
+                          common_random_numbers, ...
+    /points/p000/...      the ensemble layout (storage module) of point 0: grids (the
+                          angles and bin edges; the scalars are in the point's scene),
+                          realisations/{seed, done, status, alpha_c, ..., statistics/, row_crc32},
+                          and the point's coordinates (alpha, force_bin, ...)
     /<axis>, /realisation coordinates (HDF5 dimension scales) of
-    /alpha_c, /status, /n_events, /done   (dims..., realisation): written by rank 0 at the end
-                          of every run, so that xarray opens the study as one dataset
+    /alpha_c, /status, /n_events, /done   (dims..., realisation): virtual datasets showing
+                          the points' rows (stored once), so that xarray opens the study as
+                          one dataset
+
+Every dataset has named dimension scales (``write_view``, rank 0 at the end of
+every run).  Format version 1 (the root view a copy, scalar grids) still
+reads; its view becomes virtual when it is resumed.
 
 The writers are the ensemble's (``storage.MpioFile``, ``storage.GatherFile``)
 with one group per point: row t of the run is realisation ``t % R`` of point
@@ -21,18 +29,19 @@ from __future__ import annotations
 import datetime
 import json
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from . import formats, safeio
-from .storage import (ROW_DIGEST, GatherFile, Layout, MpioFile, StorageError, _create_structure,
-                      _open_for_reading, _row_damage)
+from .h5tools import (ROW_DIGEST, StorageError, damaged, open_for_reading, plain_attributes,
+                      row_damage)
+from .storage import GatherFile, Layout, MpioFile, create_structure
 
 FORMAT = formats.STUDY
-FORMAT_VERSION = 1
-KNOWN_VERSIONS = (1,)  # format_version values this reader understands (a newer one is refused)
+FORMAT_VERSION = 2  # 2: the root view shows the points' rows (virtual), no scalar grids
+KNOWN_VERSIONS = (1, 2)  # format_version values this reader understands (a newer one is refused)
 CRN_TEXT = ("common random numbers: realisation r has seed realisation_seed(base_seed, r) at "
             "every point (the same disorder draws); differences between points are paired")
 VIEW_COLUMNS = ("alpha_c", "n_events", "status", "done")
@@ -94,7 +103,10 @@ class _StudyRows:
         safeio.seal_attrs(f)
         pts = f.create_group("points")
         for name, lay in zip(study.names, study.points):
-            _create_structure(pts.create_group(name), lay)
+            # the grids without the scalars (mu_d, mu_s_mean, n_model_bins): the point's scene
+            # holds them, and netCDF would take a scalar named like a study axis for that axis
+            arrays = {k: v for k, v in lay.grids.items() if np.ndim(v)}
+            create_structure(pts.create_group(name), replace(lay, grids=arrays))
 
     def _write_seeds(self) -> None:
         for name, lay in zip(self.study.names, self.study.points):
@@ -184,29 +196,26 @@ def read_study_header(path) -> dict[str, Any]:
     import h5py
 
     p = os.fspath(path)
-    f = _open_for_reading(p)
+    f = open_for_reading(p)
     try:
         with f:
             safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
                                 versions=KNOWN_VERSIONS)
-            attrs = {k: (v.decode() if isinstance(v, bytes) else
-                         v.item() if isinstance(v, np.generic) else v)
-                     for k, v in f.attrs.items() if k != safeio.ATTRS_DIGEST}
+            attrs = plain_attributes(f)
             done, damaged = [], []
             for name in sorted(f["points"]):
                 rg = f["points"][name]["realisations"]
                 order = json.loads(rg[ROW_DIGEST].attrs["columns"])
                 out = {n: rg[n][()] for n in order + ["done", ROW_DIGEST]}
                 d = out["done"].astype(bool)
-                bad = sorted({r for r, _ in _row_damage(out, order, d)})
+                bad = sorted({r for r, _ in row_damage(out, order, d)})
                 d[bad] = False
                 done.append(d)
                 damaged.append(bad)
     except StorageError:
         raise
     except Exception as exc:  # noqa: BLE001 - whatever HDF5 makes of a damaged file: one line
-        raise StorageError(f"{p!r} is damaged ({type(exc).__name__}: "
-                           f"{' '.join(str(exc).split())})") from None
+        raise damaged(p, exc) from None
     return {"attrs": attrs, "done": done, "damaged": damaged}
 
 
@@ -219,7 +228,7 @@ def read_study_spec(path) -> dict[str, Any]:
 def _open_checked(path):
     """The study file open for reading, its kind and version checked (StorageError, one line)."""
     p = os.fspath(path)
-    f = _open_for_reading(p)
+    f = open_for_reading(p)
     try:
         safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
                             versions=KNOWN_VERSIONS)
@@ -245,45 +254,79 @@ def read_point_rows(path, p: int) -> dict[str, np.ndarray]:
 # ---------------------------------------------------------------------------
 # the xarray view
 # ---------------------------------------------------------------------------
+VIEW_UNITS = {"alpha_c": ("rad", "avalanche angle (NaN if the run ended otherwise)"),
+              "n_events": ("1", "number of rearrangements before the avalanche"),
+              "status": ("1", "how the run ended (sliders.status code; -1: not run)"),
+              "done": ("1", "1 when the realisation is complete")}
+AXIS_UNITS = {"alpha_max": "rad", "tilt": "rad", "dt": "tau", "spring_length": "g tau^2",
+              "drive_max": "g tau^2"}
+
+
 def write_view(path, study) -> None:
-    """Rank 0, file closed by the writers: root datasets (dims..., realisation) with named
-    dimension scales, so that ``xr.open_dataset(path, engine="h5netcdf")`` shows the axes
-    as dimensions (derived from the checksummed rows, rewritten at the end of every run)."""
+    """Rank 0, file closed by the writers: named dimension scales on every dataset, and
+    root variables (dims..., realisation) that show the points' rows (HDF5 virtual
+    datasets: stored once, in the points' groups), so that
+    ``xr.open_dataset(path, engine="h5netcdf")`` shows the axes as dimensions and
+    ``xr.open_datatree`` every point with its grids as coordinates."""
     import h5py
 
-    from .conventions import provenance
+    from .conventions import (add_provenance, attach_dimensions, ensemble_coordinates,
+                              ensemble_variables)
 
-    shape = study.shape + (study.realisations,)
     with h5py.File(os.fspath(path), "r+") as f:
-        values = {c: [] for c in VIEW_COLUMNS}
-        for p in range(len(study.points)):
-            rg = f["points"][point_name(p)]["realisations"]
-            for c in VIEW_COLUMNS:
-                values[c].append(rg[c][()])
-        scales = []
-        for d in study.dims:
-            name = d[0]
-            if name not in f:
-                ds = f.create_dataset(name, data=np.asarray(study.axes[name]))
-                ds.make_scale(name)
-                for other in d[1:]:  # zipped axes: values along the first one's dimension
-                    f.create_dataset(other, data=np.asarray(study.axes[other])) \
-                        .dims[0].attach_scale(ds)
-            scales.append(f[name])
-        if "realisation" not in f:
-            f.create_dataset("realisation", data=np.arange(study.realisations)).make_scale(
-                "realisation")
-        scales.append(f["realisation"])
+        scales = _axis_scales(f, study)
         for c in VIEW_COLUMNS:
-            data = np.stack(values[c]).reshape(shape)
-            if c in f:
-                f[c][...] = data
-            else:
-                ds = f.create_dataset(c, data=data)
-                for i, sc in enumerate(scales):
-                    ds.dims[i].attach_scale(sc)
+            if c in f and not f[c].is_virtual:  # a copy of the rows: shown instead
+                del f[c]
+            if c not in f:
+                _point_view(f, c, study, scales)
+        for p in range(len(study.points)):
+            g = f["points"][point_name(p)]
+            attach_dimensions(g, ensemble_variables(g), ensemble_coordinates(g),
+                              inherited={"realisation": f["realisation"]})
         if "title" not in f.attrs:
-            for k, v in provenance(f"sliders study: {len(study.points)} points x "
-                                   f"{study.realisations} realisations", study.spec["scene"]).items():
-                f.attrs[k] = v
+            add_provenance(f, f"sliders study: {len(study.points)} points x "
+                              f"{study.realisations} realisations", study.spec["scene"])
             safeio.seal_attrs(f)
+
+
+def _axis_scales(f, study) -> list:
+    """The study's axes and ``realisation`` as coordinates of the root (zipped axes: values
+    along the first one's dimension)."""
+    from . import h5tools
+
+    scales = []
+    for d in study.dims:
+        name = d[0]
+        if name not in f:
+            scale = h5tools.coordinate(f, name, np.asarray(study.axes[name]),
+                                       AXIS_UNITS.get(name, "1"), f"scene parameter {name}")
+            for other in d[1:]:
+                ds = f.create_dataset(other, data=np.asarray(study.axes[other]))
+                safeio.seal_dataset(ds, np.asarray(study.axes[other]))
+                h5tools.attach(ds, scale)
+                h5tools.describe(ds, AXIS_UNITS.get(other, "1"), f"scene parameter {other}")
+        scales.append(f[name])
+    if "realisation" not in f:
+        h5tools.coordinate(f, "realisation", np.arange(study.realisations), "1",
+                           "realisation (its seed is realisation_seed(base_seed, realisation) "
+                           "at every point)")
+    return scales + [f["realisation"]]
+
+
+def _point_view(f, column: str, study, scales) -> None:
+    """Root dataset ``column`` (dims..., realisation): a virtual dataset over the points' rows."""
+    import h5py
+
+    from . import h5tools
+
+    R = study.realisations
+    first = f["points"][point_name(0)]["realisations"][column]
+    layout = h5py.VirtualLayout(shape=tuple(study.shape) + (R,), dtype=first.dtype)
+    for p in range(len(study.points)):
+        src = f["points"][point_name(p)]["realisations"][column]
+        layout[np.unravel_index(p, study.shape) + (slice(None),)] = \
+            h5py.VirtualSource(".", src.name, shape=src.shape)
+    ds = f.create_virtual_dataset(column, layout, fillvalue=first.fillvalue)
+    h5tools.attach(ds, *scales)
+    h5tools.describe(ds, *VIEW_UNITS[column])
