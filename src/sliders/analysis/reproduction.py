@@ -73,12 +73,6 @@ class Report:
     timings: dict[str, float] = field(default_factory=dict)
     data: dict = field(default_factory=dict)
 
-    def add(self, *args, **kw) -> Statement:
-        """Append a Statement made of these arguments and return it."""
-        s = Statement(*args, **kw)
-        self.statements.append(s)
-        return s
-
 
 def _fmt(x, nd=3) -> str:
     return "n/a" if x is None or not np.isfinite(x) else f"{x:.{nd}f}"
