@@ -643,6 +643,11 @@ def _crude_slope(summary) -> float:
     return 1.0 / (4.0 * summary.grids.mu_s_mean * summary.grids.delta_mu)
 
 
+def _p_bin(summary, i: int) -> tuple[np.ndarray, np.ndarray]:
+    """P_(i+1) against the angle where enough runs contribute (NaN elsewhere), its s.e."""
+    return np.where(_valid(summary), summary.p_mean[:, i], np.nan), summary.p_sem[:, i]
+
+
 def _fits(ev: Evidence) -> dict:
     return ev.data.setdefault("fits", {})
 
@@ -651,10 +656,8 @@ def _fits(ev: Evidence) -> dict:
 def p1_linear_growth(ev: Evidence, *, paper, agrees_within, partly_within) -> Statement:
     """7. P_1 grows linearly up to ``paper``: where it leaves its line (``departure_angle``)."""
     summary = ev.summary
-    a = summary.alpha
     crude_slope = _crude_slope(summary)
-    p1, s1 = np.where(_valid(summary), summary.p_mean[:, 0], np.nan), summary.p_sem[:, 0]
-    end, f1 = departure_angle(a, p1, s1, LINEAR_FIT_RANGE, -1)
+    end, f1 = departure_angle(summary.alpha, *_p_bin(summary, 0), LINEAR_FIT_RANGE, -1)
     v = ("agrees" if np.isfinite(end) and abs(end - paper) <= agrees_within else
          "partly" if np.isfinite(end) and abs(end - paper) <= partly_within else "disagrees")
     _fits(ev).update(p1=f1, p1_end=end)
@@ -678,7 +681,7 @@ def p2_slope(ev: Evidence, *, agrees_errors, agrees_within, partly_within) -> St
     summary = ev.summary
     a = summary.alpha
     crude_slope = _crude_slope(summary)
-    p2, s2 = np.where(_valid(summary), summary.p_mean[:, 1], np.nan), summary.p_sem[:, 1]
+    p2, s2 = _p_bin(summary, 1)
     sel = (a >= P2_SLOPE_RANGE[0]) & (a <= P2_SLOPE_RANGE[1])
     f2 = ob.linear_fit(a[sel], p2[sel], s2[sel])
     dev = abs(f2["slope"] - crude_slope)
