@@ -74,7 +74,8 @@ module sliders_events
                              spanning_ends_run, pushed_next, roots_from
   use sliders_contract, only: loading_pushed_end
   use sliders_workspace, only: tilt_params, workspace, event_record, allocate_workspace, &
-                               interrupt_check_steps, detail_none, detail_resting, detail_state
+                               unpack_params, interrupt_check_steps, detail_none, &
+                               detail_resting, detail_state
   use sliders_next_angle, only: coupled_next, tree_build, tree_update, tree_next, cache_trig
   use sliders_active_set, only: start_slider, stop_slider, deactivate, find_runs, update_runs, &
                                 far_minima, find_changes
@@ -83,7 +84,7 @@ module sliders_events
   implicit none
   private
 
-  public :: tilt_params, tilt_run
+  public :: tilt_params, tilt_run, unpack_params
   public :: max_halvings, interrupt_check_steps
   public :: detail_none, detail_resting, detail_state
 
