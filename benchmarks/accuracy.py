@@ -1,6 +1,5 @@
 """Speed against accuracy of the tilt integrator: error against cost for dt and refine_tol.
 
-Issue "Speed against accuracy, numerical extremes and scaling, measured".
 Three measurements, all with the Fortran backend (NumPy at two settings on the
 small scenes, to show that both backends converge to the same reference):
 

@@ -1,6 +1,7 @@
-"""Bit-for-bit fingerprints of Fortran-kernel runs (issue 11's safety net).
+"""Bit-for-bit fingerprints of Fortran-kernel runs: the check that a rewrite changes no result.
 
-Every optimisation of the kernel must leave the events identical bit for bit.
+A rewrite of the kernel meant to be exact (faster code, procedures split or merged) must
+leave the events identical bit for bit.
 This script runs a fixed set of scenes (N = 10/100/400, xi = 0 and 0.001, a
 chain between walls, a strongly coupled relaxation, a capped event) and hashes
 every event array, the recorded displacements, the final state and the run's

@@ -1,4 +1,4 @@
-"""The kernel against the machine's limit (issue 11), measured in one run.
+"""The kernel against the machine's limit, measured in one run.
 
 1. Builds benchmarks/verlet_baseline.c (gcc -O3 -march=native, IEEE) into a
    temporary folder and runs it: the fused velocity-Verlet loop over 250

@@ -1,6 +1,5 @@
 """Time, work and memory of the Fortran backend against the number of sliders N.
 
-Issue "Speed against accuracy, numerical extremes and scaling, measured".
 Fortran backend, record="summary", dt = 1e-3, xi = 0 and 0.001; every run in
 a fresh child process (so that its peak resident memory is its own), one seed
 per N (three for N <= 1000, whose runs are short and noisy).

@@ -1,20 +1,20 @@
-"""Cost of resolving the slow slip pulses (issue 16, "every realisation resolved").
+"""Cost of resolving the slow slip pulses: every realisation run to its true end.
 
 Realisations of an ensemble scene (seed of realisation r as in
-``sliders.ensemble``) run to their end with the new event cap
-(``--new-cap``, default: the scene mode's ``max_event_duration``) and,
-where an event lasted longer than the old cap, again with the old cap
-(``--old-cap``, 1e5 tau: what every mode used before).  A run whose events
-all end within the old cap is the same run under both caps (same events,
-same work), so the extra cost of the new cap is carried by those
-"pulse" realisations alone.
+``sliders.ensemble``) run to their end with the long event cap
+(``--long-cap``, default: the scene mode's ``max_event_duration``) and,
+where an event lasted longer than the short cap, again with the short cap
+(``--short-cap``, 1e5 tau, which stops the slowest slip pulses unfinished).
+A run whose events all end within the short cap is the same run under both
+caps (same events, same work), so the extra cost of the long cap is carried
+by those "pulse" realisations alone.
 
 Work is counted in slider-steps (deterministic: one slider advanced by one
 time step) and in CPU seconds (this process; noisy on a shared machine).
 
 * ``--realisations R --sample K``: K realisations drawn at random (``--seed``)
-  plus ``--include`` (the pulse realisations known from a full scan).  Today's
-  cost of the whole study is R x the mean of the random sample; the extra cost
+  plus ``--include`` (the pulse realisations known from a full scan).  The short
+  cap's cost of the whole study is R x the mean of the random sample; the extra cost
   is the sum over the included pulse realisations (exact if the list of pulse
   realisations is complete, which only a full scan establishes).
 * ``--sample 0`` (default) runs all R realisations: exact totals.
@@ -44,7 +44,7 @@ from sliders import Scene
 from sliders.keyed_random import realisation_seed
 
 RESULTS = Path(__file__).parent / "results"
-OLD_CAP = 1e5  # tau: the event cap of every speed mode before issue 16
+SHORT_CAP = 1e5  # tau: a cap that the slowest slip pulses outlast
 
 
 def run_row(base: Scene, r: int, cap: float) -> dict:
@@ -83,9 +83,10 @@ def main(argv=None) -> dict:
                         help="random realisations to run (0: all of them)")
     parser.add_argument("--seed", type=int, default=16, help="of the random sample")
     parser.add_argument("--include", type=int, nargs="*", default=[],
-                        help="realisations known to hold an event longer than the old cap")
-    parser.add_argument("--old-cap", type=float, default=OLD_CAP)
-    parser.add_argument("--new-cap", type=float, default=None)
+                        help="realisations known to hold an event longer than the short cap")
+    parser.add_argument("--short-cap", type=float, default=SHORT_CAP)
+    parser.add_argument("--long-cap", type=float, default=None,
+                        help="default: the scene's max_event_duration")
     parser.add_argument("--rows", default=None, help="JSON-lines cache of finished runs")
     parser.add_argument("--study-realisations", type=int, default=None,
                         help="size of the whole study when --realisations runs only its first R "
@@ -94,7 +95,7 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
 
     base = Scene.from_toml(args.scene)
-    new_cap = base.max_event_duration if args.new_cap is None else args.new_cap
+    long_cap = base.max_event_duration if args.long_cap is None else args.long_cap
     name = Path(args.scene).stem
     rows_path = Path(args.rows) if args.rows else None
     cache = load_rows(rows_path)
@@ -114,20 +115,21 @@ def main(argv=None) -> dict:
                     fh.write(json.dumps(cache[(r, cap)]) + "\n")
         return cache[(r, cap)]
 
-    new = {r: row(r, new_cap) for r in todo}
-    # a run whose events all end within the old cap is the same run today
-    pulses = [r for r in todo if new[r]["longest_event"] > args.old_cap]
-    old = {r: (row(r, args.old_cap) if r in pulses else new[r]) for r in todo}
+    long = {r: row(r, long_cap) for r in todo}
+    # a run whose events all end within the short cap is the same run under both caps
+    pulses = [r for r in todo if long[r]["longest_event"] > args.short_cap]
+    short = {r: (row(r, args.short_cap) if r in pulses else long[r]) for r in todo}
 
-    unresolved = [r for r in todo if new[r]["status"] != "avalanche"]
-    capped_today = [r for r in todo if old[r]["status"] == "event_duration_cap"]
+    unresolved = [r for r in todo if long[r]["status"] != "avalanche"]
+    capped_short = [r for r in todo if short[r]["status"] == "event_duration_cap"]
     missed = sorted(set(pulses) - set(args.include)) if args.sample else []
     scale = R / len(sample)
     totals = {}
     for unit in ("cpu", "slider_steps"):
-        today = scale * sum(old[r][unit] for r in sample)
-        extra = sum(new[r][unit] - old[r][unit] for r in pulses)
-        totals[unit] = {"today": today, "extra": extra, "extra_fraction": extra / today}
+        short_total = scale * sum(short[r][unit] for r in sample)
+        extra = sum(long[r][unit] - short[r][unit] for r in pulses)
+        totals[unit] = {"short_cap": short_total, "extra": extra,
+                        "extra_fraction": extra / short_total}
 
     lines = []
 
@@ -136,22 +138,22 @@ def main(argv=None) -> dict:
         lines.append(text)
 
     say(f"{name}: {len(todo)} of {R} realisations run ({'all' if not args.sample else f'random sample of {len(sample)} + {len(args.include)} included'}); "
-          f"old cap {args.old_cap:g} tau, new cap {new_cap:g} tau")
-    say(f"{'r':>5} {'seed':>11} {'tan a - mu_d':>13} {'longest event':>14} {'status today':>20} "
-          f"{'alpha_c new':>12} {'CPU today':>9} {'CPU new':>8} {'steps today':>12} {'steps new':>12}")
+          f"short cap {args.short_cap:g} tau, long cap {long_cap:g} tau")
+    say(f"{'r':>5} {'seed':>11} {'tan a - mu_d':>13} {'longest event':>14} {'status short':>20} "
+          f"{'alpha_c long':>12} {'CPU short':>9} {'CPU long':>8} {'steps short':>12} {'steps long':>12}")
     for r in pulses:
-        o, n = old[r], new[r]
+        o, n = short[r], long[r]
         say(f"{r:5d} {n['seed']:11d} {math.tan(n['longest_event_alpha']) - base.mu_d:13.2e} "
               f"{n['longest_event']:10.4g} tau {o['status']:>20} {n['alpha_c']:12.6f} "
               f"{o['cpu']:9.2f} {n['cpu']:8.2f} {o['slider_steps']:12.4g} {n['slider_steps']:12.4g}")
     for unit, t in totals.items():
         how = "sum over all" if not args.sample else f"{scale:g} x sum over the random sample"
-        say(f"{unit:>12}: today {t['today']:.4g} ({how}), extra {t['extra']:.4g} "
+        say(f"{unit:>12}: short cap {t['short_cap']:.4g} ({how}), extra {t['extra']:.4g} "
               f"(pulse realisations) = {100 * t['extra_fraction']:+.1f} %")
     if args.study_realisations:
         say(f"the first {R} of the {args.study_realisations} realisations of the study: a random "
             f"sample, so the extra fraction above is the estimate for the whole study")
-    say(f"capped today: {len(capped_today)} {capped_today}; still unresolved with the new cap: "
+    say(f"capped by the short cap: {len(capped_short)} {capped_short}; still unresolved with the long cap: "
           f"{len(unresolved)} {unresolved}")
     if missed:
         say(f"warning: pulse realisations of the random sample not in --include: {missed}")
@@ -159,9 +161,9 @@ def main(argv=None) -> dict:
     report = {
         "scene": args.scene, "realisations": R,
         "study_realisations": args.study_realisations or R, "sample": sample if args.sample else "all",
-        "include": args.include, "old_cap": args.old_cap, "new_cap": new_cap,
-        "pulses": [{"new": new[r], "old": old[r]} for r in pulses],
-        "capped_today": capped_today, "unresolved": unresolved, "totals": totals,
+        "include": args.include, "short_cap": args.short_cap, "long_cap": long_cap,
+        "pulses": [{"long_cap": long[r], "short_cap": short[r]} for r in pulses],
+        "capped_short": capped_short, "unresolved": unresolved, "totals": totals,
         "missed_pulses": missed, "machine": platform.node(),
         "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
     }

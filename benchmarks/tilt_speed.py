@@ -1,4 +1,4 @@
-"""Speed of the two backends on the paper's N = 400 scenes (issue: simulator).
+"""Speed of the two backends on the paper's N = 400 scenes.
 
 For each scene (N = 400, xi = 0 and 0.001, dt = 1e-3):
 

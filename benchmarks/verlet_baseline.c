@@ -1,4 +1,4 @@
-/* The machine's limit for the sliders' hot loop (issue 11): a plain fused
+/* The machine's limit for the sliders' hot loop: a plain fused
  * velocity-Verlet step over n contiguous moving sliders of a free chain,
  *
  *   half kick, drift, nearest-neighbour spring force, half kick, sign test
@@ -9,7 +9,8 @@
  * the kernel's ns per slider-step by this program's.
  *
  * Usage: verlet_baseline [n_sliders] [steps]; prints "ns_per_slider_step X".
- * kernel_speed.py runs it at 250 sliders (the issue's baseline) and at the
+ * kernel_speed.py runs it at 250 sliders (a long run of movers, where the
+ * loop's fixed cost per step is hidden) and at the
  * numbers of movers per step the kernel's runs really have (mostly 1-60).
  */
 #include <stdio.h>

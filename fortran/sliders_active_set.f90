@@ -266,10 +266,10 @@ contains
   !> pool sliders separate them.  A pool slider inside a span goes through
   !> the step like a resting active slider (v = acc = 0: du_t = du, v_t =
   !> 0, acc_t = 0) but never crosses there: its ws%thr is +inf (the pool is
-  !> tested through the gap minima, as before), so the spans change no
-  !> state, no crossing, no bit of any event.  (Padding the spans to a
-  !> multiple of the vector width, to skip the loops' remainders, was
-  !> measured slower.)
+  !> tested through the gap minima, inside a span as outside), so the spans
+  !> change no state, no crossing, no bit of any event.  (Padding the spans
+  !> to a multiple of the vector width, to skip the loops' remainders, is
+  !> slower: measured.)
   subroutine merge_spans(ws)
     type(workspace), intent(inout) :: ws
     integer(ip) :: r, lo, hi

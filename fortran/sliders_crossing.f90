@@ -12,8 +12,9 @@
 !> positions; with xi > 0 the mean through a rigorous enclosure,
 !> sliders_coupling_mean, exactly only when the enclosure leaves the test
 !> open): a crossing costs two full trials plus O(crossers) per bisection
-!> trial, not O(active) per trial, which was quadratic in the number of
-!> moving sliders for the large late events.  The bisection is bounded by max_halvings (status_refine_limit).
+!> trial, not O(active) per trial (which would make a crossing's cost
+!> quadratic in the number of moving sliders for the large late events).
+!> The bisection is bounded by max_halvings (status_refine_limit).
 module sliders_crossing
   use sliders_kinds, only: dp, ip
   use sliders_workspace, only: tilt_params, workspace

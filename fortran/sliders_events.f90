@@ -13,11 +13,13 @@
 !> holds the loop; each part of it is a module of its own, in the order the
 !> loop meets them:
 !>
-!>   tilt_run (here): per event, the stability check at the current drive,
-!>     else the drive of the next event:
-!>     sliders_next_angle (coupled_next for xi > 0, else the min-tree
+!>   tilt_run (here; begin_run sets up the call): per event,
+!>     unstable_sliders (here): the stability check at the current drive,
+!>     else next_drive (here): the drive of the next event, from
+!>       sliders_next_angle (coupled_next for xi > 0, else the min-tree
 !>       tree_next; the pushed end: sliders_loading's pushed_next);
-!>     run_event (here): one rearrangement at fixed drive:
+!>     run_event (here): one rearrangement at fixed drive, begin_event then
+!>       the steps:
 !>       sliders_active_set (the moving sliders and their neighbours as runs
 !>         and spans, the resting others as a pool tested through two gap
 !>         minima; starts, stops, the runs' update after a crossing),
@@ -26,8 +28,12 @@
 !>         quiet_steps),
 !>       sliders_crossing (a step that crossed, cut back by bisection),
 !>         with sliders_coupling_mean (xi > 0: the trial mean's enclosure);
-!>       then the stops' redraws (sliders_friction) and the starts;
+!>       after_crossing (here): stop_crossers (the stops and their redraws,
+!>         sliders_friction), start_crossers, release_idle;
+!>       record_event (here): the event's energies and moved sliders;
+!>     record_row (here): the event's row of the buffers;
 !>     end_event (here): the caches after an event (forces, angles, sum).
+!>   The steps named "(here)" are private, so that gcc inlines them.
 !>   sliders_workspace holds the parameters, the work arrays and the event
 !>   record that they all share.
 !> The modules are compiled with link-time optimisation (meson.build), so
@@ -68,7 +74,8 @@ module sliders_events
                              spanning_ends_run, pushed_next, roots_from
   use sliders_contract, only: loading_pushed_end
   use sliders_workspace, only: tilt_params, workspace, event_record, allocate_workspace, &
-                               interrupt_check_steps, detail_none, detail_resting, detail_state
+                               unpack_params, interrupt_check_steps, detail_none, &
+                               detail_resting, detail_state
   use sliders_next_angle, only: coupled_next, tree_build, tree_update, tree_next, cache_trig
   use sliders_active_set, only: start_slider, stop_slider, deactivate, find_runs, update_runs, &
                                 far_minima, find_changes
@@ -77,7 +84,7 @@ module sliders_events
   implicit none
   private
 
-  public :: tilt_params, tilt_run
+  public :: tilt_params, tilt_run, unpack_params
   public :: max_halvings, interrupt_check_steps
   public :: detail_none, detail_resting, detail_state
 
@@ -102,6 +109,10 @@ contains
   !> slider-steps: the event in progress is undone entirely (du, mu, stop
   !> counts, and alpha back to the last completed event), the completed
   !> events are kept.
+  !>
+  !> Per event: the stability check at the current drive (unstable_sliders),
+  !> else the drive of the next event (next_drive); the event (run_event);
+  !> its row (record_row); the caches for the next check (end_event).
   subroutine tilt_run(params, e0, t0, w0, mu, n_stops, du, alpha, ev_real, ev_int, &
                       sp_ptr, sp_index, sp_value, n_events, n_sparse, status, &
                       alpha_c, event_time, final_work, detail, interrupt)
@@ -126,37 +137,12 @@ contains
     type(tilt_params) :: p       ! params, with the pushed end's driver at the drive
     type(workspace) :: ws
     type(event_record) :: rec
-    integer(ip) :: n, i, n_trig, j, n_bad, k
-    real(dp) :: sin_a, cos_a, f, angle, alpha_done
-    logical :: coupled, pushed
+    integer(ip) :: n, n_trig, n_bad
+    real(dp) :: angle, alpha_done
 
     p = params
     n = p%chain%n
-    pushed = p%loading%protocol == loading_pushed_end
-    coupled = p%chain%xi /= 0.0_dp
-    call allocate_workspace(ws, n)
-    ws%du_start = du
-    ws%du = du
-    ws%du_t = du
-    ws%sum_du = total_displacement(du)
-    do i = 1, n
-      ws%elastic(i) = elastic_force(p%chain, e0, du, i, ws%sum_du/real(n, dp))
-    end do
-    !GCC$ novector
-    do i = 1, n
-      call cache_trig(ws, mu, i)
-    end do
-    if (.not. coupled) then     ! xi > 0: coupled_next computes the angles it needs
-      call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
-      call tree_build(ws, n)
-    end if
-    ! the first check covers every slider; with xi = 0 the later ones only
-    ! the sliders of the last event (end_event: no other force changed)
-    ws%n_changed = n
-    do i = 1, n
-      ws%changed(i) = i
-    end do
-
+    call begin_run(p, ws, e0, mu, du)
     n_events = 0
     n_sparse = 0
     sp_ptr(1) = 0
@@ -171,20 +157,7 @@ contains
       end if
       ! A non-finite force stops the run; unstable sliders at the current
       ! angle start at once (relaxation).
-      call drive_terms(p%loading, alpha, sin_a, cos_a)
-      p%chain%driver_position = alpha
-      n_trig = 0
-      n_bad = 0
-      do k = 1, ws%n_changed
-        i = ws%changed(k)
-        f = tangential_force(p%chain, i, ws%elastic(i), sin_a, du(i))
-        n_bad = n_bad + merge(0_ip, 1_ip, abs(ws%elastic(i)) <= huge(1.0_dp))
-        if (abs(f) > static_threshold(mu(i), cos_a, p%force_tol)) then
-          n_trig = n_trig + 1
-          ws%slist(n_trig) = i
-          ws%sdir(n_trig) = sign(1.0_dp, f)
-        end if
-      end do
+      call unstable_sliders(p, ws, mu, du, alpha, n_trig, n_bad)
       if (n_bad > 0) then
         status = status_non_finite
         detail = detail_resting
@@ -200,16 +173,7 @@ contains
           status = status_running
           exit
         end if
-        if (pushed) then    ! only slider 1 feels the driver
-          angle = pushed_next(p%loading, ws%elastic(1), mu(1), du(1), alpha, p%force_tol)
-          n_trig = 1
-          ws%slist(1) = 1
-          ws%sdir(1) = 1.0_dp
-        else if (coupled) then
-          call coupled_next(ws, n, alpha, angle, n_trig)
-        else
-          call tree_next(ws, alpha, angle, n_trig)
-        end if
+        call next_drive(p, ws, mu, du, alpha, angle, n_trig)
         if (beyond_limit(p%loading, angle)) then
           status = status_alpha_max
           exit
@@ -241,26 +205,8 @@ contains
       end if
 
       n_events = n_events + 1
-      ev_real(n_events, ev_alpha) = alpha
-      ev_real(n_events, ev_duration) = rec%duration
-      ev_real(n_events, ev_work_gravity) = rec%work_gravity
-      ev_real(n_events, ev_elastic_change) = rec%elastic_change
-      ev_real(n_events, ev_dissipation) = rec%dissipation
-      ev_int(n_events, ev_n_moved) = rec%n_moved
-      ev_int(n_events, ev_n_stops) = rec%n_stops
-      ev_int(n_events, ev_n_steps) = rec%n_steps
-      ev_int(n_events, ev_slider_steps) = rec%slider_steps
-      if (p%record_sparse) then
-        do j = 1, int(rec%n_moved, ip)
-          i = ws%sorted(j)
-          sp_index(n_sparse + j) = int(i - 1, i8)
-          sp_value(n_sparse + j) = du(i) - ws%du_start(i)
-        end do
-        n_sparse = n_sparse + int(rec%n_moved, ip)
-        sp_ptr(n_events + 1) = int(n_sparse, i8)
-      else
-        sp_ptr(n_events + 1) = 0
-      end if
+      call record_row(p, ws, du, alpha, rec, n_events, ev_real, ev_int, sp_ptr, sp_index, &
+                      sp_value, n_sparse)
       call end_event(p, ws, e0, mu, du)
       if (spanning_ends_run(p%loading) .and. .not. p%relax_only .and. rec%n_moved == n) then
         status = status_sliding       ! the onset drive is the last event's
@@ -269,6 +215,137 @@ contains
     end do
   end subroutine tilt_run
 
+  !> The workspace of a call: the state's displacements, every slider's
+  !> elastic force and trigonometric cache, with xi = 0 the instability
+  !> angles in their min-tree; the first stability check covers every slider.
+  subroutine begin_run(p, ws, e0, mu, du)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), contiguous, intent(in) :: mu(:)
+    real(dp), contiguous, intent(in) :: du(:)
+    integer(ip) :: n, i
+
+    n = p%chain%n
+    call allocate_workspace(ws, n)
+    ws%du_start = du
+    ws%du = du
+    ws%du_t = du
+    ws%sum_du = total_displacement(du)
+    do i = 1, n
+      ws%elastic(i) = elastic_force(p%chain, e0, du, i, ws%sum_du/real(n, dp))
+    end do
+    !GCC$ novector
+    do i = 1, n
+      call cache_trig(ws, mu, i)
+    end do
+    if (p%chain%xi == 0.0_dp) then     ! xi > 0: coupled_next computes the angles it needs
+      call roots_from(ws%elastic, ws%radius, ws%phi, ws%root_down, ws%root_up)
+      call tree_build(ws, n)
+    end if
+    ! with xi = 0 the later checks cover only the sliders of the last event
+    ! (end_event: no other force changed)
+    ws%n_changed = n
+    do i = 1, n
+      ws%changed(i) = i
+    end do
+  end subroutine begin_run
+
+  !> The stability check at drive alpha over the sliders whose force may
+  !> have changed (ws%changed): the n_trig unstable ones go to ws%slist with
+  !> their directions in ws%sdir; n_bad counts the non-finite elastic forces.
+  !> Also puts the pushed end's driver at alpha.
+  subroutine unstable_sliders(p, ws, mu, du, alpha, n_trig, n_bad)
+    type(tilt_params), intent(inout) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: mu(:)
+    real(dp), contiguous, intent(in) :: du(:)
+    real(dp), intent(in) :: alpha
+    integer(ip), intent(out) :: n_trig, n_bad
+    integer(ip) :: k, i
+    real(dp) :: sin_a, cos_a, f
+
+    call drive_terms(p%loading, alpha, sin_a, cos_a)
+    p%chain%driver_position = alpha
+    n_trig = 0
+    n_bad = 0
+    do k = 1, ws%n_changed
+      i = ws%changed(k)
+      f = tangential_force(p%chain, i, ws%elastic(i), sin_a, du(i))
+      n_bad = n_bad + merge(0_ip, 1_ip, abs(ws%elastic(i)) <= huge(1.0_dp))
+      if (abs(f) > static_threshold(mu(i), cos_a, p%force_tol)) then
+        n_trig = n_trig + 1
+        ws%slist(n_trig) = i
+        ws%sdir(n_trig) = sign(1.0_dp, f)
+      end if
+    end do
+  end subroutine unstable_sliders
+
+  !> The drive `angle` at which the next event starts from a stable chain at
+  !> alpha, and its n_trig triggers in ws%slist / ws%sdir: the pushed end's
+  !> slider 1 (only it feels the driver), the coupled chain's bounded search,
+  !> or the min-tree of the instability angles.
+  subroutine next_drive(p, ws, mu, du, alpha, angle, n_trig)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: mu(:)
+    real(dp), contiguous, intent(in) :: du(:)
+    real(dp), intent(in) :: alpha
+    real(dp), intent(out) :: angle
+    integer(ip), intent(out) :: n_trig
+
+    if (p%loading%protocol == loading_pushed_end) then
+      angle = pushed_next(p%loading, ws%elastic(1), mu(1), du(1), alpha, p%force_tol)
+      n_trig = 1
+      ws%slist(1) = 1
+      ws%sdir(1) = 1.0_dp
+    else if (p%chain%xi /= 0.0_dp) then
+      call coupled_next(ws, p%chain%n, alpha, angle, n_trig)
+    else
+      call tree_next(ws, alpha, angle, n_trig)
+    end if
+  end subroutine next_drive
+
+  !> Row n_events of the event buffers: the event's record and, with
+  !> record_sparse, its moved sliders (0-based) and their displacements.
+  subroutine record_row(p, ws, du, alpha, rec, n_events, ev_real, ev_int, sp_ptr, sp_index, &
+                        sp_value, n_sparse)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(in) :: ws
+    real(dp), contiguous, intent(in) :: du(:)
+    real(dp), intent(in) :: alpha
+    type(event_record), intent(in) :: rec
+    integer(ip), intent(in) :: n_events
+    real(dp), intent(inout) :: ev_real(:, :)
+    integer(i8), intent(inout) :: ev_int(:, :)
+    integer(i8), contiguous, intent(inout) :: sp_ptr(:)
+    integer(i8), contiguous, intent(inout) :: sp_index(:)
+    real(dp), contiguous, intent(inout) :: sp_value(:)
+    integer(ip), intent(inout) :: n_sparse
+    integer(ip) :: j, i
+
+    ev_real(n_events, ev_alpha) = alpha
+    ev_real(n_events, ev_duration) = rec%duration
+    ev_real(n_events, ev_work_gravity) = rec%work_gravity
+    ev_real(n_events, ev_elastic_change) = rec%elastic_change
+    ev_real(n_events, ev_dissipation) = rec%dissipation
+    ev_int(n_events, ev_n_moved) = rec%n_moved
+    ev_int(n_events, ev_n_stops) = rec%n_stops
+    ev_int(n_events, ev_n_steps) = rec%n_steps
+    ev_int(n_events, ev_slider_steps) = rec%slider_steps
+    if (p%record_sparse) then
+      do j = 1, int(rec%n_moved, ip)
+        i = ws%sorted(j)
+        sp_index(n_sparse + j) = int(i - 1, i8)
+        sp_value(n_sparse + j) = du(i) - ws%du_start(i)
+      end do
+      n_sparse = n_sparse + int(rec%n_moved, ip)
+      sp_ptr(n_events + 1) = int(n_sparse, i8)
+    else
+      sp_ptr(n_events + 1) = 0
+    end if
+  end subroutine record_row
+
   ! ------------------------------------------------------------ one event
 
   !> One rearrangement at fixed alpha, started by the n_trig sliders in
@@ -276,6 +353,13 @@ contains
   !> On a normal end du holds the new displacements and ws%sorted the moved
   !> sliders; on an error du, mu and n_stops are restored to the event start
   !> (as in the reference); on an avalanche du is the state at detection.
+  !>
+  !> Steps of dt are accepted in quiet_steps (sliders_steps) until one
+  !> crosses (its trial is left unaccepted) or a check is due; a crossing
+  !> step is cut back to the first crossing by bisection (sliders_crossing:
+  !> it tests only the sliders that crossed in the full step, and the pool if
+  !> it did: O(crossers) per trial, not O(active)), then taken, accepted, and
+  !> its stops and starts applied (after_crossing).
   subroutine run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, interrupt, rec)
     type(tilt_params), intent(in) :: p
     type(workspace), intent(inout) :: ws
@@ -289,28 +373,103 @@ contains
     integer(ip), intent(in) :: n_trig
     integer(ip), volatile, intent(inout) :: interrupt(:)   ! only read
     type(event_record), intent(out) :: rec
-    integer(ip) :: n, i, j, k, r, n_moved, n_start, n_stop, draw_status
     integer(i8) :: unchecked_steps
-    real(dp) :: sin_a, cos_a, friction, sum0, mean0, mean, t, h
-    real(dp) :: dsum_t, step, xi, shift, f, thr
-    logical :: crossed, resolved, draws_ok, changed
+    real(dp) :: sin_a, cos_a, friction, sum0, mean0, t, h, dsum_t
+    logical :: crossed, resolved, draws_ok
 
-    n = p%chain%n
-    xi = p%chain%xi
     call drive_terms(p%loading, alpha, sin_a, cos_a)
     friction = kinetic_force(p%mu_d, cos_a)
     sum0 = ws%sum_du
-    mean0 = sum0/real(n, dp)
+    mean0 = sum0/real(p%chain%n, dp)
+    call begin_event(p, ws, mu, sin_a, cos_a, friction, n_trig)
 
-    ! With xi > 0, thresholds and every slider's gaps to them at event start
-    ! (O(n)): all resting sliders start in the pool, so one already beyond
-    ! its threshold is found by the first step's check, as in the reference.
-    ! With xi = 0 no pool force ever changes and none is beyond its threshold
-    ! (the tilt loop started every such slider), so only the active sliders
-    ! need a threshold, set when they become active.
+    t = 0.0_dp
+    ws%path = 0.0_dp
+    ws%dsum = 0.0_dp
+    rec = event_record()
+    unchecked_steps = 0
+    do while (ws%m > 0)
+      call quiet_steps(p, ws, e0, sum0, mean0, sin_a, friction, t, rec, unchecked_steps, &
+                       dsum_t, crossed)
+      if (crossed) then
+        call refine_crossing(p, ws, e0, sum0, mean0, sin_a, friction, dsum_t, h, resolved)
+        if (.not. resolved) then    ! refine_tol below the step's resolution
+          call fail_event(ws, du, mu, n_stops, status_refine_limit, t, rec)
+          return
+        end if
+        call trial_step(p, ws, e0, ws%du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
+        call swap_state(ws)
+        call count_step(ws, rec, h, dsum_t, t, unchecked_steps)
+      end if
+      if (unchecked_steps >= interrupt_check_steps) then
+        unchecked_steps = 0
+        if (interrupt(1) /= 0) then
+          rec%status = status_interrupted
+          call abort_event(ws, du, mu, n_stops)
+          return
+        end if
+      end if
+
+      ! NaN or infinity: checked before anything else can happen (a crossing,
+      ! the duration cap), and every 1024 steps; in between nothing but du
+      ! and v (restored on abort) changes, so this is the reference's check
+      ! at every step.
+      if (crossed .or. t > p%max_event_duration .or. iand(rec%n_steps, 1023_i8) == 0) then
+        if (.not. all_finite(ws, ws%du)) then
+          rec%detail = detail_state
+          call fail_event(ws, du, mu, n_stops, status_non_finite, t, rec)
+          return
+        end if
+      end if
+
+      if (crossed) then
+        call after_crossing(p, ws, e0, mu, n_stops, sum0, mean0, sin_a, cos_a, friction, &
+                            draws_ok, rec)
+        if (.not. draws_ok) then
+          call fail_event(ws, du, mu, n_stops, status_random_failure, t, rec)
+          return
+        end if
+      end if
+
+      if (t > p%max_event_duration) then
+        call fail_event(ws, du, mu, n_stops, status_event_duration_cap, t, rec)
+        return
+      end if
+      if (loading_runaway(p%loading, p%chain%walls, p%chain%n, ws%m, ws%n_down, sin_a, &
+                          friction)) then
+        rec%status = status_avalanche
+        rec%duration = t
+        call store_displacements(ws, du)
+        return
+      end if
+    end do
+    call store_displacements(ws, du)
+    call record_event(p, ws, t0, w0, du, alpha, sin_a, friction, mean0, t, rec)
+  end subroutine run_event
+
+  !> The event's start at fixed drive: the triggers start and, with their
+  !> neighbours, form the runs; their forces and accelerations; the pool's
+  !> gap minima.
+  !>
+  !> With xi > 0, thresholds and every slider's gaps to them at event start
+  !> (O(n)): all resting sliders start in the pool, so one already beyond
+  !> its threshold is found by the first step's check, as in the reference.
+  !> With xi = 0 no pool force ever changes and none is beyond its threshold
+  !> (the tilt loop started every such slider), so only the active sliders
+  !> need a threshold, set when they become active.
+  subroutine begin_event(p, ws, mu, sin_a, cos_a, friction, n_trig)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: mu(:)
+    real(dp), intent(in) :: sin_a, cos_a, friction
+    integer(ip), intent(in) :: n_trig
+    integer(ip) :: n, i, k, r
+    real(dp) :: f, thr
+
+    n = p%chain%n
     ws%cos_a = cos_a
     ws%force_tol = p%force_tol
-    if (xi /= 0.0_dp) then
+    if (p%chain%xi /= 0.0_dp) then
       do i = 1, n       ! ws%thr stays +inf in the pool (merge_spans)
         thr = static_threshold(mu(i), cos_a, p%force_tol)
         f = tangential_force(p%chain, i, ws%elastic(i), sin_a, ws%du(i))
@@ -333,147 +492,149 @@ contains
         if (ws%dir(i) /= 0.0_dp) ws%acc(i) = ws%f_t(i) - friction*ws%dir(i)
       end do
     end do
-    call far_minima(ws, n, xi /= 0.0_dp)
+    call far_minima(ws, n, p%chain%xi /= 0.0_dp)
+  end subroutine begin_event
 
-    t = 0.0_dp
-    ws%path = 0.0_dp
-    ws%dsum = 0.0_dp
-    rec = event_record()
-    unchecked_steps = 0
-    do while (ws%m > 0)
-      ! ---- steps of dt, accepted in quiet_steps (sliders_steps) until one
-      ! crosses (its trial is left unaccepted) or one of the checks below is
-      ! due; a crossing step is cut back to the first crossing by bisection
-      ! (sliders_crossing: it tests only the sliders that crossed in the
-      ! full step, and the pool if it did: O(crossers) per trial, not
-      ! O(active)), then taken and accepted
-      call quiet_steps(p, ws, e0, sum0, mean0, sin_a, friction, t, rec, unchecked_steps, &
-                       dsum_t, crossed)
-      if (crossed) then
-        call refine_crossing(p, ws, e0, sum0, mean0, sin_a, friction, dsum_t, h, resolved)
-        if (.not. resolved) then    ! refine_tol below the step's resolution
-          rec%status = status_refine_limit
-          rec%duration = t
-          call abort_event(ws, du, mu, n_stops)
-          return
-        end if
-        call trial_step(p, ws, e0, ws%du, h, sum0, mean0, sin_a, friction, dsum_t, crossed)
-        call swap_state(ws)
-        call count_step(ws, rec, h, dsum_t, t, unchecked_steps)
-      end if
-      if (unchecked_steps >= interrupt_check_steps) then
-        unchecked_steps = 0
-        if (interrupt(1) /= 0) then
-          rec%status = status_interrupted
-          call abort_event(ws, du, mu, n_stops)
-          return
-        end if
-      end if
+  !> A crossing step taken: the stops (rest, count, redraw), then the starts
+  !> (nothing else changes state), then the sliders left with no moving
+  !> neighbour back to the pool.  draws_ok false: a redraw failed, the event
+  !> is to be undone.
+  subroutine after_crossing(p, ws, e0, mu, n_stops, sum0, mean0, sin_a, cos_a, friction, &
+                            draws_ok, rec)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), contiguous, intent(inout) :: mu(:)
+    integer(i8), contiguous, intent(inout) :: n_stops(:)
+    real(dp), intent(in) :: sum0, mean0, sin_a, cos_a, friction
+    logical, intent(out) :: draws_ok
+    type(event_record), intent(inout) :: rec
+    integer(ip) :: n_stop, n_start
+    real(dp) :: mean, shift
 
-      ! ---- NaN or infinity: checked before anything else can happen (a
-      ! crossing, the duration cap), and every 1024 steps; in between
-      ! nothing but du and v (restored on abort) changes, so this is the
-      ! reference's check at every step.
-      if (crossed .or. t > p%max_event_duration .or. iand(rec%n_steps, 1023_i8) == 0) then
-        if (.not. all_finite(ws, ws%du)) then
-          rec%status = status_non_finite
-          rec%detail = detail_state
-          rec%duration = t
-          call abort_event(ws, du, mu, n_stops)
-          return
-        end if
-      end if
+    mean = (sum0 + ws%dsum)/real(p%chain%n, dp)
+    shift = 0.0_dp
+    if (p%chain%xi /= 0.0_dp) shift = p%chain%xi*(mean - mean0)
+    call stop_crossers(p, ws, mu, n_stops, cos_a, n_stop, draws_ok, rec)
+    if (.not. draws_ok) return
+    call start_crossers(p, ws, e0, mu, sin_a, friction, mean, shift, n_start)
+    call release_idle(ws, p%chain%n, n_stop, n_start, shift, p%chain%xi /= 0.0_dp)
+  end subroutine after_crossing
 
-      ! ---- a crossing step: stops, then starts (nothing else changes state)
-      if (crossed) then
-        mean = (sum0 + ws%dsum)/real(n, dp)
-        shift = 0.0_dp
-        if (xi /= 0.0_dp) shift = xi*(mean - mean0)
+  !> The sliders that stopped in the step (ws%stops(1:n_stop)) come to rest,
+  !> count a stop and draw a new static coefficient (keyed by the 0-based
+  !> slider number); the event-start draw is kept for an abort.  The new
+  !> coefficients are applied only if every draw succeeded (draws_ok).
+  subroutine stop_crossers(p, ws, mu, n_stops, cos_a, n_stop, draws_ok, rec)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(inout) :: mu(:)
+    integer(i8), contiguous, intent(inout) :: n_stops(:)
+    real(dp), intent(in) :: cos_a
+    integer(ip), intent(out) :: n_stop
+    logical, intent(out) :: draws_ok
+    type(event_record), intent(inout) :: rec
+    integer(ip) :: k, i, draw_status
 
-        ! stops: rest, count, redraw (keyed by the 0-based slider number)
-        call find_changes(ws, .true., ws%stops, n_stop)
-        if (n_stop > 0) then
-          rec%n_stops = rec%n_stops + n_stop
-          draws_ok = .true.
-          do k = 1, n_stop
-            i = ws%stops(k)
-            call stop_slider(ws, i, n, ws%du)
-            if (.not. ws%redrawn(i)) then    ! keep the event-start draw for an abort
-              ws%redrawn(i) = .true.
-              ws%mu_start(i) = mu(i)
-              ws%stops_start(i) = n_stops(i)
-            end if
-            n_stops(i) = n_stops(i) + 1
-            ws%mu_new(k) = draw_at_stop(p%seed, int(i - 1, i8), n_stops(i), &
-                                              p%mu_s_mean, p%sigma_mu, p%mu_d, draw_status)
-            if (draw_status /= 0) draws_ok = .false.
-          end do
-          if (.not. draws_ok) then
-            rec%status = status_random_failure
-            rec%duration = t
-            call abort_event(ws, du, mu, n_stops)
-            return
-          end if
-          do k = 1, n_stop
-            i = ws%stops(k)
-            mu(i) = ws%mu_new(k)
-            ws%thr(i) = static_threshold(mu(i), cos_a, p%force_tol)
-          end do
-        end if
-
-        ! starts: every resting slider beyond its threshold now
-        call find_changes(ws, .false., ws%slist, n_start)
-        do k = 1, n_start
-          ws%sdir(k) = sign(1.0_dp, ws%f_t(ws%slist(k)))
-        end do
-        if (pool_crosses(ws, shift)) then
-          do i = 1, n        ! rare: a pool slider crossed, find it (O(n))
-            if (ws%active(i)) cycle
-            if (shift > ws%gap_plus(i) .or. -shift > ws%gap_minus(i)) then
-              ws%f_t(i) = tangential_force(p%chain, i, elastic_force(p%chain, e0, ws%du, i, mean), &
-                                           sin_a, ws%du(i))
-              n_start = n_start + 1
-              ws%slist(n_start) = i
-              ws%sdir(n_start) = sign(1.0_dp, ws%f_t(i))
-            end if
-          end do
-        end if
-        do k = 1, n_start
-          i = ws%slist(k)
-          call start_slider(ws, i, ws%sdir(k), n, ws%du, mu)
-          ws%acc(i) = ws%f_t(i) - friction*ws%dir(i)
-        end do
-        ! sliders left with no moving neighbour go back to the pool
-        changed = n_start > 0
-        do k = 1, n_stop
-          i = ws%stops(k)
-          do j = max(i - 1, 1), min(i + 1, n)
-            if (ws%active(j) .and. ws%nmov(j) == 0) then
-              call deactivate(ws, j, shift)
-              changed = .true.
-            end if
-          end do
-        end do
-        if (changed) call update_runs(ws, n, n_start)
-        if (ws%stale) call far_minima(ws, n, xi /= 0.0_dp)
+    draws_ok = .true.
+    call find_changes(ws, .true., ws%stops, n_stop)
+    if (n_stop == 0) return
+    rec%n_stops = rec%n_stops + n_stop
+    do k = 1, n_stop
+      i = ws%stops(k)
+      call stop_slider(ws, i, p%chain%n, ws%du)
+      if (.not. ws%redrawn(i)) then
+        ws%redrawn(i) = .true.
+        ws%mu_start(i) = mu(i)
+        ws%stops_start(i) = n_stops(i)
       end if
-
-      if (t > p%max_event_duration) then
-        rec%status = status_event_duration_cap
-        rec%duration = t
-        call abort_event(ws, du, mu, n_stops)
-        return
-      end if
-      if (loading_runaway(p%loading, p%chain%walls, n, ws%m, ws%n_down, sin_a, friction)) then
-        rec%status = status_avalanche
-        rec%duration = t
-        call store_displacements(ws, du)
-        return
-      end if
+      n_stops(i) = n_stops(i) + 1
+      ws%mu_new(k) = draw_at_stop(p%seed, int(i - 1, i8), n_stops(i), &
+                                  p%mu_s_mean, p%sigma_mu, p%mu_d, draw_status)
+      if (draw_status /= 0) draws_ok = .false.
     end do
-    call store_displacements(ws, du)
+    if (.not. draws_ok) return
+    do k = 1, n_stop
+      i = ws%stops(k)
+      mu(i) = ws%mu_new(k)
+      ws%thr(i) = static_threshold(mu(i), cos_a, p%force_tol)
+    end do
+  end subroutine stop_crossers
 
-    ! ---- the event is over: record it
+  !> Every resting slider beyond its threshold now starts: the neighbours of
+  !> the moving ones (find_changes) and, rarely, a pool slider whose gap the
+  !> coupling's shift closed (found in O(n)).
+  subroutine start_crossers(p, ws, e0, mu, sin_a, friction, mean, shift, n_start)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(in) :: e0(:)
+    real(dp), contiguous, intent(in) :: mu(:)
+    real(dp), intent(in) :: sin_a, friction, mean, shift
+    integer(ip), intent(out) :: n_start
+    integer(ip) :: k, i
+
+    call find_changes(ws, .false., ws%slist, n_start)
+    do k = 1, n_start
+      ws%sdir(k) = sign(1.0_dp, ws%f_t(ws%slist(k)))
+    end do
+    if (pool_crosses(ws, shift)) then
+      do i = 1, p%chain%n
+        if (ws%active(i)) cycle
+        if (shift > ws%gap_plus(i) .or. -shift > ws%gap_minus(i)) then
+          ws%f_t(i) = tangential_force(p%chain, i, elastic_force(p%chain, e0, ws%du, i, mean), &
+                                       sin_a, ws%du(i))
+          n_start = n_start + 1
+          ws%slist(n_start) = i
+          ws%sdir(n_start) = sign(1.0_dp, ws%f_t(i))
+        end if
+      end do
+    end if
+    do k = 1, n_start
+      i = ws%slist(k)
+      call start_slider(ws, i, ws%sdir(k), p%chain%n, ws%du, mu)
+      ws%acc(i) = ws%f_t(i) - friction*ws%dir(i)
+    end do
+  end subroutine start_crossers
+
+  !> The neighbours of the n_stop stopped sliders left with no moving
+  !> neighbour go back to the pool; the runs are updated if anything
+  !> started or left, and the pool's gap minima if one of them went stale.
+  subroutine release_idle(ws, n, n_stop, n_start, shift, coupled)
+    type(workspace), intent(inout) :: ws
+    integer(ip), intent(in) :: n, n_stop, n_start
+    real(dp), intent(in) :: shift
+    logical, intent(in) :: coupled
+    integer(ip) :: k, i, j
+    logical :: changed
+
+    changed = n_start > 0
+    do k = 1, n_stop
+      i = ws%stops(k)
+      do j = max(i - 1, 1), min(i + 1, n)
+        if (ws%active(j) .and. ws%nmov(j) == 0) then
+          call deactivate(ws, j, shift)
+          changed = .true.
+        end if
+      end do
+    end do
+    if (changed) call update_runs(ws, n, n_start)
+    if (ws%stale) call far_minima(ws, n, coupled)
+  end subroutine release_idle
+
+  !> The event is over: its moved sliders (ws%sorted, increasing), duration,
+  !> the loading's work, the elastic energy change (local, exact) and the
+  !> dissipation (friction times the path length).
+  subroutine record_event(p, ws, t0, w0, du, alpha, sin_a, friction, mean0, t, rec)
+    type(tilt_params), intent(in) :: p
+    type(workspace), intent(inout) :: ws
+    real(dp), intent(in) :: t0(0:)
+    real(dp), contiguous, intent(in) :: w0(:)
+    real(dp), contiguous, intent(in) :: du(:)
+    real(dp), intent(in) :: alpha, sin_a, friction, mean0, t
+    type(event_record), intent(inout) :: rec
+    integer(ip) :: n_moved, i, k
+    real(dp) :: step
+
     n_moved = 0
     do i = ws%i_lo, ws%i_hi
       if (ws%moved(i)) then
@@ -494,10 +655,26 @@ contains
       spring_energy_change(p%chain, t0, ws%du_start, du, ws%sorted(1:n_moved)) + &
       cantilever_energy_change(p%chain, w0, ws%du_start, du, ws%sorted(1:n_moved), mean0)
     rec%dissipation = friction*ws%path
-  end subroutine run_event
+  end subroutine record_event
+
+  !> An event ended in error with `status` after time t: the state back to
+  !> the event start (abort_event).
+  subroutine fail_event(ws, du, mu, n_stops, status, t, rec)
+    type(workspace), intent(inout) :: ws
+    real(dp), contiguous, intent(inout) :: du(:)
+    real(dp), contiguous, intent(inout) :: mu(:)
+    integer(i8), contiguous, intent(inout) :: n_stops(:)
+    integer(ip), intent(in) :: status
+    real(dp), intent(in) :: t
+    type(event_record), intent(inout) :: rec
+
+    rec%status = status
+    rec%duration = t
+    call abort_event(ws, du, mu, n_stops)
+  end subroutine fail_event
 
   !> Whether du and v of every active slider are finite (a count of the
-  !> others: an integer sum vectorises, a chain of .and. did not).
+  !> others: an integer sum vectorises, a chain of .and. does not).
   pure function all_finite(ws, du) result(finite)
     type(workspace), intent(in) :: ws
     real(dp), contiguous, intent(in) :: du(:)

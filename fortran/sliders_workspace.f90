@@ -12,11 +12,16 @@ module sliders_workspace
   use sliders_status, only: status_running
   use sliders_chain, only: chain_params
   use sliders_loading, only: loading_params
+  use sliders_contract, only: par_xi, par_mu_d, par_mu_s_mean, par_sigma_mu, par_dt, &
+                              par_refine_tol, par_max_event_duration, par_alpha_max, &
+                              par_force_tol, par_walls, par_seed, par_record_sparse, &
+                              par_relax_only, par_max_events, par_tilt, par_drive_stiffness, &
+                              par_drive_max, par_loading, loading_pushed_end
   implicit none
   private
 
   public :: tilt_params, workspace, event_record
-  public :: allocate_workspace
+  public :: allocate_workspace, unpack_params
   public :: interrupt_check_steps
   public :: detail_none, detail_resting, detail_state
 
@@ -112,6 +117,40 @@ module sliders_workspace
   end type event_record
 
 contains
+
+  !> The parameters of a chain of n sliders from the packed arrays of a
+  !> kernel call (positions: sliders_contract).  The loading's limit is the
+  !> tilt's alpha_max, or the pushed end's drive_max, whose driver is a
+  !> spring on slider 1.
+  function unpack_params(n, real_params, int_params) result(p)
+    integer(ip), intent(in) :: n
+    real(dp), intent(in) :: real_params(:)
+    integer(i8), intent(in) :: int_params(:)
+    type(tilt_params) :: p
+
+    p%chain%n = n
+    p%chain%walls = int_params(par_walls) /= 0
+    p%chain%xi = real_params(par_xi)
+    p%mu_d = real_params(par_mu_d)
+    p%mu_s_mean = real_params(par_mu_s_mean)
+    p%sigma_mu = real_params(par_sigma_mu)
+    p%seed = int_params(par_seed)
+    p%dt = real_params(par_dt)
+    p%refine_tol = real_params(par_refine_tol)
+    p%max_event_duration = real_params(par_max_event_duration)
+    p%loading%protocol = int(int_params(par_loading), ip)
+    p%loading%tilt = real_params(par_tilt)
+    p%loading%stiffness = real_params(par_drive_stiffness)
+    p%loading%limit = real_params(par_alpha_max)
+    if (p%loading%protocol == loading_pushed_end) then
+      p%loading%limit = real_params(par_drive_max)
+      p%chain%driver_stiffness = p%loading%stiffness
+    end if
+    p%force_tol = real_params(par_force_tol)
+    p%record_sparse = int_params(par_record_sparse) /= 0
+    p%relax_only = int_params(par_relax_only) /= 0
+    p%max_events = int(int_params(par_max_events), ip)
+  end function unpack_params
 
   !> Allocates every work array of size n (once per tilt_run) and clears them.
   subroutine allocate_workspace(ws, n)

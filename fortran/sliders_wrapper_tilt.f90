@@ -9,7 +9,8 @@
 ! A packed boundary (in the manner of pymsis): the scene's values and the
 ! call's options in two parameter arrays (real_params, int_params), the
 ! prepared chain in one array chain0 = [E0 (n), w0 (n), T0 (n + 1)], then the
-! state and the buffers.
+! state and the buffers.  unpack_params (sliders_workspace) reads the two
+! parameter arrays, once their widths are checked here.
 !
 ! tilt_advance runs rearrangements from the state (mu_s, n_stops and
 ! displacement are updated in place, the new angle is alpha_out) until
@@ -36,14 +37,8 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, n_real, n_int, n_real_cols, n_in
                         alpha_out, n_events, n_sparse, status, alpha_c, event_time, &
                         final_steps, final_slider_steps, detail)
   use iso_c_binding, only: c_double, c_int, c_int64_t
-  use sliders_contract, only: n_real_params, n_int_params, n_event_real, n_event_int, &
-                              par_xi, par_mu_d, par_mu_s_mean, par_sigma_mu, par_dt, &
-                              par_refine_tol, par_max_event_duration, par_alpha_max, &
-                              par_force_tol, par_alpha, par_walls, par_seed, &
-                              par_record_sparse, par_relax_only, par_max_events, &
-                              par_tilt, par_drive_stiffness, par_drive_max, par_loading, &
-                              loading_pushed_end
-  use sliders_events, only: tilt_params, tilt_run
+  use sliders_contract, only: n_real_params, n_int_params, n_event_real, n_event_int, par_alpha
+  use sliders_events, only: tilt_params, tilt_run, unpack_params
   implicit none
   integer(c_int), intent(in) :: n
   !f2py threadsafe
@@ -91,28 +86,7 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, n_real, n_int, n_real_cols, n_in
     detail = 0
     return
   end if
-  p%chain%n = n
-  p%chain%walls = int_params(par_walls) /= 0
-  p%chain%xi = real_params(par_xi)
-  p%mu_d = real_params(par_mu_d)
-  p%mu_s_mean = real_params(par_mu_s_mean)
-  p%sigma_mu = real_params(par_sigma_mu)
-  p%seed = int_params(par_seed)
-  p%dt = real_params(par_dt)
-  p%refine_tol = real_params(par_refine_tol)
-  p%max_event_duration = real_params(par_max_event_duration)
-  p%loading%protocol = int(int_params(par_loading), c_int)
-  p%loading%tilt = real_params(par_tilt)
-  p%loading%stiffness = real_params(par_drive_stiffness)
-  p%loading%limit = real_params(par_alpha_max)
-  if (p%loading%protocol == loading_pushed_end) then
-    p%loading%limit = real_params(par_drive_max)
-    p%chain%driver_stiffness = p%loading%stiffness   ! the driver's spring on slider 1
-  end if
-  p%force_tol = real_params(par_force_tol)
-  p%record_sparse = int_params(par_record_sparse) /= 0
-  p%relax_only = int_params(par_relax_only) /= 0
-  p%max_events = int(int_params(par_max_events), c_int)
+  p = unpack_params(n, real_params, int_params)
   alpha_out = real_params(par_alpha)
   call tilt_run(p, chain0(1:n), chain0(2*n + 1:3*n + 1), chain0(n + 1:2*n), mu_s, n_stops, &
                 displacement, alpha_out, event_real, event_int, sparse_ptr, sparse_index, &

@@ -77,18 +77,14 @@ def _point_text(values: dict[str, Any]) -> str:
     return ", ".join(f"{k}={v!r}" for k, v in values.items())
 
 
-def parse_study(data: dict, where: str = "study") -> Study:
-    """Validate a study (the parsed TOML); every point's scene is built, nothing is run."""
-    from ..analysis.observables import default_grids
-
-    known = {key.name for key in scene_keys()}
+def _check_tables(data: dict, where: str) -> tuple[dict, dict, Any]:
+    """The three tables of a study and its [study] options: ([study], [scene], [axes])."""
     for k in data:
         if k not in ("study", "scene", "axes"):
             raise StudyError(f"{where}: unknown table or key {k!r}{_hint(k, ['study', 'scene', 'axes'])}; "
                              "a study has [study], [scene] and [axes]")
     opts = data.get("study", {})
     base = data.get("scene", {})
-    axes = data.get("axes")
     if not isinstance(opts, dict) or not isinstance(base, dict):
         raise StudyError(f"{where}: [study] and [scene] must be tables")
     for k in opts:
@@ -98,6 +94,12 @@ def parse_study(data: dict, where: str = "study") -> Study:
     R = opts.get("realisations")
     if not isinstance(R, int) or isinstance(R, bool) or R < 1:
         raise StudyError(f"{where}: [study] realisations must be an integer >= 1, got {R!r}")
+    return opts, base, data.get("axes")
+
+
+def _check_axes(axes: Any, base: dict, known: set[str], where: str) -> None:
+    """Each axis a non-empty list of values of a scene parameter that may vary and that
+    [scene] does not also fix."""
     for k in base:
         if k not in known:
             raise StudyError(f"{where}: [scene] has unknown parameter {k!r}{_hint(k, known)}")
@@ -117,7 +119,11 @@ def parse_study(data: dict, where: str = "study") -> Study:
             raise StudyError(f"{where}: axis {name!r} is empty (give at least one value)")
         if name in base:
             raise StudyError(f"{where}: {name!r} is both in [scene] and an axis; keep one")
-    zipped = opts.get("zip", [])
+
+
+def _check_zip(zipped: Any, axes: dict, where: str) -> list[list[str]]:
+    """The study's dimensions: each group of zipped axes (each axis once, equal lengths) is
+    one, every other axis one more, in the order the axes are written."""
     if not (isinstance(zipped, list) and all(isinstance(g, list) and len(g) >= 2 for g in zipped)):
         raise StudyError(f"{where}: [study] zip must be a list of lists of >= 2 axis names")
     seen: set[str] = set()
@@ -134,25 +140,41 @@ def parse_study(data: dict, where: str = "study") -> Study:
             raise StudyError(f"{where}: zipped axes need equal lengths, got {lengths}")
     dims = [list(g) for g in zipped] + [[n] for n in axes if n not in seen]
     dims.sort(key=lambda d: list(axes).index(d[0]))  # in the order the axes are written
+    return dims
+
+
+def _point_scene(base: dict, values: dict[str, Any], p: int, where: str) -> Scene:
+    """The scene of point p (axis ``values`` over ``base``), checked for a study's statistics."""
+    from ..analysis.observables import default_grids
+
+    try:
+        scene = Scene.from_dict({**base, **values})
+        check_tilt_statistics(scene)
+        if scene.record == "summary":
+            raise SceneError("record = 'summary' keeps no statistics; a study needs "
+                             "'displacements' or 'forces'")
+        default_grids(scene)
+    except (SceneError, ValueError, TypeError) as exc:
+        text = str(exc)  # the axis the scene's message names, else the first one
+        culprit = next((n for n in values if n in text), next(iter(values)))
+        raise StudyError(f"{where}: axis {culprit!r} at point {p} ({_point_text(values)}): "
+                         f"{' '.join(str(exc).split())}") from None
+    return scene
+
+
+def parse_study(data: dict, where: str = "study") -> Study:
+    """Validate a study (the parsed TOML); every point's scene is built, nothing is run."""
+    known = {key.name for key in scene_keys()}
+    opts, base, axes = _check_tables(data, where)
+    _check_axes(axes, base, known, where)
+    zipped = opts.get("zip", [])
+    dims = _check_zip(zipped, axes, where)
     study = Study(dict(base), {k: list(v) for k, v in axes.items()}, [list(g) for g in zipped],
-                  int(R), dims)
+                  int(opts["realisations"]), dims)
     for idx in itertools.product(*(range(len(axes[d[0]])) for d in dims)):
         values = {n: axes[n][i] for d, i in zip(dims, idx) for n in d}
-        p = len(study.points)
-        try:
-            scene = Scene.from_dict({**base, **values})
-            check_tilt_statistics(scene)
-            if scene.record == "summary":
-                raise SceneError("record = 'summary' keeps no statistics; a study needs "
-                                 "'displacements' or 'forces'")
-            default_grids(scene)
-        except (SceneError, ValueError, TypeError) as exc:
-            text = str(exc)  # the axis the scene's message names, else the first one
-            culprit = next((n for n in values if n in text), next(iter(values)))
-            raise StudyError(f"{where}: axis {culprit!r} at point {p} ({_point_text(values)}): "
-                             f"{' '.join(str(exc).split())}") from None
+        study.scenes.append(_point_scene(base, values, len(study.points), where))
         study.points.append(values)
-        study.scenes.append(scene)
     return study
 
 
