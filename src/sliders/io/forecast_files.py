@@ -1,14 +1,18 @@
-"""The forecasting's files: a measured catalogue in CSV, and a fitted forecaster.
+"""The forecasting's files: a measured catalogue in CSV, a fitted forecaster, an evaluation's outputs.
 
 * ``read_catalogue_csv``: an experimenter's catalogue (docs/forecasting.md gives
   the format: ``angle [deg]`` or ``angle [rad]``, ``size``, optional
   ``displacement``, ``first``, ``last``); every refusal is one line naming the
-  row and the column.
+  row and the column.  It streams the file within stated bounds
+  (``MAX_CATALOGUE_BYTES``, ``MAX_EVENTS``, ``MAX_LINE_BYTES``).
 * ``save_model`` / ``load_model``: a fitted forecaster, pickled with its
   provenance and a CRC-32 (ours only: a pickle is code, never load an
   untrusted one).
+* ``claim_folder``, ``OutputSet``, ``complete_publication``: a run's output
+  files claimed, compared with its inputs by identity, staged whole and
+  published as one set (docs/reliability.md, "The forecast commands").
 
-``python -m sliders.forecast predict`` (``sliders.runs.forecast``) uses both.
+``python -m sliders.forecast`` (``sliders.runs.forecast``) uses them.
 """
 
 from __future__ import annotations
