@@ -236,7 +236,7 @@ MAX_CATALOGUE_BYTES = 64 * 2**20
 MAX_EVENTS = 1_000_000
 MAX_LINE_BYTES = 4096
 MAX_FIELD_CHARS = 64
-#: sizes and slider positions: whole numbers up to 2**53, which a float64 holds exactly
+#: sizes and slider positions: whole numbers up to 2^53, which a float64 holds exactly
 MAX_WHOLE = 2**53
 COLUMNS = ("angle", "size", "displacement", "first", "last")
 WHOLE_COLUMNS = {"size": 1, "first": 0, "last": 0}  # column -> its least value
