@@ -34,7 +34,8 @@ import numpy as np
 
 from .._version import __version__
 from .catalogue import Catalogue
-from .safeio import leftover_temporaries, publish_bytes, resolve_target, temporary_beside
+from .safeio import (_fsync_dir, leftover_temporaries, publish_bytes, resolve_target,
+                     temporary_beside)
 
 
 class ForecastInputError(ValueError):
@@ -201,28 +202,16 @@ def complete_publication(folder: str) -> int:
         return 0
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         raise ForecastInputError(f"{path}: not a publication record of sliders; remove it") from None
-    moved, folders = 0, set()
+    moved = 0
     for tmp, target in moves:
         if tmp in leftover_temporaries(target):  # only the staged files of that target, if left
             os.replace(tmp, target)
             moved += 1
-            folders.add(os.path.dirname(target))
-    for where in folders:
-        fsync_folder(where)
+    for flushed in {os.path.dirname(target): target for _, target in moves}.values():
+        _fsync_dir(flushed)  # the renames survive a power loss
     os.unlink(path)
-    fsync_folder(folder)
+    _fsync_dir(path)
     return moved
-
-
-def fsync_folder(folder: str) -> None:
-    """Flush a folder's entries (renames into it survive a power loss)."""
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    except OSError:  # some file systems refuse fsync on folders; the files are synced
-        pass
-    finally:
-        os.close(fd)
 
 
 # ---------------------------------------------------------------------------
