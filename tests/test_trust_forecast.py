@@ -193,7 +193,6 @@ def test_evaluate_on_a_file_that_is_no_prior_ensemble_is_one_line(tmp_path, prio
     (["--max-iter", "0"], "--max-iter 0"),
     (["--boot", "0"], "--boot 0"),
     (["--seed", "-1"], "--seed -1"),
-    (["--robust", "nolabel"], "LABEL=FILE"),
     (["--robust", "test=x.h5"], "'test'"),
     (["--frobnicate"], "unrecognized arguments"),
 ])
@@ -221,7 +220,7 @@ def test_out_that_is_a_file_is_refused_before_any_fitting(tmp_path, prior, capsy
     (["--within", "nan"], "--within nan"), (["--within", "-5"], "--within -5"),
     (["--tilt-now=--"], "--tilt-now"), (["--tilt-now", "1000deg"], "outside [0, 90°)"),
     (["--tilt-now", "90deg"], "outside [0, 90°)"), (["--tilt-now", "100rad"], "outside [0, 90°)"),
-    (["--tilt-now=-1deg"], "outside [0, 90°)"), (["--tilt-now", "five"], "not understood"),
+    (["--tilt-now=-1deg"], "outside [0, 90°)"),
 ])
 def test_bad_predict_options_are_one_line(previous, catalogue, capsys, options, words):
     code, err = forecast_main(capsys, "predict", catalogue, "--model",
@@ -444,7 +443,6 @@ def test_too_many_events_are_refused_naming_the_row(tmp_path):
     (b"angle [deg],size\n1," + b"1" * 200000 + b"\n", "row 2: longer than"),
     (b"angle [deg],size\n95,1\n", "row 2, column 'angle': '95' is outside"),
     (b"angle [deg],size\n1,1\n\xff\n", "row 3: not UTF-8"),
-    (b'angle [deg],size\n1,"1\x00"\n', "row 2"),
 ])
 def test_malformed_catalogue_is_one_line_naming_row_or_column(tmp_path, text, words):
     path = tmp_path / "bad.csv"
