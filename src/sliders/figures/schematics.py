@@ -225,8 +225,8 @@ def fig_histogram_model(alpha: float = 0.15, mu_s_mean: float = 0.6, mu_d: float
         ax.set_xlim(lower[-1] - 0.02, mu_s_mean + 0.12)
         ax.set_ylim(-0.12 * top, 1.45 * top)
         ax.set_yticks([0, 0.5, 1.0, 1.5] if top > 1.0 else [0, 0.5, 1.0])
-        ax.set_xlabel(r"$\tilde F_t$ (bins of width $2\Delta\mu$, numbered from $\bar\mu_s$)")
-        ax.set_ylabel(r"$P_i$")
+        ax.set_xlabel(r"$\tilde F_t$ (bins of width $2\Delta\mu$, numbered from $\bar\mu_s$) [$mg$]")
+        ax.set_ylabel(r"$P_i$ [$1/mg$]")
         ax.legend(loc="upper left", frameon=True, framealpha=0.9)
         ax.set_title(f"model at $\\alpha={alpha:g}$: $\\bar\\mu_s={mu_s_mean:g}$, "
                      f"$\\mu_d={mu_d:g}$, $2\\Delta\\mu={2 * dmu:.2g}$", pad=2)
