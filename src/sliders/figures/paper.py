@@ -815,10 +815,37 @@ def _check_args(args) -> None:
         raise FigureInputError("--scene is for --animate (the figures use the paper's scenes)")
 
 
+def _schematic(name):
+    def draw(backend):
+        from . import schematics
+
+        return getattr(schematics, name)(out_dir=None)
+    return draw
+
+
+# The figures drawn from the model alone (no run of the chain, or one small fixed run),
+# name -> function(backend) returning the Figure, and the statistics figures, name ->
+# function(summary, results or None, title_extra).  The scenes are fig_scene of one run.
+MODEL_FIGURES = {
+    "fig01_sketch": _schematic("fig_sketch"),
+    "fig08_histogram_model": _schematic("fig_histogram_model"),
+    "fig05_single_slider": lambda backend: fig_single_slider(backend=backend, out_dir=None),
+    PUSHED_END: lambda backend: fig_pushed_end(pushed_end_run(backend=backend), out_dir=None),
+}
+STATISTICS_FIGURES = {
+    "fig06_force_pdf": lambda summary, results, extra: fig_force_pdf(
+        summary, out_dir=None, title_extra=extra),
+    "fig07_stopped_ratio": lambda summary, results, extra: fig_stopped_force_ratio(
+        summary, out_dir=None, title_extra=extra),
+    "fig09_P_i": lambda summary, results, extra: fig_bin_heights(
+        summary, out_dir=None, title_extra=extra),
+    "fig10_cumulated": lambda summary, results, extra: fig_cumulated_displacement(
+        results if results else summary, out_dir=None, title_extra=extra),
+}
+
+
 def draw_figures(names, out, args, formats=("png", "pdf"), palette_png: bool = False) -> None:
     """Draw the named figures into ``out`` (progress on stdout)."""
-    from . import schematics
-
     big = args.paper_size or args.backend == "fortran"
     runs = args.runs if args.runs is not None else (20 if big else 4)
     n_stats = args.n_sliders if args.n_sliders is not None else (100 if big else 30)
@@ -829,17 +856,11 @@ def draw_figures(names, out, args, formats=("png", "pdf"), palette_png: bool = F
         print(f"{name}: {time.perf_counter() - t0:.1f} s{(' ' + note) if note else ''} -> "
               f"{', '.join(paths)}", flush=True)
 
-    makers_without_data = {
-        "fig01_sketch": lambda: schematics.fig_sketch(out_dir=None),
-        "fig08_histogram_model": lambda: schematics.fig_histogram_model(out_dir=None),
-        "fig05_single_slider": lambda: fig_single_slider(backend=args.backend, out_dir=None),
-        PUSHED_END: lambda: fig_pushed_end(pushed_end_run(backend=args.backend), out_dir=None),
-    }
     setups = scene_setups(args.paper_size, args.backend)
     for name in names:
         t0 = time.perf_counter()
-        if name in makers_without_data:
-            save(makers_without_data[name](), name, t0)
+        if name in MODEL_FIGURES:
+            save(MODEL_FIGURES[name](args.backend), name, t0)
         elif name in setups:
             s = dict(setups[name])
             label = s.pop("label")
@@ -866,17 +887,9 @@ def draw_figures(names, out, args, formats=("png", "pdf"), palette_png: bool = F
         extra = ""
     print(f"statistics: {summary.n_realisations} runs of N={summary.n_sliders} "
           f"({time.perf_counter() - t0:.1f} s)", flush=True)
-    makers = {
-        "fig06_force_pdf": lambda: fig_force_pdf(summary, out_dir=None, title_extra=extra),
-        "fig07_stopped_ratio": lambda: fig_stopped_force_ratio(summary, out_dir=None,
-                                                               title_extra=extra),
-        "fig09_P_i": lambda: fig_bin_heights(summary, out_dir=None, title_extra=extra),
-        "fig10_cumulated": lambda: fig_cumulated_displacement(results if results else summary,
-                                                              out_dir=None, title_extra=extra),
-    }
     for name in stats:
         t1 = time.perf_counter()
-        save(makers[name](), name, t1)
+        save(STATISTICS_FIGURES[name](summary, results, extra), name, t1)
 
 
 def main(argv: list[str] | None = None) -> int:
