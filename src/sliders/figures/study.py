@@ -139,36 +139,49 @@ def fig_event_sizes(sp: StudyPlot):
     return fig
 
 
+def _measured_and_predicted(sp: StudyPlot, ax, measured, predicted):
+    """Per series of points: the measured columns, labelled per series (error bars where a
+    standard-error column is named), and the predicted columns, labelled once.
+
+    ``measured``: (column, s.e.m. column or None, label, style); ``predicted``: (column,
+    label, style); a style is a dict of matplotlib keywords.  Returns the last abscissae.
+    """
+    for i, (series_label, pts) in enumerate(sp.series):
+        x = sp.x(pts)
+        pre = (series_label + ": ") if series_label else ""
+        for key, sem, label, style in measured:
+            if sem is None:
+                ax.plot(x, sp.col(pts, key), color=f"C{i}", label=pre + label, **style)
+            else:
+                ax.errorbar(x, sp.col(pts, key), sp.col(pts, sem), color=f"C{i}",
+                            label=pre + label, **style)
+        for key, label, style in predicted:
+            ax.plot(x, sp.col(pts, key), color=f"C{i}", label=label if i == 0 else None, **style)
+    return x
+
+
 def fig_transition(sp: StudyPlot):
     """The observed transition angle against 2μ̄_s/(1 + e) and the exact-P₃ variant."""
     fig, ax = _fig_ax()
-    for i, (label, pts) in enumerate(sp.series):
-        x = sp.x(pts)
-        ax.plot(x, sp.col(pts, "alpha_t_observed"), "o-", color=f"C{i}",
-                label=(label + ": " if label else "") + r"observed (P$_1$+P$_2$ rise)")
-        ax.plot(x, sp.col(pts, "alpha_t_stirling"), "--", color=f"C{i}", lw=0.8,
-                label=r"$2\bar\mu_s/(1+e)$" if i == 0 else None)
-        ax.plot(x, sp.col(pts, "alpha_t_p3"), ":", color=f"C{i}", lw=0.9,
-                label=r"exact, P$_3$ deficit 10 %" if i == 0 else None)
+    x = _measured_and_predicted(
+        sp, ax, [("alpha_t_observed", None, r"observed (P$_1$+P$_2$ rise)", dict(marker="o"))],
+        [("alpha_t_stirling", r"$2\bar\mu_s/(1+e)$", dict(ls="--", lw=0.8)),
+         ("alpha_t_p3", r"exact, P$_3$ deficit 10 %", dict(ls=":", lw=0.9))])
     ax.set_ylabel(r"transition angle $\alpha_t$ [rad]")
     return sp.finish(fig, ax, x)
 
 
 def fig_bursts(sp: StudyPlot):
-    """Early and late burst periods against their predictions."""
+    """Early and late burst periods against their predictions (which depend on the point:
+    Δμ, the angles of the early bursts)."""
     fig, ax = _fig_ax()
-    for i, (label, pts) in enumerate(sp.series):
-        x = sp.x(pts)
-        pre = (label + ": ") if label else ""
-        ax.errorbar(x, sp.col(pts, "early_period"), sp.col(pts, "early_period_sem"),
-                    marker="o", color=f"C{i}", label=pre + "early (single sliders)")
-        ax.errorbar(x, sp.col(pts, "late_period"), sp.col(pts, "late_period_sem"), marker="s",
-                    color=f"C{i}", mfc="white", ls="--", label=pre + r"late ($\geq$3 sliders)")
-        # the predictions depend on the point (dmu, the angles of the early bursts)
-        ax.plot(x, sp.col(pts, "early_pred"), "-", color=f"C{i}", lw=0.6, alpha=0.6,
-                label=r"$2\Delta\mu/(1+\mu_s\tan\alpha)$" if i == 0 else None)
-        ax.plot(x, sp.col(pts, "late_pred"), ":", color=f"C{i}", lw=0.9,
-                label=r"$\Delta\mu$" if i == 0 else None)
+    x = _measured_and_predicted(
+        sp, ax, [("early_period", "early_period_sem", "early (single sliders)",
+                  dict(marker="o")),
+                 ("late_period", "late_period_sem", r"late ($\geq$3 sliders)",
+                  dict(marker="s", mfc="white", ls="--"))],
+        [("early_pred", r"$2\Delta\mu/(1+\mu_s\tan\alpha)$", dict(lw=0.6, alpha=0.6)),
+         ("late_pred", r"$\Delta\mu$", dict(ls=":", lw=0.9))])
     ax.set_ylabel(r"burst period $\Delta\alpha$ [rad]")
     return sp.finish(fig, ax, x)
 
@@ -176,13 +189,9 @@ def fig_bursts(sp: StudyPlot):
 def fig_sync(sp: StudyPlot):
     """The share of the displacement (and of the events) in events of separate groups."""
     fig, ax = _fig_ax()
-    for i, (label, pts) in enumerate(sp.series):
-        x = sp.x(pts)
-        pre = (label + ": ") if label else ""
-        ax.errorbar(x, sp.col(pts, "sync_share"), sp.col(pts, "sync_share_sem"), marker="o",
-                    color=f"C{i}", label=pre + "displacement share")
-        ax.plot(x, sp.col(pts, "sync_event_share"), "x:", color=f"C{i}",
-                label=pre + "event share")
+    x = _measured_and_predicted(
+        sp, ax, [("sync_share", "sync_share_sem", "displacement share", dict(marker="o")),
+                 ("sync_event_share", None, "event share", dict(marker="x", ls=":"))], [])
     ax.set_ylabel("multi-region (synchronised) share [1]")
     return sp.finish(fig, ax, x)
 
