@@ -22,7 +22,7 @@ Fig.  paper label     name                         function
 10    fig:cumul       ``fig10_cumulated``          ``fig_cumulated_displacement``
 ====  ==============  ===========================  ==================================
 
-The older names (``scene_A``, ``bin_heights`` ...) and the paper's labels
+The short names (``scene_A``, ``bin_heights`` ...) and the paper's labels
 (``distrib2`` ...) are accepted by ``--only`` as well.  ``--animate`` writes
 a GIF of a tilt instead (``animation.py``).
 """
@@ -97,7 +97,7 @@ SCENE_LETTERS = {"fig02_scene_A": "A", "fig03_scene_B": "B", "fig04_scene_C": "C
 
 
 def figure_lookup() -> dict[str, str]:
-    """Every accepted spelling -> the figure's name (names, old names, the paper's labels)."""
+    """Every accepted spelling -> the figure's name (names, short names, the paper's labels)."""
     out = {}
     for f in PAPER_FIGURES:
         for key in (f.name, f.label, f.label.split(":", 1)[1], f"fig{f.number}", *f.aliases):
@@ -763,7 +763,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--paper-size", action="store_true", help="the paper's system sizes")
     p.add_argument("--backend", choices=("fortran", "numpy"), default="fortran")
     p.add_argument("--only", nargs="+", metavar="NAME",
-                   help="only these figures (see --list; old names such as bin_heights and the "
+                   help="only these figures (see --list; short names such as bin_heights and the "
                         "paper's labels such as distrib2 work too)")
     p.add_argument("--list", action="store_true",
                    help="print which figure of the paper each name is, and exit")
