@@ -90,12 +90,13 @@ class StudyPlot:
         """The study's axis below, its scale, and the legend if any line has a label."""
         _xscale(ax, self.study, xs)
         ax.set_xlabel(self.xlabel)
-        if len(ax.get_legend_handles_labels()[0]):
-            ax.legend(frameon=False, fontsize=6, loc="best")
+        if len(ax.get_legend_handles_labels()[0]):  # below the axes: the data stay clear
+            fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncol=2,
+                       frameon=False, fontsize=7, columnspacing=1.0)
         return fig
 
 
-def _fig_ax(h=2.3):
+def _fig_ax(h=2.8):
     import matplotlib.pyplot as plt
 
     return plt.subplots(figsize=(COLUMN_WIDTH, h))
@@ -122,7 +123,7 @@ def fig_event_sizes(sp: StudyPlot):
     """The distribution of event sizes, one line per point."""
     import matplotlib.pyplot as plt
 
-    fig, ax = _fig_ax(2.5)
+    fig, ax = _fig_ax(3.2)
     cmap = plt.get_cmap(ORDER_CMAP)
     for p, row in enumerate(sp.table):
         pdf = row["event_size_pdf"]
@@ -135,7 +136,8 @@ def fig_event_sizes(sp: StudyPlot):
                   color=cmap(p / max(len(sp.table) - 1, 1)), label=lab)
     ax.set_xlabel("event size $s$ [sliders that moved]")
     ax.set_ylabel("fraction of events [1]")
-    ax.legend(frameon=False, fontsize=6, ncol=2)
+    fig.legend(loc="outside lower center", frameon=False, fontsize=7, ncol=2,
+               columnspacing=1.0)
     return fig
 
 
@@ -192,7 +194,7 @@ def fig_sync(sp: StudyPlot):
     x = _measured_and_predicted(
         sp, ax, [("sync_share", "sync_share_sem", "displacement share", dict(marker="o")),
                  ("sync_event_share", None, "event share", dict(marker="x", ls=":"))], [])
-    ax.set_ylabel("multi-region (synchronised) share [1]")
+    ax.set_ylabel("synchronised share [1]")
     return sp.finish(fig, ax, x)
 
 
