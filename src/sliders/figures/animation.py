@@ -110,11 +110,11 @@ def animate_tilt(scene, out_dir="figures", name: str | None = None, backend: str
             events = int(np.searchsorted(result.alpha, a, side="right"))
             # plain text (no mathtext): a title that changes every frame is laid out anew
             if hold:
-                what = (f"avalanche at αc = {result.alpha_c:.3f}" if avalanche
+                what = (f"avalanche at αc = {result.alpha_c:.3f} rad" if avalanche
                         else f"end: {result.status}")
                 title.set_text(f"N = {n}, ξ = {sc.xi:g}: {what}")
             else:
-                title.set_text(f"N = {n}, ξ = {sc.xi:g}: α = {a:.3f}, "
+                title.set_text(f"N = {n}, ξ = {sc.xi:g}: α = {a:.3f} rad, "
                                f"{events} rearrangements")
 
         # lay the figure out once, on the widest title, then freeze it: a

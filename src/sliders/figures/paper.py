@@ -222,7 +222,7 @@ def _force_limits(ax, sc, alpha_end, alpha_c):
             label=r"$(2\mu_d-\bar\mu_s)\cos\alpha$ (arrest)")
     ax.plot(aa, np.sin(aa), "k-.", lw=0.9, label=r"$\sin\alpha$")
     if alpha_c is not None:
-        ax.plot([], [], "-", color="0.35", lw=0.8, label=rf"$\alpha_c={alpha_c:.3f}$ (avalanche)")
+        ax.plot([], [], "-", color="0.35", lw=0.8, label=rf"$\alpha_c={alpha_c:.3f}$ rad (avalanche)")
     ax.set_xlim(0.0, alpha_end)
 
 
@@ -407,7 +407,7 @@ def fig_single_slider(result=None, backend: str = "fortran", out_dir="figures",
         m = min(sim.size, pred.size)
         dev = float(np.max(np.abs(sim[:m] - pred[:m]))) if m else math.nan
         ax.set_title(f"one slider between walls, $\\mu_d={sc.mu_d:g}$, $\\mu_s={mu_s:g}$: "
-                     f"{sim.size} slips,\nmax $|\\alpha_{{sim}}-\\alpha_{{model}}|$ = {dev:.1e}")
+                     f"{sim.size} slips,\nmax $|\\alpha_{{sim}}-\\alpha_{{model}}|$ = {dev:.1e} rad")
         if sketch:
             ins = ax.inset_axes([0.62, 0.02, 0.37, 0.25])
             _draw_sketch(ins)
@@ -603,8 +603,8 @@ def fig_bin_heights(summary, out_dir="figures", name: str = "bin_heights",
                  Line2D([], [], ls="-.", lw=0.9, color="0.45")]
         ax.legend(style, ["simulation (mean $\\pm$ s.e.)", "master equation, Eq. (18)",
                           "crude model, Eq. (19):\n$P_1$ and plateau $P_{i\\neq1}$",
-                          f"$\\alpha_t={at_s:.3f}$, Eq. (21)\n(Stirling)",
-                          f"$\\alpha_t={at_e:.3f}$, exact\nsolution of Eq. (20)"],
+                          f"$\\alpha_t={at_s:.3f}$ rad, Eq. (21)\n(Stirling)",
+                          f"$\\alpha_t={at_e:.3f}$ rad, exact\nsolution of Eq. (20)"],
                   loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False,
                   columnspacing=1.0)
         ax.set_title(_stats_title(summary, title_extra))
