@@ -68,6 +68,11 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+def _own_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
 def page_id(page: Path) -> str:
     return str(page.relative_to(ROOT))
 
@@ -176,7 +181,7 @@ def test_page_commands_run_as_written(page, tmp_path_factory, monkeypatch, reque
         except pytest.skip.Exception as why:  # the other blocks still run
             no_slurm = str(why)
     document.namespace.update(__env__=env, __timings__=[])
-    skipped, started, cpu = [], time.monotonic(), _children_cpu()
+    skipped, started, cpu, own = [], time.monotonic(), _children_cpu(), _own_cpu()
     for example in examples:
         where = f"{page_id(page)}, block at line {example.line}"
         if no_slurm and _needs_slurm(example):
@@ -190,7 +195,8 @@ def test_page_commands_run_as_written(page, tmp_path_factory, monkeypatch, reque
             pytest.fail(f"{where}: {exc}", pytrace=False)
     slow = sorted(document.namespace["__timings__"], key=lambda t: -t[1])[:3]
     sys.stderr.write(f"\n{page_id(page)}: {time.monotonic() - started:.1f} s wall, "
-                     f"{_children_cpu() - cpu:.1f} s CPU of its commands"
+                     f"CPU {_children_cpu() - cpu:.1f} s in its commands + "
+                     f"{_own_cpu() - own:.1f} s in its Python blocks"
                      + "".join(f", line {line}: {t:.1f} s" for line, t in slow)
                      + "".join(f"\n  not run, {s}" for s in skipped))
     if no_slurm:
