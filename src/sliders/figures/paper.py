@@ -499,7 +499,7 @@ def fig_force_pdf(summary, out_dir="figures", name: str = "force_pdf", step: flo
         cb = fig.colorbar(sm, ax=ax, pad=0.015)
         cb.set_label(r"$\alpha$ [rad]")
         ax.set_title(_stats_title(summary, (title_extra + ", " if title_extra else "")
-                                  + f"bins of {np.diff(edges)[0]:.3g}"))
+                                  + f"bins of {np.diff(edges)[0]:.3g} $mg$"))
     save_figure(fig, out_dir, name)
     return fig
 

@@ -228,7 +228,7 @@ def fig_histogram_model(alpha: float = 0.15, mu_s_mean: float = 0.6, mu_d: float
         ax.set_xlabel(r"$\tilde F_t$ (bins of width $2\Delta\mu$, numbered from $\bar\mu_s$) [$mg$]")
         ax.set_ylabel(r"$P_i$ [$1/mg$]")
         ax.legend(loc="upper left", frameon=True, framealpha=0.9)
-        ax.set_title(f"model at $\\alpha={alpha:g}$: $\\bar\\mu_s={mu_s_mean:g}$, "
+        ax.set_title(f"model at $\\alpha={alpha:g}$ rad: $\\bar\\mu_s={mu_s_mean:g}$, "
                      f"$\\mu_d={mu_d:g}$, $2\\Delta\\mu={2 * dmu:.2g}$", pad=2)
     save_figure(fig, out_dir, name)
     return fig
