@@ -22,6 +22,7 @@ LABELS = {"n_sliders": "N", "xi": r"$\xi$", "mu_d": r"$\mu_d$", "mu_s_mean": r"$
 # every study axis is a dimensionless scene parameter (N a count, the others ratios of
 # forces or stiffnesses)
 UNITS = {"n_sliders": "sliders"}
+LEGEND_PAIR_CHARS = 26  # labels up to this long fit two to a line at the column's width
 
 
 def _axis_label(study) -> str:
@@ -90,9 +91,11 @@ class StudyPlot:
         """The study's axis below, its scale, and the legend if any line has a label."""
         _xscale(ax, self.study, xs)
         ax.set_xlabel(self.xlabel)
-        if len(ax.get_legend_handles_labels()[0]):  # below the axes: the data stay clear
-            fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncol=2,
-                       frameon=False, fontsize=7, columnspacing=1.0)
+        handles, labels = ax.get_legend_handles_labels()
+        if handles:  # below the axes, the data stay clear; long labels one per line
+            fig.legend(handles, labels, loc="outside lower center", frameon=False, fontsize=7,
+                       ncol=2 if max(len(t) for t in labels) <= LEGEND_PAIR_CHARS else 1,
+                       columnspacing=1.0)
         return fig
 
 
