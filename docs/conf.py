@@ -69,4 +69,6 @@ numpydoc_xref_param_type = False
 
 html_theme = "alabaster"
 html_title = f"sliders {release}"
-html_static_path = []
+html_static_path = ["_static"]
+html_css_files = ["sliders.css"]  # tables and code blocks wrap to the page's width
+html_theme_options = {"page_width": "1100px", "body_max_width": "none"}

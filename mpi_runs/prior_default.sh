@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The default prior ensemble of the forecasting issue: 4000 rows, each drawing its
+# The default prior ensemble of the forecasting page (docs/forecasting.md): 4000 rows, each drawing its
 # material (mu_d, mu_s - mu_d, sigma_mu, xi, N) from mpi_runs/priors/default.toml,
 # with the catalogue of every event and the ceiling, into one HDF5 file.
 #

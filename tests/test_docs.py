@@ -1,8 +1,8 @@
 """The documentation is checked, not trusted.
 
-* Every ``pycon`` block of the README and of the pages under docs/ runs as a
-  doctest: its printed outputs (alpha_c, event counts, reprs) are what the
-  package gives today.
+* Every command and example of the README and of the pages under docs/ runs
+  as written in tests/test_docs_commands.py (Sybil), printed outputs compared.
+* The ``>>>`` examples in the package's docstrings give what they print.
 * The Sphinx site builds with warnings as errors (-W); the build executes the
   tutorial notebook (myst-nb, through nbclient), so a cell that raises fails
   this test, and the rendered page must hold its figures.
@@ -22,37 +22,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
 
 import sliders
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
-PAGES_WITH_CODE = [ROOT / "README.md", *sorted(DOCS.glob("*.md")), *sorted(DOCS.glob("howto/*.md"))]
-
-
-def pycon_blocks(path: Path) -> list[tuple[int, str]]:
-    """(line, text) of every ```pycon block of a Markdown file."""
-    text = path.read_text()
-    return [(text[:m.start()].count("\n") + 2, m.group(1))
-            for m in re.finditer(r"```pycon\n(.*?)```", text, flags=re.S)]
-
-
-@pytest.mark.parametrize("page", [p for p in PAGES_WITH_CODE if pycon_blocks(p)],
-                         ids=lambda p: str(p.relative_to(ROOT)))
-def test_documented_outputs_are_current(page, tmp_path, monkeypatch):
-    """The examples of a page give the outputs printed beside them (run in a scratch folder)."""
-    monkeypatch.chdir(tmp_path)  # examples write files (run.h5, n100.h5)
-    parser = doctest.DocTestParser()
-    runner = doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE | doctest.ELLIPSIS)
-    globs: dict = {}
-    report: list[str] = []  # doctest swaps sys.stdout while it runs: collect its report here
-    for line, block in pycon_blocks(page):
-        test = parser.get_doctest(block, globs, f"{page.name}:{line}", str(page), line)
-        runner.run(test, out=report.append)
-    result = runner.summarize(verbose=False)
-    assert result.attempted > 0
-    assert result.failed == 0, "".join(report)
 
 
 def test_docstring_examples_are_current(tmp_path, monkeypatch):

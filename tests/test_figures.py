@@ -139,8 +139,8 @@ def test_ensemble_file_summary_of_the_done_rows(runs, tmp_path):
     np.testing.assert_array_equal(g2.force_edges, grids.force_edges)
 
 
-def test_main_single_slider_old_name(tmp_path):
-    """--only takes the old name; the file carries the paper's figure number."""
+def test_main_single_slider_short_name(tmp_path):
+    """--only takes the short name; the file carries the paper's figure number."""
     assert F.main(["--backend", "numpy", "--only", "single_slider", "--out", str(tmp_path)]) == 0
     check_written(tmp_path, "fig05_single_slider")
 

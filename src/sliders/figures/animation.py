@@ -82,8 +82,8 @@ def animate_tilt(scene, out_dir="figures", name: str | None = None, backend: str
         # forces stay within +-mu_s: the band below -1.1 mu_s holds the legend
         ax.set_ylim(-1.75 * lim, lim)
         ax.set_yticks([-0.5, -0.25, 0.0, 0.25, 0.5])
-        ax.set_xlabel("slider $n$ (down the slope)")
-        ax.set_ylabel(r"$\tilde F_t$")
+        ax.set_xlabel("slider $n$ (down the slope) [1]")
+        ax.set_ylabel(r"$\tilde F_t$ [$mg$]")
         stab, = ax.plot([], [], "k--", lw=0.9, label=r"$\pm\bar\mu_s\cos\alpha$: stability")
         stab_low, = ax.plot([], [], "k--", lw=0.9)
         arrest, = ax.plot([], [], "k:", lw=0.9, label=r"$(2\mu_d-\bar\mu_s)\cos\alpha$: arrest")
@@ -110,11 +110,11 @@ def animate_tilt(scene, out_dir="figures", name: str | None = None, backend: str
             events = int(np.searchsorted(result.alpha, a, side="right"))
             # plain text (no mathtext): a title that changes every frame is laid out anew
             if hold:
-                what = (f"avalanche at αc = {result.alpha_c:.3f}" if avalanche
+                what = (f"avalanche at αc = {result.alpha_c:.3f} rad" if avalanche
                         else f"end: {result.status}")
                 title.set_text(f"N = {n}, ξ = {sc.xi:g}: {what}")
             else:
-                title.set_text(f"N = {n}, ξ = {sc.xi:g}: α = {a:.3f}, "
+                title.set_text(f"N = {n}, ξ = {sc.xi:g}: α = {a:.3f} rad, "
                                f"{events} rearrangements")
 
         # lay the figure out once, on the widest title, then freeze it: a

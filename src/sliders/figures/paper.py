@@ -22,7 +22,7 @@ Fig.  paper label     name                         function
 10    fig:cumul       ``fig10_cumulated``          ``fig_cumulated_displacement``
 ====  ==============  ===========================  ==================================
 
-The older names (``scene_A``, ``bin_heights`` ...) and the paper's labels
+The short names (``scene_A``, ``bin_heights`` ...) and the paper's labels
 (``distrib2`` ...) are accepted by ``--only`` as well.  ``--animate`` writes
 a GIF of a tilt instead (``animation.py``).
 """
@@ -97,7 +97,7 @@ SCENE_LETTERS = {"fig02_scene_A": "A", "fig03_scene_B": "B", "fig04_scene_C": "C
 
 
 def figure_lookup() -> dict[str, str]:
-    """Every accepted spelling -> the figure's name (names, old names, the paper's labels)."""
+    """Every accepted spelling -> the figure's name (names, short names, the paper's labels)."""
     out = {}
     for f in PAPER_FIGURES:
         for key in (f.name, f.label, f.label.split(":", 1)[1], f"fig{f.number}", *f.aliases):
@@ -175,6 +175,57 @@ def force_curves(result, n_grid: int = 200):
     return x, y
 
 
+# a long chain's forces: the sliders drawn over the band start at these quantiles of F_t(0)
+HIGHLIGHTED_QUANTILES = (0.1, 0.5, 0.9)
+HIGHLIGHT_COLOURS = ("tab:blue", "tab:orange", "tab:green")
+
+
+def _sliders_at_force_quantiles(start_force, quantiles) -> list[int]:
+    """The sliders (0-based) whose force at alpha = 0 sits at these quantiles, low to high."""
+    order = np.argsort(start_force, kind="stable")
+    return [int(order[min(int(q * order.size), order.size - 1)]) for q in quantiles]
+
+
+def _force_lines(fig, ax, x, y, cmap):
+    """Every slider's F_t(alpha), coloured by its number, with a colour bar."""
+    n = y.shape[1]
+    lc = LineCollection([np.column_stack([x, y[:, j]]) for j in range(n)], cmap=cmap,
+                        norm=mcolors.Normalize(vmin=1, vmax=max(n, 2)), linewidths=0.9)
+    lc.set_array(np.arange(1, n + 1))
+    ax.add_collection(lc)
+    cb = fig.colorbar(lc, ax=ax, pad=0.02, fraction=0.06, aspect=15)
+    cb.set_label("slider number $i$ [1]")
+
+
+def _force_band(fig, ax, ax_map, x, y, highlighted):
+    """The range of all sliders' F_t (grey), its middle 80 % (darker), a few sliders over it."""
+    ax.fill_between(x, y.min(axis=1), y.max(axis=1), color="0.85", lw=0, rasterized=True,
+                    label=f"all {y.shape[1]} sliders (range)")
+    lo, hi = np.percentile(y, [10, 90], axis=1)
+    ax.fill_between(x, lo, hi, color="0.6", lw=0, rasterized=True,
+                    label="middle 80 % of the sliders")
+    for colour, j in zip(HIGHLIGHT_COLOURS, highlighted):
+        ax.plot(x, y[:, j], "-", color=colour, lw=0.8, label=f"slider {j + 1}")
+        ax_map.plot(1.0, j + 1, marker="<", ms=4, color=colour, clip_on=False,
+                    transform=ax_map.get_yaxis_transform())
+    # the same room on the right as panel (a)'s colour bar, so that both share their width
+    fig.colorbar(plt.cm.ScalarMappable(), ax=ax, pad=0.02, fraction=0.06, aspect=15).ax \
+        .set_visible(False)
+
+
+def _force_limits(ax, sc, alpha_end, alpha_c):
+    """Stability, arrest and sin(alpha), and a legend entry for the avalanche angle."""
+    aa = np.linspace(0.0, alpha_end, 300)
+    ax.plot(aa, sc.mu_s_mean * np.cos(aa), "k--", lw=0.9,
+            label=r"$\bar\mu_s\cos\alpha$ (stability)")
+    ax.plot(aa, (2 * sc.mu_d - sc.mu_s_mean) * np.cos(aa), "k--", lw=0.9, dashes=(1.5, 1.5),
+            label=r"$(2\mu_d-\bar\mu_s)\cos\alpha$ (arrest)")
+    ax.plot(aa, np.sin(aa), "k-.", lw=0.9, label=r"$\sin\alpha$")
+    if alpha_c is not None:
+        ax.plot([], [], "-", color="0.35", lw=0.8, label=rf"$\alpha_c={alpha_c:.3f}$ rad (avalanche)")
+    ax.set_xlim(0.0, alpha_end)
+
+
 def fig_scene(result, name: str = "scene", label: str = "", out_dir="figures",
               n_columns: int | None = None, event_width: float | None = None,
               cmap_map: str = DISPLACEMENT_CMAP, cmap_sliders: str = ORDER_CMAP):
@@ -183,15 +234,17 @@ def fig_scene(result, name: str = "scene", label: str = "", out_dir="figures",
     (a) abs(Delta x_i) of every slider (row) in every event, at the event angle,
     log colour scale, the darker the larger (a map whose lightness falls
     monotonically, so this holds in greyscale); dashed line at alpha_c.
-    (b) F_t of every slider vs alpha coloured by slider number, with the
-    limits mu_s cos(alpha) and (2 mu_d - mu_s) cos(alpha) (dashed) and
-    sin(alpha) (dash-dotted).
+    (b) F_t vs alpha with the limits mu_s cos(alpha) and (2 mu_d - mu_s)
+    cos(alpha) (dashed) and sin(alpha) (dash-dotted): for N <= 20 every
+    slider, coloured by its number; for more, the range of all sliders as a
+    grey band (and the middle 80 % darker) with three sliders drawn over it,
+    those starting at the ``HIGHLIGHTED_QUANTILES`` of F_t(0), marked on (a).
     """
     sc = result.scene
     n = sc.n_sliders
     with plt.rc_context(STYLE):
         big = n > 50
-        fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(COLUMN_WIDTH, 5.2 if big else 4.9),
+        fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(COLUMN_WIDTH, 5.6 if big else 4.9),
                                        sharex=True,
                                        gridspec_kw={"height_ratios": (1.2, 1) if big else (1, 1)})
         if n_columns is None:
@@ -218,42 +271,28 @@ def fig_scene(result, name: str = "scene", label: str = "", out_dir="figures",
                 ax.axvline(result.alpha_c, color="0.35", ls="-", lw=0.8)
             ax0.text(result.alpha_c, 1.01, r"$\alpha_c$", transform=ax0.get_xaxis_transform(),
                      va="bottom", ha="center", fontsize=8)
-        ax0.set_ylabel(r"slider $i$")
+        ax0.set_ylabel(r"slider $i$ [1]")
         ax0.set_ylim(0.5, n + 0.5)
         if n <= 20:
             ax0.set_yticks(np.arange(1, n + 1, 1 if n <= 10 else 2))
         cb0 = fig.colorbar(im, ax=ax0, pad=0.02, fraction=0.06, aspect=15, extend="both")
-        cb0.set_label(r"$|\Delta\tilde x_i|$ (darker: larger)")
+        cb0.set_label(r"$|\Delta\tilde x_i|$ (darker: larger) [$g\tau^2$]")
         cb0.ax.yaxis.set_minor_formatter(NullFormatter())
         panel_label(ax0, "(a)")
 
         x, y = force_curves(result)
-        segs = [np.column_stack([x, y[:, j]]) for j in range(n)]
-        norm = mcolors.Normalize(vmin=1, vmax=max(n, 2))
-        lc = LineCollection(segs, cmap=cmap_sliders, norm=norm,
-                            linewidths=0.9 if n <= 20 else 0.3, alpha=1.0 if n <= 20 else 0.7)
-        lc.set_array(np.arange(1, n + 1))
-        lc.set_rasterized(n > 20)
-        ax1.add_collection(lc)
-        aa = np.linspace(0.0, extent[1], 300)
-        ax1.plot(aa, sc.mu_s_mean * np.cos(aa), "k--", lw=0.9,
-                 label=r"$\bar\mu_s\cos\alpha$ (stability)")
-        ax1.plot(aa, (2 * sc.mu_d - sc.mu_s_mean) * np.cos(aa), "k--", lw=0.9, dashes=(1.5, 1.5),
-                 label=r"$(2\mu_d-\bar\mu_s)\cos\alpha$ (arrest)")
-        ax1.plot(aa, np.sin(aa), "k-.", lw=0.9, label=r"$\sin\alpha$")
-        if has_ac:
-            ax1.plot([], [], "-", color="0.35", lw=0.8,
-                     label=rf"$\alpha_c={result.alpha_c:.3f}$ (avalanche)")
-        ax1.set_xlim(0.0, extent[1])
+        if n <= 20:
+            _force_lines(fig, ax1, x, y, cmap_sliders)
+        else:
+            _force_band(fig, ax1, ax0, x, y, _sliders_at_force_quantiles(y[0], HIGHLIGHTED_QUANTILES))
+        _force_limits(ax1, sc, extent[1], result.alpha_c if has_ac else None)
         lo = min(float(np.nanmin(y)), -sc.mu_s_mean) - 0.05
         ax1.set_ylim(lo, max(float(np.nanmax(y)), sc.mu_s_mean) + 0.05)
-        ax1.set_xlabel(r"$\alpha$")
-        ax1.set_ylabel(r"$\tilde F_t$")
+        ax1.set_xlabel(r"$\alpha$ [rad]")
+        ax1.set_ylabel(r"$\tilde F_t$ [$mg$]")
         # below the panel: the force curves fill the whole plane
         fig.legend(*ax1.get_legend_handles_labels(), loc="outside lower center", ncol=2,
                    frameon=False, columnspacing=1.0)
-        cb1 = fig.colorbar(lc, ax=ax1, pad=0.02, fraction=0.06, aspect=15)
-        cb1.set_label("slider number $i$")
         panel_label(ax1, "(b)")
         title = (f"{'Scene ' + label + ': ' if label else ''}$N={n}$, $\\xi={sc.xi:g}$, "
                  f"seed {sc.seed}, {result.n_events} events")
@@ -361,14 +400,14 @@ def fig_single_slider(result=None, backend: str = "fortran", out_dir="figures",
         lowest = min(float(np.min(y[x > 0.02 * sc.alpha_max, 0])) if x.size else 0.0,
                      (2 * sc.mu_d - mu_s) * math.cos(sc.alpha_max))
         ax.set_ylim(lowest - 0.2, max(float(np.max(y)), mu_s) + 0.01)
-        ax.set_xlabel(r"$\alpha$")
-        ax.set_ylabel(r"$\tilde F_t$")
+        ax.set_xlabel(r"$\alpha$ [rad]")
+        ax.set_ylabel(r"$\tilde F_t$ [$mg$]")
         ax.legend(loc="lower left", frameon=True, framealpha=0.9, fontsize=7)
         sim = np.asarray(result.alpha)
         m = min(sim.size, pred.size)
         dev = float(np.max(np.abs(sim[:m] - pred[:m]))) if m else math.nan
         ax.set_title(f"one slider between walls, $\\mu_d={sc.mu_d:g}$, $\\mu_s={mu_s:g}$: "
-                     f"{sim.size} slips,\nmax $|\\alpha_{{sim}}-\\alpha_{{model}}|$ = {dev:.1e}")
+                     f"{sim.size} slips,\nmax $|\\alpha_{{sim}}-\\alpha_{{model}}|$ = {dev:.1e} rad")
         if sketch:
             ins = ax.inset_axes([0.62, 0.02, 0.37, 0.25])
             _draw_sketch(ins)
@@ -446,8 +485,8 @@ def fig_force_pdf(summary, out_dir="figures", name: str = "force_pdf", step: flo
         plateau = 1.0 / (2.0 * g.mu_s_mean)
         ax.axhline(plateau, color="0.4", lw=0.6, ls=":")
         ins.axhline(plateau, color="0.4", lw=0.6, ls=":")
-        ax.set_xlabel(r"$\tilde F_t$")
-        ax.set_ylabel(r"PDF of $\tilde F_t$")
+        ax.set_xlabel(r"$\tilde F_t$ [$mg$]")
+        ax.set_ylabel(r"PDF of $\tilde F_t$ [$1/mg$]")
         ax.set_xlim(edges[0], edges[-1])
         top = np.nanmax(pdfs[idx]) if idx else 1.0
         ax.set_ylim(0, 1.05 * top)
@@ -458,9 +497,9 @@ def fig_force_pdf(summary, out_dir="figures", name: str = "force_pdf", step: flo
         ax.plot([], [], color="0.4", lw=0.6, ls=":", label=r"$1/(2\bar\mu_s)$ (flat start)")
         ax.legend(loc="center", bbox_to_anchor=(0.36, 0.27), frameon=False)
         cb = fig.colorbar(sm, ax=ax, pad=0.015)
-        cb.set_label(r"$\alpha$")
+        cb.set_label(r"$\alpha$ [rad]")
         ax.set_title(_stats_title(summary, (title_extra + ", " if title_extra else "")
-                                  + f"bins of {np.diff(edges)[0]:.3g}"))
+                                  + f"bins of {np.diff(edges)[0]:.3g} $mg$"))
     save_figure(fig, out_dir, name)
     return fig
 
@@ -499,10 +538,10 @@ def fig_stopped_force_ratio(summary, out_dir="figures", name: str = "stopped_rat
         ax.set_xlim(*xlim)
         ymax = np.nanmax(pdfs[keep]) if keep else 1.0
         ax.set_ylim(0, 1.12 * ymax)
-        ax.set_xlabel(r"$\tilde F_t/\tilde F_t^*$,  $\tilde F_t^*=(2\mu_d-\bar\mu_s)\cos\alpha$")
-        ax.set_ylabel("PDF (sliders that moved)")
+        ax.set_xlabel(r"$\tilde F_t/\tilde F_t^*$,  $\tilde F_t^*=(2\mu_d-\bar\mu_s)\cos\alpha$ [1]")
+        ax.set_ylabel("PDF (sliders that moved) [1]")
         cb = fig.colorbar(sm, ax=ax, pad=0.015)
-        cb.set_label(r"$\alpha$ (bins of %.2g)" % np.diff(g.stop_alpha_edges)[0])
+        cb.set_label(r"$\alpha$ (bins of %.2g) [rad]" % np.diff(g.stop_alpha_edges)[0])
         ax.set_title(_stats_title(summary, title_extra))
     save_figure(fig, out_dir, name)
     return fig
@@ -515,9 +554,9 @@ def fig_bin_heights(summary, out_dir="figures", name: str = "bin_heights",
 
     Markers with standard-error bars: measured heights (counts / (N 2 dmu)),
     shown where at least ``min_fraction`` of the runs are still at rest.
-    Solid: closed form of Eq. (model) (``model.bin_heights``, nu(0) bins);
-    dashed: crude model Eq. (crude); vertical solid line: alpha_t (Stirling,
-    Eq. cond); grey dash-dotted: the exact solution of Eq. (not_neg).  Every
+    Solid: the closed form, the paper's Eq. (18) (``model.bin_heights``, nu(0)
+    bins); dashed: the crude model, Eq. (19); vertical solid line: alpha_t by
+    Stirling, Eq. (21); grey dash-dotted: the exact solution of Eq. (20).  Every
     line has a legend entry: one legend for the bins, one for the line styles.
     """
     from ..analysis import model
@@ -547,8 +586,8 @@ def fig_bin_heights(summary, out_dir="figures", name: str = "bin_heights",
         ax.axhline(plateau, color="0.25", ls="--", lw=0.9)
         ax.axvline(at_s, color="k", ls="-", lw=0.9)
         ax.axvline(at_e, color="0.45", ls="-.", lw=0.9)
-        ax.set_xlabel(r"$\alpha$")
-        ax.set_ylabel(r"$P_i$")
+        ax.set_xlabel(r"$\alpha$ [rad]")
+        ax.set_ylabel(r"$P_i$ [$1/mg$]")
         ax.set_xlim(0, summary.alpha[-1])
         ax.set_ylim(0, None)
         first = ax.legend(bin_handles, [f"$P_{{{i}}}$" + (r" ($i=\nu$)" if i == nu else "")
@@ -562,10 +601,10 @@ def fig_bin_heights(summary, out_dir="figures", name: str = "bin_heights",
                  Line2D([], [], ls="--", lw=0.9, color="0.25"),
                  Line2D([], [], ls="-", lw=0.9, color="k"),
                  Line2D([], [], ls="-.", lw=0.9, color="0.45")]
-        ax.legend(style, ["simulation (mean $\\pm$ s.e.)", "model, Eq. (model)",
-                          "crude model, Eq. (crude):\n$P_1$ and plateau $P_{i\\neq1}$",
-                          f"$\\alpha_t={at_s:.3f}$, Eq. (cond)\n(Stirling)",
-                          f"$\\alpha_t={at_e:.3f}$, exact\n(Eq. not_neg)"],
+        ax.legend(style, ["simulation (mean $\\pm$ s.e.)", "master equation, Eq. (18)",
+                          "crude model, Eq. (19):\n$P_1$ and plateau $P_{i\\neq1}$",
+                          f"$\\alpha_t={at_s:.3f}$ rad, Eq. (21)\n(Stirling)",
+                          f"$\\alpha_t={at_e:.3f}$ rad, exact\nsolution of Eq. (20)"],
                   loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False,
                   columnspacing=1.0)
         ax.set_title(_stats_title(summary, title_extra))
@@ -583,7 +622,8 @@ def _exponential_fit_line(ax, x, y, fit_range):
     if math.isfinite(fit["rate"]):
         xx = np.linspace(*fit_range, 50)
         ax.plot(xx, fit["prefactor"] * np.exp(fit["rate"] * xx), "k--", lw=0.9,
-                label=f"$\\propto e^{{k\\alpha}}$, $k={fit['rate']:.1f}\\pm{fit['rate_err']:.1f}$")
+                label=f"$\\propto e^{{k\\alpha}}$, $k={fit['rate']:.1f}\\pm{fit['rate_err']:.1f}$ "
+                      r"rad$^{-1}$")
     return fit
 
 
@@ -611,7 +651,7 @@ def fig_cumulated_displacement(data, out_dir="figures", name: str = "cumulated",
                      capsize=1.2, lw=0.7, mew=0, color="tab:blue", label=r"$\langle A\rangle$ (mean $\pm$ s.e.)")
         fa = _exponential_fit_line(ax0, a[sel], A[sel], fit_range)
         ax0.set_yscale("log")
-        ax0.set_ylabel(r"$A$")
+        ax0.set_ylabel(r"$A$ [$g\tau^2$]")
         ax0.legend(loc="lower right")
         panel_label(ax0, "(a)")
 
@@ -630,8 +670,8 @@ def fig_cumulated_displacement(data, out_dir="figures", name: str = "cumulated",
                      label=r"$\langle\Delta\tilde x\rangle$ (mean per $\alpha$ bin)")
             fb = _exponential_fit_line(ax1, mid[okm], mdx[okm], fit_range)
         ax1.set_yscale("log")
-        ax1.set_xlabel(r"$\alpha$")
-        ax1.set_ylabel(r"$\langle\Delta\tilde x\rangle$")
+        ax1.set_xlabel(r"$\alpha$ [rad]")
+        ax1.set_ylabel(r"$\langle\Delta\tilde x\rangle$ [$g\tau^2$]")
         ax1.legend(loc="upper left", bbox_to_anchor=(0.06, 1.0), frameon=True, framealpha=0.9)
         panel_label(ax1, "(b)")
         ax1.set_xlim(0, a[ok][-1] if ok.any() else a[-1])
@@ -723,7 +763,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--paper-size", action="store_true", help="the paper's system sizes")
     p.add_argument("--backend", choices=("fortran", "numpy"), default="fortran")
     p.add_argument("--only", nargs="+", metavar="NAME",
-                   help="only these figures (see --list; old names such as bin_heights and the "
+                   help="only these figures (see --list; short names such as bin_heights and the "
                         "paper's labels such as distrib2 work too)")
     p.add_argument("--list", action="store_true",
                    help="print which figure of the paper each name is, and exit")
@@ -775,10 +815,37 @@ def _check_args(args) -> None:
         raise FigureInputError("--scene is for --animate (the figures use the paper's scenes)")
 
 
+def _schematic(name):
+    def draw(backend):
+        from . import schematics
+
+        return getattr(schematics, name)(out_dir=None)
+    return draw
+
+
+# The figures drawn from the model alone (no run of the chain, or one small fixed run),
+# name -> function(backend) returning the Figure, and the statistics figures, name ->
+# function(summary, results or None, title_extra).  The scenes are fig_scene of one run.
+MODEL_FIGURES = {
+    "fig01_sketch": _schematic("fig_sketch"),
+    "fig08_histogram_model": _schematic("fig_histogram_model"),
+    "fig05_single_slider": lambda backend: fig_single_slider(backend=backend, out_dir=None),
+    PUSHED_END: lambda backend: fig_pushed_end(pushed_end_run(backend=backend), out_dir=None),
+}
+STATISTICS_FIGURES = {
+    "fig06_force_pdf": lambda summary, results, extra: fig_force_pdf(
+        summary, out_dir=None, title_extra=extra),
+    "fig07_stopped_ratio": lambda summary, results, extra: fig_stopped_force_ratio(
+        summary, out_dir=None, title_extra=extra),
+    "fig09_P_i": lambda summary, results, extra: fig_bin_heights(
+        summary, out_dir=None, title_extra=extra),
+    "fig10_cumulated": lambda summary, results, extra: fig_cumulated_displacement(
+        results if results else summary, out_dir=None, title_extra=extra),
+}
+
+
 def draw_figures(names, out, args, formats=("png", "pdf"), palette_png: bool = False) -> None:
     """Draw the named figures into ``out`` (progress on stdout)."""
-    from . import schematics
-
     big = args.paper_size or args.backend == "fortran"
     runs = args.runs if args.runs is not None else (20 if big else 4)
     n_stats = args.n_sliders if args.n_sliders is not None else (100 if big else 30)
@@ -789,17 +856,11 @@ def draw_figures(names, out, args, formats=("png", "pdf"), palette_png: bool = F
         print(f"{name}: {time.perf_counter() - t0:.1f} s{(' ' + note) if note else ''} -> "
               f"{', '.join(paths)}", flush=True)
 
-    makers_without_data = {
-        "fig01_sketch": lambda: schematics.fig_sketch(out_dir=None),
-        "fig08_histogram_model": lambda: schematics.fig_histogram_model(out_dir=None),
-        "fig05_single_slider": lambda: fig_single_slider(backend=args.backend, out_dir=None),
-        PUSHED_END: lambda: fig_pushed_end(pushed_end_run(backend=args.backend), out_dir=None),
-    }
     setups = scene_setups(args.paper_size, args.backend)
     for name in names:
         t0 = time.perf_counter()
-        if name in makers_without_data:
-            save(makers_without_data[name](), name, t0)
+        if name in MODEL_FIGURES:
+            save(MODEL_FIGURES[name](args.backend), name, t0)
         elif name in setups:
             s = dict(setups[name])
             label = s.pop("label")
@@ -826,17 +887,9 @@ def draw_figures(names, out, args, formats=("png", "pdf"), palette_png: bool = F
         extra = ""
     print(f"statistics: {summary.n_realisations} runs of N={summary.n_sliders} "
           f"({time.perf_counter() - t0:.1f} s)", flush=True)
-    makers = {
-        "fig06_force_pdf": lambda: fig_force_pdf(summary, out_dir=None, title_extra=extra),
-        "fig07_stopped_ratio": lambda: fig_stopped_force_ratio(summary, out_dir=None,
-                                                               title_extra=extra),
-        "fig09_P_i": lambda: fig_bin_heights(summary, out_dir=None, title_extra=extra),
-        "fig10_cumulated": lambda: fig_cumulated_displacement(results if results else summary,
-                                                              out_dir=None, title_extra=extra),
-    }
     for name in stats:
         t1 = time.perf_counter()
-        save(makers[name](), name, t1)
+        save(STATISTICS_FIGURES[name](summary, results, extra), name, t1)
 
 
 def main(argv: list[str] | None = None) -> int:

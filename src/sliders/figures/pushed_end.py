@@ -90,8 +90,8 @@ def fig_pushed_end(result, out_dir="figures", name: str = NAME):
                   label="farthest so far")
         if result.status == "sliding":
             ax_a.plot(drive[-1], arrest[-1], "*", ms=7, color="C3", label="onset of sliding", zorder=4)
-        ax_a.set_xlabel(r"driver position $D$ ($g\tau^2$)")
-        ax_a.set_ylabel("arrest position (slider)")
+        ax_a.set_xlabel(r"driver position $D$ [$g\tau^2$]")
+        ax_a.set_ylabel("arrest position [slider]")
         ax_a.set_ylim(0, sc.n_sliders + 1)
         ax_a.legend(loc="upper left", bbox_to_anchor=(0.07, 1.0), fontsize="x-small",
                     frameon=True, framealpha=0.9, edgecolor="none")
@@ -114,9 +114,9 @@ def fig_pushed_end(result, out_dir="figures", name: str = NAME):
                           ha="center", va="bottom" if above else "top", fontsize="x-small",
                           color="0.3", bbox=dict(fc="white", ec="none", pad=0.3, alpha=0.9))
         ax_b.set_ylim(top=sc.mu_s_mean * math.cos(sc.tilt) + 0.15)
-        ax_b.set_xlabel("slider $n$ (driver at $n = 1$)")
-        ax_b.set_ylabel(r"$F_t$ before the slip ($mg$)")
-        fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax_b, label=r"$D$ ($g\tau^2$)")
+        ax_b.set_xlabel("slider $n$ (driver at $n = 1$) [1]")
+        ax_b.set_ylabel(r"$F_t$ before the slip [$mg$]")
+        fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax_b, label=r"$D$ [$g\tau^2$]")
         panel_label(ax_b, "(b)")
     save_figure(fig, out_dir, name)
     return fig

@@ -63,6 +63,41 @@ def _zigzag(p0, p1, turns: int = 6, width: float = 0.09):
     return np.array(pts)
 
 
+def _sketch_sliders(ax, at, s, s_anchor, size, p_lo):
+    """The blocks at slope positions ``s``, their springs, and their cantilevers to the plate."""
+    w, h = size
+    n_sliders = len(s)
+    for j in range(n_sliders):
+        c = s[j]
+        corners = [at(c - w / 2, 0), at(c + w / 2, 0), at(c + w / 2, h), at(c - w / 2, h)]
+        ax.add_patch(Polygon(corners, closed=True, facecolor="tab:orange", edgecolor="k",
+                             lw=0.7, zorder=3))
+        ax.text(*at(c, h / 2), f"{j + 1}" if j < n_sliders - 1 else "$N$", ha="center",
+                va="center", fontsize=7, zorder=4)
+        # cantilever spring from the slider's top to its anchor x_n^(c) on the plate
+        z = _zigzag(at(c, h), at(s_anchor[j], p_lo), turns=4, width=0.06)
+        ax.plot(z[:, 0], z[:, 1], "k-", lw=0.6)
+        if j < n_sliders - 1:
+            z = _zigzag(at(c + w / 2, h / 2), at(s[j + 1] - w / 2, h / 2), turns=4, width=0.06)
+            ax.plot(z[:, 0], z[:, 1], "k-", lw=0.6)
+
+
+def _sketch_centre_and_gravity(ax, at, s, h, plate):
+    """The plate's centre above the barycentre of the sliders, and the weight m g."""
+    p_lo, p_hi = plate
+    centre = float(np.mean(s))
+    ax.plot(*np.array([at(centre, h + 0.03), at(centre, p_lo)]).T, ls=(0, (2, 2)),
+            color="tab:blue", lw=0.7)
+    ax.plot(*at(centre, h + 0.03), marker="o", ms=2.5, color="tab:blue", zorder=5)
+    ax.annotate("plate centre above\nthe barycentre", xy=at(centre, p_hi),
+                xytext=at(centre + 0.9, p_hi + 0.5), fontsize=7, ha="left", va="center",
+                color="tab:blue", arrowprops=dict(arrowstyle="-", lw=0.5, color="tab:blue"))
+    g0 = at(s[-1] + 0.75, h + 0.55)
+    ax.annotate("", xy=g0 + np.array([0.0, -0.45]), xytext=g0,
+                arrowprops=dict(arrowstyle="->", lw=0.7))
+    ax.text(g0[0] + 0.06, g0[1] - 0.22, r"$mg$", ha="left", va="center", fontsize=7)
+
+
 def fig_sketch(alpha: float = 0.22, out_dir="figures", name: str = "fig01_sketch",
                n_sliders: int = SKETCH_SLIDERS):
     """Fig. 1: sketch of the system, from a prepared chain of ``n_sliders`` at tilt ``alpha``."""
@@ -99,19 +134,7 @@ def fig_sketch(alpha: float = 0.22, out_dir="figures", name: str = "fig01_sketch
                              edgecolor="k", lw=0.7, hatch="////"))
         ax.text(*at(start + 0.25, p_hi + 0.06), "upper plate", rotation=-math.degrees(alpha),
                 rotation_mode="anchor", ha="left", va="bottom", fontsize=7)
-        for j in range(n_sliders):
-            c = s[j]
-            corners = [at(c - w / 2, 0), at(c + w / 2, 0), at(c + w / 2, h), at(c - w / 2, h)]
-            ax.add_patch(Polygon(corners, closed=True, facecolor="tab:orange", edgecolor="k",
-                                 lw=0.7, zorder=3))
-            ax.text(*at(c, h / 2), f"{j + 1}" if j < n_sliders - 1 else "$N$", ha="center",
-                    va="center", fontsize=7, zorder=4)
-            # cantilever spring from the slider's top to its anchor x_n^(c) on the plate
-            z = _zigzag(at(c, h), at(s_anchor[j], p_lo), turns=4, width=0.06)
-            ax.plot(z[:, 0], z[:, 1], "k-", lw=0.6)
-            if j < n_sliders - 1:
-                z = _zigzag(at(c + w / 2, h / 2), at(s[j + 1] - w / 2, h / 2), turns=4, width=0.06)
-                ax.plot(z[:, 0], z[:, 1], "k-", lw=0.6)
+        _sketch_sliders(ax, at, s, s_anchor, (w, h), p_lo)
         # inside the incline: the x axis (down the slope), x_n at slider 4, l between 1 and 2
         x_end = s[-1] + 0.45
         ax.annotate("", xy=at(x_end, -0.12), xytext=at(start + 0.1, -0.12),
@@ -131,19 +154,7 @@ def fig_sketch(alpha: float = 0.22, out_dir="figures", name: str = "fig01_sketch
         ax.plot(*at(s_anchor[3], p_lo), "o", ms=2.5, color="k", zorder=5)
         ax.text(*at(s_anchor[3] + 0.08, p_lo - 0.08), r"$x_n^{(c)}$", ha="left", va="top",
                 fontsize=7)
-        # the plate's centre sits above the barycentre of the sliders
-        centre = float(np.mean(s))
-        ax.plot(*np.array([at(centre, h + 0.03), at(centre, p_lo)]).T, ls=(0, (2, 2)),
-                color="tab:blue", lw=0.7)
-        ax.plot(*at(centre, h + 0.03), marker="o", ms=2.5, color="tab:blue", zorder=5)
-        ax.annotate("plate centre above\nthe barycentre", xy=at(centre, p_hi),
-                    xytext=at(centre + 0.9, p_hi + 0.5), fontsize=7, ha="left", va="center",
-                    color="tab:blue", arrowprops=dict(arrowstyle="-", lw=0.5, color="tab:blue"))
-        # gravity
-        g0 = at(s[-1] + 0.75, h + 0.55)
-        ax.annotate("", xy=g0 + np.array([0.0, -0.45]), xytext=g0,
-                    arrowprops=dict(arrowstyle="->", lw=0.7))
-        ax.text(g0[0] + 0.06, g0[1] - 0.22, r"$mg$", ha="left", va="center", fontsize=7)
+        _sketch_centre_and_gravity(ax, at, s, h, (p_lo, p_hi))
         ax.text(at(start, 0.0)[0], base[1] - 0.06, f"$N={n_sliders}$ drawn; deviations "
                 f"$x_n-x_n^{{(c)}}$ magnified $\\times{DEVIATION_MAGNIFICATION:g}$", fontsize=7,
                 ha="left", va="top")
@@ -225,10 +236,10 @@ def fig_histogram_model(alpha: float = 0.15, mu_s_mean: float = 0.6, mu_d: float
         ax.set_xlim(lower[-1] - 0.02, mu_s_mean + 0.12)
         ax.set_ylim(-0.12 * top, 1.45 * top)
         ax.set_yticks([0, 0.5, 1.0, 1.5] if top > 1.0 else [0, 0.5, 1.0])
-        ax.set_xlabel(r"$\tilde F_t$ (bins of width $2\Delta\mu$, numbered from $\bar\mu_s$)")
-        ax.set_ylabel(r"$P_i$")
+        ax.set_xlabel(r"$\tilde F_t$ (bins of width $2\Delta\mu$, numbered from $\bar\mu_s$) [$mg$]")
+        ax.set_ylabel(r"$P_i$ [$1/mg$]")
         ax.legend(loc="upper left", frameon=True, framealpha=0.9)
-        ax.set_title(f"model at $\\alpha={alpha:g}$: $\\bar\\mu_s={mu_s_mean:g}$, "
+        ax.set_title(f"model at $\\alpha={alpha:g}$ rad: $\\bar\\mu_s={mu_s_mean:g}$, "
                      f"$\\mu_d={mu_d:g}$, $2\\Delta\\mu={2 * dmu:.2g}$", pad=2)
     save_figure(fig, out_dir, name)
     return fig
