@@ -13,18 +13,24 @@
 
 from __future__ import annotations
 
+import array
+import contextlib
 import csv
-import io
+import itertools
 import json
 import math
-import pathlib
+import os
 import pickle
+import signal
+import stat
 import sys
 import zlib
 
 import numpy as np
 
+from .._version import __version__
 from .catalogue import Catalogue
+from .safeio import leftover_temporaries, publish_bytes, resolve_target, temporary_beside
 
 
 class ForecastInputError(ValueError):
@@ -34,13 +40,16 @@ class ForecastInputError(ValueError):
 MODEL_FORMAT = "sliders-forecaster-1"
 
 
-def save_model(path: str, forecaster, prov: dict) -> None:
-    """Pickle a fitted forecaster with its provenance and a CRC-32 of the pickle (atomic write)."""
-    from ..io.safeio import publish_bytes
-
+def model_bytes(forecaster, prov: dict) -> bytes:
+    """A fitted forecaster pickled, after a header with its provenance and the pickle's CRC-32."""
     blob = pickle.dumps(forecaster, protocol=pickle.HIGHEST_PROTOCOL)
     head = json.dumps({"format": MODEL_FORMAT, "crc32": zlib.crc32(blob), **prov}).encode()
-    publish_bytes(path, len(head).to_bytes(8, "little") + head + blob, overwrite=True)
+    return len(head).to_bytes(8, "little") + head + blob
+
+
+def save_model(path: str, forecaster, prov: dict) -> None:
+    """Write ``model_bytes`` to ``path`` (atomic write)."""
+    publish_bytes(path, model_bytes(forecaster, prov), overwrite=True)
 
 
 def load_model(path: str):
@@ -56,11 +65,154 @@ def load_model(path: str):
         blob = raw[8 + n:]
     except (ValueError, UnicodeDecodeError):
         raise ForecastInputError(f"{path}: not a forecaster file of sliders") from None
-    if head.get("format") != MODEL_FORMAT:
+    if not isinstance(head, dict) or head.get("format") != MODEL_FORMAT:
         raise ForecastInputError(f"{path}: not a forecaster file of sliders")
     if zlib.crc32(blob) != head.get("crc32"):
         raise ForecastInputError(f"{path}: checksum mismatch (damaged file)")
-    return pickle.loads(blob), head
+    try:
+        models = pickle.loads(blob)
+    except (AttributeError, ImportError, IndexError, KeyError, TypeError, ValueError, EOFError,
+            pickle.UnpicklingError) as exc:  # a class or module this version lacks, or junk
+        raise ForecastInputError(f"{path}: holds a forecaster this sliders {__version__} cannot "
+                                 f"read ({type(exc).__name__}: {' '.join(str(exc).split())[:120]}); "
+                                 "fit it again with python -m sliders.forecast evaluate") from None
+    if not isinstance(models, dict) or not all(callable(getattr(m, "predict", None))
+                                               for m in models.values()):
+        raise ForecastInputError(f"{path}: holds {type(models).__name__}, not the fitted "
+                                 "forecasters of sliders")
+    return models, head
+
+
+# ---------------------------------------------------------------------------
+# a run's outputs, published as one set
+# ---------------------------------------------------------------------------
+#: the claim of a folder of outputs: ``FOLDER/.forecast-outputs.lock``, inside the folder, so that
+#: every path reaching the folder (a symlink, a bind mount) meets the one lock of that folder
+CLAIM_NAME = ".forecast-outputs"
+#: the record of a set being published: written (atomically) once every file of the set is staged
+#: whole; its presence means "move these into place", finished by whoever claims the folder next
+JOURNAL_NAME = ".forecast-publishing.json"
+JOURNAL_FORMAT = "sliders-publication-1"
+MAX_JOURNAL_BYTES = 2**20
+
+
+def claim_folder(folder: str):
+    """Claim the output folder ``folder`` (``io.filelock.OutputClaim`` on the lock inside it)."""
+    from .filelock import OutputClaim
+
+    return OutputClaim(os.path.join(resolve_target(folder).real, CLAIM_NAME)).acquire()
+
+
+def check_output_target(path: str, inputs: dict) -> str:
+    """The file ``path`` names (symlinks written through), refused in one line if it is one of
+    ``inputs`` (``{what: FileTarget}``, compared by device and inode) or not a regular file."""
+    target = resolve_target(path)
+    for what, given in inputs.items():
+        if target.same_file(given):
+            how = " through a symbolic link" if os.path.islink(path) else ""
+            raise ForecastInputError(f"{path} is {what} {given.given!r}{how}; an output never "
+                                     "replaces an input: choose another --out or remove it")
+    if os.path.lexists(target.real) and not os.path.isfile(target.real):
+        raise ForecastInputError(f"{path} exists and is not a regular file; remove it or choose "
+                                 "another --out")
+    return target.real
+
+
+class OutputSet:
+    """The files of one run, published together or not at all.
+
+    ``add`` stages each file whole beside its target (``.NAME.XXXXXXXX.tmp``,
+    flushed to the disk); ``publish`` records the staged set in the folder's
+    journal (one atomic write: the commit point), then renames every file into
+    place.  A run stopped before the journal leaves the previous set as it was
+    (its temporaries are removed by ``discard``, or by the next claim holder);
+    one killed after it is completed by ``complete_publication`` when the folder
+    is next claimed.  Signals wait while the set is committed.
+    """
+
+    def __init__(self, folder: str, inputs: dict):
+        self.folder = folder
+        self.inputs = inputs
+        self.staged: list[tuple[str, str]] = []
+
+    def add(self, path: str, data: bytes) -> None:
+        """Stage the whole file ``path`` (refused if it is an input)."""
+        target = check_output_target(path, self.inputs)
+        tmp = temporary_beside(target)
+        self.staged.append((tmp, target))
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+
+    def publish(self) -> None:
+        """Commit the staged set and move it into place."""
+        record = json.dumps({"format": JOURNAL_FORMAT, "moves": self.staged}).encode()
+        with _signals_held():
+            publish_bytes(os.path.join(self.folder, JOURNAL_NAME), record, overwrite=True)
+            self.staged = []
+            complete_publication(self.folder)
+
+    def discard(self) -> None:
+        """Remove the staged files (nothing of them published)."""
+        for tmp, _ in self.staged:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        self.staged = []
+
+    def __enter__(self) -> "OutputSet":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.discard()
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM held back (delivered on leaving) while a set is committed."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def complete_publication(folder: str) -> int:
+    """Finish the publication a killed run committed in ``folder`` (call holding its claim);
+    returns the number of files moved into place (0: nothing was pending)."""
+    path = os.path.join(folder, JOURNAL_NAME)
+    try:
+        with open(path, "rb") as fh:
+            record = json.loads(fh.read(MAX_JOURNAL_BYTES))
+        moves = record["moves"] if record.get("format") == JOURNAL_FORMAT else None
+        moves = [(str(tmp), str(target)) for tmp, target in moves]
+    except FileNotFoundError:
+        return 0
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        raise ForecastInputError(f"{path}: not a publication record of sliders; remove it") from None
+    moved, folders = 0, set()
+    for tmp, target in moves:
+        if tmp in leftover_temporaries(target):  # only the staged files of that target, if left
+            os.replace(tmp, target)
+            moved += 1
+            folders.add(os.path.dirname(target))
+    for where in folders:
+        fsync_folder(where)
+    os.unlink(path)
+    fsync_folder(folder)
+    return moved
+
+
+def fsync_folder(folder: str) -> None:
+    """Flush a folder's entries (renames into it survive a power loss)."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    except OSError:  # some file systems refuse fsync on folders; the files are synced
+        pass
+    finally:
+        os.close(fd)
 
 
 # ---------------------------------------------------------------------------
@@ -68,6 +220,16 @@ def load_model(path: str):
 # ---------------------------------------------------------------------------
 ANGLE_UNITS = {"deg": math.pi / 180.0, "degree": math.pi / 180.0, "degrees": math.pi / 180.0,
                "rad": 1.0, "radian": 1.0, "radians": 1.0}
+#: the reader's bounds: a catalogue beyond them is refused while it is read, before it can
+#: fill the memory (1e6 events take 40 MB here; a laboratory catalogue holds thousands)
+MAX_CATALOGUE_BYTES = 64 * 2**20
+MAX_EVENTS = 1_000_000
+MAX_LINE_BYTES = 4096
+MAX_FIELD_CHARS = 64
+#: sizes and slider positions: whole numbers up to 2**53, which a float64 holds exactly
+MAX_WHOLE = 2**53
+COLUMNS = ("angle", "size", "displacement", "first", "last")
+WHOLE_COLUMNS = {"size": 1, "first": 0, "last": 0}  # column -> its least value
 
 
 def _column_name(raw: str) -> tuple[str, str | None]:
@@ -78,9 +240,143 @@ def _column_name(raw: str) -> tuple[str, str | None]:
     return raw.lower(), None
 
 
-def read_catalogue_csv(path: str, tilt_now_deg: float | None = None,
-                       tilt_now_text: str | None = None) -> Catalogue:
+@contextlib.contextmanager
+def _open_catalogue(path: str):
+    """The catalogue's bytes (``-``: standard input); a regular file over the size limit is
+    refused from its size, before a byte is read."""
+    if path == "-":
+        yield sys.stdin.buffer
+        return
+    try:
+        fh = open(path, "rb")
+    except OSError as exc:
+        raise ForecastInputError(f"{path}: {exc.strerror or exc}") from None
+    with fh:
+        size = os.fstat(fh.fileno()).st_size
+        if stat.S_ISREG(os.fstat(fh.fileno()).st_mode) and size > MAX_CATALOGUE_BYTES:
+            raise ForecastInputError(f"{path}: {size / 2**20:.0f} MB; a catalogue may hold at most "
+                                     f"{MAX_CATALOGUE_BYTES // 2**20} MB ({MAX_EVENTS} events)")
+        yield fh
+
+
+def _numbered_lines(fh, path: str):
+    """``(line number, text)`` of every line that is neither blank nor a ``#`` comment, read
+    one bounded line at a time (a byte-order mark before the header is dropped)."""
+    total = 0
+    for k in itertools.count(1):
+        try:
+            raw = fh.readline(MAX_LINE_BYTES + 1)
+        except OSError as exc:
+            raise ForecastInputError(f"{path}: {exc.strerror or exc}") from None
+        if not raw:
+            return
+        total += len(raw)
+        if len(raw) > MAX_LINE_BYTES:
+            raise ForecastInputError(f"{path}: row {k}: longer than {MAX_LINE_BYTES} bytes "
+                                     "(not a catalogue of numbers)")
+        if total > MAX_CATALOGUE_BYTES:
+            raise ForecastInputError(f"{path}: row {k}: beyond {MAX_CATALOGUE_BYTES // 2**20} MB, "
+                                     "the most a catalogue may hold")
+        try:
+            text = raw.decode("utf-8-sig" if k == 1 else "utf-8").rstrip("\r\n")
+        except UnicodeDecodeError:
+            raise ForecastInputError(f"{path}: row {k}: not UTF-8 text") from None
+        if text.strip() and not text.lstrip().startswith("#"):
+            yield k, text
+
+
+def _fields(text: str, k: int, path: str) -> list[str]:
+    if '"' not in text and "\0" not in text:
+        return text.split(",")
+    try:
+        return next(csv.reader([text]))
+    except csv.Error as exc:
+        raise ForecastInputError(f"{path}: row {k}: {exc}") from None
+
+
+def _header(lines, path: str) -> tuple[list[str], float, str]:
+    """The column of every field (``""``: not read), the angle unit's scale, and its name."""
+    try:
+        k, text = next(lines)
+    except StopIteration:
+        raise ForecastInputError(f"{path}: empty file (a header and one event per row expected)") \
+            from None
+    raw = _fields(text, k, path)
+    header = [_column_name(h) for h in raw]
+    names = [h[0] for h in header]
+    shown = ", ".join(raw)
+    for n in COLUMNS:
+        where = [j + 1 for j, m in enumerate(names) if m == n]
+        if len(where) > 1:
+            raise ForecastInputError(f"{path}: row {k}: column {n!r} appears {len(where)} times "
+                                     f"(fields {', '.join(map(str, where))}); keep one")
+    if "angle" not in names:
+        raise ForecastInputError(f"{path}: missing column 'angle [deg]' or 'angle [rad]' "
+                                 f"(header: {shown})")
+    if "size" not in names:
+        raise ForecastInputError(f"{path}: missing column 'size' (header: {shown})")
+    unit = header[names.index("angle")][1]
+    if unit is None:
+        raise ForecastInputError(f"{path}: column 'angle' needs its unit: 'angle [deg]' or 'angle [rad]'")
+    if unit not in ANGLE_UNITS:
+        raise ForecastInputError(f"{path}: column 'angle': unit {unit!r} not understood (deg or rad)")
+    return [n if n in COLUMNS else "" for n in names], ANGLE_UNITS[unit], unit
+
+
+def _value(v: str, k: int, n: str, path: str) -> float:
+    """One field of column ``n`` on row ``k`` as a number, checked."""
+    s = v.strip()
+    if len(s) > MAX_FIELD_CHARS:
+        raise ForecastInputError(f"{path}: row {k}, column {n!r}: a field of {len(s)} characters "
+                                 f"(a number has at most {MAX_FIELD_CHARS})")
+    try:
+        x = float(s)
+    except ValueError:
+        raise ForecastInputError(f"{path}: row {k}, column {n!r}: {s!r} is not a number") from None
+    if not math.isfinite(x):
+        raise ForecastInputError(f"{path}: row {k}, column {n!r}: {s!r} is not finite")
+    if n in WHOLE_COLUMNS and not (WHOLE_COLUMNS[n] <= x <= MAX_WHOLE and x == int(x)):
+        raise ForecastInputError(f"{path}: row {k}, column {n!r}: {s!r} must be a whole number "
+                                 f"from {WHOLE_COLUMNS[n]} to 2**53")
+    if n == "displacement" and x < 0:
+        raise ForecastInputError(f"{path}: row {k}, column 'displacement': {s!r} is negative")
+    return x
+
+
+def _events(lines, names: list[str], scale: float, path: str) -> dict[str, array.array]:
+    """The events, column by column (float64 arrays; at most ``MAX_EVENTS``)."""
+    cols = {n: array.array("d") for n in names if n}
+    angle = cols["angle"]
+    for k, text in lines:
+        rec = _fields(text, k, path)
+        if len(rec) != len(names):
+            raise ForecastInputError(f"{path}: row {k}: {len(rec)} fields, the header has {len(names)}")
+        if len(angle) == MAX_EVENTS:
+            raise ForecastInputError(f"{path}: row {k}: more than {MAX_EVENTS} events, the most a "
+                                     "catalogue may hold")
+        for n, v in zip(names, rec):
+            if n:
+                cols[n].append(_value(v, k, n, path))
+        a = angle[-1] * scale
+        if not 0 <= a < math.pi / 2:
+            raise ForecastInputError(f"{path}: row {k}, column 'angle': {rec[names.index('angle')].strip()!r}"
+                                     " is outside [0, 90°)")
+        if len(angle) > 1 and angle[-1] < angle[-2]:
+            raise ForecastInputError(f"{path}: row {k}, column 'angle': "
+                                     f"{rec[names.index('angle')].strip()!r} is below the previous "
+                                     "row's (angles must increase)")
+    if not angle:
+        raise ForecastInputError(f"{path}: no events (only a header)")
+    return cols
+
+
+def read_catalogue_csv(path: str, tilt_now_text: str | None = None) -> Catalogue:
     """A measured catalogue from CSV (module docstring); ``ForecastInputError`` names the row and column.
+
+    The file is read as a stream, one bounded line at a time: at most
+    ``MAX_CATALOGUE_BYTES`` (64 MB), ``MAX_EVENTS`` events and
+    ``MAX_LINE_BYTES`` per line.  A UTF-8 byte-order mark (a spreadsheet's
+    "CSV UTF-8") is read as such.
 
     Parameters
     ----------
@@ -90,71 +386,32 @@ def read_catalogue_csv(path: str, tilt_now_deg: float | None = None,
         The tilt reached, with its unit (``"27.5deg"``, ``"0.48rad"``); a bare
         number takes the angle column's unit.
     """
-    try:
-        text = sys.stdin.read() if path == "-" else pathlib.Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ForecastInputError(f"{path}: {exc.strerror or exc}") from None
-    except UnicodeDecodeError:
-        raise ForecastInputError(f"{path}: not a text file (UTF-8)") from None
-    numbered = [(k, ln) for k, ln in enumerate(text.splitlines(), start=1)
-                if ln.strip() and not ln.lstrip().startswith("#")]
-    if not numbered:
-        raise ForecastInputError(f"{path}: empty file (a header and one event per row expected)")
-    line_of = [k for k, _ in numbered]  # "row" in messages: the line of the file
-    reader = list(csv.reader(io.StringIO("\n".join(ln for _, ln in numbered))))
-    header = [_column_name(h) for h in reader[0]]
-    names = [h[0] for h in header]
-    if "angle" not in names:
-        raise ForecastInputError(f"{path}: missing column 'angle [deg]' or 'angle [rad]' "
-                                 f"(header: {', '.join(reader[0])})")
-    if "size" not in names:
-        raise ForecastInputError(f"{path}: missing column 'size' (header: {', '.join(reader[0])})")
-    unit = header[names.index("angle")][1]
-    if unit is None:
-        raise ForecastInputError(f"{path}: column 'angle' needs its unit: 'angle [deg]' or 'angle [rad]'")
-    if unit not in ANGLE_UNITS:
-        raise ForecastInputError(f"{path}: column 'angle': unit {unit!r} not understood (deg or rad)")
-    scale = ANGLE_UNITS[unit]
-    if len(reader) < 2:
-        raise ForecastInputError(f"{path}: no events (only a header)")
-    cols = {n: [] for n in ("angle", "size", "displacement", "first", "last")}
-    for j, rec in enumerate(reader[1:], start=1):
-        i = line_of[j]
-        if len(rec) != len(names):
-            raise ForecastInputError(f"{path}: row {i}: {len(rec)} fields, the header has {len(names)}")
-        for n, v in zip(names, rec):
-            if n not in cols:
-                continue
-            try:
-                x = float(v)
-            except ValueError:
-                raise ForecastInputError(f"{path}: row {i}, column {n!r}: {v.strip()!r} is not a number") \
-                    from None
-            if not math.isfinite(x):
-                raise ForecastInputError(f"{path}: row {i}, column {n!r}: {v.strip()!r} is not finite")
-            if n == "size" and (x < 1 or x != int(x)):
-                raise ForecastInputError(f"{path}: row {i}, column 'size': {v.strip()!r} must be a whole "
-                                         "number >= 1")
-            if n == "displacement" and x < 0:
-                raise ForecastInputError(f"{path}: row {i}, column 'displacement': {v.strip()!r} is negative")
-            if n == "angle" and cols["angle"] and x * scale < cols["angle"][-1]:
-                raise ForecastInputError(f"{path}: row {i}, column 'angle': {v.strip()!r} is below the "
-                                         "previous row's (angles must increase)")
-            cols[n].append(x * scale if n == "angle" else x)
+    with _open_catalogue(path) as fh:
+        lines = _numbered_lines(fh, path)
+        names, scale, unit = _header(lines, path)
+        cols = _events(lines, names, scale, path)
     k = len(cols["angle"])
-    alpha = np.array(cols["angle"])
-    if alpha[0] < 0 or alpha[-1] >= math.pi / 2:
-        raise ForecastInputError(f"{path}: column 'angle': tilts must lie in [0, 90°)")
-    disp = np.array(cols["displacement"]) if cols["displacement"] else np.full(k, np.nan)
-    first = np.array(cols["first"], dtype=np.int64) if cols["first"] else np.full(k, -1)
-    last = np.array(cols["last"], dtype=np.int64) if cols["last"] else np.full(k, -1)
+    alpha = np.frombuffer(cols["angle"], dtype=np.float64) * scale
+
+    def column(n, fill, dtype):
+        return np.frombuffer(cols[n], dtype=np.float64).astype(dtype) if n in cols else np.full(k, fill, dtype)
+
     tilt_now = None
     if tilt_now_text is not None:
-        tilt_now = parse_angle(tilt_now_text, scale)
+        tilt_now = tilt_in_range(parse_angle(tilt_now_text, scale), f"--tilt-now {tilt_now_text}")
         if tilt_now < alpha[-1]:
             raise ForecastInputError(f"--tilt-now {tilt_now_text}: below the last event's angle "
                                      f"({alpha[-1] / scale:g} {unit})")
-    return Catalogue(alpha, np.array(cols["size"], dtype=np.int64), disp, first, last, tilt_now=tilt_now)
+    return Catalogue(alpha, column("size", 1, np.int64), column("displacement", np.nan, np.float64),
+                     column("first", -1, np.int64), column("last", -1, np.int64), tilt_now=tilt_now)
+
+
+def tilt_in_range(angle: float, what: str) -> float:
+    """``angle`` (radians) if it lies in [0, 90°), else a one-line refusal naming ``what``."""
+    if not 0.0 <= angle < math.pi / 2:
+        raise ForecastInputError(f"{what}: {math.degrees(angle):g}° is outside [0, 90°) "
+                                 "(a tilt of the incline)")
+    return angle
 
 
 def parse_angle(text: str, default_scale: float) -> float:

@@ -25,9 +25,11 @@ row and the column.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
+import signal
 import sys
 import time
 
@@ -35,8 +37,11 @@ import numpy as np
 
 from .._version import __version__
 from ..io.catalogue import Catalogue, CatalogueSet
+from ..io.filelock import ClaimError
 from ..io.forecast_files import (ANGLE_UNITS, MODEL_FORMAT, ForecastInputError,  # noqa: F401
-                                load_model, parse_angle, read_catalogue_csv, save_model)
+                                load_model, model_bytes, parse_angle, read_catalogue_csv, save_model,
+                                tilt_in_range)
+from ..io.safeio import describe_os_error
 
 #: the issue's example prior (the prior ensembles' default): name -> (law, bounds)
 DEV_PRIOR = {"mu_d": ("uniform", (0.3, 0.8)), "mu_s_minus_mu_d": ("loguniform", (0.02, 0.12)),
@@ -141,18 +146,6 @@ def make_forecasters(has_ceiling: bool, max_iter: int, seed: int) -> list:
     return fs
 
 
-def load_set(path: str) -> CatalogueSet:
-    """A prior ensemble file (``sliders.io.prior_file``) as a ``CatalogueSet``."""
-    try:
-        from ..io.prior_file import read_prior_ensemble
-    except ImportError:
-        raise ForecastInputError("reading prior ensembles needs sliders.io.prior_file "
-                                 "(python -m sliders.prior), not in this installation") from None
-    if not os.path.exists(path):
-        raise ForecastInputError(f"{path}: no such file")
-    return read_prior_ensemble(path)
-
-
 def _fmt(triple, scale=1.0, nd=3):
     v, lo, hi = triple
     if not np.isfinite(v):
@@ -204,12 +197,6 @@ def _jsonable(x):
     return x
 
 
-def _publish_text(path: str, text: str) -> None:
-    from ..io.safeio import publish_bytes
-
-    publish_bytes(path, text.encode(), overwrite=True)
-
-
 def provenance(argv) -> dict:
     """Versions and command of a file this command writes."""
     import sklearn
@@ -220,31 +207,213 @@ def provenance(argv) -> dict:
 
 
 def evaluate(args, argv) -> int:
-    """The whole evaluation (module docstring); prints the table, writes files and figures."""
-    from ..analysis.forecast import evaluation as ev
-
-    t0 = time.time()
+    """The whole evaluation (module docstring): options checked, inputs read and checked, every
+    forecaster fitted and scored, the table printed, the outputs published as one set."""
     log = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr, flush=True))
+    t0 = time.time()
+    check_evaluate_options(args)
+    inputs = input_files(args)
+    outputs = output_paths(args)
+    with claimed_folders(args, outputs, inputs, log):
+        data, robust = read_inputs(args)
+        split = split_checked(args, data, robust)
+        forecasters, timing = fit_forecasters(args, data, split, log)
+        results, text = score_forecasters(args, argv, data, robust, split, forecasters, log)
+        results["fit_seconds"] = timing
+        results["seconds"] = time.time() - t0
+        print(text)
+        publish_evaluation(args, argv, outputs, inputs, results, text, forecasters, data, split, log)
+    log(f"forecast: done in {time.time() - t0:.0f} s")
+    return 0
+
+
+# ---------------------------------------------------------------------------
+# evaluate: the checks before anything is read or fitted
+# ---------------------------------------------------------------------------
+#: the files an evaluation writes: in --out, and the figures (png and pdf) in --figures
+TABLE_NAME, METRICS_NAME, MODEL_NAME = "forecast_table.md", "forecast_metrics.json", "forecaster.pkl"
+FIGURE_NAMES = tuple(f"forecast_{n}.{ext}" for n in ("error", "coverage", "convergence", "roc")
+                     for ext in ("png", "pdf"))
+#: realisations that reached the avalanche each part of the split needs (the fits, the calibration)
+MIN_AVALANCHES = {"train": 3, "validation": 1, "test": 1}
+#: the bounds of the counts (beyond them a run would not end, or not fit in memory)
+COUNT_BOUNDS = {"dev": (1, 100_000), "boot": (1, 100_000), "alarm_rows": (1, 10**7),
+                "max_iter": (1, 100_000), "seed": (0, 2**32 - 1)}
+
+
+def check_evaluate_options(args) -> None:
+    """Every option of ``evaluate`` in range (one line naming it), before anything is read."""
+    for name, (lo, hi) in COUNT_BOUNDS.items():
+        v = getattr(args, name)
+        if v is not None and not lo <= v <= hi:
+            raise ForecastInputError(f"--{name.replace('_', '-')} {v}: must lie in [{lo}, {hi}]")
+    f = np.asarray(args.fractions, dtype=float)
+    if not (np.all(np.isfinite(f)) and np.all(f > 0) and math.isclose(f.sum(), 1.0, abs_tol=1e-9)):
+        raise ForecastInputError(f"--fractions {' '.join(f'{x:g}' for x in f)}: three shares "
+                                 "(train, validation, test), each > 0, summing to 1")
+    for option, values, hi, unit in (("--leads-deg", args.leads_deg, 90.0, "°"),
+                                     ("--tilts", args.tilts, math.pi / 2, " rad")):
+        bad = [v for v in values if not 0.0 < v < hi]
+        if bad:
+            raise ForecastInputError(f"{option} {bad[0]:g}: must lie in (0, {hi:g}{unit})")
+    if args.only is not None:
+        known = [f.name for f in make_forecasters(True, 1, 0)]
+        unknown = [n for n in args.only.split(",") if n not in known]
+        if unknown:
+            raise ForecastInputError(f"--only {args.only}: no forecaster {unknown[0]!r} (known: "
+                                     f"{', '.join(known)})")
+    robust_sets(args)
+
+
+def robust_sets(args) -> dict[str, str]:
+    """``--robust LABEL=FILE`` as ``{label: file}``: labels distinct, not ``test``."""
+    out = {}
+    for spec in args.robust:
+        label, sep, path = spec.partition("=")
+        if not sep or not label or not path:
+            raise ForecastInputError(f"--robust {spec!r}: give LABEL=FILE.h5")
+        if label == "test" or label in out:
+            raise ForecastInputError(f"--robust {spec!r}: the label {label!r} is taken (labels "
+                                     "are distinct, and 'test' names the test part of --data)")
+        out[label] = path
+    return out
+
+
+def input_files(args) -> dict:
+    """``{"the --data file": FileTarget, ...}``: every input, existing, each a different file
+    (compared by device and inode: a hard link or another path to the same file is refused)."""
+    from ..io.safeio import resolve_target
+
+    named = {} if args.dev else {"the --data file": args.data}
+    named |= {f"the --robust {label} file": path for label, path in robust_sets(args).items()}
+    inputs = {}
+    for what, path in named.items():
+        target = resolve_target(path)
+        if target.identity is None:
+            raise ForecastInputError(f"{path}: no such file ({what})")
+        twin = next((w for w, t in inputs.items() if t.same_file(target)), None)
+        if twin is not None:
+            raise ForecastInputError(f"{what} {path!r} is {twin} {inputs[twin].given!r} (the same "
+                                     "file): a set tested for robustness is never training data")
+        inputs[what] = target
+    return inputs
+
+
+def output_paths(args) -> dict[str, str]:
+    """``{name: path}`` of every file the evaluation publishes, each name checked."""
+    from ..io.safeio import check_output_name
+
+    figures = args.figures or args.out
+    paths = {n: os.path.join(args.out, n) for n in (TABLE_NAME, METRICS_NAME, MODEL_NAME)}
+    if not args.no_figures:
+        paths |= {n: os.path.join(figures, n) for n in FIGURE_NAMES}
+    for option, folder in (("--out", args.out), ("--figures", figures)):
+        if os.path.lexists(folder) and not os.path.isdir(folder):
+            raise ForecastInputError(f"{option} {folder!r} exists and is not a folder; "
+                                     "give a folder for the outputs")
+    for path in paths.values():
+        try:
+            check_output_name(path)
+        except ValueError as exc:
+            raise ForecastInputError(f"--out: {exc}") from None
+    return paths
+
+
+@contextlib.contextmanager
+def claimed_folders(args, outputs: dict, inputs: dict, log):
+    """Create and claim the output folders (``forecast_files.claim_folder``) for the run; finish a
+    killed run's committed publication, remove its temporaries, refuse an output that is an input."""
+    from ..io.forecast_files import check_output_target, claim_folder, complete_publication
+    from ..io.safeio import leftovers_note, remove_leftovers, resolve_target
+
+    folders = {}
+    for folder in (args.out, args.figures or args.out):
+        os.makedirs(folder, exist_ok=True)
+        real = resolve_target(folder).real
+        folders.setdefault(real, folder)
+    claims = []
+    try:
+        for real, folder in folders.items():
+            claims.append(claim_folder(real))
+            if claims[-1].previous_holder:
+                log(f"forecast: note: {folder} was held by {claims[-1].previous_holder}, which is "
+                    "no longer running; its stale claim is taken over")
+        moved = complete_publication(resolve_target(args.out).real)
+        if moved:
+            log(f"forecast: note: finished publishing {moved} file(s) of an interrupted run")
+        removed = [r for path in outputs.values() for r in remove_leftovers(path)]
+        if removed:
+            log(f"forecast: note: {leftovers_note(removed)}")
+        for path in outputs.values():
+            check_output_target(path, inputs)
+        yield
+    finally:
+        for claim in claims:
+            claim.release()
+
+
+# ---------------------------------------------------------------------------
+# evaluate: the inputs
+# ---------------------------------------------------------------------------
+def load_set(path: str, what: str = "--data") -> CatalogueSet:
+    """A prior ensemble file (``sliders.io.prior_file``) as a ``CatalogueSet``; one line naming
+    ``what`` if it is not one (another kind, damaged, truncated, of a newer format)."""
+    from ..io.prior_file import read_prior_ensemble
+    from ..io.safeio import describe_os_error
+    from ..io.storage import StorageError
+
+    try:
+        return read_prior_ensemble(path)
+    except (StorageError, ValueError) as exc:
+        raise ForecastInputError(f"{what}: {' '.join(str(exc).split())}") from None
+    except OSError as exc:
+        raise ForecastInputError(f"{what}: {describe_os_error(exc, path)}") from None
+
+
+def read_inputs(args) -> tuple[CatalogueSet, dict]:
+    """The data and the robustness sets: read from their files, or run here (``--dev``)."""
     if args.dev:
         data = dev_catalogue_set(args.dev, seed=args.seed)
         robust = {"zero": dev_catalogue_set(max(args.dev // 4, 4), seed=args.seed + 1,
                                             initial_forces="zero")}
-    else:
-        data = load_set(args.data)
-        robust = {}
-        for spec in args.robust:
-            if "=" not in spec:
-                raise ForecastInputError(f"--robust {spec!r}: give LABEL=FILE.h5")
-            label, path = spec.split("=", 1)
-            robust[label] = load_set(path)
+        return data, robust
+    data = load_set(args.data)
+    return data, {label: load_set(path, f"--robust {label}")
+                  for label, path in robust_sets(args).items()}
+
+
+def split_checked(args, data: CatalogueSet, robust: dict):
+    """The split by realisation, refused in one line if a part holds too few avalanches."""
+    from ..analysis.forecast import evaluation as ev
+
     split = ev.split_rows(len(data), args.fractions, seed=args.seed)
-    train, valid = data.subset(split.train), data.subset(split.validation)
-    log(f"forecast: {len(data)} realisations ({len(split.train)} train, {len(split.validation)} "
-        f"validation, {len(split.test)} test) + robustness {[(k, len(v)) for k, v in robust.items()]}")
+    source = f"--dev {args.dev}" if args.dev else f"--data {args.data}"
+    for part, least in MIN_AVALANCHES.items():
+        rows = getattr(split, part)
+        n = int(np.isfinite(np.asarray(data.alpha_c, dtype=float)[rows]).sum())
+        if n < least:
+            raise ForecastInputError(
+                f"{source}: {len(data)} realisations, {len(rows)} in the {part} part of which {n} "
+                f"reached the avalanche; at least {least} needed (train, validation, test at least "
+                f"{', '.join(map(str, MIN_AVALANCHES.values()))}): give more realisations or other "
+                "--fractions")
+    for label, cset in robust.items():
+        if not np.isfinite(np.asarray(cset.alpha_c, dtype=float)).any():
+            raise ForecastInputError(f"--robust {label}: no realisation reached the avalanche")
+    return split
+
+
+# ---------------------------------------------------------------------------
+# evaluate: fitting and scoring
+# ---------------------------------------------------------------------------
+def fit_forecasters(args, data: CatalogueSet, split, log) -> tuple[list, dict]:
+    """Every forecaster (or those of ``--only`` and the baselines), fitted on the training part
+    (the learned ones recalibrated on the validation part); returns them and their fit times."""
     forecasters = make_forecasters(data.ceiling_distance is not None, args.max_iter, args.seed)
     if args.only:
         keep = set(args.only.split(",")) | {"climatology", "conditioned"}
         forecasters = [f for f in forecasters if f.name in keep]
+    train, valid = data.subset(split.train), data.subset(split.validation)
     timing = {}
     shared = {}  # the learned forecasters' training and validation cuts, drawn once
     for f in forecasters:
@@ -262,52 +431,94 @@ def evaluate(args, argv) -> int:
             f.fit(train, rng=np.random.default_rng(args.seed))
         timing[f.name] = time.time() - t
         log(f"forecast: fitted {f.name} in {timing[f.name]:.1f} s")
+    return forecasters, timing
+
+
+def score_forecasters(args, argv, data, robust, split, forecasters, log) -> tuple[dict, str]:
+    """The metrics of every forecaster on the test part (at leads and tilts) and on the robustness
+    sets (at leads), and the alarm's; returns the results (forecast_metrics.json) and the table."""
+    log(f"forecast: {len(data)} realisations ({len(split.train)} train, {len(split.validation)} "
+        f"validation, {len(split.test)} test) + robustness {[(k, len(v)) for k, v in robust.items()]}")
     labels = {f.name: f.label for f in forecasters}
-    leads = np.radians(np.asarray(args.leads_deg, dtype=float))
-    tilts = np.asarray(args.tilts, dtype=float)
     sets = {"test": (data, split.test)} | {k: (v, np.arange(len(v))) for k, v in robust.items()}
     results = {"provenance": provenance(argv), "split": {k: v.size for k, v in vars(split).items()},
                "leads_deg": list(args.leads_deg), "tilts": list(args.tilts),
-               "labels": labels, "fit_seconds": timing, "sets": {}}
+               "labels": labels, "sets": {}}
     tables = []
     for set_name, (cset, rows) in sets.items():
-        for kind, (cuts, group, names) in {
-                "lead": (*ev.cuts_at_leads(cset, rows, leads),
-                         [f"{set_name}: {d:g}° before the avalanche" for d in args.leads_deg]),
-                "tilt": (*ev.cuts_at_tilts(cset, rows, tilts),
-                         [f"{set_name}: at tilt {a:g} rad" for a in args.tilts])}.items():
-            if set_name != "test" and kind == "tilt":
+        tables += score_set(args, set_name, cset, rows, forecasters, labels, results, log)
+    alarm_lines = score_alarm(args, data, split, forecasters, labels, results, log)
+    pr = next((f for f in forecasters if f.name == "paper_rule"), None)
+    if pr is not None and pr.c_quantiles_ is not None:
+        from ..analysis.forecast.base import LOWER, MEDIAN, UPPER
+
+        results["paper_rule"] = {"c_median": pr.c_quantiles_[MEDIAN], "c_10": pr.c_quantiles_[LOWER],
+                                 "c_90": pr.c_quantiles_[UPPER], "detected_share": pr.detected_share_}
+    text = "\n\n".join(tables + [f"**alarm: the avalanche within {ALARM_DELTA_DEG:g}°** "
+                                 f"(last {ALARM_WINDOW_DEG:g}° every {ALARM_STEP_DEG:g}°, "
+                                 f"{results['alarm']['rows']} test realisations)", "\n".join(alarm_lines)])
+    if "paper_rule" in results:
+        c = results["paper_rule"]
+        text += (f"\n\npaper's rule: alpha_c / alpha_t = {c['c_median']:.2f} "
+                 f"(80 %: {c['c_10']:.2f}-{c['c_90']:.2f}), transition found in "
+                 f"{100 * c['detected_share']:.0f} % of training runs")
+    return results, text
+
+
+def score_set(args, set_name, cset, rows, forecasters, labels, results, log) -> list[str]:
+    """One set's scores at the leads (and, for the test part, the tilts) into ``results``;
+    returns its tables."""
+    from ..analysis.forecast import evaluation as ev
+
+    leads = np.radians(np.asarray(args.leads_deg, dtype=float))
+    tables = []
+    for kind, (cuts, group, names) in {
+            "lead": (*ev.cuts_at_leads(cset, rows, leads),
+                     [f"{set_name}: {d:g}° before the avalanche" for d in args.leads_deg]),
+            "tilt": (*ev.cuts_at_tilts(cset, rows, np.asarray(args.tilts, dtype=float)),
+                     [f"{set_name}: at tilt {a:g} rad" for a in args.tilts])}.items():
+        if set_name != "test" and kind == "tilt":
+            continue
+        preds = {}
+        for f in forecasters:
+            if any(getattr(cuts, n) is None for n in f.needs):
                 continue
-            preds = {}
-            for f in forecasters:
-                if any(getattr(cuts, n) is None for n in f.needs):
-                    continue
-                t = time.time()
-                preds[f.name] = f.quantiles(cuts)
-                log(f"forecast: {set_name}/{kind}: {f.name} on {len(cuts)} cuts in {time.time() - t:.1f} s")
-            sc = ev.score(preds, cuts, group, len(names), n_boot=args.boot, seed=args.seed)
-            results["sets"].setdefault(set_name, {})[kind] = {"groups": names, "scores": sc}
-            cols = ([f"{d:g}°" for d in args.leads_deg] if kind == "lead"
-                    else [f"{a:g} rad" for a in args.tilts])
-            where = "before the avalanche" if kind == "lead" else "at the tilt"
-            deg = 180.0 / math.pi
-            tables.append(format_compact(sc, labels, cols, "median_abs", deg,
-                                         f"{set_name}: median |error| (deg) {where}"))
-            tables.append(format_compact(sc, labels, cols, "coverage", 1.0,
-                                         f"{set_name}: coverage of the 80 % interval {where}"))
-            if kind == "lead":
-                tables.append(format_compact(sc, labels, cols, "vs_conditioned", 1.0,
-                                             f"{set_name}: median |error| / that of the conditioned "
-                                             f"climatology {where}"))
-                tables.append(format_compact(sc, labels, cols, "skill", 1.0,
-                                             f"{set_name}: CRPS skill against climatology {where}"))
-            for g, name in enumerate(names):
-                if kind == "lead" and args.leads_deg[g] != TARGET_LEAD_DEG and not args.all_tables:
-                    continue
-                if kind == "tilt" and not args.all_tables:
-                    continue
-                tables.append(format_table(sc, labels, names, g))
-    # the alarm, on the test set
+            t = time.time()
+            preds[f.name] = f.quantiles(cuts)
+            log(f"forecast: {set_name}/{kind}: {f.name} on {len(cuts)} cuts in {time.time() - t:.1f} s")
+        sc = ev.score(preds, cuts, group, len(names), n_boot=args.boot, seed=args.seed)
+        results["sets"].setdefault(set_name, {})[kind] = {"groups": names, "scores": sc}
+        tables += set_tables(args, set_name, kind, sc, labels, names)
+    return tables
+
+
+def set_tables(args, set_name, kind, sc, labels, names) -> list[str]:
+    """The compact tables of one set and kind of cut, and the full ones asked for."""
+    cols = ([f"{d:g}°" for d in args.leads_deg] if kind == "lead"
+            else [f"{a:g} rad" for a in args.tilts])
+    where = "before the avalanche" if kind == "lead" else "at the tilt"
+    deg = 180.0 / math.pi
+    tables = [format_compact(sc, labels, cols, "median_abs", deg,
+                             f"{set_name}: median |error| (deg) {where}"),
+              format_compact(sc, labels, cols, "coverage", 1.0,
+                             f"{set_name}: coverage of the 80 % interval {where}")]
+    if kind == "lead":
+        tables.append(format_compact(sc, labels, cols, "vs_conditioned", 1.0,
+                                     f"{set_name}: median |error| / that of the conditioned "
+                                     f"climatology {where}"))
+        tables.append(format_compact(sc, labels, cols, "skill", 1.0,
+                                     f"{set_name}: CRPS skill against climatology {where}"))
+    for g in range(len(names)):
+        if args.all_tables or (kind == "lead" and args.leads_deg[g] == TARGET_LEAD_DEG):
+            tables.append(format_table(sc, labels, names, g))
+    return tables
+
+
+def score_alarm(args, data, split, forecasters, labels, results, log) -> list[str]:
+    """The alarm "the avalanche within ALARM_DELTA_DEG" on the test part into ``results``;
+    returns its table's lines."""
+    from ..analysis.forecast import evaluation as ev
+
     delta = math.radians(ALARM_DELTA_DEG)
     cuts, lead = ev.alarm_cuts(data, split.test[:args.alarm_rows], math.radians(ALARM_WINDOW_DEG),
                                math.radians(ALARM_STEP_DEG))
@@ -329,43 +540,47 @@ def evaluate(args, argv) -> int:
         log(f"forecast: alarm {f.name} on {len(cuts)} cuts in {time.time() - t:.1f} s")
     results["alarm"] = {"delta_deg": ALARM_DELTA_DEG, "window_deg": ALARM_WINDOW_DEG,
                         "step_deg": ALARM_STEP_DEG, "rows": int(np.unique(cuts.row).size), **alarm}
-    alarm_lines = ["| forecaster | AUC | threshold | alarms before the avalanche | median warning (deg) |",
-                   "|---|---|---|---|---|"]
+    lines = ["| forecaster | AUC | threshold | alarms before the avalanche | median warning (deg) |",
+             "|---|---|---|---|---|"]
     for name, a in alarm.items():
         w = a["median_warning_deg"]
-        alarm_lines.append(f"| {labels[name]} | {a['auc']:.3f} | {a['threshold']:.2f} | {a['safe']:.2f} | "
-                           f"{'—' if w is None else f'{w:.2f}'} |")
-    pr = next((f for f in forecasters if f.name == "paper_rule"), None)
-    if pr is not None and pr.c_quantiles_ is not None:
-        from ..analysis.forecast.base import LOWER, MEDIAN, UPPER
+        lines.append(f"| {labels[name]} | {a['auc']:.3f} | {a['threshold']:.2f} | {a['safe']:.2f} | "
+                     f"{'—' if w is None else f'{w:.2f}'} |")
+    return lines
 
-        results["paper_rule"] = {"c_median": pr.c_quantiles_[MEDIAN], "c_10": pr.c_quantiles_[LOWER],
-                                 "c_90": pr.c_quantiles_[UPPER], "detected_share": pr.detected_share_}
-    results["seconds"] = time.time() - t0
-    text = "\n\n".join(tables + [f"**alarm: the avalanche within {ALARM_DELTA_DEG:g}°** "
-                                 f"(last {ALARM_WINDOW_DEG:g}° every {ALARM_STEP_DEG:g}°, "
-                                 f"{results['alarm']['rows']} test realisations)", "\n".join(alarm_lines)])
-    if "paper_rule" in results:
-        c = results["paper_rule"]
-        text += (f"\n\npaper's rule: alpha_c / alpha_t = {c['c_median']:.2f} "
-                 f"(80 %: {c['c_10']:.2f}-{c['c_90']:.2f}), transition found in "
-                 f"{100 * c['detected_share']:.0f} % of training runs")
-    print(text)
-    os.makedirs(args.out, exist_ok=True)
-    _publish_text(os.path.join(args.out, "forecast_table.md"), text + "\n")
-    _publish_text(os.path.join(args.out, "forecast_metrics.json"),
-                  json.dumps(_jsonable(results), indent=1) + "\n")
-    kept = {f.name: f for f in forecasters if f.name in ("learned", "learned_blind")}
-    if kept:
-        save_model(os.path.join(args.out, "forecaster.pkl"), kept, provenance(argv))
-    if not args.no_figures:
-        from ..figures.forecast import draw_all
 
-        example = _convergence_example(data, split.test, forecasters, args.seed)
-        paths = draw_all(results, example, args.figures or args.out)
-        log("forecast: figures " + " ".join(paths))
-    log(f"forecast: done in {time.time() - t0:.0f} s")
-    return 0
+# ---------------------------------------------------------------------------
+# evaluate: the outputs, published as one set
+# ---------------------------------------------------------------------------
+def publish_evaluation(args, argv, outputs, inputs, results, text, forecasters, data, split,
+                       log) -> None:
+    """Stage the table, the metrics, the model kept for ``predict`` and the figures whole, then
+    publish them together (``forecast_files.OutputSet``): a run stopped or failing before the
+    end leaves the previous run's set as it was."""
+    import tempfile
+
+    from ..io.forecast_files import OutputSet
+    from ..io.safeio import resolve_target
+
+    with OutputSet(resolve_target(args.out).real, inputs) as staged:
+        staged.add(outputs[TABLE_NAME], (text + "\n").encode())
+        staged.add(outputs[METRICS_NAME], (json.dumps(_jsonable(results), indent=1) + "\n").encode())
+        kept = {f.name: f for f in forecasters if f.name in ("learned", "learned_blind")}
+        if kept:
+            staged.add(outputs[MODEL_NAME], model_bytes(kept, provenance(argv)))
+        if not args.no_figures:
+            from ..figures.forecast import draw_all
+
+            example = _convergence_example(data, split.test, forecasters, args.seed)
+            with tempfile.TemporaryDirectory(prefix="sliders-forecast-figures-") as scratch:
+                for path in draw_all(results, example, scratch):
+                    name = os.path.basename(path)
+                    with open(path, "rb") as fh:
+                        staged.add(outputs.get(name) or os.path.join(args.figures or args.out, name),
+                                   fh.read())
+        staged.publish()
+    log("forecast: published " + " ".join(p for n, p in outputs.items() if n != MODEL_NAME or kept))
+
 
 
 def _convergence_example(data, test_rows, forecasters, seed):
@@ -395,8 +610,9 @@ def _convergence_example(data, test_rows, forecasters, seed):
 DEFAULT_MODEL = os.path.join("results", "forecast", "forecaster.pkl")
 
 
-def predict(args) -> int:
+def predict(args, argv=None) -> int:
     """Forecast a measured catalogue: print the forecast (or one JSON object)."""
+    check_predict_options(args)
     cat = read_catalogue_csv(args.catalogue, tilt_now_text=args.tilt_now)
     if not os.path.exists(args.model):
         raise ForecastInputError(f"{args.model}: no fitted forecaster there; train one with "
@@ -429,22 +645,42 @@ def predict(args) -> int:
     return 0
 
 
+def check_predict_options(args) -> None:
+    """The options of ``predict`` in range (one line naming the option), before the file is read."""
+    if args.tilt_now is not None:
+        if not isinstance(args.tilt_now, str) or not args.tilt_now.strip():
+            # argparse turns "--tilt-now=--" into an empty list
+            raise ForecastInputError("--tilt-now: give the tilt reached, e.g. 27.5deg or 0.48rad")
+        tilt_in_range(parse_angle(args.tilt_now, math.pi / 180.0), f"--tilt-now {args.tilt_now}")
+    if not 0.0 < args.within < 90.0:
+        raise ForecastInputError(f"--within {args.within:g}: the alarm's horizon must lie in "
+                                 "(0, 90) degrees")
+
+
 # ---------------------------------------------------------------------------
-# command line
+# command line: parse -> check -> compute -> publish, inside one error boundary
 # ---------------------------------------------------------------------------
 class _Parser(argparse.ArgumentParser):
-    """argparse that reports a bad option in one line."""
+    """argparse whose refusal of the command line is one line (``ForecastInputError``)."""
 
     def error(self, message):
-        """Print one line and exit with status 2."""
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        """Raise the one-line refusal (exit status 2)."""
+        raise ForecastInputError(f"{message} (see {self.prog} --help)")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The ``evaluate`` and ``predict`` commands."""
+    """The ``evaluate`` and ``predict`` commands (``COMMANDS`` runs each)."""
     p = _Parser(prog="python -m sliders.forecast", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    e = sub.add_parser("evaluate", help="fit, test and score every forecaster; table and figures")
+    add_evaluate_arguments(sub.add_parser(
+        "evaluate", help="fit, test and score every forecaster; table and figures"))
+    add_predict_arguments(sub.add_parser(
+        "predict", help="forecast the avalanche angle of a measured catalogue"))
+    return p
+
+
+def add_evaluate_arguments(e: argparse.ArgumentParser) -> None:
+    """The options of ``evaluate``."""
     src = e.add_mutually_exclusive_group(required=True)
     src.add_argument("--data", metavar="PRIOR.h5", help="prior ensemble split into train/validation/test")
     src.add_argument("--dev", type=int, metavar="R", help="run R realisations here instead (development)")
@@ -455,7 +691,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--fractions", type=float, nargs=3, default=(0.5, 0.1, 0.4),
                    metavar=("TRAIN", "VALID", "TEST"), help="the split by realisation")
     e.add_argument("--leads-deg", type=float, nargs="+", default=list(DEFAULT_LEADS_DEG))
-    e.add_argument("--tilts", type=float, nargs="+", default=list(DEFAULT_TILTS))
+    e.add_argument("--tilts", type=float, nargs="+", default=list(DEFAULT_TILTS),
+                   help="fixed tilts at which the test runs are cut, radians")
     e.add_argument("--boot", type=int, default=400, help="bootstrap resamples")
     e.add_argument("--alarm-rows", type=int, default=1000, help="test realisations for the alarm")
     e.add_argument("--max-iter", type=int, default=300, help="boosting iterations")
@@ -464,7 +701,10 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--all-tables", action="store_true", help="print every lead and tilt")
     e.add_argument("--no-figures", action="store_true")
     e.add_argument("--quiet", action="store_true")
-    pr = sub.add_parser("predict", help="forecast the avalanche angle of a measured catalogue")
+
+
+def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
+    """The options of ``predict``."""
     pr.add_argument("catalogue", metavar="CATALOGUE.csv")
     pr.add_argument("--tilt-now", default=None, metavar="ANGLE",
                     help="tilt reached, e.g. 27.5deg (default: the last event's angle)")
@@ -472,15 +712,58 @@ def build_parser() -> argparse.ArgumentParser:
                     help="the alarm's horizon, degrees")
     pr.add_argument("--model", default=DEFAULT_MODEL, help="forecaster written by evaluate")
     pr.add_argument("--json", action="store_true", help="one JSON object (radians)")
-    return p
+
+
+#: subcommand -> its function ``f(args, argv) -> exit status``; a new subcommand adds its parser
+#: in ``build_parser`` and its entry here, and raises ForecastInputError for bad input
+COMMANDS = {"evaluate": evaluate, "predict": predict}
+
+
+class Stopped(KeyboardInterrupt):
+    """SIGTERM (or SIGINT) received: the command stops, nothing half-written is published."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _stop(signum, frame):
+    raise Stopped(signum)
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``python -m sliders.forecast``."""
+    """Entry point of ``python -m sliders.forecast``: every failure is one line on stderr
+    (status 2 for bad input, 1 for an I/O error or a fault, 128 + signal when stopped)."""
+    from .parallel import launcher_rank
+
+    if launcher_rank() > 0:  # a serial command: under mpirun, rank 0 alone runs it
+        return 0
     argv = sys.argv[1:] if argv is None else list(argv)
-    args = build_parser().parse_args(argv)
+    old = signal.signal(signal.SIGTERM, _stop)
     try:
-        return evaluate(args, argv) if args.command == "evaluate" else predict(args)
-    except ForecastInputError as exc:
-        print(f"sliders.forecast: error: {exc}", file=sys.stderr)
-        return 2
+        args = build_parser().parse_args(argv)
+        return COMMANDS[args.command](args, argv)
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", signal.SIGINT)
+        return _error(f"interrupted ({signal.Signals(signum).name}); nothing half-written was "
+                      "published", 128 + signum)
+    except (ForecastInputError, ClaimError) as exc:
+        return _error(str(exc), 2)
+    except OSError as exc:
+        return _error(describe_os_error(exc, exc.filename or "?"), 1)
+    except MemoryError:
+        return _error("out of memory", 1)
+    except Exception as exc:  # noqa: BLE001 - a fault: one line, the traceback with SLIDERS_DEBUG
+        if os.environ.get("SLIDERS_DEBUG"):
+            import traceback
+
+            traceback.print_exc()
+        return _error(f"{type(exc).__name__}: {' '.join(str(exc).split())} (an internal error; "
+                      "SLIDERS_DEBUG=1 shows where)", 1)
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def _error(message: str, code: int) -> int:
+    print(f"sliders.forecast: error: {message}", file=sys.stderr, flush=True)
+    return code
