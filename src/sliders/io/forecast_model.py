@@ -55,21 +55,26 @@ def default_model_path():
     return importlib.resources.files("sliders") / "data" / DEFAULT_MODEL_NAME
 
 
-def save_forecasters(path: str, forecasters: dict, provenance: dict) -> int:
-    """Write fitted forecasters (``{method: forecaster}``) and their provenance, atomically.
+def forecasters_bytes(forecasters: dict, provenance: dict, where: str = "model") -> bytes:
+    """The model file's bytes for fitted forecasters (``{method: forecaster}``) and their provenance.
 
-    Returns the file's size in bytes.  The file is checked as ``load_forecasters``
-    reads it before it is published, so that a model naming a type off the
-    allow-list is never written.
+    Checked as ``load_forecasters`` reads it, so that a model naming a type
+    off the allow-list is never written.
     """
     import skops.io as sio
-
-    from .safeio import publish_bytes
 
     blob = sio.dumps({"format": MODEL_FORMAT, "forecasters": dict(forecasters),
                       "provenance": dict(provenance)}, compression=zipfile.ZIP_DEFLATED,
                      compresslevel=9)
-    _check_types(blob, path)
+    _check_types(blob, where)
+    return blob
+
+
+def save_forecasters(path: str, forecasters: dict, provenance: dict) -> int:
+    """Write a model file atomically (``forecasters_bytes``); returns its size in bytes."""
+    from .safeio import publish_bytes
+
+    blob = forecasters_bytes(forecasters, provenance, path)
     publish_bytes(path, blob, overwrite=True)
     return len(blob)
 

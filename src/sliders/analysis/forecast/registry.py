@@ -90,3 +90,39 @@ def method_of(forecaster) -> str:
         if e.method and e.make(1, 0).name == forecaster.name:
             return e.method
     raise KeyError(forecaster.name)
+
+
+def fit_methods(train, max_iter: int = 200, seed: int = 0, log=None) -> dict:
+    """Every forecaster a model file holds, fitted on ``train``: ``{method: forecaster}``.
+
+    The two learned forecasters share one draw of degraded training and
+    calibration cuts (``Learned.training_cuts``), the calibration rows held
+    out of ``train`` at random (``learned.CALIBRATION_SHARE``).
+    """
+    import time
+
+    import numpy as np
+
+    from .learned import CALIBRATION_SHARE
+
+    rng = np.random.default_rng(seed)
+    hold = rng.random(len(train)) < CALIBRATION_SHARE
+    fit_rows, calibration = train.subset(~hold), train.subset(hold)
+    shared = {}
+    out = {}
+    for e in FORECASTERS:
+        if not e.method:
+            continue
+        f = e.make(max_iter, seed)
+        t = time.time()
+        if hasattr(f, "training_cuts"):
+            if not shared:
+                shared["cuts"] = f.training_cuts(fit_rows, np.random.default_rng(seed))
+                shared["validation_cuts"] = f.training_cuts(calibration, np.random.default_rng(seed + 1))
+            f.fit(fit_rows, validation=calibration, **shared)
+        else:
+            f.fit(train)
+        out[e.method] = f
+        if log is not None:
+            log(f"forecast: fitted {e.method} in {time.time() - t:.1f} s")
+    return out
