@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import importlib.resources
 import io
+import pathlib
 import zipfile
 
 MODEL_FORMAT = "sliders-forecaster-2"
@@ -50,9 +51,17 @@ class ModelFileError(ValueError):
     """A model file that cannot be used: one line naming the file."""
 
 
-def default_model_path():
-    """The shipped default model (a ``pathlib.Path`` inside the installed package)."""
-    return importlib.resources.files("sliders") / "data" / DEFAULT_MODEL_NAME
+def default_model_path() -> pathlib.Path:
+    """The shipped default model: a ``pathlib.Path`` inside the installed package.
+
+    Found with ``importlib.resources``; meson-python's editable install answers
+    with a traversable of its own rather than a path, and there the file is
+    the one beside this module's package (``sliders/data/``), the same place.
+    """
+    found = importlib.resources.files("sliders").joinpath("data", DEFAULT_MODEL_NAME)
+    if isinstance(found, pathlib.Path):
+        return found
+    return pathlib.Path(__file__).resolve().parent.parent / "data" / DEFAULT_MODEL_NAME
 
 
 def forecasters_bytes(forecasters: dict, provenance: dict, where: str = "model") -> bytes:

@@ -36,7 +36,8 @@ def add_train_arguments(t) -> None:
     """The options of ``train``."""
     src = t.add_mutually_exclusive_group(required=True)
     src.add_argument("--prior", metavar="PRIOR.toml", help="run this prior ensemble, then fit")
-    src.add_argument("--data", metavar="PRIOR.h5", help="fit on a prior file already computed")
+    src.add_argument("--data", nargs="+", metavar="PRIOR.h5",
+                     help="fit on prior files already computed (several: their rows together)")
     t.add_argument("--out", required=True, metavar="MODEL.skops", help="the model file written")
     t.add_argument("--np", type=int, default=1, help="MPI ranks of the prior ensemble")
     t.add_argument("--max-iter", type=int, default=TRAIN_MAX_ITER, help="boosting iterations")
@@ -82,14 +83,15 @@ def train(args, argv) -> int:
     if not 1 <= args.max_iter <= 100_000:
         raise ForecastInputError(f"--max-iter {args.max_iter}: must lie in [1, 100000]")
     t0 = time.time()
-    data_path = args.data
+    paths = args.data
     if args.prior is not None:
         if not os.path.isfile(args.prior):
             raise ForecastInputError(f"--prior {args.prior}: no such file")
-        data_path = args.out + ".prior.h5"
-        run_prior(args, data_path, log)
+        paths = [args.out + ".prior.h5"]
+        run_prior(args, paths[0], log)
     t_sim = time.time() - t0
-    data = load_set(data_path, "--data" if args.data else "the prior ensemble")
+    data = concatenate([load_set(p, "--data" if args.data else "the prior ensemble") for p in paths])
+    data_path = " + ".join(paths)
     ok = np.isfinite(np.asarray(data.alpha_c, dtype=float))
     if ok.sum() < 20:
         raise ForecastInputError(f"{data_path}: {int(ok.sum())} realisations reached the "
@@ -104,13 +106,28 @@ def train(args, argv) -> int:
     return 0
 
 
+def concatenate(sets):
+    """One ``CatalogueSet`` of the rows of several (their parameters in common; no ceiling)."""
+    from ..io.catalogue import CatalogueSet
+
+    if len(sets) == 1:
+        return sets[0]
+    common = set.intersection(*(set(s.parameters) for s in sets))
+    cats = [s.catalogue(i) for s in sets for i in range(len(s))]
+    return CatalogueSet.from_catalogues(
+        cats, {k: np.concatenate([np.asarray(s.parameters[k]) for s in sets]) for k in sorted(common)},
+        np.concatenate([s.alpha_c for s in sets]), np.concatenate([s.status for s in sets]),
+        attrs=sets[0].attrs | {"prior_digest": "+".join(str(s.attrs.get("prior_digest", ""))
+                                                         for s in sets)})
+
+
 def training_provenance(data, data_path: str, args) -> dict:
     """The prior, the rows and the mode a model was trained on (shown by ``predict --verbose``)."""
     attrs = data.attrs
     prior = attrs.get("prior") or attrs.get("prior_spec")
     return {"prior": str(prior) if prior is not None else str(args.prior or data_path),
             "prior_digest": str(attrs.get("prior_digest", "")),
-            "prior_file": os.path.basename(str(args.prior or data_path)),
+            "prior_file": str(args.prior or data_path),
             "rows": int(np.isfinite(np.asarray(data.alpha_c, dtype=float)).sum()),
             "mode": str(attrs.get("mode", _scene_mode(attrs))),
             "skops": _version("skops"), "crepes": _version("crepes")}
@@ -120,7 +137,7 @@ def _scene_mode(attrs) -> str:
     import json
 
     try:
-        return json.loads(attrs.get("prior_spec", "{}")).get("scene", {}).get("mode", "explore")
+        return json.loads(attrs.get("prior", "{}")).get("scene", {}).get("mode", "explore")
     except (TypeError, ValueError, AttributeError):
         return "explore"
 
