@@ -41,6 +41,9 @@ def add_train_arguments(t) -> None:
     t.add_argument("--out", required=True, metavar="MODEL.skops", help="the model file written")
     t.add_argument("--np", type=int, default=1, help="MPI ranks of the prior ensemble")
     t.add_argument("--max-iter", type=int, default=TRAIN_MAX_ITER, help="boosting iterations")
+    t.add_argument("--hold-out", type=float, default=0.0, metavar="SHARE",
+                   help="share of the rows kept out of the fit, to measure the model on "
+                        "(their indices go into the provenance)")
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--quiet", action="store_true")
 
@@ -96,9 +99,15 @@ def train(args, argv) -> int:
     if ok.sum() < 20:
         raise ForecastInputError(f"{data_path}: {int(ok.sum())} realisations reached the "
                                  "avalanche; at least 20 are needed to train")
-    train_set = data.subset(np.flatnonzero(ok))
+    if not 0.0 <= args.hold_out < 0.9:
+        raise ForecastInputError(f"--hold-out {args.hold_out:g}: must lie in [0, 0.9)")
+    held = np.random.default_rng([args.seed, 7]).random(len(data)) < args.hold_out
+    train_set = data.subset(np.flatnonzero(ok & ~held))
     models = fit_methods(train_set, args.max_iter, args.seed, log)
     prov = provenance(argv) | training_provenance(data, data_path, args)
+    prov["rows"] = len(train_set)
+    prov["held_out_rows"] = [int(r) for r in np.flatnonzero(held)]
+    prov["data_files"] = [os.path.abspath(p) for p in paths]
     prov["seconds_simulation"], prov["seconds_fit"] = t_sim, time.time() - t0 - t_sim
     size = save_forecasters(args.out, models, prov)
     log(f"forecast: wrote {args.out} ({size / 1e6:.2f} MB) from {prov['rows']} rows in "
