@@ -47,7 +47,7 @@ from ..io.forecast_files import (ANGLE_UNITS, MODEL_FORMAT, ForecastInputError, 
                                 parse_angle, read_catalogue_csv,
                                 tilt_in_range)
 from ..io.safeio import describe_os_error
-from ..analysis.forecast.registry import make_forecasters, method_of, names_where
+from ..analysis.forecast.registry import METHODS, make_forecasters, method_of, names_where
 from ..io.forecast_model import forecasters_bytes
 from .forecast_train import add_catalogue_arguments, add_train_arguments, catalogue, train
 
@@ -594,13 +594,14 @@ def _convergence_example(data, test_rows, forecasters, seed):
 # ---------------------------------------------------------------------------
 # predict: a measured catalogue
 # ---------------------------------------------------------------------------
-#: the choices of ``predict --method``: "learned" picks the forecaster for the columns given
-PREDICT_METHODS = ("learned", "ffm_ls_events", "ffm_ml_events", "ffm_ls_disp", "ffm_ml_disp",
-                   "model_based", "all")
+#: the choices of ``predict --method`` (the registry's): "learned" picks the learned forecaster
+#: for the columns given (every feature, or angles and sizes only)
+PREDICT_METHODS = ("learned", *(m for m in METHODS if m not in ("learned", "learned_blind")), "all")
 #: why a method gave no forecast of its own (printed with the fallback)
 FALLBACK_REASONS = {
     "ffm": "no acceleration of the rate in the last half of the tilt range seen (or fewer than "
            "10 events there): the conditioned climatology is given instead",
+    "conditioned": "the conditioned climatology is the fallback itself",
     "model_based": "no lone-slider slips (they need the displacement and first/last columns) "
                    "and too few early events to estimate mu_d: the conditioned climatology is "
                    "given instead",
@@ -669,8 +670,8 @@ def fallback_reason(method: str, forecast) -> str | None:
     """Why ``forecast`` is a fallback (None if it is the method's own)."""
     if not forecast.fallback:
         return None
-    return FALLBACK_REASONS["ffm" if method.startswith("ffm") else
-                            "model_based" if method == "model_based" else "learned"]
+    return FALLBACK_REASONS.get("ffm" if method.startswith("ffm") else method,
+                                FALLBACK_REASONS["learned"])
 
 
 def load_predict_model(args):
