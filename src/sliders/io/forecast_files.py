@@ -98,9 +98,12 @@ MAX_JOURNAL_BYTES = 2**20
 
 def claim_folder(folder: str):
     """Claim the output folder ``folder`` (``io.filelock.OutputClaim`` on the lock inside it)."""
-    from .filelock import OutputClaim
+    from .filelock import ClaimError, OutputClaim
 
-    return OutputClaim(os.path.join(resolve_target(folder).real, CLAIM_NAME)).acquire()
+    try:
+        return OutputClaim(os.path.join(resolve_target(folder).real, CLAIM_NAME)).acquire()
+    except ClaimError as exc:
+        raise ClaimError(f"output folder {folder!r}: {exc}") from None
 
 
 def check_output_target(path: str, inputs: dict) -> str:
@@ -138,12 +141,15 @@ class OutputSet:
     def add(self, path: str, data: bytes) -> None:
         """Stage the whole file ``path`` (refused if it is an input)."""
         target = check_output_target(path, self.inputs)
-        tmp = temporary_beside(target)
-        self.staged.append((tmp, target))
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
+        try:
+            tmp = temporary_beside(target)
+            self.staged.append((tmp, target))
+            with open(tmp, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+        except OSError as exc:  # named by the file the run was writing
+            raise OSError(exc.errno, exc.strerror or str(exc), path) from None
 
     def publish(self) -> None:
         """Commit the staged set and move it into place."""

@@ -46,7 +46,7 @@ from ..io.filelock import ClaimError
 from ..io.forecast_files import (ANGLE_UNITS, MODEL_FORMAT, ForecastInputError,  # noqa: F401
                                 parse_angle, read_catalogue_csv,
                                 tilt_in_range)
-from ..io.safeio import describe_os_error
+from ..io.safeio import describe_os_error, os_reason
 from ..analysis.forecast.registry import METHODS, make_forecasters, method_of, names_where
 from ..io.forecast_model import forecasters_bytes
 from .forecast_train import add_catalogue_arguments, add_train_arguments, catalogue, train
@@ -350,7 +350,7 @@ def load_set(path: str, what: str = "--data") -> CatalogueSet:
     """A prior ensemble file (``sliders.io.prior_file``) as a ``CatalogueSet``; one line naming
     ``what`` if it is not one (another kind, damaged, truncated, of a newer format)."""
     from ..io.prior_file import read_prior_ensemble
-    from ..io.safeio import describe_os_error
+    from ..io.safeio import describe_os_error, os_reason
     from ..io.storage import StorageError
 
     try:
@@ -839,7 +839,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ForecastInputError, ClaimError) as exc:
         return _error(str(exc), 2)
     except OSError as exc:
-        return _error(describe_os_error(exc, exc.filename or "?"), 1)
+        return _error(describe_os_error(exc, exc.filename) if exc.filename else os_reason(exc), 1)
     except MemoryError:
         return _error("out of memory", 1)
     except Exception as exc:  # noqa: BLE001 - a fault: one line, the traceback with SLIDERS_DEBUG
