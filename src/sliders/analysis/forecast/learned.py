@@ -52,8 +52,13 @@ ANGLES_SIZES_FEATURES = ("tilt", "n_events", "last_event", "quiet", "first_event
 ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model", "atan_mu_d_single")
 #: the tilt reached is outside the domain above this quantile of the training avalanche angles
 DOMAIN_TILT_QUANTILE = 0.995
-#: training cuts the novelty detector learns from (a random subset: its cost grows as n log n)
-DOMAIN_SAMPLE = 6000
+#: training cuts the novelty detector learns from (a random subset: its cost grows as n log n,
+#: and the model file keeps them, twice: 1500 cuts of 60 features are about 1.5 MB)
+DOMAIN_SAMPLE = 1500
+#: neighbours of the local outlier factor (the model file keeps their distances for every cut)
+DOMAIN_NEIGHBOURS = 20
+#: bins of each feature in the boosting (the model file keeps every bin's threshold)
+MAX_BINS = 63
 #: fewest calibration cuts per Mondrian bin (the 5 % and 95 % levels need 20 at least)
 MIN_PER_BIN = 200
 #: share of calibration cuts held out of the training rows when no validation set is given
@@ -97,7 +102,7 @@ class Learned(Forecaster):
     """
 
     def __init__(self, inputs: str = "all", draws_per_row: int = 10, max_iter: int = 200,
-                 learning_rate: float = 0.08, max_leaf_nodes: int = 31, min_samples_leaf: int = 40,
+                 learning_rate: float = 0.08, max_leaf_nodes: int = 15, min_samples_leaf: int = 40,
                  degrade: bool = True, calibration_bins: int = 4,
                  domain_contamination: float = 0.01, random_state: int = 0):
         self.inputs = inputs
@@ -193,7 +198,7 @@ class Learned(Forecaster):
         return HistGradientBoostingRegressor(
             loss="quantile", quantile=float(level), max_iter=self.max_iter,
             learning_rate=self.learning_rate, max_leaf_nodes=self.max_leaf_nodes,
-            min_samples_leaf=self.min_samples_leaf, early_stopping=False,
+            min_samples_leaf=self.min_samples_leaf, max_bins=MAX_BINS, early_stopping=False,
             random_state=self.random_state)
 
     def _fit_domain(self, x, rng):
@@ -208,7 +213,7 @@ class Learned(Forecaster):
             SimpleImputer(strategy="median", keep_empty_features=True),
             QuantileTransformer(n_quantiles=200, output_distribution="normal",
                                 random_state=self.random_state),
-            LocalOutlierFactor(n_neighbors=40, novelty=True,
+            LocalOutlierFactor(n_neighbors=DOMAIN_NEIGHBOURS, novelty=True,
                                contamination=self.domain_contamination)).fit(x[take])
         self.top_tilt_ = float(np.quantile(self.climatology_.alpha_c_, DOMAIN_TILT_QUANTILE))
 
