@@ -99,7 +99,8 @@ def domain_rates(forecaster, test, outside: dict, seed) -> dict:
         late, _ = cuts_at_leads(cset, np.arange(len(cset)), [math.radians(3.0)])
         inside_late, _ = forecaster.domain(blind(late))
         out[label] = {"flagged_random_cuts": float(np.mean(~inside)), "n_cuts": int(len(cuts)),
-                      "flagged_3deg": float(np.mean(~inside_late)), "n_3deg": int(len(late))}
+                      "flagged_3deg": float(np.mean(~inside_late)), "n_3deg": int(len(late)),
+                      "skill_3deg": skill(forecaster, blind(late), forecaster.climatology_.alpha_c_)}
     return out
 
 
@@ -121,10 +122,12 @@ def markdown(rep: dict) -> str:
         for b, v in rep["coverage"][kind].items():
             what = "tilt (rad)" if kind == "per_tilt_bin" else "events so far"
             lines.append(f"| {what} {b} | {v['coverage']:.2f} | {v['n']} |")
-    lines += ["", "| set | flagged (random cuts) | flagged (3° before) |", "|---|---|---|"]
+    lines += ["", "| set | flagged (random cuts) | flagged (3° before) | 3° before: / cond. clim. |"
+              " coverage |", "|---|---|---|---|---|"]
     for label, v in rep["domain"].items():
         lines.append(f"| {label} | {v['flagged_random_cuts']:.2f} ({v['n_cuts']}) | "
-                     f"{v['flagged_3deg']:.2f} ({v['n_3deg']}) |")
+                     f"{v['flagged_3deg']:.2f} ({v['n_3deg']}) | "
+                     f"{v['skill_3deg']['vs_conditioned']:.2f} | {v['skill_3deg']['coverage']:.2f} |")
     lines += ["", "| measured as | / cond. clim. | coverage | flagged out of domain |",
               "|---|---|---|---|"]
     for label, v in rep["degradation"].items():

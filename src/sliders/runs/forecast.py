@@ -714,7 +714,7 @@ def print_forecasts(args, report: dict, forecasts, path, prov) -> None:
           f"{prov.get('created', '?')})")
     if args.verbose:
         for k, v in prov.items():
-            print(f"  {k}: {v}")
+            print(f"  {k}: {f'{len(v)} rows' if k == 'held_out_rows' else v}")
 
 
 def check_predict_options(args) -> None:
