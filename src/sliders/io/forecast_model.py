@@ -36,6 +36,7 @@ ALLOWED_TYPES = frozenset({
     "sklearn.preprocessing._data.QuantileTransformer",
     "sklearn.neighbors._lof.LocalOutlierFactor",
     "sklearn.neighbors._kd_tree.KDTree",
+    "sklearn.metrics._dist_metrics.EuclideanDistance64",
     "sklearn.neighbors._ball_tree.BallTree",
     "sklearn.pipeline.Pipeline",
     "sliders.analysis.forecast.baselines.Climatology",

@@ -52,6 +52,10 @@ ANGLES_SIZES_FEATURES = ("tilt", "n_events", "last_event", "quiet", "first_event
 ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model", "atan_mu_d_single")
 #: the tilt reached is outside the domain above this quantile of the training avalanche angles
 DOMAIN_TILT_QUANTILE = 0.995
+#: what the novelty detector compares (few features, so that a density in their space means
+#: something): the tilt, how many events and how recent, their rates, the sizes' spread
+DOMAIN_FEATURES = ("tilt", "n_events", "first_event", "quiet", "since_largest", "events_0.01",
+                   "events_0.05", "events_0.1", "size_ratio_max", "share_large")
 #: training cuts the novelty detector learns from (a random subset: its cost grows as n log n,
 #: and the model file keeps them, twice: 1500 cuts of 60 features are about 1.5 MB)
 DOMAIN_SAMPLE = 1500
@@ -104,7 +108,7 @@ class Learned(Forecaster):
     def __init__(self, inputs: str = "all", draws_per_row: int = 10, max_iter: int = 200,
                  learning_rate: float = 0.08, max_leaf_nodes: int = 15, min_samples_leaf: int = 40,
                  degrade: bool = True, calibration_bins: int = 4,
-                 domain_contamination: float = 0.01, random_state: int = 0):
+                 domain_contamination: float = 0.03, random_state: int = 0):
         self.inputs = inputs
         self.draws_per_row = draws_per_row
         self.max_iter = max_iter
@@ -186,7 +190,8 @@ class Learned(Forecaster):
         self.models_ = [self._regressor(level).fit(x[:, self.columns_], y_log)
                         for level in TRAINED_LEVELS]
         self.climatology_ = Climatology().fit(train)
-        self._fit_domain(x[:, self.columns_], rng)
+        self.domain_columns_ = np.array([names.index(n) for n in DOMAIN_FEATURES])
+        self._fit_domain(self._domain_view(x), rng)
         self._fit_calibration(vcuts)
         self.n_training_cuts_ = len(cuts)
         self.n_calibration_cuts_ = len(vcuts)
@@ -200,6 +205,10 @@ class Learned(Forecaster):
             learning_rate=self.learning_rate, max_leaf_nodes=self.max_leaf_nodes,
             min_samples_leaf=self.min_samples_leaf, max_bins=MAX_BINS, early_stopping=False,
             random_state=self.random_state)
+
+    def _domain_view(self, x):
+        """The novelty detector's features (``DOMAIN_FEATURES``) of a design."""
+        return x[:, self.domain_columns_]
 
     def _fit_domain(self, x, rng):
         """The novelty detector on (a subset of) the training cuts' features, and the top tilt."""
@@ -254,7 +263,7 @@ class Learned(Forecaster):
         training cut's.  ``x``: the cuts' ``design``, if already computed.
         """
         x = self.design(cuts)[0] if x is None else x
-        novel = self.domain_.predict(x[:, self.columns_]) < 0 if len(cuts) else np.zeros(0, bool)
+        novel = self.domain_.predict(self._domain_view(x)) < 0 if len(cuts) else np.zeros(0, bool)
         high = cuts.tilt_now > self.top_tilt_
         reasons = []
         for h, nv, t in zip(high, novel, cuts.tilt_now):
