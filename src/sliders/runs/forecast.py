@@ -623,13 +623,16 @@ def predict(args, argv=None) -> int:
         cat = Catalogue(cat.alpha, cat.size, np.zeros(len(cat)), np.full(len(cat), -1),
                         np.full(len(cat), -1), cat.tilt_now)
     learned = models["learned"] if complete and "learned" in models else models["learned_blind"]
-    inside, reasons = learned.domain(Cuts.from_catalogues([cat], measurement))
+    try:
+        inside, reasons = learned.domain(Cuts.from_catalogues([cat], measurement))
+        chosen = {m: learned if m == "learned" else models[m] for m in
+                  (PREDICT_METHODS[:-1] if args.method == "all" else (args.method,))
+                  if m == "learned" or m in models}
+        forecasts = [(m, f, f.predict(cat, measurement)) for m, f in chosen.items()]
+    except AttributeError:  # a forecaster of another version lacks what this one reads
+        raise ForecastInputError(f"{path}: written by sliders {prov.get('sliders', '?')}, whose "
+                                 "forecasters this version cannot use; train it again") from None
     in_domain, reason = bool(inside[0]), reasons[0]
-    forecasts = []
-    for method in (PREDICT_METHODS[:-1] if args.method == "all" else (args.method,)):
-        f = learned if method == "learned" else models.get(method)
-        if f is not None:
-            forecasts.append((method, f, f.predict(cat, measurement)))
     top = float(learned.climatology_.alpha_c_[-1])
     if in_domain and any(fc.point > top for _, _, fc in forecasts):
         in_domain = False
