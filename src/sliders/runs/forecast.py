@@ -602,6 +602,8 @@ FALLBACK_REASONS = {
     "ffm": "no acceleration of the rate in the last half of the tilt range seen (or fewer than "
            "10 events there): the conditioned climatology is given instead",
     "conditioned": "the conditioned climatology is the fallback itself",
+    "no_displacement": "the catalogue has no displacement column: the conditioned climatology "
+                       "is given instead",
     "model_based": "no lone-slider slips (they need the displacement and first/last columns) "
                    "and too few early events to estimate mu_d: the conditioned climatology is "
                    "given instead",
@@ -641,13 +643,13 @@ def predict(args, argv=None) -> int:
     report = {"in_domain": in_domain, "domain_reason": reason, "events": len(cat),
               "measurement": vars_of(measurement), "model": {"path": str(path), **prov},
               "methods": {m: fc.as_dict(within) | {"label": f.label,
-                                                   "fallback_reason": fallback_reason(m, fc)}
+                                                   "fallback_reason": fallback_reason(m, fc, complete)}
                           for m, f, fc in forecasts}}
     first = forecasts[0][2].as_dict(within)
     if args.json:
         print(json.dumps(_jsonable(first | report)))
     else:
-        print_forecasts(args, report, forecasts, path, prov)
+        print_forecasts(args, report, forecasts, path, prov, complete)
     return 0
 
 
@@ -669,10 +671,13 @@ def vars_of(measurement) -> dict:
             "size_unit": measurement.size_unit}
 
 
-def fallback_reason(method: str, forecast) -> str | None:
-    """Why ``forecast`` is a fallback (None if it is the method's own)."""
+def fallback_reason(method: str, forecast, complete: bool = True) -> str | None:
+    """Why ``forecast`` is a fallback (None if it is the method's own); ``complete``: the
+    catalogue has displacements and movers."""
     if not forecast.fallback:
         return None
+    if not complete and method.endswith("_disp"):
+        return FALLBACK_REASONS["no_displacement"]
     return FALLBACK_REASONS.get("ffm" if method.startswith("ffm") else method,
                                 FALLBACK_REASONS["learned"])
 
@@ -695,7 +700,7 @@ def load_predict_model(args):
     return path, models, prov
 
 
-def print_forecasts(args, report: dict, forecasts, path, prov) -> None:
+def print_forecasts(args, report: dict, forecasts, path, prov, complete: bool) -> None:
     """The text output: one block per method, the domain line, the provenance if ``--verbose``."""
     deg = math.degrees
     first = forecasts[0][2]
@@ -710,7 +715,7 @@ def print_forecasts(args, report: dict, forecasts, path, prov) -> None:
         print(f"{method} ({f.label}): avalanche angle {fc.point:.4f} rad ({deg(fc.point):.2f}°), "
               f"80 % interval {lo:.4f}-{hi:.4f} rad ({deg(lo):.2f}-{deg(hi):.2f}°), "
               f"P(within the next {args.within:g}°) = {fc.probability_within(math.radians(args.within)):.2f}")
-        why = fallback_reason(method, fc)
+        why = fallback_reason(method, fc, complete)
         if why:
             print(f"  fallback: {why}")
     print(f"model: {path} ({prov.get('rows', '?')} training rows, "
