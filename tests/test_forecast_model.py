@@ -226,3 +226,34 @@ def test_coverage_per_lead_is_computed_and_written(tmp_path):
         assert 0.0 <= v["coverage"] <= 1.0 and v["n"] > 0
     assert 0.0 <= written["all_cuts"]["coverage"] <= 1.0
     assert written["per_tilt_bin"] and written["per_events_bin"]
+
+
+def test_train_runs_a_prior_and_writes_a_model_file_of_its_provenance(tmp_path, capsys):
+    from sliders.runs.forecast import main
+
+    prior = tmp_path / "tiny.toml"
+    prior.write_text('[prior]\nrealisations = 24\nseed = 3\nceiling_step = 0.5\nceiling_k = 1\n'
+                     '[parameters]\nmu_d = { uniform = [0.3, 0.6] }\n'
+                     'mu_s_minus_mu_d = { loguniform = [0.02, 0.1] }\nsigma_mu = 0.01\nxi = 0.0\n'
+                     'n_sliders = { choice = [12, 16] }\n')
+    out = tmp_path / "tiny.skops"
+    assert main(["train", "--prior", str(prior), "--out", str(out), "--max-iter", "3",
+                 "--hold-out", "0.25", "--quiet"]) == 0
+    models, prov = load_forecasters(str(out))
+    assert set(models) >= {"learned", "learned_blind", "ffm_ml_events", "model_based"}
+    assert 12 <= prov["rows"] and prov["rows"] + len(prov["held_out_rows"]) <= 24
+    assert "n_sliders" in prov["prior"]
+    assert prov["mode"] == "explore" and prov["skops"] and prov["scikit-learn"]
+    # the prior file is kept: run again, it is resumed (complete), the same rows fitted
+    assert main(["train", "--prior", str(prior), "--out", str(out), "--max-iter", "3",
+                 "--hold-out", "0.25", "--quiet"]) == 0
+    again = load_forecasters(str(out))[1]
+    assert again["rows"] == prov["rows"] and again["prior_digest"] == prov["prior_digest"]
+    assert again["seconds_simulation"] < prov["seconds_simulation"] + 5
+    csv = tmp_path / "row.csv"
+    assert main(["catalogue", "--data", str(out) + ".prior.h5", "--row", "2", "--lead", "1deg",
+                 "--out", str(csv)]) == 0
+    assert csv.read_text().splitlines()[1] == "angle [rad],size,displacement,first,last"
+    capsys.readouterr()
+    assert main(["predict", str(csv), "--model", str(out), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["model"]["rows"] == prov["rows"]

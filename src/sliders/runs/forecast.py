@@ -49,7 +49,8 @@ from ..io.forecast_files import (ANGLE_UNITS, MODEL_FORMAT, ForecastInputError, 
 from ..io.safeio import describe_os_error, os_reason
 from ..analysis.forecast.registry import METHODS, make_forecasters, method_of, names_where
 from ..io.forecast_model import forecasters_bytes
-from .forecast_train import add_catalogue_arguments, add_train_arguments, catalogue, train
+from . import forecast_train
+from .forecast_train import add_catalogue_arguments, add_train_arguments
 
 #: the issue's example prior (the prior ensembles' default): name -> (law, bounds)
 DEV_PRIOR = {"mu_d": ("uniform", (0.3, 0.8)), "mu_s_minus_mu_d": ("loguniform", (0.02, 0.12)),
@@ -813,7 +814,9 @@ def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
 
 #: subcommand -> its function ``f(args, argv) -> exit status``; a new subcommand adds its parser
 #: in ``build_parser`` and its entry here, and raises ForecastInputError for bad input
-COMMANDS = {"evaluate": evaluate, "predict": predict, "train": train, "catalogue": catalogue}
+COMMANDS = {"evaluate": evaluate, "predict": predict,
+            "train": lambda args, argv: forecast_train.train(args, argv, load_set, provenance),
+            "catalogue": lambda args, argv: forecast_train.catalogue(args, argv, load_set)}
 
 
 class Stopped(KeyboardInterrupt):

@@ -74,9 +74,12 @@ def run_prior(args, prior_out: str, log) -> None:
                                  f"{code}; run the same command again to resume it")
 
 
-def train(args, argv) -> int:
-    """Run the prior (unless ``--data``), fit the forecasters, write the model file."""
-    from .forecast import load_set, provenance
+def train(args, argv, load_set, provenance) -> int:
+    """Run the prior (unless ``--data``), fit the forecasters, write the model file.
+
+    ``load_set(path, what)`` reads a prior file, ``provenance(argv)`` gives the versions and
+    the command (``sliders.runs.forecast``'s, passed in: this module is imported by it).
+    """
     from ..analysis.forecast.registry import fit_methods
     from ..io.forecast_model import save_forecasters
 
@@ -168,9 +171,9 @@ def catalogue_csv_text(cat, scale: float = 1.0) -> str:
     return "\n".join(lines) + "\n"
 
 
-def catalogue(args, argv) -> int:
-    """Write row ``--row`` of ``--data`` as a catalogue CSV cut at ``--at`` or ``--lead``."""
-    from .forecast import load_set
+def catalogue(args, argv, load_set) -> int:
+    """Write row ``--row`` of ``--data`` as a catalogue CSV cut at ``--at`` or ``--lead``
+    (``load_set(path)`` reads the prior file)."""
     from ..io.safeio import publish_bytes
 
     data = load_set(args.data)
