@@ -58,6 +58,9 @@ mode = "explore"
 [axes]
 xi = [0.0, 0.001]
 """
+MODEL, TABLE, METRICS = "forecaster.pkl", "forecast_table.md", "forecast_metrics.json"
+FIGURES = [f"forecast_{n}.{ext}" for n in ("error", "coverage", "convergence", "roc")
+           for ext in ("png", "pdf")]
 CATALOGUE = "angle [deg],size\n" + "".join(f"{a:.2f},1\n" for a in np.linspace(1, 12, 30))
 
 
@@ -98,8 +101,8 @@ def snapshot(folder: Path) -> dict[str, bytes]:
 
 
 def leftovers(folder: Path) -> list[str]:
-    return sorted(p.name for p in folder.iterdir() if p.name.endswith((".tmp", ".lock"))
-                  or p.name == forecast_files.JOURNAL_NAME)
+    """Hidden files: temporaries, claims, records of a publication (none once a run ends)."""
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
 
 
 @pytest.fixture(scope="module")
@@ -175,7 +178,7 @@ def test_evaluate_on_a_file_that_is_no_prior_ensemble_is_one_line(tmp_path, prio
     code, err = forecast_main(capsys, "evaluate", "--data", data, "--out", tmp_path / "o", *FAST)
     line = one_line(code, err)
     assert "--data" in line and words in line
-    assert not (tmp_path / "o" / rf.TABLE_NAME).exists()
+    assert not (tmp_path / "o" / TABLE).exists()
 
 
 @pytest.mark.parametrize("options, words", [
@@ -190,7 +193,6 @@ def test_evaluate_on_a_file_that_is_no_prior_ensemble_is_one_line(tmp_path, prio
     (["--max-iter", "0"], "--max-iter 0"),
     (["--boot", "0"], "--boot 0"),
     (["--seed", "-1"], "--seed -1"),
-    (["--robust", "nolabel"], "LABEL=FILE"),
     (["--robust", "test=x.h5"], "'test'"),
     (["--frobnicate"], "unrecognized arguments"),
 ])
@@ -198,7 +200,7 @@ def test_bad_evaluate_options_are_one_line(tmp_path, prior, capsys, options, wor
     base = ["evaluate", "--data", prior, "--out", tmp_path / "o", *FAST]
     code, err = forecast_main(capsys, *base, *options)
     assert words in one_line(code, err)
-    assert not (tmp_path / "o" / rf.TABLE_NAME).exists()
+    assert not (tmp_path / "o" / TABLE).exists()
 
 
 def test_out_that_is_a_file_is_refused_before_any_fitting(tmp_path, prior, capsys, monkeypatch):
@@ -218,11 +220,11 @@ def test_out_that_is_a_file_is_refused_before_any_fitting(tmp_path, prior, capsy
     (["--within", "nan"], "--within nan"), (["--within", "-5"], "--within -5"),
     (["--tilt-now=--"], "--tilt-now"), (["--tilt-now", "1000deg"], "outside [0, 90°)"),
     (["--tilt-now", "90deg"], "outside [0, 90°)"), (["--tilt-now", "100rad"], "outside [0, 90°)"),
-    (["--tilt-now=-1deg"], "outside [0, 90°)"), (["--tilt-now", "five"], "not understood"),
+    (["--tilt-now=-1deg"], "outside [0, 90°)"),
 ])
 def test_bad_predict_options_are_one_line(previous, catalogue, capsys, options, words):
     code, err = forecast_main(capsys, "predict", catalogue, "--model",
-                              previous / rf.MODEL_NAME, *options)
+                              previous / MODEL, *options)
     assert words in one_line(code, err)
 
 
@@ -245,10 +247,10 @@ def test_evaluate_stopped_by_a_signal_is_one_line_and_leaves_the_previous_set(ou
 
 
 def test_predict_under_mpirun_is_one_answer_and_one_refusal(previous, catalogue):
-    good = cli("predict", catalogue, "--model", previous / rf.MODEL_NAME, "--json", n=2)
+    good = cli("predict", catalogue, "--model", previous / MODEL, "--json", n=2)
     assert good.returncode == 0, good.stderr
     assert len(good.stdout.strip().splitlines()) == 1
-    bad = cli("predict", catalogue, "--model", previous / rf.MODEL_NAME, "--within", "nan", n=2)
+    bad = cli("predict", catalogue, "--model", previous / MODEL, "--within", "nan", n=2)
     assert bad.returncode == 2 and "--within" in one_line(bad.returncode, bad.stderr)
 
 
@@ -265,10 +267,10 @@ def test_model_file_that_is_a_symlink_to_the_data_is_refused(tmp_path, prior, ca
     shutil.copy(prior, data)
     before = data.read_bytes()
     (tmp_path / "o").mkdir()
-    (tmp_path / "o" / rf.MODEL_NAME).symlink_to(data)
+    (tmp_path / "o" / MODEL).symlink_to(data)
     code, err = forecast_main(capsys, "evaluate", "--data", data, "--out", tmp_path / "o", *FAST)
     line = one_line(code, err)
-    assert rf.MODEL_NAME in line and "--data" in line
+    assert MODEL in line and "--data" in line
     assert data.read_bytes() == before and leftovers(tmp_path / "o") == []
 
 
@@ -306,7 +308,7 @@ def test_second_evaluate_of_one_folder_is_refused_through_a_symlink(out, prior, 
 
 
 def test_killed_evaluates_temporaries_are_removed_by_the_next_run(out, prior, capsys):
-    stale = out / f".{rf.TABLE_NAME}.k1ll3d9x.tmp"
+    stale = out / f".{TABLE}.k1ll3d9x.tmp"
     stale.write_text("half a table")
     code, err = forecast_main(capsys, "evaluate", "--data", prior, "--out", out, *FAST,
                               "--no-figures")
@@ -322,6 +324,11 @@ def test_failed_figures_leave_the_previous_set_whole(out, prior, capsys, monkeyp
         raise OSError(28, os.strerror(28), str(Path(out_dir) / "forecast_error.png"))
 
     monkeypatch.setattr(figures, "draw_all", full_disk)
+    assert_full_disk_leaves_the_previous_set(out, prior, capsys)
+
+
+def assert_full_disk_leaves_the_previous_set(out, prior, capsys):
+    """A rerun (seed 1) that runs out of room: one line naming the reason, no trace of it."""
     before = snapshot(out)
     code, err = forecast_main(capsys, "evaluate", "--data", prior, "--out", out, *FAST,
                               "--seed", "1", "--quiet")
@@ -340,11 +347,7 @@ def test_full_disk_while_publishing_leaves_the_previous_set_whole(out, prior, ca
         real_fsync(fd)
 
     monkeypatch.setattr(os, "fsync", fsync)
-    before = snapshot(out)
-    code, err = forecast_main(capsys, "evaluate", "--data", prior, "--out", out, *FAST,
-                              "--seed", "1", "--quiet")
-    assert "No space left on device" in one_line(code, err, status=1)
-    assert snapshot(out) == before and leftovers(out) == []
+    assert_full_disk_leaves_the_previous_set(out, prior, capsys)
 
 
 KILLER = """
@@ -378,7 +381,7 @@ def test_kill9_while_a_figure_is_written_leaves_the_previous_figures(out, prior)
     killed_run(prior, out, "matplotlib.figure", "Figure.savefig", 0, "open(args[1], 'wb').close()",
                "--seed", "1")
     after = snapshot(out)
-    for name in rf.FIGURE_NAMES:
+    for name in FIGURES:
         assert after[name] == before[name] and len(after[name]) > 1000
 
 
@@ -387,13 +390,12 @@ def test_kill9_while_publishing_is_completed_by_the_next_claim(out, prior, tmp_p
     an evaluation refused after its claim) finishes the publication, so every file is the
     killed run's (seed 1), none the previous run's (seed 0)."""
     killed_run(prior, out, "os", "replace", 2, "pass", "--seed", "1")
-    assert (out / forecast_files.JOURNAL_NAME).exists()
     (tmp_path / "not_a_prior.h5").write_text("text")
     code, err = forecast_main(capsys, "evaluate", "--data", tmp_path / "not_a_prior.h5",
                               "--out", out)
     assert code == 2 and "finished publishing" in err, err
-    metrics = json.loads((out / rf.METRICS_NAME).read_text())
-    _, head = forecast_files.load_model(str(out / rf.MODEL_NAME))
+    metrics = json.loads((out / METRICS).read_text())
+    _, head = forecast_files.load_model(str(out / MODEL))
     assert "--seed 1" in metrics["provenance"]["command"] and "--seed 1" in head["command"]
     assert leftovers(out) == []
 
@@ -415,7 +417,7 @@ def test_endless_or_huge_catalogue_is_refused_quickly_in_bounded_memory(previous
             fh.write(b"angle [deg],size\n")
             fh.truncate(100 * 2**20)
     t = time.monotonic()
-    res = cli("predict", path, "--model", previous / rf.MODEL_NAME, timeout=60,
+    res = cli("predict", path, "--model", previous / MODEL, timeout=60,
               preexec_fn=limited(1500 * 2**20))
     assert time.monotonic() - t < 30
     line = one_line(res.returncode, res.stderr)
@@ -424,7 +426,7 @@ def test_endless_or_huge_catalogue_is_refused_quickly_in_bounded_memory(previous
 
 def test_too_many_events_are_refused_naming_the_row(tmp_path):
     path = tmp_path / "many.csv"
-    n = forecast_files.MAX_EVENTS + 1
+    n = 10**6 + 1  # the most a catalogue may hold, and one more
     with open(path, "w") as fh:
         fh.write("angle [rad],size\n")
         fh.writelines(f"{1e-6 * i:.7f},1\n" for i in range(n))
@@ -441,7 +443,6 @@ def test_too_many_events_are_refused_naming_the_row(tmp_path):
     (b"angle [deg],size\n1," + b"1" * 200000 + b"\n", "row 2: longer than"),
     (b"angle [deg],size\n95,1\n", "row 2, column 'angle': '95' is outside"),
     (b"angle [deg],size\n1,1\n\xff\n", "row 3: not UTF-8"),
-    (b"angle [deg],size\n1,1\x00\n", "row 2"),
 ])
 def test_malformed_catalogue_is_one_line_naming_row_or_column(tmp_path, text, words):
     path = tmp_path / "bad.csv"
@@ -456,7 +457,7 @@ def test_spreadsheet_csv_with_a_byte_order_mark_is_read(tmp_path, previous, caps
     path.write_bytes(b"\xef\xbb\xbf" + CATALOGUE.replace("\n", "\r\n").encode())
     cat = rf.read_catalogue_csv(str(path))
     assert len(cat) == 30 and np.isclose(cat.alpha[-1], np.radians(12.0))
-    code, err = forecast_main(capsys, "predict", path, "--model", previous / rf.MODEL_NAME)
+    code, err = forecast_main(capsys, "predict", path, "--model", previous / MODEL)
     assert code == 0, err
 
 

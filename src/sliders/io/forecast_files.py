@@ -1,14 +1,18 @@
-"""The forecasting's files: a measured catalogue in CSV, and a fitted forecaster.
+"""The forecasting's files: a measured catalogue in CSV, a fitted forecaster, an evaluation's outputs.
 
 * ``read_catalogue_csv``: an experimenter's catalogue (docs/forecasting.md gives
   the format: ``angle [deg]`` or ``angle [rad]``, ``size``, optional
   ``displacement``, ``first``, ``last``); every refusal is one line naming the
-  row and the column.
+  row and the column.  It streams the file within stated bounds
+  (``MAX_CATALOGUE_BYTES``, ``MAX_EVENTS``, ``MAX_LINE_BYTES``).
 * ``save_model`` / ``load_model``: a fitted forecaster, pickled with its
   provenance and a CRC-32 (ours only: a pickle is code, never load an
   untrusted one).
+* ``claim_folder``, ``OutputSet``, ``complete_publication``: a run's output
+  files claimed, compared with its inputs by identity, staged whole and
+  published as one set (docs/reliability.md, "The forecast commands").
 
-``python -m sliders.forecast predict`` (``sliders.runs.forecast``) uses both.
+``python -m sliders.forecast`` (``sliders.runs.forecast``) uses them.
 """
 
 from __future__ import annotations
@@ -30,7 +34,8 @@ import numpy as np
 
 from .._version import __version__
 from .catalogue import Catalogue
-from .safeio import leftover_temporaries, publish_bytes, resolve_target, temporary_beside
+from .safeio import (_fsync_dir, leftover_temporaries, publish_bytes, resolve_target,
+                     temporary_beside)
 
 
 class ForecastInputError(ValueError):
@@ -197,28 +202,16 @@ def complete_publication(folder: str) -> int:
         return 0
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         raise ForecastInputError(f"{path}: not a publication record of sliders; remove it") from None
-    moved, folders = 0, set()
+    moved = 0
     for tmp, target in moves:
         if tmp in leftover_temporaries(target):  # only the staged files of that target, if left
             os.replace(tmp, target)
             moved += 1
-            folders.add(os.path.dirname(target))
-    for where in folders:
-        fsync_folder(where)
+    for flushed in {os.path.dirname(target): target for _, target in moves}.values():
+        _fsync_dir(flushed)  # the renames survive a power loss
     os.unlink(path)
-    fsync_folder(folder)
+    _fsync_dir(path)
     return moved
-
-
-def fsync_folder(folder: str) -> None:
-    """Flush a folder's entries (renames into it survive a power loss)."""
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    except OSError:  # some file systems refuse fsync on folders; the files are synced
-        pass
-    finally:
-        os.close(fd)
 
 
 # ---------------------------------------------------------------------------
@@ -232,7 +225,7 @@ MAX_CATALOGUE_BYTES = 64 * 2**20
 MAX_EVENTS = 1_000_000
 MAX_LINE_BYTES = 4096
 MAX_FIELD_CHARS = 64
-#: sizes and slider positions: whole numbers up to 2**53, which a float64 holds exactly
+#: sizes and slider positions: whole numbers up to 2^53, which a float64 holds exactly
 MAX_WHOLE = 2**53
 COLUMNS = ("angle", "size", "displacement", "first", "last")
 WHOLE_COLUMNS = {"size": 1, "first": 0, "last": 0}  # column -> its least value

@@ -25,6 +25,15 @@ moved, >= 1), optionally ``displacement``, ``first`` and ``last`` (0-based
 positions of the first and last mover).  Bad input gets one line naming the
 row and the column.  Without ``--model`` it uses the forecaster shipped in the
 package.  ``train`` and ``catalogue``: ``sliders.runs.forecast_train``.
+
+Every subcommand runs inside one error boundary (``main``): parse, check the
+options, check the inputs and outputs, compute, publish; every failure is one
+line (status 2 for bad input, 1 for an I/O error or a fault, 128 + signal when
+stopped).  ``evaluate`` claims its output folders, refuses an output that is an
+input (by device and inode) and publishes its files as one set
+(``io.forecast_files.OutputSet``; docs/reliability.md, "The forecast commands").
+A new subcommand adds its options in ``build_parser``, its function to
+``COMMANDS``, and raises ``ForecastInputError`` for bad input.
 """
 
 from __future__ import annotations
@@ -319,8 +328,12 @@ def claimed_folders(args, outputs: dict, inputs: dict, log):
     from ..io.safeio import leftovers_note, remove_leftovers, resolve_target
 
     folders = {}
-    for folder in (args.out, args.figures or args.out):
-        os.makedirs(folder, exist_ok=True)
+    for option, folder in (("--out", args.out), ("--figures", args.figures or args.out)):
+        try:
+            os.makedirs(folder, exist_ok=True)
+        except OSError as exc:
+            raise ForecastInputError(f"{option} {folder!r}: cannot create the folder "
+                                     f"({os_reason(exc)})") from None
         real = resolve_target(folder).real
         folders.setdefault(real, folder)
     claims = []
