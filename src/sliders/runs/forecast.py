@@ -3,8 +3,7 @@
     python -m sliders.forecast evaluate --data prior.h5 --robust zero=zero.h5 --out results/forecast
     python -m sliders.forecast evaluate --dev 300 --out /tmp/forecast      # serial development data
     python -m sliders.forecast predict CATALOGUE.csv [--tilt-now ANGLE] [--json] [--model FILE]
-                                   [--method all] [--angle-resolution DEG] [--min-size S]
-                                   [--missed-fraction F] [--size-unit arbitrary] [--verbose]
+    python -m sliders.forecast predict CATALOGUE.csv --method all --size-unit arbitrary --verbose
     python -m sliders.forecast train --prior my.toml --out my_model.skops --np 2
     python -m sliders.forecast catalogue --data prior.h5 --row 7 --lead 3deg --out row7.csv
 
@@ -56,7 +55,8 @@ from ..io.forecast_files import (ANGLE_UNITS, MODEL_FORMAT, ForecastInputError, 
                                 parse_angle, read_catalogue_csv,
                                 tilt_in_range)
 from ..io.safeio import describe_os_error, os_reason
-from ..analysis.forecast.registry import METHODS, make_forecasters, method_of, names_where
+from ..analysis.forecast.registry import (METHODS, fit_sharing_cuts, make_forecasters, method_of,
+                                          names_where)
 from ..io.forecast_model import forecasters_bytes
 from . import forecast_train
 from .forecast_train import add_catalogue_arguments, add_train_arguments
@@ -420,14 +420,11 @@ def fit_forecasters(args, data: CatalogueSet, split, log) -> tuple[list, dict]:
         forecasters = [f for f in forecasters if f.name in keep]
     train, valid = data.subset(split.train), data.subset(split.validation)
     timing = {}
-    shared = {}  # the learned forecasters' training and calibration cuts, drawn and degraded once
+    shared = {}  # the learned forecasters' training and calibration cuts, drawn once per kind
     for f in forecasters:
         t = time.time()
         if hasattr(f, "training_cuts"):
-            if not shared:
-                shared["cuts"] = f.training_cuts(train, np.random.default_rng(args.seed))
-                shared["validation_cuts"] = f.training_cuts(valid, np.random.default_rng(args.seed + 1))
-            f.fit(train, validation=valid, **shared)
+            fit_sharing_cuts(f, train, valid, shared, args.seed)
         else:
             f.fit(train)
         timing[f.name] = time.time() - t

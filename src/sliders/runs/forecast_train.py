@@ -88,6 +88,9 @@ def train(args, argv, load_set, provenance) -> int:
         raise ForecastInputError(f"--np {args.np}: must lie in [1, 4096]")
     if not 1 <= args.max_iter <= 100_000:
         raise ForecastInputError(f"--max-iter {args.max_iter}: must lie in [1, 100000]")
+    folder = os.path.dirname(os.path.abspath(args.out))
+    if not os.path.isdir(folder):
+        raise ForecastInputError(f"--out {args.out}: the folder {folder} does not exist")
     t0 = time.time()
     paths = args.data
     if args.prior is not None:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from sklearn.base import BaseEstimator
+from sklearn.utils.metadata_routing import UNUSED
 
 #: quantile levels of every forecast (uniform, so that twice their mean pinball
 #: loss approximates the CRPS)
@@ -152,6 +153,11 @@ class Forecaster(BaseEstimator):
     name = "forecaster"
     label = "forecaster"
     needs: tuple[str, ...] = ()
+    # the arguments of fit and predict are data, not metadata to route through a meta-estimator:
+    # no set_fit_request / set_predict_request
+    __metadata_request__fit = {"train": UNUSED, "validation": UNUSED, "cuts": UNUSED,
+                               "validation_cuts": UNUSED}
+    __metadata_request__predict = {"catalogue": UNUSED, "measurement": UNUSED}
 
     def fit(self, train, y=None, **fit_params) -> "Forecaster":
         """Learn from a training ``CatalogueSet`` (default: nothing to learn).
