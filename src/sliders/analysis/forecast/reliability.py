@@ -71,7 +71,7 @@ def coverage_report(forecaster, cset, rows, leads, path: str | None = None,
     -------
     dict
         ``all_cuts``, ``per_tilt_bin``, ``per_events_bin`` (coverage and n),
-        ``per_lead`` (coverage, median |error| in radians, n, keyed by the
+        ``per_lead`` (coverage, median absolute error in radians, n, keyed by the
         lead in degrees), ``reliability`` (the diagram of P(within delta)).
     """
     sub = cset.subset(np.asarray(rows))
