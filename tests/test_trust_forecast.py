@@ -58,9 +58,7 @@ mode = "explore"
 [axes]
 xi = [0.0, 0.001]
 """
-MODEL, TABLE, METRICS = "forecaster.pkl", "forecast_table.md", "forecast_metrics.json"
-FIGURES = [f"forecast_{n}.{ext}" for n in ("error", "coverage", "convergence", "roc")
-           for ext in ("png", "pdf")]
+MODEL, TABLE, METRICS, FIGURES = rf.MODEL_NAME, rf.TABLE_NAME, rf.METRICS_NAME, rf.FIGURE_NAMES
 CATALOGUE = "angle [deg],size\n" + "".join(f"{a:.2f},1\n" for a in np.linspace(1, 12, 30))
 
 
@@ -387,16 +385,18 @@ def test_kill9_while_a_figure_is_written_leaves_the_previous_figures(out, prior)
 
 def test_kill9_while_publishing_is_completed_by_the_next_claim(out, prior, tmp_path, capsys):
     """Killed after the set's record and its first rename: the next holder of the folder (here
-    an evaluation refused after its claim) finishes the publication, so every file is the
-    killed run's (seed 1), none the previous run's (seed 0)."""
+    an evaluation refused after its claim) finishes the publication, so the metrics, the model
+    and the figures are all the killed run's (seed 1), none the previous run's (seed 0)."""
+    before = snapshot(out)
     killed_run(prior, out, "os", "replace", 2, "pass", "--seed", "1")
     (tmp_path / "not_a_prior.h5").write_text("text")
     code, err = forecast_main(capsys, "evaluate", "--data", tmp_path / "not_a_prior.h5",
                               "--out", out)
     assert code == 2 and "finished publishing" in err, err
     metrics = json.loads((out / METRICS).read_text())
-    _, head = forecast_files.load_model(str(out / MODEL))
-    assert "--seed 1" in metrics["provenance"]["command"] and "--seed 1" in head["command"]
+    assert "--seed 1" in metrics["provenance"]["command"]
+    after = snapshot(out)
+    assert all(after[name] != before[name] for name in [MODEL, *FIGURES])
     assert leftovers(out) == []
 
 

@@ -32,7 +32,6 @@ import zlib
 
 import numpy as np
 
-from .._version import __version__
 from .catalogue import Catalogue
 from .safeio import (_fsync_dir, leftover_temporaries, publish_bytes, resolve_target,
                      temporary_beside)
@@ -74,6 +73,8 @@ def load_model(path: str):
         raise ForecastInputError(f"{path}: not a forecaster file of sliders")
     if zlib.crc32(blob) != head.get("crc32"):
         raise ForecastInputError(f"{path}: checksum mismatch (damaged file)")
+    from .._version import __version__
+
     try:
         models = pickle.loads(blob)
     except (AttributeError, ImportError, IndexError, KeyError, TypeError, ValueError, EOFError,
@@ -219,6 +220,16 @@ def complete_publication(folder: str) -> int:
 # ---------------------------------------------------------------------------
 ANGLE_UNITS = {"deg": math.pi / 180.0, "degree": math.pi / 180.0, "degrees": math.pi / 180.0,
                "rad": 1.0, "radian": 1.0, "radians": 1.0}
+
+
+def _column_name(raw: str) -> tuple[str, str | None]:
+    raw = raw.strip()
+    if "[" in raw and raw.endswith("]"):
+        name, unit = raw[:-1].split("[", 1)
+        return name.strip().lower(), unit.strip().lower()
+    return raw.lower(), None
+
+
 #: the reader's bounds: a catalogue beyond them is refused while it is read, before it can
 #: fill the memory (1e6 events take 40 MB here; a laboratory catalogue holds thousands)
 MAX_CATALOGUE_BYTES = 64 * 2**20
@@ -229,14 +240,6 @@ MAX_FIELD_CHARS = 64
 MAX_WHOLE = 2**53
 COLUMNS = ("angle", "size", "displacement", "first", "last")
 WHOLE_COLUMNS = {"size": 1, "first": 0, "last": 0}  # column -> its least value
-
-
-def _column_name(raw: str) -> tuple[str, str | None]:
-    raw = raw.strip()
-    if "[" in raw and raw.endswith("]"):
-        name, unit = raw[:-1].split("[", 1)
-        return name.strip().lower(), unit.strip().lower()
-    return raw.lower(), None
 
 
 @contextlib.contextmanager
