@@ -112,6 +112,16 @@ def test_a_skops_file_naming_an_unlisted_type_is_refused(tmp_path, predict):
     assert out.returncode == 2 and not marker.exists() and out.stderr.count("\n") == 1
 
 
+def test_a_model_file_holding_something_else_is_one_line(tmp_path, predict):
+    path = tmp_path / "wrong.skops"
+    save_forecasters(str(path), {"learned_blind": np.arange(3)}, {"rows": 1})
+    catalogue = tmp_path / "c.csv"
+    catalogue.write_text("angle [deg],size\n1,1\n2,1\n")
+    out = predict([str(catalogue), "--model", str(path)])
+    assert out.returncode == 2 and out.stderr.count("\n") == 1
+    assert "not the fitted forecasters" in out.stderr and "'learned_blind'" in out.stderr
+
+
 def test_the_default_model_is_never_taken_from_the_current_folder(tmp_path, predict):
     path = default_model_path()
     assert "site-packages" in str(path) or "src" in str(path)

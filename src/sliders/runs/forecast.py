@@ -706,6 +706,12 @@ def load_predict_model(args):
         models, prov = load_forecasters(path)
     except ModelFileError as exc:
         raise ForecastInputError(str(exc)) from None
+    from ..analysis.forecast import Forecaster
+
+    wrong = next((k for k, f in models.items() if not isinstance(f, Forecaster)), None)
+    if wrong is not None:
+        raise ForecastInputError(f"{path}: {wrong!r} holds a {type(models[wrong]).__name__}, not "
+                                 "the fitted forecasters a model file holds")
     if "learned_blind" not in models:
         raise ForecastInputError(f"{path}: no forecaster of angles and sizes (learned_blind) in it")
     return path, models, prov
