@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
-# The forecasting evaluation of issue 24 (docs/forecasting.md) from one script, on NP ranks:
+# The forecasting evaluation (docs/forecasting_results.md) from one script, on NP ranks:
 #   1. the prior ensembles (python -m sliders.prior): R rows of the default prior, split by
 #      realisation into training, validation and test (0.5 / 0.1 / 0.4: 2000 test rows at
 #      R = 5000), and RR test-only rows of each other preparation (initial_forces = "zero",
 #      and "history": the last stable state before an avalanche, tilted back to zero);
 #   2. python -m sliders.forecast evaluate: fits every forecaster, prints the table, writes
-#      forecast_table.md, forecast_metrics.json, forecaster.pkl (for predict) and the figures.
+#      forecast_table.md, forecast_metrics.json, forecaster.skops (for predict) and the figures.
 #
 #   bash mpi_runs/forecast.sh                        # NP=2, R=5000, RR=500, explore mode
 #   R=2000 RR=300 OUT=/tmp/fc bash mpi_runs/forecast.sh
@@ -31,7 +31,7 @@ cd "$ROOT"
 
 write_prior() {  # write_prior NAME ROWS SEED INITIAL_FORCES
   cat > "$OUT/priors/$1.toml" <<TOML
-# written by mpi_runs/forecast.sh: the default prior of issue 24, preparation "$4"
+# written by mpi_runs/forecast.sh: the evaluation's default prior, preparation "$4"
 [prior]
 realisations = $2
 design = "sobol"

@@ -22,8 +22,8 @@ APT_PACKAGES=(gfortran mpich libmpich-dev libhdf5-mpich-dev pkg-config)
 # sphinx, numpydoc, myst-nb (+ ipykernel to execute the tutorial): tests/test_docs.py builds the
 # documentation with warnings as errors; sybil: tests/test_docs_commands.py runs every page's commands
 PY_DEPS=(meson-python meson ninja numpy scipy pytest matplotlib xarray h5netcdf sphinx numpydoc myst-nb ipykernel
-         scikit-learn  # scikit-learn: the learned forecasters (sliders.analysis.forecast)
-         sybil)
+         scikit-learn skops crepes  # the learned forecasters: scikit-learn, skops (their model
+         sybil)                     # files, read as data), crepes (their conformal calibration)
 H5PY_BUILD_DEPS=(cython pkgconfig "setuptools>=77")
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)

@@ -12,6 +12,7 @@ from sliders.analysis.forecast import (LEVELS, Climatology, ConditionedClimatolo
                                        LastEventPlusLead, LinearInverseRate, Now,
                                        PointProcessInverseRate, training_cuts)
 from sliders.analysis.forecast.base import pinball_crps, probability_within
+from sliders.analysis.forecast.baselines import conditioned_quantiles
 from sliders.analysis.forecast.evaluation import split_rows
 from sliders.analysis.forecast.learned import Learned
 from sliders.analysis.forecast.physics import ModelBased, PaperRule, transition_angle
@@ -96,9 +97,9 @@ def test_learned_forecaster_is_deterministic_with_a_fixed_seed():
     train = synthetic_set(30, seed=1)
     test = synthetic_set(5, seed=2)
     cuts = Cuts.from_set(test, np.arange(5), test.alpha_c - 0.03)
-    a = Learned(draws_per_row=8, max_iter=15, seed=3).fit(train).quantiles(cuts)[0]
-    b = Learned(draws_per_row=8, max_iter=15, seed=3).fit(train).quantiles(cuts)[0]
-    c = Learned(draws_per_row=8, max_iter=15, seed=4).fit(train).quantiles(cuts)[0]
+    a = Learned(draws_per_row=8, max_iter=15, random_state=3).fit(train).quantiles(cuts)[0]
+    b = Learned(draws_per_row=8, max_iter=15, random_state=3).fit(train).quantiles(cuts)[0]
+    c = Learned(draws_per_row=8, max_iter=15, random_state=4).fit(train).quantiles(cuts)[0]
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
     assert np.all(np.diff(a, axis=1) >= 0) and np.all(a > cuts.tilt_now[:, None])
@@ -169,15 +170,18 @@ def test_paper_rule_and_model_based_on_simulated_runs():
         assert q.shape == (4, LEVELS.size) and np.all(q >= cuts.tilt_now[:, None])
 
 
-def test_learned_forecaster_falls_back_outside_its_training_domain():
-    """A pile silent at a tilt where every training run had events (another preparation) gets the
-    conditioned climatology, marked as a fallback, not an extrapolation."""
-    train = synthetic_set(40, seed=1)
-    f = Learned(draws_per_row=8, max_iter=10, seed=0).fit(train)
-    silent = Catalogue([], [], [], [], [], tilt_now=0.35)
-    q, fb = f.quantiles(Cuts.from_catalogues([silent]))
-    assert fb[0] and np.all(q >= 0.35)
-    qc, _ = ConditionedClimatology().fit(train).quantiles(Cuts.from_catalogues([silent]))
-    assert np.allclose(q, qc)
+def test_learned_forecaster_widens_its_interval_outside_its_training_domain():
+    """A tilt above every training avalanche angle is out of the domain: the interval is widened
+    to hold the conditioned climatology's, marked, with the reason; a training-like cut is not."""
+    train = synthetic_set(60, seed=1)
+    f = Learned(inputs="angles_sizes", draws_per_row=8, max_iter=10, random_state=0).fit(train)
+    late = rate_law_catalogue(0.9, 60.0, 0.8)
+    cuts = Cuts.from_catalogues([late])
+    inside, why = f.domain(cuts)
+    assert not inside[0] and "above" in why[0]
+    q, fb = f.quantiles(cuts)
+    assert fb[0] and np.all(q >= 0.8)
+    qc, _ = conditioned_quantiles(f.climatology_.alpha_c_, cuts.tilt_now)
+    assert q[0, 1] <= qc[0, 1] and q[0, -2] >= qc[0, -2]
     busy = train.catalogue(0).cut(0.2)
-    assert not f.quantiles(Cuts.from_catalogues([busy]))[1][0]
+    assert f.domain(Cuts.from_catalogues([busy]))[0][0]

@@ -179,3 +179,79 @@ def draw_all(results: dict, example: dict, out_dir) -> list[str]:
     paths += figure_convergence(example, out_dir)
     paths += figure_roc(results, out_dir)
     return paths
+
+
+# ---------------------------------------------------------------------------
+# the shipped forecaster measured on held-out rows (benchmarks/forecast_skill.py)
+# ---------------------------------------------------------------------------
+def figure_lead_coverage(report, out_dir, name="forecast_lead_coverage"):
+    """Coverage of the 80 % interval against the lead (stress test), and the reliability diagram."""
+    import matplotlib.pyplot as plt
+
+    with plt.rc_context(STYLE):
+        fig, axes = plt.subplots(1, 2, figsize=(2 * COLUMN_WIDTH, 1.05 * COLUMN_WIDTH),
+                                 layout="constrained")
+        ax = axes[0]
+        ax.axhspan(0.77, 0.83, color="0.85", label="target over all cuts (0.77-0.83)")
+        ax.axhline(0.70, color="0.4", ls=":", lw=1, label="floor at every lead (0.70)")
+        for key, label, (colour, _) in (("coverage", "angles + sizes", SHOWN["learned_blind"]),
+                                        ("coverage_all_inputs", "+ displacements, positions",
+                                         SHOWN["learned"])):
+            per = report[key]["per_lead"]
+            leads = np.array([float(k) for k in per])
+            ax.plot(leads, [v["coverage"] for v in per.values()], "o-", color=colour, label=label)
+        ax.set_xscale("log")
+        ax.set_xlabel("lead before the avalanche (deg)")
+        ax.set_ylabel("coverage of the 80 % interval")
+        ax.set_ylim(0, 1)
+        ax.legend(loc="lower right", fontsize="small")
+        panel_label(ax, "a")
+        ax = axes[1]
+        ax.plot([0, 1], [0, 1], color="0.5", ls="--", lw=1, label="perfect")
+        rel = report["coverage"]["reliability"]["bins"]
+        ax.plot([b["p_mean"] for b in rel], [b["observed"] for b in rel], "o-",
+                color=SHOWN["learned_blind"][0], label="angles + sizes")
+        ax.set_xlabel("forecast P(avalanche within 1°)")
+        ax.set_ylabel("observed frequency")
+        ax.legend(loc="lower right", fontsize="small")
+        panel_label(ax, "b")
+        paths = save_figure(fig, out_dir, name, palette_png=True)
+        plt.close(fig)
+    return paths
+
+
+def figure_degradation(report, out_dir, name="forecast_degradation"):
+    """Skill at 3° (error over the conditioned climatology's) and coverage, per measurement."""
+    import matplotlib.pyplot as plt
+
+    labels = list(report["degradation"])
+    ratio = [report["degradation"][k]["vs_conditioned"] for k in labels]
+    cover = [report["degradation"][k]["coverage"] for k in labels]
+    y = np.arange(len(labels))[::-1]
+    with plt.rc_context(STYLE):
+        fig, axes = plt.subplots(1, 2, figsize=(2 * COLUMN_WIDTH, 1.1 * COLUMN_WIDTH),
+                                 sharey=True, layout="constrained")
+        axes[0].barh(y, ratio, color=SHOWN["learned_blind"][0])
+        axes[0].axvline(0.4, color="0.3", ls=":", lw=1, label="target 0.4")
+        axes[0].axvline(1.0, color="0.6", ls="--", lw=1, label="conditioned climatology")
+        axes[0].set_yticks(y, labels)
+        axes[0].set_xlabel("median |error| / conditioned climatology's")
+        axes[0].legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize="small",
+                       frameon=False)
+        axes[1].barh(y, cover, color=SHOWN["learned"][0])
+        axes[1].axvline(0.75, color="0.3", ls=":", lw=1, label="target 0.75")
+        axes[1].axvline(0.8, color="0.6", ls="--", lw=1, label="nominal 0.8")
+        axes[1].set_xlim(0, 1)
+        axes[1].set_xlabel("coverage of the 80 % interval")
+        axes[1].legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize="small",
+                       frameon=False)
+        panel_label(axes[0], "a")
+        panel_label(axes[1], "b")
+        paths = save_figure(fig, out_dir, name, palette_png=True)
+        plt.close(fig)
+    return paths
+
+
+def draw_measured(report, out_dir) -> list:
+    """Both figures of the measured forecaster; returns the paths written."""
+    return figure_lead_coverage(report, out_dir) + figure_degradation(report, out_dir)

@@ -3,14 +3,17 @@
     python -m sliders.forecast evaluate --data prior.h5 --robust zero=zero.h5 --out results/forecast
     python -m sliders.forecast evaluate --dev 300 --out /tmp/forecast      # serial development data
     python -m sliders.forecast predict CATALOGUE.csv [--tilt-now ANGLE] [--json] [--model FILE]
+    python -m sliders.forecast predict CATALOGUE.csv --method all --size-unit arbitrary --verbose
+    python -m sliders.forecast train --prior my.toml --out my_model.skops --np 2
+    python -m sliders.forecast catalogue --data prior.h5 --row 7 --lead 3deg --out row7.csv
 
 ``evaluate`` splits the prior ensemble by realisation (train, validation,
 test), fits every forecaster on the training part (the learned ones are
 recalibrated on the validation part), cuts the test realisations at leads
 before their avalanche and at fixed tilts, prints the table of metrics with
 bootstrap intervals, writes it (markdown and JSON, with provenance) and
-draws the figures; the catalogue-only learned forecaster is kept for
-``predict``.  The data are prior ensembles (``python -m sliders.prior``,
+draws the figures; the forecasters ``predict`` offers are kept in a model
+file (``io.forecast_model``, data and not code).  The data are prior ensembles (``python -m sliders.prior``,
 ``sliders.io.prior_file``) or, for development, a small set run here
 (``dev_catalogue_set``).
 
@@ -19,7 +22,8 @@ catalogue"): a CSV file with a header, one event per row, columns
 ``angle [deg]`` or ``angle [rad]`` (increasing), ``size`` (sliders or grains
 moved, >= 1), optionally ``displacement``, ``first`` and ``last`` (0-based
 positions of the first and last mover).  Bad input gets one line naming the
-row and the column.
+row and the column.  Without ``--model`` it uses the forecaster shipped in the
+package.  ``train`` and ``catalogue``: ``sliders.runs.forecast_train``.
 
 Every subcommand runs inside one error boundary (``main``): parse, check the
 options, check the inputs and outputs, compute, publish; every failure is one
@@ -48,9 +52,14 @@ from .._version import __version__
 from ..io.catalogue import Catalogue, CatalogueSet
 from ..io.filelock import ClaimError
 from ..io.forecast_files import (ANGLE_UNITS, MODEL_FORMAT, ForecastInputError,  # noqa: F401
-                                load_model, model_bytes, parse_angle, read_catalogue_csv, save_model,
+                                parse_angle, read_catalogue_csv,
                                 tilt_in_range)
 from ..io.safeio import describe_os_error, os_reason
+from ..analysis.forecast.registry import (METHODS, fit_sharing_cuts, make_forecasters, method_of,
+                                          names_where)
+from ..io.forecast_model import forecasters_bytes
+from . import forecast_train
+from .forecast_train import add_catalogue_arguments, add_train_arguments
 
 #: the issue's example prior (the prior ensembles' default): name -> (law, bounds)
 DEV_PRIOR = {"mu_d": ("uniform", (0.3, 0.8)), "mu_s_minus_mu_d": ("loguniform", (0.02, 0.12)),
@@ -128,31 +137,10 @@ DEFAULT_LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0)
 DEFAULT_TILTS = (0.1, 0.2, 0.3, 0.4, 0.5)
 #: the alarm: "the avalanche within DELTA", judged every STEP over the last WINDOW, degrees
 ALARM_DELTA_DEG, ALARM_WINDOW_DEG, ALARM_STEP_DEG = 1.0, 6.0, 0.25
-#: forecasters whose alarm is run (the others are too slow to run at every step, or baselines)
-ALARM_FORECASTERS = ("conditioned", "ffm_linear_disp", "ffm_ml_disp_p", "paper_rule", "model_based",
-                     "learned", "learned_blind", "ceiling", "told_mu_d")
-#: the lead at which the issue's targets are stated, degrees
+#: the lead at which the forecasters' targets are stated, degrees
 TARGET_LEAD_DEG = 3.0
 
 
-
-
-def make_forecasters(has_ceiling: bool, max_iter: int, seed: int) -> list:
-    """Every forecaster of the evaluation, unfitted (the ceiling only if the data hold it)."""
-    from ..analysis.forecast import (Climatology, ConditionedClimatology, LastEventPlusLead,
-                                     LinearInverseRate, Now, PointProcessInverseRate)
-    from ..analysis.forecast.learned import Ceiling, Learned, ToldMuD
-    from ..analysis.forecast.physics import ModelBased, PaperRule
-
-    fs = [Climatology(), ConditionedClimatology(), Now(), LastEventPlusLead(),
-          LinearInverseRate("events"), PointProcessInverseRate("events"),
-          LinearInverseRate("displacement"), PointProcessInverseRate("displacement", None),
-          PaperRule(), ModelBased(), Learned(max_iter=max_iter, seed=seed),
-          Learned(max_iter=max_iter, seed=seed, inputs="angles_sizes")]
-    if has_ceiling:
-        fs.append(Ceiling(max_iter=max_iter, seed=seed))
-    fs.append(ToldMuD(max_iter=max_iter, seed=seed))
-    return fs
 
 
 def _fmt(triple, scale=1.0, nd=3):
@@ -215,6 +203,10 @@ def provenance(argv) -> dict:
             "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 
 
+#: the forecasters a model file holds (their names)
+METHOD_NAMES = {f.name for f in make_forecasters(methods_only=True)}
+
+
 def evaluate(args, argv) -> int:
     """The whole evaluation (module docstring): options checked, inputs read and checked, every
     forecaster fitted and scored, the table printed, the outputs published as one set."""
@@ -240,7 +232,7 @@ def evaluate(args, argv) -> int:
 # evaluate: the checks before anything is read or fitted
 # ---------------------------------------------------------------------------
 #: the files an evaluation writes: in --out, and the figures (png and pdf) in --figures
-TABLE_NAME, METRICS_NAME, MODEL_NAME = "forecast_table.md", "forecast_metrics.json", "forecaster.pkl"
+TABLE_NAME, METRICS_NAME, MODEL_NAME = "forecast_table.md", "forecast_metrics.json", "forecaster.skops"
 FIGURE_NAMES = tuple(f"forecast_{n}.{ext}" for n in ("error", "coverage", "convergence", "roc")
                      for ext in ("png", "pdf"))
 #: realisations that reached the avalanche each part of the split needs (the fits, the calibration)
@@ -428,20 +420,13 @@ def fit_forecasters(args, data: CatalogueSet, split, log) -> tuple[list, dict]:
         forecasters = [f for f in forecasters if f.name in keep]
     train, valid = data.subset(split.train), data.subset(split.validation)
     timing = {}
-    shared = {}  # the learned forecasters' training and validation cuts, drawn once
+    shared = {}  # the learned forecasters' training and calibration cuts, drawn once per kind
     for f in forecasters:
         t = time.time()
-        if hasattr(f, "calibrate"):
-            if not shared:
-                from ..analysis.forecast import training_cuts
-
-                shared["train"] = training_cuts(train, f.draws_per_row, np.random.default_rng(args.seed))
-                shared["valid"] = training_cuts(valid, f.draws_per_row,
-                                                np.random.default_rng(args.seed + 1))
-            f.fit(train, cuts=shared["train"])
-            f.calibrate(valid, cuts=shared["valid"])
+        if hasattr(f, "training_cuts"):
+            fit_sharing_cuts(f, train, valid, shared, args.seed)
         else:
-            f.fit(train, rng=np.random.default_rng(args.seed))
+            f.fit(train)
         timing[f.name] = time.time() - t
         log(f"forecast: fitted {f.name} in {timing[f.name]:.1f} s")
     return forecasters, timing
@@ -538,7 +523,7 @@ def score_alarm(args, data, split, forecasters, labels, results, log) -> list[st
     alarm = {}
     thresholds = np.linspace(0.0, 1.0, 101)
     for f in forecasters:
-        if f.name not in ALARM_FORECASTERS or any(getattr(cuts, n) is None for n in f.needs):
+        if f.name not in names_where("alarm") or any(getattr(cuts, n) is None for n in f.needs):
             continue
         t = time.time()
         q, _ = f.quantiles(cuts)
@@ -578,9 +563,11 @@ def publish_evaluation(args, argv, outputs, inputs, results, text, forecasters, 
     with OutputSet(resolve_target(args.out).real, inputs) as staged:
         staged.add(outputs[TABLE_NAME], (text + "\n").encode())
         staged.add(outputs[METRICS_NAME], (json.dumps(_jsonable(results), indent=1) + "\n").encode())
-        kept = {f.name: f for f in forecasters if f.name in ("learned", "learned_blind")}
+        kept = {method_of(f): f for f in forecasters if f.name in METHOD_NAMES}
         if kept:
-            staged.add(outputs[MODEL_NAME], model_bytes(kept, provenance(argv)))
+            staged.add(outputs[MODEL_NAME], forecasters_bytes(
+                kept, provenance(argv) | {"rows": int(len(split.train)), "prior": data.attrs.get(
+                    "prior_digest", "dev"), "mode": str(data.attrs.get("mode", "explore"))}))
         if not args.no_figures:
             from ..figures.forecast import draw_all
 
@@ -608,9 +595,7 @@ def _convergence_example(data, test_rows, forecasters, seed):
     cuts = Cuts.from_set(data, np.full(tilts.size, r), tilts)
     out = {}
     for f in forecasters:
-        if f.name in ("learned", "learned_blind", "conditioned", "ffm_ml_disp_p", "ffm_linear_disp",
-                      "paper_rule", "ceiling", "told_mu_d", "model_based") and \
-                not any(getattr(cuts, n) is None for n in f.needs):
+        if f.name in names_where("example") and not any(getattr(cuts, n) is None for n in f.needs):
             out[f.name] = f.quantiles(cuts)[0]
     return {"tilts": tilts, "alpha_c": a_c, "row": r, "forecasts": out,
             "labels": {f.name: f.label for f in forecasters},
@@ -618,44 +603,143 @@ def _convergence_example(data, test_rows, forecasters, seed):
 
 
 # ---------------------------------------------------------------------------
-# the model kept for predict
+# predict: a measured catalogue
 # ---------------------------------------------------------------------------
-DEFAULT_MODEL = os.path.join("results", "forecast", "forecaster.pkl")
+#: the choices of ``predict --method`` (the registry's): "learned" picks the learned forecaster
+#: for the columns given (every feature, or angles and sizes only)
+PREDICT_METHODS = ("learned", *(m for m in METHODS if m not in ("learned", "learned_blind")), "all")
+#: why a method gave no forecast of its own (printed with the fallback)
+FALLBACK_REASONS = {
+    "ffm": "no acceleration of the rate in the last half of the tilt range seen (or fewer than "
+           "10 events there): the conditioned climatology is given instead",
+    "conditioned": "the conditioned climatology is the fallback itself",
+    "no_displacement": "the catalogue has no displacement column: the conditioned climatology "
+                       "is given instead",
+    "model_based": "no lone-slider slips (they need the displacement and first/last columns) "
+                   "and too few early events to estimate mu_d: the conditioned climatology is "
+                   "given instead",
+    "learned": "out of the training domain: the interval is widened to hold the conditioned "
+               "climatology's too",
+}
 
 
 def predict(args, argv=None) -> int:
-    """Forecast a measured catalogue: print the forecast (or one JSON object)."""
+    """Forecast a measured catalogue: every method asked, the domain, the model's provenance."""
+    from ..analysis.forecast import Cuts
+
     check_predict_options(args)
+    measurement = measurement_of(args)
     cat = read_catalogue_csv(args.catalogue, tilt_now_text=args.tilt_now)
-    if not os.path.exists(args.model):
-        raise ForecastInputError(f"{args.model}: no fitted forecaster there; train one with "
-                                 "`bash mpi_runs/forecast.sh` (or python -m sliders.forecast "
-                                 "evaluate), or pass --model FILE")
-    models, head = load_model(args.model)
-    complete = not np.isnan(cat.displacement).any() and (cat.first >= 0).all()
-    # displacement (in g tau^2) and positions: every feature; else angles and sizes only
-    model = models["learned"] if complete and "learned" in models else models.get("learned_blind")
-    if model is None:
-        raise ForecastInputError(f"{args.model}: no forecaster for a catalogue without displacement "
-                                 "and first/last columns")
-    if not complete:
+    path, models, prov = load_predict_model(args)
+    complete = not np.isnan(cat.displacement).any() and bool((cat.first >= 0).all())
+    if not complete:  # angles and sizes only: no displacement, no movers
         cat = Catalogue(cat.alpha, cat.size, np.zeros(len(cat)), np.full(len(cat), -1),
                         np.full(len(cat), -1), cat.tilt_now)
-    f = model.predict(cat)
+    learned = models["learned"] if complete and "learned" in models else models["learned_blind"]
+    try:
+        inside, reasons = learned.domain(Cuts.from_catalogues([cat], measurement))
+        chosen = {m: learned if m == "learned" else models[m] for m in
+                  (PREDICT_METHODS[:-1] if args.method == "all" else (args.method,))
+                  if m == "learned" or m in models}
+        forecasts = [(m, f, f.predict(cat, measurement)) for m, f in chosen.items()]
+    except AttributeError:  # a forecaster of another version lacks what this one reads
+        raise ForecastInputError(f"{path}: written by sliders {prov.get('sliders', '?')}, whose "
+                                 "forecasters this version cannot use; train it again") from None
+    in_domain, reason = bool(inside[0]), reasons[0]
+    top = float(learned.climatology_.alpha_c_[-1])
+    if in_domain and any(fc.point > top for _, _, fc in forecasts):
+        in_domain = False
+        reason = (f"a forecast lies above every training avalanche angle ({math.degrees(top):.2f}°)")
     within = math.radians(args.within)
-    d = f.as_dict(within) | {"model": os.path.abspath(args.model), "events": len(cat)}
+    report = {"in_domain": in_domain, "domain_reason": reason, "events": len(cat),
+              "measurement": vars_of(measurement), "model": {"path": str(path), **prov},
+              "methods": {m: fc.as_dict(within) | {"label": f.label,
+                                                   "fallback_reason": fallback_reason(m, fc, complete)}
+                          for m, f, fc in forecasts}}
+    first = forecasts[0][2].as_dict(within)
     if args.json:
-        print(json.dumps(_jsonable(d)))
+        print(json.dumps(_jsonable(first | report)))
     else:
-        lo, hi = f.interval
-        deg = math.degrees
-        print(f"forecaster: {model.label} ({args.model})")
-        print(f"events: {len(cat)}, tilt reached: {f.tilt_now:.4f} rad ({deg(f.tilt_now):.2f}°)")
-        print(f"avalanche angle: {f.point:.4f} rad ({deg(f.point):.2f}°), 80 % interval "
-              f"{lo:.4f}-{hi:.4f} rad ({deg(lo):.2f}-{deg(hi):.2f}°)")
-        print(f"probability of the avalanche within the next {args.within:g}°: "
-              f"{d['probability_within']:.2f}")
+        print_forecasts(args, report, forecasts, path, prov, complete)
     return 0
+
+
+def measurement_of(args):
+    """The ``Measurement`` the flags of ``predict`` describe (one line naming a bad flag)."""
+    from ..analysis.forecast import Measurement
+
+    try:
+        return Measurement(math.radians(args.angle_resolution), args.min_size,
+                           args.missed_fraction, args.size_unit)
+    except ValueError as exc:
+        raise ForecastInputError(f"measurement flags: {exc}") from None
+
+
+def vars_of(measurement) -> dict:
+    """The measurement as JSON values (the angle error in degrees, as given)."""
+    return {"angle_resolution_deg": math.degrees(measurement.angle_resolution),
+            "min_size": measurement.min_size, "missed_fraction": measurement.missed_fraction,
+            "size_unit": measurement.size_unit}
+
+
+def fallback_reason(method: str, forecast, complete: bool = True) -> str | None:
+    """Why ``forecast`` is a fallback (None if it is the method's own); ``complete``: the
+    catalogue has displacements and movers."""
+    if not forecast.fallback:
+        return None
+    if not complete and method.endswith("_disp"):
+        return FALLBACK_REASONS["no_displacement"]
+    return FALLBACK_REASONS.get("ffm" if method.startswith("ffm") else method,
+                                FALLBACK_REASONS["learned"])
+
+
+def load_predict_model(args):
+    """The model file of ``--model`` (default: the one shipped in the package), read as data."""
+    from ..io.forecast_model import ModelFileError, default_model_path, load_forecasters
+
+    path = default_model_path() if args.model is None else args.model
+    if args.model is None and not path.is_file():
+        raise ForecastInputError(f"{path}: the default forecaster is missing from this "
+                                 "installation; reinstall sliders, or train one with python -m "
+                                 "sliders.forecast train and pass --model FILE")
+    try:
+        models, prov = load_forecasters(path)
+    except ModelFileError as exc:
+        raise ForecastInputError(str(exc)) from None
+    from ..analysis.forecast import Forecaster
+
+    wrong = next((k for k, f in models.items() if not isinstance(f, Forecaster)), None)
+    if wrong is not None:
+        raise ForecastInputError(f"{path}: {wrong!r} holds a {type(models[wrong]).__name__}, not "
+                                 "the fitted forecasters a model file holds")
+    if "learned_blind" not in models:
+        raise ForecastInputError(f"{path}: no forecaster of angles and sizes (learned_blind) in it")
+    return path, models, prov
+
+
+def print_forecasts(args, report: dict, forecasts, path, prov, complete: bool) -> None:
+    """The text output: one block per method, the domain line, the provenance if ``--verbose``."""
+    deg = math.degrees
+    first = forecasts[0][2]
+    print(f"events: {report['events']}, tilt reached: {first.tilt_now:.4f} rad "
+          f"({deg(first.tilt_now):.2f}°)")
+    if not report["in_domain"]:
+        print(f"OUT OF THE TRAINING DOMAIN: {report['domain_reason']}; the learned interval is "
+              "widened to hold the conditioned climatology's too, and no forecast here is "
+              "calibrated: retrain on a prior that holds this pile (python -m sliders.forecast train)")
+    for method, f, fc in forecasts:
+        lo, hi = fc.interval
+        print(f"{method} ({f.label}): avalanche angle {fc.point:.4f} rad ({deg(fc.point):.2f}°), "
+              f"80 % interval {lo:.4f}-{hi:.4f} rad ({deg(lo):.2f}-{deg(hi):.2f}°), "
+              f"P(within the next {args.within:g}°) = {fc.probability_within(math.radians(args.within)):.2f}")
+        why = fallback_reason(method, fc, complete)
+        if why:
+            print(f"  fallback: {why}")
+    print(f"model: {path} ({prov.get('rows', '?')} training rows, "
+          f"{prov.get('created', '?')})")
+    if args.verbose:
+        for k, v in prov.items():
+            print(f"  {k}: {f'{len(v)} rows' if k == 'held_out_rows' else v}")
 
 
 def check_predict_options(args) -> None:
@@ -689,6 +773,10 @@ def build_parser() -> argparse.ArgumentParser:
         "evaluate", help="fit, test and score every forecaster; table and figures"))
     add_predict_arguments(sub.add_parser(
         "predict", help="forecast the avalanche angle of a measured catalogue"))
+    add_train_arguments(sub.add_parser(
+        "train", help="run a prior ensemble and fit the forecasters of a model file"))
+    add_catalogue_arguments(sub.add_parser(
+        "catalogue", help="write a simulated row as a catalogue CSV cut at a tilt or lead"))
     return p
 
 
@@ -723,13 +811,28 @@ def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
                     help="tilt reached, e.g. 27.5deg (default: the last event's angle)")
     pr.add_argument("--within", type=float, default=ALARM_DELTA_DEG, metavar="DEG",
                     help="the alarm's horizon, degrees")
-    pr.add_argument("--model", default=DEFAULT_MODEL, help="forecaster written by evaluate")
+    pr.add_argument("--model", default=None, metavar="FILE",
+                    help="model file written by train or evaluate (default: the one shipped "
+                         "inside the package)")
+    pr.add_argument("--method", default="learned", choices=PREDICT_METHODS,
+                    help="the forecaster (all: every one side by side)")
+    pr.add_argument("--angle-resolution", type=float, default=0.0, metavar="DEG",
+                    help="standard deviation of each measured angle's error, degrees")
+    pr.add_argument("--min-size", type=float, default=1.0, metavar="SIZE",
+                    help="smallest event size detected, in the size column's unit")
+    pr.add_argument("--missed-fraction", type=float, default=0.0, metavar="SHARE",
+                    help="share of events missed at random, in [0, 1)")
+    pr.add_argument("--size-unit", default="sliders", choices=("sliders", "arbitrary"),
+                    help="sizes count sliders, or are in an unknown unit (grains, area, pixels)")
     pr.add_argument("--json", action="store_true", help="one JSON object (radians)")
+    pr.add_argument("--verbose", action="store_true", help="print the model's whole provenance")
 
 
 #: subcommand -> its function ``f(args, argv) -> exit status``; a new subcommand adds its parser
 #: in ``build_parser`` and its entry here, and raises ForecastInputError for bad input
-COMMANDS = {"evaluate": evaluate, "predict": predict}
+COMMANDS = {"evaluate": evaluate, "predict": predict,
+            "train": lambda args, argv: forecast_train.train(args, argv, load_set, provenance),
+            "catalogue": lambda args, argv: forecast_train.catalogue(args, argv, load_set)}
 
 
 class Stopped(KeyboardInterrupt):

@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.utils.metadata_routing import UNUSED
 
 #: quantile levels of every forecast (uniform, so that twice their mean pinball
 #: loss approximates the CRPS)
@@ -134,29 +136,38 @@ def pinball_crps(quantiles: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return 2.0 * loss.mean(axis=1)
 
 
-class Forecaster:
-    """A forecaster of ``alpha_c``: ``fit`` on training realisations, then ``quantiles`` of cuts.
+class Forecaster(BaseEstimator):
+    """A forecaster of ``alpha_c``: a scikit-learn estimator, ``fit`` on training realisations.
 
-    Subclasses set ``name`` and ``label`` and implement ``_quantiles``;
-    those that learn override ``fit``.  ``needs`` lists what beyond the
-    catalogue a forecaster uses ("ceiling": every slider's distance to its
-    threshold; "mu_d": the true dynamic friction), which only a simulation
-    has.
+    The scikit-learn rules hold: every parameter is an argument of
+    ``__init__`` stored under its own name (``get_params``, ``clone``),
+    randomness comes from ``random_state``, what ``fit`` learns ends in
+    ``_``, and nothing is written into the inputs.  Subclasses set ``name``
+    and ``label`` (class attributes, or properties of the parameters) and
+    implement ``_quantiles``; those that learn override ``fit``.  ``needs``
+    lists what beyond the catalogue a forecaster uses ("ceiling": every
+    slider's distance to its threshold; "mu_d": the true dynamic friction),
+    which only a simulation has.  ``registry.FORECASTERS`` lists them all.
     """
 
     name = "forecaster"
     label = "forecaster"
     needs: tuple[str, ...] = ()
+    # the arguments of fit and predict are data, not metadata to route through a meta-estimator:
+    # no set_fit_request / set_predict_request
+    __metadata_request__fit = {"train": UNUSED, "validation": UNUSED, "cuts": UNUSED,
+                               "validation_cuts": UNUSED}
+    __metadata_request__predict = {"catalogue": UNUSED, "measurement": UNUSED}
 
-    def fit(self, train, rng=None) -> "Forecaster":
+    def fit(self, train, y=None, **fit_params) -> "Forecaster":
         """Learn from a training ``CatalogueSet`` (default: nothing to learn).
 
         Parameters
         ----------
         train : sliders.io.catalogue.CatalogueSet
             The training realisations (whole runs, avalanche reached).
-        rng : numpy.random.Generator, optional
-            For the random cuts of the learned forecasters.
+        y : None
+            Unused: the truth (``alpha_c``) is in ``train``.
         """
         return self
 
@@ -184,16 +195,16 @@ class Forecaster:
         q = np.sort(np.asarray(q, dtype=float), axis=1)
         return q, np.asarray(fb, dtype=bool)
 
-    def predict(self, catalogue) -> Forecast:
-        """The forecast for one ``Catalogue`` (its ``tilt_now`` is the tilt reached)."""
+    def predict(self, catalogue, measurement=None) -> Forecast:
+        """The forecast for one ``Catalogue`` (its ``tilt_now`` is the tilt reached).
+
+        ``measurement``: how the catalogue was measured
+        (``measurement.Measurement``; default: a perfect record in sliders).
+        """
         from .features import Cuts
 
-        q, fb = self.quantiles(Cuts.from_catalogues([catalogue]))
+        q, fb = self.quantiles(Cuts.from_catalogues([catalogue], measurement))
         return Forecast(q[0], float(catalogue.tilt_now), self.name, bool(fb[0]))
 
     def _quantiles(self, cuts):
         raise NotImplementedError
-
-    def __repr__(self) -> str:
-        """The forecaster's name."""
-        return f"<Forecaster {self.name}>"

@@ -33,7 +33,7 @@ class Climatology(Forecaster):
     name = "climatology"
     label = "climatology"
 
-    def fit(self, train, rng=None):
+    def fit(self, train, y=None):
         """Keep the training realisations' avalanche angles."""
         self.alpha_c_ = _finite_alpha_c(train)
         self.quantiles_ = quantiles_of_sample(self.alpha_c_)
@@ -94,18 +94,20 @@ class LastEventPlusLead(Forecaster):
     ----------
     draws_per_row : int
         Random cuts per training realisation (``training_cuts``).
+    random_state : int
+        Seeds the cuts.
     """
 
     name = "last_plus_lead"
     label = "last event + median lead"
 
-    def __init__(self, draws_per_row: int = 20):
+    def __init__(self, draws_per_row: int = 20, random_state: int = 0):
         self.draws_per_row = draws_per_row
+        self.random_state = random_state
 
-    def fit(self, train, rng=None):
+    def fit(self, train, y=None):
         """Measure the lead, last event to avalanche, on random cuts of the training runs."""
-        rng = np.random.default_rng(0) if rng is None else rng
-        cuts = training_cuts(train, self.draws_per_row, rng)
+        cuts = training_cuts(train, self.draws_per_row, np.random.default_rng(self.random_state))
         self.lead_quantiles_ = quantiles_of_sample(cuts.alpha_c - cuts.last_event)
         return self
 

@@ -45,8 +45,12 @@ class Cuts:
         last stored angle at or below the cut, m g (simulation only).
     mu_d : numpy.ndarray, optional
         (n,) the true dynamic friction coefficient (simulation only).
+    measurement : list of Measurement, optional
+        How each cut was measured (default: a perfect record in sliders).
     cache : dict
-        Features computed once for several forecasters.
+        Features computed once for several forecasters, filled by whoever
+        builds the cuts (``learned.with_design``); forecasters read it and
+        never write into it.
     """
 
     catalogues: list
@@ -54,7 +58,14 @@ class Cuts:
     alpha_c: np.ndarray | None = None
     ceiling: np.ndarray | None = None
     mu_d: np.ndarray | None = None
+    measurement: list | None = None
     cache: dict = field(default_factory=dict, repr=False)
+
+    def measurements(self) -> list:
+        """Each cut's ``Measurement`` (a perfect record where none was given)."""
+        from .measurement import PERFECT
+
+        return [PERFECT] * len(self) if self.measurement is None else list(self.measurement)
 
     def __len__(self) -> int:
         """Number of cuts."""
@@ -71,10 +82,11 @@ class Cuts:
         return np.array([c.alpha[-1] if len(c) else 0.0 for c in self.catalogues], dtype=float)
 
     @classmethod
-    def from_catalogues(cls, catalogues) -> "Cuts":
-        """Cuts of catalogues from any source (no truth, no simulation extras)."""
+    def from_catalogues(cls, catalogues, measurement=None) -> "Cuts":
+        """Cuts of catalogues from any source (no truth, no simulation extras), all measured alike."""
         catalogues = list(catalogues)
-        return cls(catalogues, np.full(len(catalogues), -1, dtype=np.int64))
+        return cls(catalogues, np.full(len(catalogues), -1, dtype=np.int64),
+                   measurement=None if measurement is None else [measurement] * len(catalogues))
 
     @classmethod
     def from_set(cls, cset: CatalogueSet, rows, alpha_obs) -> "Cuts":
@@ -206,12 +218,19 @@ def n_sliders_estimate(cat: Catalogue) -> float:
     return m + m / max(k, 1) - 1.0 if k > 1 else m
 
 
-def catalogue_features(cat: Catalogue) -> dict:
+#: features that count sliders (unknown when sizes are in an arbitrary unit)
+SIZE_IN_SLIDERS = ("moves", "max_size", "max_size_recent", "mean_size_recent", "max_size_frac")
+
+
+def catalogue_features(cat: Catalogue, arbitrary_size: bool = False) -> dict:
     """What a learned forecaster sees of one cut: plain numbers from the events and the tilt.
 
     Angles in radians.  Rates are counted over the recent windows
     ``WINDOWS``; NaN where a feature cannot be computed (the regressor
-    handles missing values).
+    handles missing values).  ``arbitrary_size``: the sizes are in an
+    unknown unit, so every feature counting sliders is NaN and only the
+    ratios of sizes (``size_ratio_*``, invariant under a change of unit)
+    remain.
     """
     t = float(cat.tilt_now)
     n = len(cat)
@@ -254,6 +273,25 @@ def catalogue_features(cat: Catalogue) -> dict:
     f["single_slider_pairs"] = float(pairs.size)
     f["single_slider_agree"] = float(agree)
     f["atan_mu_d_single"] = float(np.arctan(mu_d)) if np.isfinite(mu_d) else np.nan
+    f.update(size_ratios(cat))
+    if arbitrary_size:
+        for k in f:
+            if k in SIZE_IN_SLIDERS or k.startswith(("moves_", "delta_mu", "mu_s_early", "atan_mu")):
+                f[k] = np.nan
+    return f
+
+
+def size_ratios(cat: Catalogue) -> dict:
+    """Sizes relative to the catalogue's mean size: unchanged by any unit of size."""
+    size = cat.size.astype(float)
+    mean = float(size.mean()) if size.size else np.nan
+    t = float(cat.tilt_now)
+    f = {"size_ratio_max": float(size.max()) / mean if size.size else np.nan}
+    for w in (0.01, 0.05):
+        recent = cat.alpha >= t - w
+        f[f"size_ratio_recent_{w:g}"] = float(size[recent].mean()) / mean if recent.any() else np.nan
+    big = size > 2.0 * mean
+    f["share_large"] = float(big.mean()) if size.size else np.nan
     return f
 
 
@@ -274,10 +312,15 @@ def densest_value(estimates, tol: float = AGREE_TOL) -> tuple[float, int]:
 
 
 def feature_matrix(cuts: Cuts) -> tuple[np.ndarray, list[str]]:
-    """(n, F) features of every cut (``catalogue_features``) and their names."""
-    rows = [catalogue_features(c) for c in cuts.catalogues]
+    """(n, F) features of every cut (``catalogue_features`` and the measurement's) and their names."""
+    from .measurement import MEASUREMENT_FEATURES
+
+    meas = cuts.measurements()
+    rows = [catalogue_features(c, m.size_unit == "arbitrary") for c, m in zip(cuts.catalogues, meas)]
     names = list(rows[0]) if rows else list(catalogue_features(Catalogue([], [], [], [], [])))
-    return np.array([[r[k] for k in names] for r in rows], dtype=float).reshape(len(rows), len(names)), names
+    x = np.array([[r[k] for k in names] for r in rows], dtype=float).reshape(len(rows), len(names))
+    mx = np.array([m.as_features(c) for c, m in zip(cuts.catalogues, meas)]).reshape(len(rows), -1)
+    return np.hstack([x, mx]), names + list(MEASUREMENT_FEATURES)
 
 
 def ceiling_features(cuts: Cuts) -> tuple[np.ndarray, list[str]]:

@@ -113,17 +113,29 @@ class _InverseRate(Forecaster):
     """Shared parts: the climatology to fall back on, and the per-catalogue loop."""
 
     def __init__(self, rate: str = "events", exponent=1, fraction: float = 0.5, block: int = 5):
-        if rate not in ("events", "displacement"):
-            raise ValueError(f"rate={rate!r} must be 'events' or 'displacement'")
-        self.rate, self.exponent, self.fraction, self.block = rate, exponent, fraction, block
-        self.name = f"{self.kind}_{'event' if rate == 'events' else 'disp'}" + (
-            "" if exponent == 1 else "_p")
-        self.label = (f"inverse rate {self.label_kind}, {'events' if rate == 'events' else 'displacement'}"
-                      + ("" if exponent == 1 else " (p fitted)"))
+        self.rate = rate
+        self.exponent = exponent
+        self.fraction = fraction
+        self.block = block
 
-    def fit(self, train, rng=None):
+    @property
+    def name(self) -> str:
+        """e.g. ``ffm_ml_event``, ``ffm_linear_disp_p`` (exponent fitted)."""
+        return f"{self.kind}_{'event' if self.rate == 'events' else 'disp'}" + (
+            "" if self.exponent == 1 else "_p")
+
+    @property
+    def label(self) -> str:
+        """The forecaster's name in tables and legends."""
+        return (f"inverse rate {self.label_kind}, "
+                f"{'events' if self.rate == 'events' else 'displacement'}"
+                + ("" if self.exponent == 1 else " (p fitted)"))
+
+    def fit(self, train, y=None):
         """Keep the prior's avalanche angles to fall back on where no acceleration is seen."""
-        self._clim = Climatology().fit(train)
+        if self.rate not in ("events", "displacement"):
+            raise ValueError(f"rate={self.rate!r} must be 'events' or 'displacement'")
+        self.climatology_ = Climatology().fit(train)
         return self
 
     def _profile(self, cat):
@@ -139,7 +151,7 @@ class _InverseRate(Forecaster):
 
     def _quantiles(self, cuts):
         t = cuts.tilt_now
-        q, _ = conditioned_quantiles(self._clim.alpha_c_, t)
+        q, _ = conditioned_quantiles(self.climatology_.alpha_c_, t)
         fb = np.ones(len(cuts), bool)
         grid = np.log(REMAINING_GRID)
         for i, cat in enumerate(cuts.catalogues):

@@ -3,8 +3,23 @@
 The target is ``log(alpha_c - tilt_now)``, the remaining angle (quantiles are
 equivariant under this monotone map, and the forecast stays above the tilt
 reached).  One ``sklearn.ensemble.HistGradientBoostingRegressor`` with the
-quantile loss per level of ``LEVELS``.  Trained on ``training_cuts``: tilts
-drawn over the whole run, never at fixed leads.
+quantile loss per level of ``TRAINED_LEVELS``.  Trained on ``training_cuts``:
+tilts drawn over the whole run, never at fixed leads, each catalogue degraded
+by a measurement drawn from ``measurement.MEASUREMENT_RANGES`` (the
+measurement is a feature, so ``predict`` told how a catalogue was measured
+forecasts it as one of its kind).
+
+Three layers beside the regressors, each a scikit-learn or crepes object:
+
+* the calibration: a Mondrian conformal predictive system
+  (``crepes.ConformalPredictiveSystem``) on held-out cuts, normalised by the
+  predicted spread and conditioned on bins of the tilt reached: what the
+  forecaster observes, never the lead, which it cannot know;
+* the domain: ``sklearn.neighbors.LocalOutlierFactor(novelty=True)`` on the
+  training cuts' features, and the tilt reached against the training
+  avalanche angles.  Out of the domain the interval is widened to hold the
+  conditioned climatology's too, and said so (``fallback``);
+* the fall-back: the conditioned climatology of the training avalanche angles.
 
 * ``Learned``: the catalogue's features only (``features.catalogue_features``);
   with ``inputs="angles_sizes"`` only those of the events' angles and sizes.
@@ -15,12 +30,15 @@ drawn over the whole run, never at fixed leads.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from .base import LEVELS, Forecaster
 from .baselines import Climatology, conditioned_quantiles
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import ceiling_features, feature_matrix, training_cuts
+from .measurement import MEASUREMENT_FEATURES, degrade_cuts
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
@@ -28,151 +46,255 @@ TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
 #: the events (no displacement, no slider positions: what any experiment records)
 INPUTS = ("all", "angles_sizes")
 ANGLES_SIZES_FEATURES = ("tilt", "n_events", "last_event", "quiet", "first_event", "moves",
-                         "max_size", "max_size_recent", "mean_size_recent", "since_largest")
-#: the domain of the training cuts: bins of tilt, and the share of training cuts (per bin) that
-#: may have fewer events than a catalogue the regressors still forecast
-DOMAIN_BINS, DOMAIN_QUANTILE = 20, 0.01
-# The validation set recalibrates each level by one shift: on development runs (800 rows) 5 or
-# 10 bins of the forecast median, or of the interval's width, made the coverage at fixed leads
-# worse (0.92-0.95 at 1-3 degrees), not better (0.87-0.90 with one shift per level).
+                         "max_size", "max_size_recent", "mean_size_recent", "since_largest",
+                         "share_large", *MEASUREMENT_FEATURES)
 #: features that are angles: each also enters as its distance to the tilt reached
 ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model", "atan_mu_d_single")
+#: the tilt reached is outside the domain above this quantile of the training avalanche angles
+DOMAIN_TILT_QUANTILE = 0.995
+#: what the novelty detector compares (few features, so that a density in their space means
+#: something): the tilt, how many events and how recent, their rates, the sizes' spread
+DOMAIN_FEATURES = ("tilt", "n_events", "first_event", "quiet", "since_largest", "events_0.01",
+                   "events_0.05", "events_0.1", "size_ratio_max", "share_large")
+#: training cuts the novelty detector learns from (a random subset: its cost grows as n log n,
+#: and the model file keeps them, twice: 1500 cuts of 60 features are about 1.5 MB)
+DOMAIN_SAMPLE = 1500
+#: neighbours of the local outlier factor (the model file keeps their distances for every cut)
+DOMAIN_NEIGHBOURS = 20
+#: bins of each feature in the boosting (the model file keeps every bin's threshold)
+MAX_BINS = 63
+#: fewest calibration cuts per Mondrian bin (the 5 % and 95 % levels need 20 at least)
+MIN_PER_BIN = 200
+#: share of calibration cuts held out of the training rows when no validation set is given
+CALIBRATION_SHARE = 0.25
+
+
+def with_design(cuts, inverse_rate: bool = True):
+    """The same cuts with their features computed once (shared by several forecasters).
+
+    ``inverse_rate``: also the displacement-rate fits that ``Learned(inputs="all")`` reads.
+    """
+    cache = {**cuts.cache, "features": feature_matrix(cuts)}
+    if inverse_rate:
+        fits = [LinearInverseRate("displacement"), PointProcessInverseRate("displacement", None)]
+        cache["inverse_rate"] = np.array([[f.best_log_remaining(c) for f in fits]
+                                          for c in cuts.catalogues]).reshape(-1, 2)
+    return replace(cuts, cache=cache)
 
 
 class Learned(Forecaster):
-    """Quantile gradient boosting on the catalogue's features.
+    """Quantile gradient boosting on the catalogue's features, conformally calibrated.
 
     Parameters
     ----------
+    inputs : {"all", "angles_sizes"}
+        Every catalogue feature, or only those of the events' angles and
+        sizes (``ANGLES_SIZES_FEATURES``, the event and move rates).
     draws_per_row : int
         Random training cuts per training realisation.
     max_iter, learning_rate, max_leaf_nodes, min_samples_leaf : int or float
         Of ``HistGradientBoostingRegressor``.
-    seed : int
-        Seeds the cuts (unless ``fit`` gets an ``rng``) and the regressors.
-    inputs : {"all", "angles_sizes"}
-        Every catalogue feature, or only those of the events' angles and
-        sizes (``ANGLES_SIZES_FEATURES``, the event and move rates).
+    degrade : bool
+        Degrade every training cut by a measurement drawn from
+        ``measurement.MEASUREMENT_RANGES``.
+    calibration_bins : int
+        Mondrian bins of the tilt reached in the conformal calibration.
+    domain_contamination : float
+        Share of training cuts the novelty detector counts as outliers.
+    random_state : int
+        Seeds the cuts, the degradations and the regressors.
     """
 
-    name = "learned"
-    label = "learned (boosting)"
-
-    def __init__(self, draws_per_row: int = 30, max_iter: int = 300, learning_rate: float = 0.08,
-                 max_leaf_nodes: int = 31, min_samples_leaf: int = 40, seed: int = 0,
-                 inputs: str = "all"):
-        if inputs not in INPUTS:
-            raise ValueError(f"inputs={inputs!r} must be one of {INPUTS}")
-        self.draws_per_row, self.max_iter, self.learning_rate = draws_per_row, max_iter, learning_rate
-        self.max_leaf_nodes, self.min_samples_leaf, self.seed = max_leaf_nodes, min_samples_leaf, seed
+    def __init__(self, inputs: str = "all", draws_per_row: int = 10, max_iter: int = 200,
+                 learning_rate: float = 0.08, max_leaf_nodes: int = 15, min_samples_leaf: int = 40,
+                 degrade: bool = True, calibration_bins: int = 4,
+                 domain_contamination: float = 0.03, random_state: int = 0):
         self.inputs = inputs
-        if inputs == "angles_sizes":
-            self.name, self.label = "learned_blind", "learned, angles + sizes only"
+        self.draws_per_row = draws_per_row
+        self.max_iter = max_iter
+        self.learning_rate = learning_rate
+        self.max_leaf_nodes = max_leaf_nodes
+        self.min_samples_leaf = min_samples_leaf
+        self.degrade = degrade
+        self.calibration_bins = calibration_bins
+        self.domain_contamination = domain_contamination
+        self.random_state = random_state
+
+    @property
+    def name(self) -> str:
+        """``learned`` (every feature) or ``learned_blind`` (angles and sizes only)."""
+        return "learned" if self.inputs == "all" else "learned_blind"
+
+    @property
+    def label(self) -> str:
+        """The forecaster's name in tables and legends."""
+        return "learned (boosting)" if self.inputs == "all" else "learned, angles + sizes only"
 
     def _selected(self, x, names):
         """The columns this forecaster may see (all, or those of angles and sizes only)."""
         if self.inputs == "all":
             return x, names
         keep = [i for i, n in enumerate(names) if n in ANGLES_SIZES_FEATURES
-                or n.startswith(("events_", "moves_")) and not n.startswith("moves_per_slider")]
+                or n.startswith(("events_", "moves_", "size_ratio_"))
+                and not n.startswith("moves_per_slider")]
         return x[:, keep], [names[i] for i in keep]
 
     def design(self, cuts) -> tuple[np.ndarray, list[str]]:
         """The regressor's input for ``cuts``: (n, F) and the feature names.
 
-        The catalogue's features, the model's angles minus the tilt, and the
-        best remaining angle (log) of the displacement-rate inverse-rate fits.
+        The catalogue's and the measurement's features, the model's angles
+        minus the tilt, and (every input) the best remaining angle (log) of
+        the displacement-rate inverse-rate fits.
         """
-        if "learned_design" in cuts.cache:
-            return self._selected(*cuts.cache["learned_design"])
-        x, names = feature_matrix(cuts)
+        x, names = cuts.cache["features"] if "features" in cuts.cache else feature_matrix(cuts)
         t = cuts.tilt_now[:, None]
         extra = [x[:, names.index(a)][:, None] - t for a in ANGLE_FEATURES]
-        fits = [LinearInverseRate("displacement"), PointProcessInverseRate("displacement", None)]
-        ffm = np.array([[f.best_log_remaining(c) for f in fits] for c in cuts.catalogues]).reshape(-1, 2)
-        cuts.cache["learned_design"] = (
-            np.hstack([x, *extra, ffm]),
-            names + [f"{a}_minus_tilt" for a in ANGLE_FEATURES] + [f"{f.name}_log_remaining" for f in fits])
-        return self._selected(*cuts.cache["learned_design"])
+        x, names = np.hstack([x, *extra]), names + [f"{a}_minus_tilt" for a in ANGLE_FEATURES]
+        if self.inputs == "all":
+            ffm = (cuts.cache["inverse_rate"] if "inverse_rate" in cuts.cache
+                   else with_design(cuts).cache["inverse_rate"])
+            x = np.hstack([x, ffm])
+            names = names + ["ffm_linear_disp_log_remaining", "ffm_ml_disp_p_log_remaining"]
+        return self._selected(x, names)
 
-    def fit(self, train, rng=None, cuts=None):
-        """Train one quantile regressor per level on random cuts of the training runs.
+    def training_cuts(self, train, rng):
+        """Random cuts of ``train``, degraded if ``degrade``, with their features."""
+        cuts = training_cuts(train, self.draws_per_row, rng)
+        return with_design(degrade_cuts(cuts, rng) if self.degrade else cuts, self.inputs == "all")
 
-        ``cuts``: the training cuts already drawn (``training_cuts`` of
-        ``train``), shared by several learned forecasters with their features.
+    def fit(self, train, y=None, validation=None, cuts=None, validation_cuts=None):
+        """Fit the regressors, the domain and the conformal calibration.
+
+        Parameters
+        ----------
+        train : CatalogueSet
+            Training realisations.
+        validation : CatalogueSet, optional
+            Realisations for the calibration; by default ``CALIBRATION_SHARE``
+            of ``train``'s rows are held out for it.
+        cuts, validation_cuts : Cuts, optional
+            Cuts already drawn (``training_cuts``), shared by several forecasters.
         """
-        from sklearn.ensemble import HistGradientBoostingRegressor
-
-        rng = np.random.default_rng(self.seed) if rng is None else rng
-        cuts = training_cuts(train, self.draws_per_row, rng) if cuts is None else cuts
+        if self.inputs not in INPUTS:
+            raise ValueError(f"inputs={self.inputs!r} must be one of {INPUTS}")
+        rng = np.random.default_rng(self.random_state)
+        if validation is None and validation_cuts is None:
+            hold = rng.random(len(train)) < CALIBRATION_SHARE
+            train, validation = train.subset(~hold), train.subset(hold)
+        cuts = self.training_cuts(train, rng) if cuts is None else cuts
+        vcuts = self.training_cuts(validation, rng) if validation_cuts is None else validation_cuts
         x, names = self.design(cuts)
-        self._fit_domain(train, cuts)
         self.columns_ = np.isfinite(x).any(axis=0)  # a feature never seen (e.g. no slider indices)
         self.feature_names_ = [n for n, k in zip(names, self.columns_) if k]
-        y = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
-        self.models_ = []
-        self.shift_ = np.zeros(LEVELS.size)
-        for level in TRAINED_LEVELS:
-            m = HistGradientBoostingRegressor(
-                loss="quantile", quantile=float(level), max_iter=self.max_iter,
-                learning_rate=self.learning_rate, max_leaf_nodes=self.max_leaf_nodes,
-                min_samples_leaf=self.min_samples_leaf, early_stopping=False,
-                random_state=self.seed)
-            self.models_.append(m.fit(x[:, self.columns_], y))
+        y_log = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
+        self.models_ = [self._regressor(level).fit(x[:, self.columns_], y_log)
+                        for level in TRAINED_LEVELS]
+        self.climatology_ = Climatology().fit(train)
+        self.domain_columns_ = np.array([names.index(n) for n in DOMAIN_FEATURES])
+        self._fit_domain(self._domain_view(x), rng)
+        self._fit_calibration(vcuts)
         self.n_training_cuts_ = len(cuts)
+        self.n_calibration_cuts_ = len(vcuts)
         return self
 
-    def _fit_domain(self, train, cuts):
-        """The fewest events a training cut had for its tilt (1st percentile in bins of tilt).
+    def _regressor(self, level):
+        from sklearn.ensemble import HistGradientBoostingRegressor
 
-        A catalogue far quieter than any training run at the same tilt (a pile
-        prepared otherwise, e.g. with a history: the Kaiser effect) lies outside
-        what the regressors learned; there the forecaster gives the conditioned
-        climatology instead (counted as ``fallback``).
+        return HistGradientBoostingRegressor(
+            loss="quantile", quantile=float(level), max_iter=self.max_iter,
+            learning_rate=self.learning_rate, max_leaf_nodes=self.max_leaf_nodes,
+            min_samples_leaf=self.min_samples_leaf, max_bins=MAX_BINS, early_stopping=False,
+            random_state=self.random_state)
+
+    def _domain_view(self, x):
+        """The novelty detector's features (``DOMAIN_FEATURES``) of a design."""
+        return x[:, self.domain_columns_]
+
+    def _fit_domain(self, x, rng):
+        """The novelty detector on (a subset of) the training cuts' features, and the top tilt."""
+        from sklearn.impute import SimpleImputer
+        from sklearn.neighbors import LocalOutlierFactor
+        from sklearn.pipeline import make_pipeline
+        from sklearn.preprocessing import QuantileTransformer
+
+        take = rng.permutation(x.shape[0])[:DOMAIN_SAMPLE]
+        self.domain_ = make_pipeline(
+            SimpleImputer(strategy="median", keep_empty_features=True),
+            QuantileTransformer(n_quantiles=200, output_distribution="normal",
+                                random_state=self.random_state),
+            LocalOutlierFactor(n_neighbors=DOMAIN_NEIGHBOURS, novelty=True,
+                               contamination=self.domain_contamination)).fit(x[take])
+        self.top_tilt_ = float(np.quantile(self.climatology_.alpha_c_, DOMAIN_TILT_QUANTILE))
+
+    def _fit_calibration(self, vcuts):
+        """A Mondrian conformal predictive system on the calibration cuts (crepes).
+
+        Residuals of the predicted median log remaining angle, normalised by
+        the predicted spread (half the 10-90 % width), in bins of the tilt
+        reached (edges at the calibration cuts' quantiles).
         """
-        self._clim = Climatology().fit(train)
-        t, n = cuts.tilt_now, np.array([len(c) for c in cuts.catalogues], dtype=float)
-        self.domain_edges_ = np.quantile(t, np.linspace(0, 1, DOMAIN_BINS + 1)[1:-1])
-        b = np.searchsorted(self.domain_edges_, t)
-        self.domain_min_events_ = np.array([np.quantile(n[b == k], DOMAIN_QUANTILE) if (b == k).any()
-                                            else 0.0 for k in range(DOMAIN_BINS)])
+        from crepes import ConformalPredictiveSystem
 
-    def outside(self, cuts) -> np.ndarray:
-        """(n,) bool: cuts with fewer events than the training cuts' ``DOMAIN_QUANTILE`` at that tilt."""
-        n = np.array([len(c) for c in cuts.catalogues], dtype=float)
-        return n < self.domain_min_events_[np.searchsorted(self.domain_edges_, cuts.tilt_now)]
+        z = self._raw_log_remaining(vcuts)
+        truth = np.log(np.maximum(vcuts.alpha_c - vcuts.tilt_now, 1e-9))
+        centre, spread = self._centre_spread(z)
+        n_bins = int(np.clip(len(vcuts) // MIN_PER_BIN, 1, self.calibration_bins))
+        self.calibration_edges_ = np.quantile(vcuts.tilt_now, np.linspace(0, 1, n_bins + 1)[1:-1])
+        bins = np.searchsorted(self.calibration_edges_, vcuts.tilt_now)
+        self.calibration_ = ConformalPredictiveSystem().fit(truth - centre, sigmas=spread, bins=bins)
 
-    def calibrate(self, validation, rng=None, cuts=None) -> "Learned":
-        """Shift each level so that it holds its share of validation cuts (quantile recalibration).
+    @staticmethod
+    def _centre_spread(z):
+        k10, k50, k90 = (int(np.flatnonzero(np.isclose(TRAINED_LEVELS, v))[0]) for v in (0.1, 0.5, 0.9))
+        return z[:, k50], np.maximum(0.5 * (z[:, k90] - z[:, k10]), 1e-3)
 
-        On random cuts of the validation runs (drawn as the training cuts),
-        level ``tau``'s log remaining angle is moved by the ``tau``-quantile of
-        (truth - forecast): afterwards exactly a share ``tau`` of validation
-        cuts lies below it.  One shift per level: shifts in bins of the
-        forecast made the coverage at fixed leads worse (docs/forecasting.md).
-        The realisations are not those of training.  ``cuts``: validation
-        cuts already drawn.
+    def _raw_log_remaining(self, cuts, x=None):
+        """(n, len(TRAINED_LEVELS)) the regressors' log remaining angles, sorted."""
+        x = self.design(cuts)[0] if x is None else x
+        if not len(cuts):
+            return np.zeros((0, TRAINED_LEVELS.size))
+        return np.sort(np.column_stack([m.predict(x[:, self.columns_]) for m in self.models_]), axis=1)
+
+    def domain(self, cuts, x=None) -> tuple[np.ndarray, list[str]]:
+        """Whether each cut lies in the training domain, and if not, why (one phrase).
+
+        Out: the tilt reached above ``DOMAIN_TILT_QUANTILE`` of the training
+        avalanche angles, or features the novelty detector finds unlike every
+        training cut's.  ``x``: the cuts' ``design``, if already computed.
         """
-        rng = np.random.default_rng(self.seed + 1) if rng is None else rng
-        cuts = training_cuts(validation, self.draws_per_row, rng) if cuts is None else cuts
-        z = self._log_remaining(cuts)
-        truth = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
-        self.shift_ = np.array([np.quantile(truth - z[:, j], lv) for j, lv in enumerate(LEVELS)])
-        return self
-
-    def _log_remaining(self, cuts):
-        x, _ = self.design(cuts)
-        z = np.sort(np.column_stack([m.predict(x[:, self.columns_]) for m in self.models_]), axis=1)
-        return np.column_stack([np.interp(LEVELS, TRAINED_LEVELS, row) for row in z]).T \
-            if len(cuts) else np.zeros((0, LEVELS.size))
+        x = self.design(cuts)[0] if x is None else x
+        novel = self.domain_.predict(self._domain_view(x)) < 0 if len(cuts) else np.zeros(0, bool)
+        high = cuts.tilt_now > self.top_tilt_
+        reasons = []
+        for h, nv, t in zip(high, novel, cuts.tilt_now):
+            why = []
+            if h:
+                why.append(f"the tilt reached ({np.degrees(t):.2f}°) is above "
+                           f"{100 * DOMAIN_TILT_QUANTILE:g} % of the training avalanche angles "
+                           f"({np.degrees(self.top_tilt_):.2f}°)")
+            if nv:
+                why.append("the catalogue's features are unlike every training catalogue's at "
+                           "its tilt (local outlier factor)")
+            reasons.append("; ".join(why))
+        return ~(high | novel), reasons
 
     def _quantiles(self, cuts):
-        z = self._log_remaining(cuts)
-        z = np.sort(z + self.shift_, axis=1)
-        q = cuts.tilt_now[:, None] + np.exp(z)
-        out = self.outside(cuts)
-        if out.any():
-            q[out] = conditioned_quantiles(self._clim.alpha_c_, cuts.tilt_now[out])[0]
+        x, _ = self.design(cuts)
+        z = self._raw_log_remaining(cuts, x)
+        centre, spread = self._centre_spread(z)
+        bins = np.searchsorted(self.calibration_edges_, cuts.tilt_now)
+        zc = self.calibration_.predict(centre, sigmas=spread, bins=bins,
+                                       lower_percentiles=100 * LEVELS)
+        zc = np.asarray(zc, dtype=float).reshape(len(cuts), LEVELS.size)
+        q = cuts.tilt_now[:, None] + np.exp(np.sort(np.clip(zc, -20.0, 2.0), axis=1))
+        inside, _ = self.domain(cuts, x)
+        out = ~inside
+        if out.any():  # widened: the conditioned climatology's interval held too
+            qc = conditioned_quantiles(self.climatology_.alpha_c_, cuts.tilt_now[out])[0]
+            lower = np.minimum(q[out], qc)
+            upper = np.maximum(q[out], qc)
+            half = LEVELS < 0.5
+            q[out] = np.where(half[None, :], lower, upper)
         return q, out
 
 

@@ -99,9 +99,9 @@ class PaperRule(Forecaster):
     def __init__(self, bin_width: float = 0.01):
         self.bin_width = bin_width
 
-    def fit(self, train, rng=None):
+    def fit(self, train, y=None):
         """Measure ``c = alpha_c / alpha_t`` on the training runs (whole catalogues)."""
-        self._clim = Climatology().fit(train)
+        self.climatology_ = Climatology().fit(train)
         ratios = []
         for i in np.flatnonzero(np.isfinite(train.alpha_c)):
             at = transition_angle(train.catalogue(int(i)), self.bin_width)
@@ -114,7 +114,7 @@ class PaperRule(Forecaster):
 
     def _quantiles(self, cuts):
         t = cuts.tilt_now
-        q, _ = conditioned_quantiles(self._clim.alpha_c_, t)
+        q, _ = conditioned_quantiles(self.climatology_.alpha_c_, t)
         fb = np.ones(len(cuts), bool)
         if self.c_quantiles_ is None:
             return q, fb
@@ -141,6 +141,8 @@ class ModelBased(Forecaster):
     ----------
     draws_per_row : int
         Random training cuts per training realisation.
+    random_state : int
+        Seeds the cuts.
     """
 
     name = "model_based"
@@ -149,8 +151,9 @@ class ModelBased(Forecaster):
     #: agreeing pairs that make an estimate "firm"
     MIN_AGREE = 3
 
-    def __init__(self, draws_per_row: int = 5):
+    def __init__(self, draws_per_row: int = 5, random_state: int = 0):
         self.draws_per_row = draws_per_row
+        self.random_state = random_state
 
     @classmethod
     def estimate(cls, cats) -> tuple[np.ndarray, np.ndarray]:
@@ -165,26 +168,25 @@ class ModelBased(Forecaster):
                 est[i], kind[i] = f["atan_mu_d_model"], 2
         return est, kind
 
-    def fit(self, train, rng=None):
+    def fit(self, train, y=None):
         """Residuals ``alpha_c - atan(mu_d_hat)`` on random training cuts, per kind of estimate."""
-        self._clim = Climatology().fit(train)
-        rng = np.random.default_rng(0) if rng is None else rng
-        cuts = training_cuts(train, self.draws_per_row, rng)
+        self.climatology_ = Climatology().fit(train)
+        cuts = training_cuts(train, self.draws_per_row, np.random.default_rng(self.random_state))
         est, kind = self.estimate(cuts.catalogues)
         self.residual_quantiles_ = {}
         for k in (0, 1, 2):
             m = kind == k
-            if m.sum() >= 10:
-                self.residual_quantiles_[k] = quantiles_of_sample(cuts.alpha_c[m] - est[m])
+            if m.sum() >= 10:  # keyed by str: a model file's dict keys are names
+                self.residual_quantiles_[str(k)] = quantiles_of_sample(cuts.alpha_c[m] - est[m])
         return self
 
     def _quantiles(self, cuts):
         t = cuts.tilt_now
-        q, _ = conditioned_quantiles(self._clim.alpha_c_, t)
+        q, _ = conditioned_quantiles(self.climatology_.alpha_c_, t)
         fb = np.ones(len(cuts), bool)
         est, kind = self.estimate(cuts.catalogues)
         for k, res in self.residual_quantiles_.items():
-            m = kind == k
+            m = kind == int(k)
             q[m] = np.maximum(est[m, None] + res[None, :], t[m, None])
             fb[m] = False
         return q, fb

@@ -1,0 +1,181 @@
+"""The shipped forecaster measured on rows it never saw: skill, coverage, domain flag, degradations.
+
+    .venv/bin/python benchmarks/forecast_skill.py --model src/sliders/data/default_forecaster.skops \\
+        --outside results/train/outside_*.h5 --out benchmarks/results
+
+The model's provenance names its prior files and its held-out rows
+(``python -m sliders.forecast train --hold-out``); those rows are the test set.
+Measured, for the angles-and-sizes forecaster (``learned_blind``) and, where
+the catalogue has them, the one with displacements and positions (``learned``):
+
+* 3° before the avalanche: median |error| over the conditioned climatology's, 80 % coverage;
+* coverage over random cuts, per bin of tilt reached and of events so far, per
+  lead (0.25° to 20°), and the reliability of P(avalanche within 1°);
+* the domain flag: the share of cuts flagged on the held-out rows (false
+  alarms) and on each set drawn outside the prior (true alarms);
+* the degradation curve: angle noise, detection threshold, missed events,
+  size unit unknown, each with the flags of ``predict`` set to the truth.
+
+Writes forecast_skill.json and forecast_skill.md to ``--out`` and the
+figures (``sliders.figures.forecast.draw_measured``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+
+import numpy as np
+
+from sliders.analysis.forecast import Cuts, Measurement
+from sliders.analysis.forecast.base import LOWER, MEDIAN, UPPER
+from sliders.analysis.forecast.baselines import conditioned_quantiles
+from sliders.analysis.forecast.evaluation import cuts_at_leads
+from sliders.analysis.forecast.features import training_cuts
+from sliders.analysis.forecast.measurement import degrade_cuts
+from sliders.analysis.forecast.reliability import coverage_report
+from sliders.io.forecast_model import load_forecasters
+from sliders.runs.forecast import load_set
+from sliders.runs.forecast_train import concatenate
+
+LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0)
+#: the degradations of the curve: label -> (measurement, size scale)
+DEGRADATIONS = {
+    "exact": (Measurement(), 1.0),
+    "angle noise 0.1°": (Measurement(angle_resolution=math.radians(0.1)), 1.0),
+    "angle noise 0.3°": (Measurement(angle_resolution=math.radians(0.3)), 1.0),
+    "angle noise 1°": (Measurement(angle_resolution=math.radians(1.0)), 1.0),
+    "min size 2": (Measurement(min_size=2.0), 1.0),
+    "min size 5": (Measurement(min_size=5.0), 1.0),
+    "25 % missed": (Measurement(missed_fraction=0.25), 1.0),
+    "50 % missed": (Measurement(missed_fraction=0.5), 1.0),
+    "size unit unknown (x3)": (Measurement(size_unit="arbitrary", min_size=3.0), 3.0),
+}
+
+
+def blind(cuts):
+    """The cuts as angles and sizes only (no displacement, no movers)."""
+    from dataclasses import replace
+
+    from sliders.io.catalogue import Catalogue
+
+    cats = [Catalogue(c.alpha, c.size, np.zeros(len(c)), np.full(len(c), -1), np.full(len(c), -1),
+                      c.tilt_now) for c in cuts.catalogues]
+    return replace(cuts, catalogues=cats, cache={})
+
+
+def skill(forecaster, cuts, alpha_c_train) -> dict:
+    """Median |error| / the conditioned climatology's, and the 80 % coverage, on ``cuts``."""
+    q, fb = forecaster.quantiles(cuts)
+    qc, _ = conditioned_quantiles(alpha_c_train, cuts.tilt_now)
+    truth = cuts.alpha_c
+    err, err_c = np.abs(q[:, MEDIAN] - truth), np.abs(qc[:, MEDIAN] - truth)
+    return {"median_abs_deg": float(np.degrees(np.median(err))),
+            "vs_conditioned": float(np.median(err) / np.median(err_c)),
+            "coverage": float(np.mean((q[:, LOWER] <= truth) & (truth <= q[:, UPPER]))),
+            "before_avalanche": float(np.mean(q[:, MEDIAN] < truth)),
+            "out_of_domain": float(np.mean(fb)), "n": int(truth.size)}
+
+
+def degradation_curve(forecaster, test, alpha_c_train, seed) -> dict:
+    """``skill`` at 3° for every degradation, the flags told the truth."""
+    cuts, _ = cuts_at_leads(test, np.arange(len(test)), [math.radians(3.0)])
+    cuts = blind(cuts)
+    out = {}
+    for label, (m, scale) in DEGRADATIONS.items():
+        d = degrade_cuts(cuts, np.random.default_rng(seed), m, scale)
+        out[label] = skill(forecaster, d, alpha_c_train)
+    return out
+
+
+def domain_rates(forecaster, test, outside: dict, seed) -> dict:
+    """Share of random cuts flagged out of the domain: held-out rows, and each outside set."""
+    out = {}
+    for label, cset in {"held-out (in prior)": test, **outside}.items():
+        cuts = blind(training_cuts(cset, 5, np.random.default_rng(seed)))
+        inside, _ = forecaster.domain(cuts)
+        late, _ = cuts_at_leads(cset, np.arange(len(cset)), [math.radians(3.0)])
+        inside_late, _ = forecaster.domain(blind(late))
+        out[label] = {"flagged_random_cuts": float(np.mean(~inside)), "n_cuts": int(len(cuts)),
+                      "flagged_3deg": float(np.mean(~inside_late)), "n_3deg": int(len(late)),
+                      "skill_3deg": skill(forecaster, blind(late), forecaster.climatology_.alpha_c_)}
+    return out
+
+
+def markdown(rep: dict) -> str:
+    """The tables of docs/forecasting_results.md."""
+    lines = ["| 3° before the avalanche | median abs err (deg) | / cond. clim. | 80 % coverage |"
+             " point before avalanche | n |", "|---|---|---|---|---|---|"]
+    for name, s in rep["skill_3deg"].items():
+        lines.append(f"| {name} | {s['median_abs_deg']:.2f} | {s['vs_conditioned']:.2f} | "
+                     f"{s['coverage']:.2f} | {s['before_avalanche']:.2f} | {s['n']} |")
+    lines += ["", "| lead (deg) | " + " | ".join(rep["coverage"]["per_lead"]) + " |",
+              "|---|" + "---|" * len(rep["coverage"]["per_lead"]),
+              "| coverage | " + " | ".join(f"{v['coverage']:.2f}" for v in
+                                           rep["coverage"]["per_lead"].values()) + " |"]
+    lines += ["", "| bin | coverage | n |", "|---|---|---|",
+              f"| all random cuts | {rep['coverage']['all_cuts']['coverage']:.2f} | "
+              f"{rep['coverage']['all_cuts']['n']} |"]
+    for kind in ("per_tilt_bin", "per_events_bin"):
+        for b, v in rep["coverage"][kind].items():
+            what = "tilt (rad)" if kind == "per_tilt_bin" else "events so far"
+            lines.append(f"| {what} {b} | {v['coverage']:.2f} | {v['n']} |")
+    lines += ["", "| set | flagged (random cuts) | flagged (3° before) | 3° before: / cond. clim. |"
+              " coverage |", "|---|---|---|---|---|"]
+    for label, v in rep["domain"].items():
+        lines.append(f"| {label} | {v['flagged_random_cuts']:.2f} ({v['n_cuts']}) | "
+                     f"{v['flagged_3deg']:.2f} ({v['n_3deg']}) | "
+                     f"{v['skill_3deg']['vs_conditioned']:.2f} | {v['skill_3deg']['coverage']:.2f} |")
+    lines += ["", "| measured as | / cond. clim. | coverage | flagged out of domain |",
+              "|---|---|---|---|"]
+    for label, v in rep["degradation"].items():
+        lines.append(f"| {label} | {v['vs_conditioned']:.2f} | {v['coverage']:.2f} | "
+                     f"{v['out_of_domain']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--model", required=True)
+    p.add_argument("--outside", nargs="*", default=[], metavar="LABEL=FILE.h5")
+    p.add_argument("--out", default="benchmarks/results")
+    p.add_argument("--seed", type=int, default=0)
+    args = p.parse_args()
+    models, prov = load_forecasters(args.model)
+    data = concatenate([load_set(f) for f in prov["data_files"]])
+    held = np.asarray(prov["held_out_rows"], dtype=int)
+    held = held[np.isfinite(data.alpha_c[held])]
+    test = data.subset(held)
+    train_ac = models["learned_blind"].climatology_.alpha_c_
+    outside = {}
+    for spec in args.outside:
+        label, _, path = spec.partition("=")
+        outside[label] = load_set(path)
+    lead3, _ = cuts_at_leads(test, np.arange(len(test)), [math.radians(3.0)])
+    rep = {"model": os.path.abspath(args.model), "rows_trained": prov["rows"],
+           "rows_tested": int(len(test)),
+           "skill_3deg": {"learned, angles + sizes": skill(models["learned_blind"], blind(lead3), train_ac),
+                          "learned, + displacements, positions": skill(models["learned"], lead3, train_ac),
+                          "model-based": skill(models["model_based"], lead3, train_ac)},
+           "coverage": coverage_report(models["learned_blind"], test, np.arange(len(test)),
+                                       np.radians(LEADS_DEG), degrade=blind, seed=args.seed),
+           "coverage_all_inputs": coverage_report(models["learned"], test, np.arange(len(test)),
+                                                  np.radians(LEADS_DEG), seed=args.seed),
+           "domain": domain_rates(models["learned_blind"], test, outside, args.seed),
+           "degradation": degradation_curve(models["learned_blind"], test, train_ac, args.seed)}
+    os.makedirs(args.out, exist_ok=True)
+    with open(os.path.join(args.out, "forecast_skill.json"), "w") as fh:
+        json.dump(rep, fh, indent=1)
+    text = markdown(rep)
+    with open(os.path.join(args.out, "forecast_skill.md"), "w") as fh:
+        fh.write(text)
+    print(text)
+    from sliders.figures.forecast import draw_measured
+
+    print(" ".join(draw_measured(rep, args.out)))
+
+
+if __name__ == "__main__":
+    main()
