@@ -6,13 +6,16 @@ import json
 import math
 import subprocess
 import sys
+import zipfile
 
 import numpy as np
 import pytest
 
 from sliders.analysis.forecast import LEVELS
 from sliders.analysis.forecast import evaluation as ev
+from sliders.analysis.forecast.registry import METHODS
 from sliders.analysis.forecast.learned import Learned
+from sliders.io.forecast_model import ModelFileError, load_forecasters, save_forecasters
 from sliders.runs import forecast as rf
 
 from test_forecast import synthetic_set
@@ -60,10 +63,10 @@ def test_catalogue_units_and_tilt_now(tmp_path):
 
 def test_predict_command_prints_the_forecast_and_json(tmp_path):
     train = synthetic_set(30)
-    models = {"learned": Learned(draws_per_row=6, max_iter=10, seed=0).fit(train),
+    models = {"learned": Learned(draws_per_row=6, max_iter=10, random_state=0).fit(train),
               "learned_blind": Learned(draws_per_row=6, max_iter=10, inputs="angles_sizes").fit(train)}
-    path = str(tmp_path / "model.pkl")
-    rf.save_model(path, models, {"command": "test"})
+    path = str(tmp_path / "model.skops")
+    save_forecasters(path, models, {"command": "test"})
     cat = write(tmp_path, "angle [deg],size,displacement\n"
                 + "".join(f"{a:.3f},1,0.01\n" for a in np.linspace(1, 20, 80)))
     run = [sys.executable, "-m", "sliders.forecast", "predict", cat, "--model", path]
@@ -78,12 +81,14 @@ def test_predict_command_prints_the_forecast_and_json(tmp_path):
     bad = subprocess.run(run[:4] + [write(tmp_path, "angle,size\n1,1\n", "b.csv"), "--model", path],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
-    damaged = tmp_path / "damaged.pkl"
+    # a byte flipped inside the archive's schema: its CRC-32 fails before anything is built
+    damaged = tmp_path / "damaged.skops"
     raw = bytearray(open(path, "rb").read())
-    raw[-5] ^= 0xFF
+    schema = zipfile.ZipFile(path).getinfo("schema.json")
+    raw[schema.header_offset + 30 + len(schema.filename) + schema.compress_size // 2] ^= 0xFF
     damaged.write_bytes(bytes(raw))
-    with pytest.raises(rf.ForecastInputError, match="checksum"):
-        rf.load_model(str(damaged))
+    with pytest.raises(ModelFileError, match="damaged model file"):
+        load_forecasters(str(damaged))
 
 
 def test_scores_of_a_perfect_and_of_a_late_forecaster():
@@ -107,7 +112,7 @@ def test_scores_of_a_perfect_and_of_a_late_forecaster():
 
 def test_recalibrated_intervals_cover_about_their_share():
     train, valid, test = synthetic_set(60, seed=1), synthetic_set(40, seed=2), synthetic_set(60, seed=3)
-    f = Learned(draws_per_row=10, max_iter=30, seed=0).fit(train).calibrate(valid)
+    f = Learned(draws_per_row=10, max_iter=30, random_state=0).fit(train, validation=valid)
     from sliders.analysis.forecast import training_cuts
 
     cuts = training_cuts(test, 10, np.random.default_rng(9))
@@ -139,5 +144,6 @@ def test_evaluate_command_end_to_end(tmp_path, capsys):
     assert "zero" in metrics["sets"] and metrics["provenance"]["command"].startswith("python -m")
     for name in ("forecast_error", "forecast_coverage", "forecast_convergence", "forecast_roc"):
         assert (out / f"{name}.png").stat().st_size > 10000
-    model, head = rf.load_model(str(out / "forecaster.pkl"))
-    assert set(model) == {"learned", "learned_blind"} and head["format"] == rf.MODEL_FORMAT
+    model, prov = load_forecasters(out / rf.MODEL_NAME)
+    assert set(model) == set(METHODS) and prov["rows"] == 8 and prov["prior"] == "dev"
+    assert all(rf.method_of(f) == m for m, f in model.items())

@@ -1,17 +1,15 @@
-"""The forecasting's files: a measured catalogue in CSV, a fitted forecaster, an evaluation's outputs.
+"""The forecasting's files: a measured catalogue in CSV, an evaluation's outputs.
 
 * ``read_catalogue_csv``: an experimenter's catalogue (docs/forecasting.md gives
   the format: ``angle [deg]`` or ``angle [rad]``, ``size``, optional
   ``displacement``, ``first``, ``last``); every refusal is one line naming the
   row and the column.  It streams the file within stated bounds
   (``MAX_CATALOGUE_BYTES``, ``MAX_EVENTS``, ``MAX_LINE_BYTES``).
-* ``save_model`` / ``load_model``: a fitted forecaster, pickled with its
-  provenance and a CRC-32 (ours only: a pickle is code, never load an
-  untrusted one).
 * ``claim_folder``, ``OutputSet``, ``complete_publication``: a run's output
   files claimed, compared with its inputs by identity, staged whole and
   published as one set (docs/reliability.md, "The forecast commands").
 
+The fitted forecasters' model file is ``io.forecast_model``'s.
 ``python -m sliders.forecast`` (``sliders.runs.forecast``) uses them.
 """
 
@@ -24,11 +22,9 @@ import itertools
 import json
 import math
 import os
-import pickle
 import signal
 import stat
 import sys
-import zlib
 
 import numpy as np
 
@@ -39,54 +35,6 @@ from .safeio import (_fsync_dir, leftover_temporaries, publish_bytes, resolve_ta
 
 class ForecastInputError(ValueError):
     """Bad input to the command: one line, no traceback."""
-
-
-MODEL_FORMAT = "sliders-forecaster-1"
-
-
-def model_bytes(forecaster, prov: dict) -> bytes:
-    """A fitted forecaster pickled, after a header with its provenance and the pickle's CRC-32."""
-    blob = pickle.dumps(forecaster, protocol=pickle.HIGHEST_PROTOCOL)
-    head = json.dumps({"format": MODEL_FORMAT, "crc32": zlib.crc32(blob), **prov}).encode()
-    return len(head).to_bytes(8, "little") + head + blob
-
-
-def save_model(path: str, forecaster, prov: dict) -> None:
-    """Write ``model_bytes`` to ``path`` (atomic write)."""
-    publish_bytes(path, model_bytes(forecaster, prov), overwrite=True)
-
-
-def load_model(path: str):
-    """A forecaster written by ``save_model`` (its checksum checked); returns (forecaster, header)."""
-    try:
-        with open(path, "rb") as fh:
-            raw = fh.read()
-    except OSError as exc:
-        raise ForecastInputError(f"{path}: {exc.strerror or exc}") from None
-    try:
-        n = int.from_bytes(raw[:8], "little")
-        head = json.loads(raw[8:8 + n])
-        blob = raw[8 + n:]
-    except (ValueError, UnicodeDecodeError):
-        raise ForecastInputError(f"{path}: not a forecaster file of sliders") from None
-    if not isinstance(head, dict) or head.get("format") != MODEL_FORMAT:
-        raise ForecastInputError(f"{path}: not a forecaster file of sliders")
-    if zlib.crc32(blob) != head.get("crc32"):
-        raise ForecastInputError(f"{path}: checksum mismatch (damaged file)")
-    from .._version import __version__
-
-    try:
-        models = pickle.loads(blob)
-    except (AttributeError, ImportError, IndexError, KeyError, TypeError, ValueError, EOFError,
-            pickle.UnpicklingError) as exc:  # a class or module this version lacks, or junk
-        raise ForecastInputError(f"{path}: holds a forecaster this sliders {__version__} cannot "
-                                 f"read ({type(exc).__name__}: {' '.join(str(exc).split())[:120]}); "
-                                 "fit it again with python -m sliders.forecast evaluate") from None
-    if not isinstance(models, dict) or not all(callable(getattr(m, "predict", None))
-                                               for m in models.values()):
-        raise ForecastInputError(f"{path}: holds {type(models).__name__}, not the fitted "
-                                 "forecasters of sliders")
-    return models, head
 
 
 # ---------------------------------------------------------------------------

@@ -94,6 +94,8 @@ def _check_types(blob: bytes, where) -> None:
 
     try:
         named = sio.get_untrusted_types(data=blob)
+    except zipfile.BadZipFile as exc:  # a member's CRC-32 or its header does not match
+        raise ModelFileError(f"{where}: damaged model file ({exc})") from None
     except Exception:  # noqa: BLE001 (whatever the archive holds: it is not a model file)
         raise ModelFileError(f"{where}: not a sliders model file (a skops archive)") from None
     refused = sorted(set(named) - ALLOWED_TYPES)
