@@ -26,7 +26,7 @@ import h5py
 import numpy as np
 import pytest
 
-from sliders.io import forecast_files, safeio
+from sliders.io import safeio
 from sliders.runs import ensemble, study
 from sliders.runs import forecast as rf
 
@@ -464,10 +464,18 @@ def test_spreadsheet_csv_with_a_byte_order_mark_is_read(tmp_path, previous, caps
 # ---------------------------------------------------------------------------
 # 4. the model file
 # ---------------------------------------------------------------------------
-def model_file(path: Path, blob: bytes) -> Path:
-    """A model file with a valid header and checksum around ``blob``."""
-    head = json.dumps({"format": forecast_files.MODEL_FORMAT, "crc32": zlib.crc32(blob)}).encode()
+def pickle_model_file(path: Path, blob: bytes) -> Path:
+    """A pickle behind a JSON header with its CRC-32: a model file of the pickle kind."""
+    head = json.dumps({"format": "sliders-forecaster-1", "crc32": zlib.crc32(blob)}).encode()
     path.write_bytes(len(head).to_bytes(8, "little") + head + blob)
+    return path
+
+
+def skops_model_file(path: Path, contents) -> Path:
+    """A skops archive of ``contents``, written as-is (no allow-list check on writing)."""
+    import skops.io as sio
+
+    path.write_bytes(sio.dumps(contents))
     return path
 
 
@@ -475,21 +483,54 @@ class Vanished:
     """A forecaster class a later sliders no longer has."""
 
 
+def test_pickle_model_file_is_refused_unread(tmp_path, catalogue, capsys):
+    marker = tmp_path / "ran"
+
+    class Runs:
+        def __reduce__(self):
+            return (os.system, (f"touch {marker}",))
+
+    path = pickle_model_file(tmp_path / "m.pkl", pickle.dumps({"learned_blind": Runs()}))
+    code, err = forecast_main(capsys, "predict", catalogue, "--model", path)
+    assert "a pickle is never loaded" in one_line(code, err) and not marker.exists()
+
+
 def test_model_naming_a_class_this_version_lacks_is_one_line(tmp_path, catalogue, capsys,
                                                               monkeypatch):
     import sliders.analysis.forecast.learned as learned
+    from sliders.io.forecast_model import MODEL_FORMAT
 
     Vanished.__module__, Vanished.__qualname__ = learned.__name__, "Vanished"
     monkeypatch.setattr(learned, "Vanished", Vanished, raising=False)
-    blob = pickle.dumps({"learned_blind": Vanished()})
+    path = skops_model_file(tmp_path / "m.skops", {"format": MODEL_FORMAT, "provenance": {},
+                                                   "forecasters": {"learned_blind": Vanished()}})
     monkeypatch.delattr(learned, "Vanished")
-    path = model_file(tmp_path / "m.pkl", blob)
     code, err = forecast_main(capsys, "predict", catalogue, "--model", path)
-    assert "Vanished" in one_line(code, err)
+    assert "learned.Vanished" in one_line(code, err) and "refused" in err
 
 
-@pytest.mark.parametrize("contents", [[1, 2, 3], {"learned_blind": "not a forecaster"}])
-def test_model_holding_the_wrong_contents_is_one_line(tmp_path, catalogue, capsys, contents):
-    path = model_file(tmp_path / "m.pkl", pickle.dumps(contents))
+def test_model_of_a_forecaster_lacking_what_this_version_reads_is_one_line(
+        tmp_path, previous, catalogue, capsys):
+    """A forecaster of an allowed class whose fitted state differs (another version's)."""
+    from sliders.io.forecast_model import load_forecasters, save_forecasters
+
+    models, prov = load_forecasters(previous / MODEL)
+    del models["learned_blind"].domain_
+    path = tmp_path / "m.skops"
+    save_forecasters(str(path), models, prov | {"sliders": "0.0.1"})
     code, err = forecast_main(capsys, "predict", catalogue, "--model", path)
-    assert "not the fitted forecasters" in one_line(code, err)
+    assert "sliders 0.0.1" in one_line(code, err) and "train it again" in err
+
+
+@pytest.mark.parametrize("contents, words", [
+    ([1, 2, 3], "not a sliders model file of format"),
+    ({"format": "sliders-forecaster-2", "provenance": {},
+      "forecasters": {"learned_blind": "not a forecaster"}}, "not the fitted forecasters"),
+    ({"format": "sliders-forecaster-2", "provenance": {}, "forecasters": {}},
+     "no forecaster of angles and sizes"),
+])
+def test_model_holding_the_wrong_contents_is_one_line(tmp_path, catalogue, capsys, contents,
+                                                      words):
+    path = skops_model_file(tmp_path / "m.skops", contents)
+    code, err = forecast_main(capsys, "predict", catalogue, "--model", path)
+    assert words in one_line(code, err)
