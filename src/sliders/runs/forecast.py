@@ -61,7 +61,7 @@ from ..io.forecast_model import forecasters_bytes
 from . import forecast_train
 from .forecast_train import add_catalogue_arguments, add_train_arguments
 
-#: the issue's example prior (the prior ensembles' default): name -> (law, bounds)
+#: the prior ensembles' default prior (mpi_runs/priors/default.toml): name -> (law, bounds)
 DEV_PRIOR = {"mu_d": ("uniform", (0.3, 0.8)), "mu_s_minus_mu_d": ("loguniform", (0.02, 0.12)),
              "sigma_mu": ("uniform", (0.005, 0.03)), "xi": ("loguniform", (1e-4, 1e-2)),
              "n_sliders": ("choice", (100, 200, 400))}
