@@ -47,12 +47,18 @@ RESULTS_IGNORED = {"wall_time", "row_crc32"}
 ATTRS_IGNORED = {"created", "attrs_crc32", "date_created", "date_modified", "history"}
 
 
+# tests/hooks/sitecustomize.py: the test hooks (SLIDERS_ENSEMBLE_TEST_DELAY, ..._TEST_FAIL,
+# ..._STOP_AFTER), installed in every rank of a command started with this environment
+HOOKS = Path(__file__).parent / "hooks"
+
+
 def _env(**extra):
     env = dict(os.environ)
     env.pop("SLIDERS_ENSEMBLE_STOP_AFTER", None)
     env.pop("SLIDERS_ENSEMBLE_TEST_DELAY", None)
     env.pop("SLIDERS_ENSEMBLE_TEST_FAIL", None)
     env["PYTHONUNBUFFERED"] = "1"
+    env["PYTHONPATH"] = os.pathsep.join([str(HOOKS)] + [p for p in [env.get("PYTHONPATH")] if p])
     env.update({k: str(v) for k, v in extra.items()})
     return env
 
@@ -428,7 +434,7 @@ def test_unexpected_exception_aborts_without_hang(tmp_path):
     out = tmp_path / "fail.h5"
     res = run(ensemble_args(out), n=2, env=_env(SLIDERS_ENSEMBLE_TEST_FAIL=4), timeout=120)
     assert res.returncode != 0
-    assert "error: rank" in res.stderr and "realisation 4 fails" in res.stderr
+    assert "error: rank" in res.stderr and "row 4 fails" in res.stderr
     assert "Traceback" not in res.stderr
     done = ensemble.read_realisations(out)["done"]
     assert not done[4]

@@ -42,11 +42,12 @@ def _typed(conv, name):
     return parse
 
 
-def given_scene_values(args: argparse.Namespace) -> dict:
-    """The scene values given on the command line: ``--scene`` file, then the options."""
+def given_scene_values(args: argparse.Namespace, scene_text: bytes | None = None) -> dict:
+    """The scene values given on the command line: ``--scene`` file (``scene_text``: its bytes,
+    read by MPI rank 0), then the options."""
     values: dict = {}
     if args.scene:
-        values.update(toml_values(args.scene))
+        values.update(toml_values(args.scene, scene_text))
         Scene.from_dict(values)  # the file alone must be a valid scene
     for f in dataclasses.fields(Scene):
         given = getattr(args, f.name, None)
@@ -55,9 +56,10 @@ def given_scene_values(args: argparse.Namespace) -> dict:
     return values
 
 
-def scene_from_args(args: argparse.Namespace) -> Scene:
-    """The Scene given by ``--scene`` and the per-field options (validated)."""
-    return Scene.from_dict(given_scene_values(args))
+def scene_from_args(args: argparse.Namespace, scene_text: bytes | None = None) -> Scene:
+    """The Scene given by ``--scene`` (``scene_text``: its bytes, read by MPI rank 0) and the
+    per-field options (validated)."""
+    return Scene.from_dict(given_scene_values(args, scene_text))
 
 
 def disagreements(stored: Scene, given: dict) -> str:
