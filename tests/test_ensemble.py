@@ -63,9 +63,9 @@ def _env(**extra):
     return env
 
 
-def command(args, n=None):
-    """The command line: plain python (n None) or mpirun -n n."""
-    base = [PY, "-m", "sliders.ensemble"]
+def command(args, n=None, module="sliders.ensemble"):
+    """The command line of ``python -m module``: plain python (n None) or mpirun -n n."""
+    base = [PY, "-m", module]
     if n is not None:
         assert MPIRUN, "mpirun not found (install Debian mpich: scripts/setup.sh)"
         base = [MPIRUN, "-n", str(n)] + base
@@ -119,8 +119,8 @@ if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:  # SIGTERM ends pytest li
 class _Run:
     """A started run whose stderr is read by a thread (so that waits can time out)."""
 
-    def __init__(self, args, n, env):
-        self.cmd = command(args, n)
+    def __init__(self, args, n, env, module="sliders.ensemble"):
+        self.cmd = command(args, n, module)
         self.proc = subprocess.Popen(self.cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, env=env or _env(), start_new_session=True)
         _LIVE.add(self.proc.pid)
@@ -181,9 +181,9 @@ class _Run:
         _LIVE.discard(self.proc.pid)
 
 
-def run(args, n=None, env=None, timeout=TIMEOUT):
+def run(args, n=None, env=None, timeout=TIMEOUT, module="sliders.ensemble"):
     """Run to completion (or kill the whole process tree after ``timeout``)."""
-    return _Run(args, n, env).finish(timeout)
+    return _Run(args, n, env, module).finish(timeout)
 
 
 def ensemble_args(out, r=R, backend=BACKEND, extra=()):

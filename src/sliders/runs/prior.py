@@ -387,7 +387,10 @@ def parse_prior(data: dict, where: str = "prior") -> Prior:
         raise PriorError(f"{where}: [scene] {exc}") from None
     if base.loading != "tilt":
         raise PriorError(f"{where}: [scene] loading = {base.loading!r}: a prior ensemble tilts")
-    marginals = {name: parse_marginal(name, spec) for name, spec in params.items()}
+    try:
+        marginals = {name: parse_marginal(name, spec) for name, spec in params.items()}
+    except PriorError as exc:
+        raise PriorError(f"{where}: {exc}") from None
     _check_friction_ranges(marginals, base, where)
     n_top = marginals["n_sliders"].support()[1] if "n_sliders" in marginals else base.n_sliders
     if k > n_top:

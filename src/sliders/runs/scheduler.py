@@ -22,7 +22,9 @@ other error on a rank stops the run at once with one line (exit 1).
 from __future__ import annotations
 
 import contextlib
+import errno
 import math
+import os
 import signal
 import sys
 import time
@@ -40,6 +42,88 @@ PREFETCH = 2  # indices a worker asks for ahead of the one it is computing
 
 class Interrupted(Exception):
     """Raised at a safe point once the run has to stop (signal or abort from rank 0)."""
+
+
+class WriteFailures:
+    """Failed writes that h5py reports only from a destructor.
+
+    HDF5 writes some data late (its caches), and h5py reports a failure there
+    (a full disk: errno 28) as an "exception ignored" in an object's
+    destructor, which Python prints and forgets.  While ``watching()``, such
+    exceptions are kept (the first one) instead of printed, and ``check()``,
+    called after every written row, raises the first as an OSError: the run
+    stops at the first failed write with one line.
+    """
+
+    first: BaseException | None = None
+
+    @classmethod
+    @contextlib.contextmanager
+    def watching(cls):
+        """Keep the exceptions raised in destructors (the first one) while inside."""
+        cls.first = None
+        old = sys.unraisablehook
+
+        def keep(unraisable):
+            if cls.first is None:
+                cls.first = unraisable.exc_value
+
+        sys.unraisablehook = keep
+        try:
+            yield cls
+        finally:
+            sys.unraisablehook = old
+
+    @classmethod
+    def check(cls) -> None:
+        """Raise the first kept failure as an OSError (errno 28 for a full disk)."""
+        exc = cls.first
+        if exc is None:
+            return
+        if isinstance(exc, OSError) and exc.errno:
+            raise exc
+        text = " ".join(str(exc).split())
+        code = errno.ENOSPC if "errno = 28" in text else errno.EIO
+        raise OSError(code, f"{os.strerror(code)} ({text[:200]})")
+
+
+WRITE_MARGIN = 1 << 20  # bytes kept free beyond a row's own: HDF5 allocates chunks and metadata
+
+
+def payload_bytes(value) -> int:
+    """The bytes of the arrays in a row (or a batch of rows: dicts, lists, tuples of arrays)."""
+    if isinstance(value, dict):
+        return sum(payload_bytes(v) for v in value.values())
+    if isinstance(value, (list, tuple)):
+        return sum(payload_bytes(v) for v in value)
+    return int(getattr(value, "nbytes", 8))
+
+
+def check_room_for(path: str, nbytes: int) -> None:
+    """Raise OSError(ENOSPC) before writing ``nbytes`` into ``path`` if its file system has
+    not twice that plus ``WRITE_MARGIN`` free: HDF5 does not survive a write that fails for
+    lack of room (the error surfaces in a destructor, then the library crashes on close)."""
+    import shutil
+
+    need = 2 * nbytes + WRITE_MARGIN
+    try:
+        free = shutil.disk_usage(os.path.dirname(os.path.abspath(path))).free
+    except OSError:
+        return
+    if free < need:
+        raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} ({free / 1e6:.3g} MB free, "
+                                    f"the next write needs about {need / 1e6:.3g} MB with its margin)")
+
+
+def write_row(handler, r: int, row: dict) -> None:
+    """Write row ``r``, mark it done and flush; a failed write raises (``WriteFailures``)."""
+    if handler.kind != "gather" or handler.comm.rank == 0:  # this rank writes the row itself
+        check_room_for(handler.path, payload_bytes(row))
+    handler.write_row(r, row)
+    WriteFailures.check()
+    handler.mark_done(r)
+    handler.flush()
+    WriteFailures.check()
 
 
 def compute(ctx: dict, r: int, progress) -> dict[str, Any]:
@@ -186,7 +270,10 @@ class Root:
             self._reply(src, ahead=msg[1])
         elif kind == "done":
             _, r, ops, code = msg
+            if ops:
+                check_room_for(self.handler.path, payload_bytes(ops))
             self.handler.apply(ops)
+            WriteFailures.check()
             self.completed(code)
         elif kind == "interrupted":
             self.stop(msg[1], msg[2])
@@ -283,9 +370,7 @@ class Root:
                 break
             finally:
                 self.timing["compute"] += time.perf_counter() - t0
-            self.handler.write_row(r, row)
-            self.handler.mark_done(r)
-            self.handler.flush()
+            write_row(self.handler, r, row)
             self.completed(row["status"])
             self.service()
         t0 = time.perf_counter()
@@ -367,9 +452,7 @@ def worker(comm, handler, ctx) -> dict[str, float]:
                 row = compute(ctx, r, check)
             finally:
                 timing["compute"] += time.perf_counter() - t0
-            handler.write_row(r, row)
-            handler.mark_done(r)
-            handler.flush()
+            write_row(handler, r, row)
             sends.append(comm.isend(("done", r, handler.outbox(), row["status"]), dest=0,
                                     tag=TAG_MSG))
             r = next_index()
@@ -422,35 +505,46 @@ def serve_rows(comm, handler, pending, total: int, ctx: dict, out: str, write_vi
     """
     rank = comm.rank
     root = None
-    try:
-        if rank == 0:
-            root = Root(comm, handler, pending, total - len(pending), ctx)
-            root.run()
-            timing = root.timing
-        else:
-            timing = worker(comm, handler, ctx)
-    except Exception as exc:  # noqa: BLE001 - a bug or a failed write: nothing may hang
-        return _failed(comm, handler, exc, out)
-    try:
-        handler.close()
-    except Exception as exc:  # noqa: BLE001 - a failed final write: the same one line
-        return _failed(comm, None, exc, out)
+    with WriteFailures.watching():
+        try:
+            if rank == 0:
+                root = Root(comm, handler, pending, total - len(pending), ctx)
+                root.run()
+                timing = root.timing
+            else:
+                timing = worker(comm, handler, ctx)
+        except Exception as exc:  # noqa: BLE001 - a bug or a failed write: nothing may hang
+            return _failed(comm, handler, exc, out)
+        try:
+            handler.close()
+            WriteFailures.check()
+        except Exception as exc:  # noqa: BLE001 - a failed final write: the same one line
+            return _failed(comm, None, exc, out)
     timings = comm.gather(timing, root=0) if rank_timings and comm.size > 1 else [timing]
     final = None
     if rank == 0:
         if write_view is not None:
-            kind = ctx["label"][0]
-            try:
-                write_view()
-            except (OSError, KeyError, ValueError, RuntimeError) as exc:  # the rows are safe
-                sys.stderr.write(f"{kind}: warning: the xarray view of {out} was not written "
-                                 f"({' '.join(str(exc).split())}); rerun with --resume to add it\n")
+            _write_view(write_view, out, ctx["label"][0])
         final = {"stop": root.stop_reason, "signum": root.signum}
         _report(root, comm.size, out, timings if rank_timings else None)
     final = comm.bcast(final, root=0)
     if final["stop"]:
         return 128 + int(final["signum"] or signal.SIGTERM)
     return 0
+
+
+def _write_view(write_view, out: str, kind: str) -> None:
+    """Rank 0, rows closed: ``write_view()`` if the file system has room for a copy of the
+    file (the view holds at most the rows again); else, or if it fails, one warning (the
+    rows are safe, ``--resume`` adds the view)."""
+    with WriteFailures.watching():
+        try:
+            check_room_for(out, os.path.getsize(out) // 2)
+            write_view()
+            WriteFailures.check()
+        except (OSError, KeyError, ValueError, RuntimeError) as exc:
+            sys.stderr.write(f"{kind}: warning: the xarray view of {out} was not written "
+                             f"({' '.join(str(exc).split())}); rerun with --resume to add it\n")
 
 
 def _failed(comm, handler, exc: BaseException, out: str) -> int:
