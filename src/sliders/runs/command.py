@@ -35,7 +35,8 @@ from typing import Any
 
 import numpy as np
 
-from .parallel import MPIUnavailable, abort, get_comm, launcher_rank
+from .parallel import MPIUnavailable, abort, error_line, get_comm, launcher_rank
+from .scheduler import StopFlag
 
 DEFAULT_BACKEND = "fortran"
 MAX_INPUT_BYTES = 1 << 20  # an input TOML larger than this is refused unread
@@ -55,11 +56,6 @@ class HelpShown(Exception):
     def __init__(self, code: int):
         super().__init__(code)
         self.code = code
-
-
-def error_line(message: str) -> str:
-    """``message`` as the one line a refusal prints: ``error: ...`` without line breaks."""
-    return "error: " + " ".join(str(message).split())
 
 
 class CommandParser(argparse.ArgumentParser):
@@ -255,7 +251,6 @@ def world_or_none():
 
 def _failure(exc: BaseException) -> tuple[int, str]:
     """The (exit code, one line) of a failure of local work."""
-    from .scheduler import StopFlag
     from ..analysis.study_spec import StudyError
     from ..scene import SceneError
 
@@ -276,8 +271,6 @@ def _failure(exc: BaseException) -> tuple[int, str]:
 def local_step(work, failed=None):
     """``(work(), None)`` or ``(failed, (exit code, line))``: every failure of ``work``, Ctrl-C
     included, caught so that the rank goes on to the next collective step."""
-    from .scheduler import StopFlag
-
     try:
         with StopFlag.interruptible():
             return work(), None
@@ -289,7 +282,6 @@ def agree(comm, err, claims: list) -> int | None:
     """Collective: None when no rank failed, else the first failure's exit code (rank 0
     prints its line; the claims are released).  A signal received since the last step
     counts as a failure of this rank."""
-    from .scheduler import StopFlag
 
     if err is None and StopFlag.signum is not None:
         err = _failure(KeyboardInterrupt())
@@ -314,7 +306,6 @@ def run_planned(command: RunCommand, argv: list[str] | None = None) -> int:
     from the start: a signal on any rank reaches every rank at the next step.
     """
     from .cli import ranks_on_this_node
-    from .scheduler import StopFlag
 
     got = world_or_none()
     if got is None:

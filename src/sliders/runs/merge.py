@@ -236,8 +236,8 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(2)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run ``python -m sliders.merge`` (join the chunk files of one ensemble); returns the exit code."""
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m sliders.merge``."""
     p = _Parser(
         prog="python -m sliders.merge",
         description="Join ensemble chunk files (python -m sliders.ensemble --chunk I/K) into one "
@@ -245,7 +245,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("out", metavar="OUT.h5", help="merged ensemble file")
     p.add_argument("inputs", metavar="IN.h5", nargs="+", help="chunk files, in any order")
     p.add_argument("--overwrite", action="store_true", help="replace an existing OUT.h5")
-    args = p.parse_args(argv)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``python -m sliders.merge`` (join the chunk files of one ensemble); returns the exit code."""
+    from .command import error_line
+
+    args = build_parser().parse_args(argv)
     notes: list[str] = []
 
     def stop(signum, frame):
@@ -259,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     except (MergeError, OSError, ValueError, RuntimeError) as exc:
         for note in notes:
             sys.stderr.write(f"merge: note: {note}\n")
-        sys.stderr.write("error: " + " ".join(str(exc).split()) + "\n")
+        sys.stderr.write(error_line(str(exc)) + "\n")
         return 1
     except KeyboardInterrupt:
         sys.stderr.write(f"merge: interrupted; {args.out} is unchanged and no temporary file is "

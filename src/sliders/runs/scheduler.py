@@ -32,8 +32,7 @@ from collections import Counter, deque
 from typing import Any
 
 from .. import status as status_codes
-from .command import error_line
-from .parallel import abort
+from .parallel import abort, error_line
 
 TAG_MSG, TAG_REPLY, TAG_CTRL = 71, 72, 73
 NO_MORE, DECLINED = -1, -2  # replies to a request for an index
@@ -208,6 +207,7 @@ def tilt_interruptibly(scene, backend: str, progress, **options):
 
 
 def format_duration(s: float) -> str:
+    """Seconds for a progress line: ``"4.2 s"``, ``"3 min 05 s"``, ``"2 h 01 min"`` (``"?"`` if unknown)."""
     if not math.isfinite(s):
         return "?"
     if s < 120:
@@ -311,6 +311,7 @@ class Root:
 
     # -- progress ----------------------------------------------------------
     def completed(self, code: int) -> None:
+        """A row is written (its end status ``code``): count it, stop if asked, report."""
         self.done_now += 1
         self.statuses[status_codes.NAMES.get(code, "unknown")] += 1
         self._check_stop()
