@@ -28,6 +28,7 @@ from sliders.runs import prior as prior_run
 from test_ensemble import (PY, RESULTS_IGNORED, _env, _Run, assert_same_file, kill_tree,
                            one_error_line, rank_pids, read_all, run)
 from test_prior import assert_same_sets
+from test_trust import STUDY_TEXT
 
 PRIOR = """
 [prior]
@@ -41,17 +42,7 @@ mu_d = {{ uniform = [{low}, {high}] }}
 mu_s_minus_mu_d = {{ loguniform = [0.02, 0.12] }}
 n_sliders = {{ choice = [{sizes}] }}
 """
-STUDY = """
-[study]
-realisations = 2
-[scene]
-n_sliders = 10
-mode = "explore"
-seed = 5
-mu_d = {mu_d}
-[axes]
-xi = [0.0, 0.001]
-"""
+STUDY = STUDY_TEXT.replace("mu_d = 0.5", "mu_d = {mu_d}")
 SCENE = "n_sliders = 10\nseed = 7\nmode = \"explore\"\nmu_d = {mu_d}\n"
 MODULES = {"ensemble": "sliders.ensemble", "study": "sliders.study", "prior": "sliders.prior"}
 

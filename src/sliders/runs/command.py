@@ -31,7 +31,7 @@ import os
 import signal
 import sys
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -76,6 +76,17 @@ class CommandParser(argparse.ArgumentParser):
     def _print_message(self, message, file=None):
         if self.rank == 0:
             super()._print_message(message, file)
+
+
+def input_command_parser(prog: str, description: str, rank: int, name: str, metavar: str,
+                         what: str) -> CommandParser:
+    """The parser of a command that runs one input file into one output file: the input
+    (positional ``name``) and the output options (``add_output_options``)."""
+    p = CommandParser(prog=prog, description=description)
+    p.rank = rank
+    p.add_argument(name, metavar=metavar, help=what)
+    add_output_options(p)
+    return p
 
 
 def add_output_options(p: argparse.ArgumentParser, progress_interval: float = 10.0) -> None:
@@ -212,21 +223,41 @@ class RunPlan:
         return int(self.done.size)
 
 
+@dataclass(frozen=True)
 class RunCommand:
-    """One run command; ``run_planned`` calls its methods (see the module doc).
+    """One run command, as ``run_planned`` drives it (see the module doc).
 
-    ``name`` is the first word of its messages.  Subclasses define
-    ``build_parser(rank)``, ``prepare(args, inputs, world)`` (every rank,
-    local checks; ``inputs`` maps each of ``input_paths(args)`` to rank 0's
-    bytes; returns the command's own value), ``plan(args, local)`` (rank 0,
-    holding the claim: a ``RunPlan``) and ``run(comm, args, local, plan)``.
+    Attributes
+    ----------
+    name : str
+        The first word of its messages ("ensemble", "study", "prior").
+    make_parser : callable
+        ``rank`` -> the parser (help and errors printed by rank 0 only).
+    prepare : callable
+        ``(args, inputs, world)`` -> the command's own value: every rank's local
+        checks; ``inputs`` maps the input file's path to rank 0's bytes.
+    plan : callable
+        ``(args, local)`` -> ``RunPlan``: rank 0, holding the claim on ``--out``.
+    run : callable
+        ``(comm, args, local, plan)`` -> exit code: every rank.
+    input_option : (str, str), optional
+        The destination of the option naming the input file, and what it is.
     """
 
-    name = "run"
+    name: str
+    make_parser: Callable
+    prepare: Callable
+    plan: Callable
+    run: Callable
+    input_option: tuple[str, str] | None = None
 
     def input_paths(self, args) -> dict[str, str]:
         """The input files rank 0 reads: {path: what it is, for messages}."""
-        return {}
+        if self.input_option is None:
+            return {}
+        dest, what = self.input_option
+        path = getattr(args, dest)
+        return {path: what} if path else {}
 
 
 @dataclass
@@ -316,7 +347,7 @@ def run_planned(command: RunCommand, argv: list[str] | None = None) -> int:
     with StopFlag.installed():
         # 1. the command line (every rank) and the inputs (rank 0's bytes, to every rank)
         def read():
-            args = command.build_parser(comm.rank).parse_args(argv)
+            args = command.make_parser(comm.rank).parse_args(argv)
             paths = command.input_paths(args)
             data = ({p: read_input(p, what) for p, what in paths.items()} if comm.rank == 0
                     else None)

@@ -69,80 +69,64 @@ def build_parser(rank: int = 0) -> CommandParser:
     return p
 
 
-class EnsembleCommand(RunCommand):
-    """``python -m sliders.ensemble`` on ``runs.command``'s shape."""
+def prepare_ensemble(args, inputs, world) -> dict:
+    """Every check that needs no file (every rank, same answer): the scene, the counts,
+    the options, the backend, the memory of ``world.node_ranks`` runs."""
+    from .cli import scene_from_args
+    from ..driver import make_engine
+    from ..scene import check_memory, check_tilt_statistics
 
-    name = "ensemble"
+    scene = scene_from_args(args, inputs.get(args.scene))
+    if args.realisations is not None and args.realisations < 1:
+        raise UsageError(f"--realisations={args.realisations} must be at least 1")
+    if args.realisations is None and not args.resume:
+        raise UsageError("--realisations R is required (unless --resume)", code=2)
+    if args.chunk is not None and args.realisations is None:
+        raise UsageError("--chunk I/K needs --realisations R (the whole ensemble's)", code=2)
+    storage = check_run_options(args, world.comm, world.have_mpi)
+    backend = args.backend or DEFAULT_BACKEND
+    try:
+        make_engine(scene, backend)
+    except (ImportError, AttributeError) as exc:  # not built, or built from older sources
+        raise UsageError(f"backend {backend!r} is not available ({exc}); "
+                         "build it (scripts/setup.sh) or use --backend numpy") from None
+    check_tilt_statistics(scene)
+    check_memory(scene, world.node_ranks)
+    return {"scene": scene, "storage": storage, "scene_values": inputs.get(args.scene)}
 
-    def build_parser(self, rank):
-        """The parser (``build_parser``)."""
-        return build_parser(rank)
 
-    def input_paths(self, args):
-        """The scene file, if any."""
-        return {args.scene: "scene file"} if args.scene else {}
+def run_ensemble(comm, args, local, plan: RunPlan) -> int:
+    """Create or open the file, serve the rows, report (every rank)."""
+    from ..analysis.observables import StatisticsGrids
+    from ..io.conventions import describe_ensemble_file
+    from ..io.storage import HANDLERS
 
-    def prepare(self, args, inputs, world) -> dict:
-        """Every check that needs no file (every rank, same answer): the scene, the counts,
-        the options, the backend, the memory of ``world.node_ranks`` runs."""
-        from .cli import scene_from_args
-        from ..driver import make_engine
-        from ..scene import check_memory, check_tilt_statistics
+    storage = local["storage"]
+    handler = open_output(comm, args, plan, HANDLERS, storage, describe_ensemble_file)
+    if handler is None:
+        return 1
+    layout, scene = plan.layout, plan.scene
+    grids = StatisticsGrids.from_arrays(layout.grids)
+    first = int(layout.attrs.get("first_realisation", 0))
 
-        scene = scene_from_args(args, inputs.get(args.scene))
-        if args.realisations is not None and args.realisations < 1:
-            raise UsageError(f"--realisations={args.realisations} must be at least 1")
-        if args.realisations is None and not args.resume:
-            raise UsageError("--realisations R is required (unless --resume)", code=2)
-        if args.chunk is not None and args.realisations is None:
-            raise UsageError("--chunk I/K needs --realisations R (the whole ensemble's)", code=2)
-        storage = check_run_options(args, world.comm, world.have_mpi)
-        backend = args.backend or DEFAULT_BACKEND
-        try:
-            make_engine(scene, backend)
-        except (ImportError, AttributeError) as exc:  # not built, or built from older sources
-            raise UsageError(f"backend {backend!r} is not available ({exc}); "
-                             "build it (scripts/setup.sh) or use --backend numpy") from None
-        check_tilt_statistics(scene)
-        check_memory(scene, world.node_ranks)
-        return {"scene": scene, "storage": storage, "scene_values": inputs.get(args.scene)}
+    def row(r, progress):
+        return compute_row(scene, r, plan.backend, grids, progress, first)
 
-    def plan(self, args, local) -> RunPlan:
-        """Rank 0, holding the claim (``plan_ensemble``)."""
-        return plan_ensemble(args, local["scene"], local["scene_values"])
-
-    def run(self, comm, args, local, plan: RunPlan) -> int:
-        """Create or open the file, serve the rows, report (every rank)."""
-        from ..analysis.observables import StatisticsGrids
-        from ..io.conventions import describe_ensemble_file
-        from ..io.storage import HANDLERS
-
-        storage = local["storage"]
-        handler = open_output(comm, args, plan, HANDLERS, storage, describe_ensemble_file)
-        if handler is None:
-            return 1
-        layout, scene = plan.layout, plan.scene
-        grids = StatisticsGrids.from_arrays(layout.grids)
-        first = int(layout.attrs.get("first_realisation", 0))
-
-        def row(r, progress):
-            return compute_row(scene, r, plan.backend, grids, progress, first)
-
-        ctx = {"compute_row": row, "interval": args.progress_interval, "quiet": args.quiet,
-               "label": ("ensemble", "realisations")}
-        if comm.rank == 0 and not args.quiet:
-            if plan.pending.size == 0:
-                sys.stderr.write(f"ensemble: all {plan.total} realisations of {args.out} are "
-                                 "done already; nothing to do\n")
-            else:
-                sys.stderr.write(
-                    f"ensemble: {'resuming' if plan.resume else 'starting'} {plan.pending.size} "
-                    f"of {plan.total} realisations of N={scene.n_sliders} xi={scene.xi:g} "
-                    f"(backend {plan.backend}) on {comm.size} rank{'s' if comm.size > 1 else ''}, "
-                    f"storage {storage} -> {args.out}\n")
-            sys.stderr.flush()
-        return serve_rows(comm, handler, plan.pending, plan.total, ctx, args.out,
-                          rank_timings=True)
+    ctx = {"compute_row": row, "interval": args.progress_interval, "quiet": args.quiet,
+           "label": ("ensemble", "realisations")}
+    if comm.rank == 0 and not args.quiet:
+        if plan.pending.size == 0:
+            sys.stderr.write(f"ensemble: all {plan.total} realisations of {args.out} are "
+                             "done already; nothing to do\n")
+        else:
+            sys.stderr.write(
+                f"ensemble: {'resuming' if plan.resume else 'starting'} {plan.pending.size} "
+                f"of {plan.total} realisations of N={scene.n_sliders} xi={scene.xi:g} "
+                f"(backend {plan.backend}) on {comm.size} rank{'s' if comm.size > 1 else ''}, "
+                f"storage {storage} -> {args.out}\n")
+        sys.stderr.flush()
+    return serve_rows(comm, handler, plan.pending, plan.total, ctx, args.out,
+                      rank_timings=True)
 
 
 def _resumed_scene(args, attrs: dict, scene_text) -> Scene:
@@ -209,14 +193,15 @@ def _check_resumable(out: str, head: dict, layout, grids: dict) -> np.ndarray:
     return done
 
 
-def plan_ensemble(args, scene: Scene, scene_text=None) -> RunPlan:
+def plan_ensemble(args, local: dict) -> RunPlan:
     """Rank 0 (holding the claim on --out): output file checks, resume compatibility, the
-    scene and backend (the file's with --resume), the layout."""
+    scene and backend (the file's with --resume), the layout; ``local``: ``prepare_ensemble``'s."""
     from ..keyed_random import realisation_seed
     from ..analysis.observables import default_grids, statistics_layout
     from ..io.storage import (StorageError, check_room, file_attributes, make_layout, read_header,
                               statistics_row_bytes)
 
+    scene, scene_text = local["scene"], local["scene_values"]
     backend = args.backend or DEFAULT_BACKEND
     out = args.out
     resume = check_new_or_resume(args)
@@ -254,7 +239,8 @@ def plan_ensemble(args, scene: Scene, scene_text=None) -> RunPlan:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``python -m sliders.ensemble`` with ``argv``; returns the exit code (0: every realisation done)."""
-    return run_planned(EnsembleCommand(), argv)
+    return run_planned(RunCommand("ensemble", build_parser, prepare_ensemble, plan_ensemble,
+                                  run_ensemble, input_option=("scene", "scene file")), argv)
 
 
 if __name__ == "__main__":

@@ -63,7 +63,7 @@ from typing import Any
 import numpy as np
 
 from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, UsageError,
-                      add_output_options, check_new_or_resume, check_run_options, open_output,
+                      check_new_or_resume, check_run_options, input_command_parser, open_output,
                       run_planned)
 from .rows import realisation_seeds, status_code
 from .scheduler import serve_rows, tilt_interruptibly
@@ -526,14 +526,12 @@ def compute_prior_row(prior: Prior, r: int, backend: str, grid: np.ndarray, prog
 # ---------------------------------------------------------------------------
 def build_parser(rank: int = 0) -> CommandParser:
     """The command line of ``python -m sliders.prior`` (help printed by rank 0 only)."""
-    p = CommandParser(prog="python -m sliders.prior",
-                      description="Run a prior ensemble: every row draws its material from the "
-                                  "prior (a seeded scipy.stats.qmc design) and keeps the catalogue "
-                                  "of every event up to the avalanche and the ceiling, over MPI "
-                                  "ranks with dynamic scheduling, into one HDF5 file.")
-    p.rank = rank
-    p.add_argument("prior", metavar="PRIOR.toml", help="prior file: [prior], [scene], [parameters]")
-    add_output_options(p)
+    p = input_command_parser(
+        "python -m sliders.prior",
+        "Run a prior ensemble: every row draws its material from the prior (a seeded "
+        "scipy.stats.qmc design) and keeps the catalogue of every event up to the avalanche and "
+        "the ceiling, over MPI ranks with dynamic scheduling, into one HDF5 file.",
+        rank, "prior", "PRIOR.toml", "prior file: [prior], [scene], [parameters]")
     p.set_defaults(storage="gather")  # ragged events: rank 0 writes (sliders.io.prior_file)
     return p
 
@@ -576,63 +574,48 @@ def plan_prior(args, prior: Prior) -> RunPlan:
     return RunPlan(layout, backend, resume, done, pending)
 
 
-class PriorCommand(RunCommand):
-    """``python -m sliders.prior`` on ``runs.command``'s shape."""
+def prepare_prior(args, inputs, world) -> Prior:
+    """The prior, every row's scene and the memory checked (every rank, rank 0's bytes)."""
+    from ..io.storage import check_room
+    from ..scene import check_memory
 
-    name = "prior"
+    check_run_options(args, world.comm, world.have_mpi)
+    prior = load_prior(args.prior, inputs[args.prior])
+    check_plan_memory(prior, world.node_ranks)  # before any row is drawn
+    if not (args.resume and os.path.exists(args.out)):
+        # a count no disk could hold is refused before any row is drawn; a row holds at
+        # least its ceiling (G x K distances) and a few scalars, its events come on top
+        check_room(args.out, prior.realisations,
+                   8 * prior.ceiling_alpha().size * prior.ceiling_k + 256)
+    check_memory(prior.check_rows(), world.node_ranks)  # every row, before anything runs
+    return prior
 
-    def build_parser(self, rank):
-        """The parser (``build_parser``)."""
-        return build_parser(rank)
 
-    def input_paths(self, args):
-        """The prior file."""
-        return {args.prior: "prior file"}
+def run_prior(comm, args, prior, plan: RunPlan) -> int:
+    """Create or open the file, serve the rows, report (every rank)."""
+    handler = open_output(comm, args, plan, HANDLERS, "gather")
+    if handler is None:
+        return 1
+    grid = plan.layout.grids["ceiling_alpha"]
 
-    def prepare(self, args, inputs, world) -> Prior:
-        """The prior, every row's scene and the memory checked (every rank, rank 0's bytes)."""
-        from ..io.storage import check_room
-        from ..scene import check_memory
+    def compute(r: int, progress):
+        return compute_prior_row(prior, int(r), plan.backend, grid, progress)
 
-        check_run_options(args, world.comm, world.have_mpi)
-        prior = load_prior(args.prior, inputs[args.prior])
-        check_plan_memory(prior, world.node_ranks)  # before any row is drawn
-        if not (args.resume and os.path.exists(args.out)):
-            # a count no disk could hold is refused before any row is drawn; a row holds at
-            # least its ceiling (G x K distances) and a few scalars, its events come on top
-            check_room(args.out, prior.realisations,
-                       8 * prior.ceiling_alpha().size * prior.ceiling_k + 256)
-        check_memory(prior.check_rows(), world.node_ranks)  # every row, before anything runs
-        return prior
-
-    def plan(self, args, prior) -> RunPlan:
-        """Rank 0, holding the claim (``plan_prior``)."""
-        return plan_prior(args, prior)
-
-    def run(self, comm, args, prior, plan: RunPlan) -> int:
-        """Create or open the file, serve the rows, report (every rank)."""
-        handler = open_output(comm, args, plan, HANDLERS, "gather")
-        if handler is None:
-            return 1
-        grid = plan.layout.grids["ceiling_alpha"]
-
-        def compute(r: int, progress):
-            return compute_prior_row(prior, int(r), plan.backend, grid, progress)
-
-        ctx = {"compute_row": compute, "interval": args.progress_interval, "quiet": args.quiet,
-               "label": ("prior", "rows")}
-        if comm.rank == 0 and not args.quiet:
-            sys.stderr.write(f"prior: {'resuming' if plan.resume else 'starting'} "
-                             f"{plan.pending.size} of {plan.total} rows (backend {plan.backend}) "
-                             f"on {comm.size} rank(s) -> {args.out}\n")
-            sys.stderr.flush()
-        return serve_rows(comm, handler, plan.pending, plan.total, ctx, args.out,
-                          lambda: write_view(args.out, prior.base_scene.to_dict()))
+    ctx = {"compute_row": compute, "interval": args.progress_interval, "quiet": args.quiet,
+           "label": ("prior", "rows")}
+    if comm.rank == 0 and not args.quiet:
+        sys.stderr.write(f"prior: {'resuming' if plan.resume else 'starting'} "
+                         f"{plan.pending.size} of {plan.total} rows (backend {plan.backend}) "
+                         f"on {comm.size} rank(s) -> {args.out}\n")
+        sys.stderr.flush()
+    return serve_rows(comm, handler, plan.pending, plan.total, ctx, args.out,
+                      lambda: write_view(args.out, prior.base_scene.to_dict()))
 
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sliders.prior PRIOR.toml --out FILE.h5``: run (or resume) a prior ensemble; the exit code."""
-    return run_planned(PriorCommand(), argv)
+    return run_planned(RunCommand("prior", build_parser, prepare_prior, plan_prior, run_prior,
+                                   input_option=("prior", "prior file")), argv)
 
 
 if __name__ == "__main__":

@@ -36,8 +36,8 @@ import sys
 import numpy as np
 
 from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, UsageError,
-                      add_output_options, add_storage_option, check_new_or_resume,
-                      check_run_options, open_output, run_planned)
+                      add_storage_option, check_new_or_resume, check_run_options,
+                      input_command_parser, open_output, run_planned)
 from .rows import compute_row, realisation_seeds
 from .scheduler import serve_rows
 from ..io.study_file import (HANDLERS, read_study_header, study_attributes, study_layout,
@@ -108,14 +108,12 @@ def make_study_layout(study: Study, backend: str, attrs: dict | None = None):
 # ---------------------------------------------------------------------------
 def build_parser(rank: int = 0) -> CommandParser:
     """The command line of ``python -m sliders.study`` (help printed by rank 0 only)."""
-    p = CommandParser(prog="python -m sliders.study",
-                      description="Sweep scene parameters: R realisations (common random numbers: "
-                                  "the same seeds at every point) at each point of the product of "
-                                  "the axes, over MPI ranks with dynamic scheduling, into one HDF5 "
-                                  "file (one group per point).")
-    p.rank = rank
-    p.add_argument("study", metavar="STUDY.toml", help="study file: [study], [scene], [axes]")
-    add_output_options(p)
+    p = input_command_parser(
+        "python -m sliders.study",
+        "Sweep scene parameters: R realisations (common random numbers: the same seeds at every "
+        "point) at each point of the product of the axes, over MPI ranks with dynamic scheduling, "
+        "into one HDF5 file (one group per point).",
+        rank, "study", "STUDY.toml", "study file: [study], [scene], [axes]")
     add_storage_option(p)
     return p
 
@@ -164,63 +162,48 @@ def plan_study(args, study: Study) -> RunPlan:
     return RunPlan(layout, backend, resume, done, pending)
 
 
-class StudyCommand(RunCommand):
-    """``python -m sliders.study`` on ``runs.command``'s shape."""
+def prepare_study(args, inputs, world) -> dict:
+    """The study and every point's memory (every rank, rank 0's bytes); a StudyError is a
+    ValueError."""
+    storage = check_run_options(args, world.comm, world.have_mpi)
+    study = load_study(args.study, inputs[args.study])
+    check_points_memory(study, world.node_ranks)  # every point, before the file is created
+    return {"study": study, "storage": storage}
 
-    name = "study"
 
-    def build_parser(self, rank):
-        """The parser (``build_parser``)."""
-        return build_parser(rank)
+def run_study(comm, args, local, plan: RunPlan) -> int:
+    """Create or open the file, serve the rows, report (every rank)."""
+    from ..analysis.observables import StatisticsGrids
 
-    def input_paths(self, args):
-        """The study file."""
-        return {args.study: "study file"}
+    study, storage = local["study"], local["storage"]
+    handler = open_output(comm, args, plan, HANDLERS, storage)
+    if handler is None:
+        return 1
+    R = study.realisations
+    grids = [StatisticsGrids.from_arrays(lay.grids) for lay in plan.layout.points]
 
-    def prepare(self, args, inputs, world) -> dict:
-        """The study and every point's memory (every rank, rank 0's bytes); a StudyError is a
-        ValueError."""
-        storage = check_run_options(args, world.comm, world.have_mpi)
-        study = load_study(args.study, inputs[args.study])
-        check_points_memory(study, world.node_ranks)  # every point, before the file is created
-        return {"study": study, "storage": storage}
+    def compute(t: int, progress):
+        p, r = divmod(int(t), R)
+        # the point's scene keeps the base seed: realisation r has the same seed at every point
+        return compute_row(study.scenes[p], r, plan.backend, grids[p], progress, 0,
+                           extra_statistics)
 
-    def plan(self, args, local) -> RunPlan:
-        """Rank 0, holding the claim (``plan_study``)."""
-        return plan_study(args, local["study"])
-
-    def run(self, comm, args, local, plan: RunPlan) -> int:
-        """Create or open the file, serve the rows, report (every rank)."""
-        from ..analysis.observables import StatisticsGrids
-
-        study, storage = local["study"], local["storage"]
-        handler = open_output(comm, args, plan, HANDLERS, storage)
-        if handler is None:
-            return 1
-        R = study.realisations
-        grids = [StatisticsGrids.from_arrays(lay.grids) for lay in plan.layout.points]
-
-        def compute(t: int, progress):
-            p, r = divmod(int(t), R)
-            # the point's scene keeps the base seed: realisation r has the same seed at every point
-            return compute_row(study.scenes[p], r, plan.backend, grids[p], progress, 0,
-                               extra_statistics)
-
-        ctx = {"compute_row": compute, "interval": args.progress_interval, "quiet": args.quiet,
-               "label": ("study", "(point, realisation) rows")}
-        if comm.rank == 0 and not args.quiet:
-            sys.stderr.write(f"study: {'resuming' if plan.resume else 'starting'} "
-                             f"{plan.pending.size} of {plan.total} rows ({len(study.points)} "
-                             f"points x {R} realisations, backend {plan.backend}) on {comm.size} "
-                             f"rank(s), storage {storage} -> {args.out}\n")
-            sys.stderr.flush()
-        return serve_rows(comm, handler, plan.pending, plan.total, ctx, args.out,
-                          lambda: write_view(args.out, study))
+    ctx = {"compute_row": compute, "interval": args.progress_interval, "quiet": args.quiet,
+           "label": ("study", "(point, realisation) rows")}
+    if comm.rank == 0 and not args.quiet:
+        sys.stderr.write(f"study: {'resuming' if plan.resume else 'starting'} "
+                         f"{plan.pending.size} of {plan.total} rows ({len(study.points)} "
+                         f"points x {R} realisations, backend {plan.backend}) on {comm.size} "
+                         f"rank(s), storage {storage} -> {args.out}\n")
+        sys.stderr.flush()
+    return serve_rows(comm, handler, plan.pending, plan.total, ctx, args.out,
+                      lambda: write_view(args.out, study))
 
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sliders.study STUDY.toml --out FILE.h5``: run (or resume) a study; the exit code."""
-    return run_planned(StudyCommand(), argv)
+    return run_planned(RunCommand("study", build_parser, prepare_study, plan_study, run_study,
+                                   input_option=("study", "study file")), argv)
 
 
 if __name__ == "__main__":
