@@ -202,8 +202,9 @@ def run_study(comm, args, local, plan: RunPlan) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sliders.study STUDY.toml --out FILE.h5``: run (or resume) a study; the exit code."""
-    return run_planned(RunCommand("study", build_parser, prepare_study, plan_study, run_study,
-                                   input_option=("study", "study file")), argv)
+    return run_planned(RunCommand("study", build_parser, prepare_study,
+                                  lambda args, local: plan_study(args, local["study"]), run_study,
+                                  input_option=("study", "study file")), argv)
 
 
 if __name__ == "__main__":
