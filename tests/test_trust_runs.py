@@ -25,8 +25,8 @@ import pytest
 
 from sliders.io.prior_file import read_prior_ensemble, read_prior_header
 from sliders.runs import prior as prior_run
-from test_ensemble import (PY, RESULTS_IGNORED, _env, _Run, assert_same_file, kill_tree,
-                           one_error_line, rank_pids, read_all, run)
+from test_ensemble import (PY, RESULTS_IGNORED, _children, _env, _Run, assert_same_file,
+                           kill_tree, one_error_line, rank_pids, read_all, run)
 from test_prior import assert_same_sets
 from test_trust import STUDY_TEXT
 
@@ -86,6 +86,16 @@ def assert_same_rows(command: str, a, b) -> None:
                 assert da[k].tobytes() == db[k].tobytes(), k
     else:
         assert_same_file(a, b)
+
+
+def process_tree(pid: int) -> list[int]:
+    """``pid`` and all its descendants (mpirun, its proxy, the ranks)."""
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        out.append(p)
+        todo.extend(_children(p))
+    return out
 
 
 class FifoFeeder:
@@ -149,8 +159,15 @@ def test_second_resume_through_a_hard_link_is_refused(tmp_path, command, ranks):
     try:
         first.wait_for(lambda lines: any("starting" in ln for ln in lines), timeout=90)
         os.link(out, link)
-        second = finish(command, command_args(command, source, link, ["--resume"]),
-                        env=_env(**no_hdf5_locks))
+        frozen = process_tree(first.proc.pid)
+        for pid in frozen:  # still writing, however slow this machine
+            os.kill(pid, signal.SIGSTOP)
+        try:
+            second = finish(command, command_args(command, source, link, ["--resume"]),
+                            env=_env(**no_hdf5_locks))
+        finally:
+            for pid in frozen:
+                os.kill(pid, signal.SIGCONT)
         line = one_error_line(second)
         assert "is being written by" in line and "another name" in line, line
     finally:
