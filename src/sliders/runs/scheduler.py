@@ -98,6 +98,15 @@ def payload_bytes(value) -> int:
     return int(getattr(value, "nbytes", 8))
 
 
+def growth_bytes(handler, rows) -> int:
+    """The bytes that writing ``rows`` (one row, or a worker's batch of ``(op, r, row)``) adds
+    to the file beyond the rows the file allocated when it was created (a prior row's events)."""
+    if isinstance(rows, list):
+        return sum(growth_bytes(handler, op[2]) for op in rows if isinstance(op[2], dict))
+    allocated = {c.name for c in handler.layout.columns}
+    return payload_bytes({k: v for k, v in rows.items() if k not in allocated})
+
+
 def check_room_for(path: str, nbytes: int) -> None:
     """Raise OSError(ENOSPC) before writing ``nbytes`` into ``path`` if its file system has
     not twice that plus ``WRITE_MARGIN`` free: HDF5 does not survive a write that fails for
@@ -115,9 +124,12 @@ def check_room_for(path: str, nbytes: int) -> None:
 
 
 def write_row(handler, r: int, row: dict) -> None:
-    """Write row ``r``, mark it done and flush; a failed write raises (``WriteFailures``)."""
+    """Write row ``r``, mark it done and flush; a failed write raises (``WriteFailures``), and
+    a row that grows the file is written only with room for it (``check_room_for``)."""
     if handler.kind != "gather" or handler.comm.rank == 0:  # this rank writes the row itself
-        check_room_for(handler.path, payload_bytes(row))
+        grows = growth_bytes(handler, row)
+        if grows:  # the file's own rows were allocated when it was created
+            check_room_for(handler.path, grows)
     handler.write_row(r, row)
     WriteFailures.check()
     handler.mark_done(r)
@@ -270,8 +282,9 @@ class Root:
             self._reply(src, ahead=msg[1])
         elif kind == "done":
             _, r, ops, code = msg
-            if ops:
-                check_room_for(self.handler.path, payload_bytes(ops))
+            grows = growth_bytes(self.handler, ops or [])
+            if grows:
+                check_room_for(self.handler.path, grows)
             self.handler.apply(ops)
             WriteFailures.check()
             self.completed(code)
