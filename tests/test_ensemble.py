@@ -47,19 +47,25 @@ RESULTS_IGNORED = {"wall_time", "row_crc32"}
 ATTRS_IGNORED = {"created", "attrs_crc32", "date_created", "date_modified", "history"}
 
 
+# tests/hooks/sitecustomize.py: the test hooks (SLIDERS_ENSEMBLE_TEST_DELAY, ..._TEST_FAIL,
+# ..._STOP_AFTER), installed in every rank of a command started with this environment
+HOOKS = Path(__file__).parent / "hooks"
+
+
 def _env(**extra):
     env = dict(os.environ)
     env.pop("SLIDERS_ENSEMBLE_STOP_AFTER", None)
     env.pop("SLIDERS_ENSEMBLE_TEST_DELAY", None)
     env.pop("SLIDERS_ENSEMBLE_TEST_FAIL", None)
     env["PYTHONUNBUFFERED"] = "1"
+    env["PYTHONPATH"] = os.pathsep.join([str(HOOKS)] + [p for p in [env.get("PYTHONPATH")] if p])
     env.update({k: str(v) for k, v in extra.items()})
     return env
 
 
-def command(args, n=None):
-    """The command line: plain python (n None) or mpirun -n n."""
-    base = [PY, "-m", "sliders.ensemble"]
+def command(args, n=None, module="sliders.ensemble"):
+    """The command line of ``python -m module``: plain python (n None) or mpirun -n n."""
+    base = [PY, "-m", module]
     if n is not None:
         assert MPIRUN, "mpirun not found (install Debian mpich: scripts/setup.sh)"
         base = [MPIRUN, "-n", str(n)] + base
@@ -113,8 +119,8 @@ if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:  # SIGTERM ends pytest li
 class _Run:
     """A started run whose stderr is read by a thread (so that waits can time out)."""
 
-    def __init__(self, args, n, env):
-        self.cmd = command(args, n)
+    def __init__(self, args, n, env, module="sliders.ensemble"):
+        self.cmd = command(args, n, module)
         self.proc = subprocess.Popen(self.cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, env=env or _env(), start_new_session=True)
         _LIVE.add(self.proc.pid)
@@ -175,9 +181,9 @@ class _Run:
         _LIVE.discard(self.proc.pid)
 
 
-def run(args, n=None, env=None, timeout=TIMEOUT):
+def run(args, n=None, env=None, timeout=TIMEOUT, module="sliders.ensemble"):
     """Run to completion (or kill the whole process tree after ``timeout``)."""
-    return _Run(args, n, env).finish(timeout)
+    return _Run(args, n, env, module).finish(timeout)
 
 
 def ensemble_args(out, r=R, backend=BACKEND, extra=()):
@@ -428,7 +434,7 @@ def test_unexpected_exception_aborts_without_hang(tmp_path):
     out = tmp_path / "fail.h5"
     res = run(ensemble_args(out), n=2, env=_env(SLIDERS_ENSEMBLE_TEST_FAIL=4), timeout=120)
     assert res.returncode != 0
-    assert "error: rank" in res.stderr and "realisation 4 fails" in res.stderr
+    assert "error: rank" in res.stderr and "row 4 fails" in res.stderr
     assert "Traceback" not in res.stderr
     done = ensemble.read_realisations(out)["done"]
     assert not done[4]

@@ -19,7 +19,7 @@ PACKAGE = pathlib.Path(sliders.__file__).parent
 # bottom first; a module belongs to the first entry that is it or one of its parents
 LAYERS = [
     ("core", ["sliders._version", "sliders.scene", "sliders.chain", "sliders.keyed_random",
-              "sliders.status", "sliders.engine"]),
+              "sliders.status", "sliders.engine", "sliders.units"]),
     ("io", ["sliders.io"]),
     ("simulation", ["sliders.preparation", "sliders.driver", "sliders.result"]),
     ("analysis", ["sliders.analysis"]),

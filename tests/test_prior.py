@@ -23,6 +23,7 @@ import sliders
 from sliders.io.catalogue import EVENT_COLUMNS, Catalogue, CatalogueSet
 from sliders.io.prior_file import read_prior_ensemble, read_prior_row
 from sliders.runs import prior as prior_run
+from test_ensemble import _env
 
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
 PY = sys.executable
@@ -42,16 +43,6 @@ sigma_mu = {{ uniform = [0.005, 0.03] }}
 xi = {{ loguniform = [1e-4, 1e-2], zero = 0.5 }}
 n_sliders = {{ choice = [20, 30, 40] }}
 """
-
-
-def _env(**extra):
-    env = dict(os.environ)
-    for k in ("SLIDERS_ENSEMBLE_STOP_AFTER", "SLIDERS_ENSEMBLE_TEST_DELAY",
-              "SLIDERS_ENSEMBLE_TEST_FAIL"):
-        env.pop(k, None)
-    env["PYTHONUNBUFFERED"] = "1"
-    env.update({k: str(v) for k, v in extra.items()})
-    return env
 
 
 def _command(args, n=None):
@@ -139,24 +130,24 @@ def test_bad_priors_are_refused_in_one_line(tmp_path, capsys, body, words):
     path.write_text("[prior]\nrealisations = 4\n[parameters]\n" + body + "\n")
     with pytest.raises(prior_run.PriorError, match=words):
         prior_run.load_prior(path)
-    assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 1
+    assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and words.split("'")[0] in lines[0]
     assert not (tmp_path / "x.h5").exists()
 
 
-@pytest.mark.parametrize("count, words", [
-    (99999999999999999, "more than one file holds"),   # the design alone would not fit in memory
-    (90000000, "No space left on device"),             # fits in memory, no disk here holds it
+@pytest.mark.parametrize("count, words, code", [
+    (99999999999999999, "more than one file holds", 2),  # the plan alone would not fit in memory
+    (9000000, "No space left on device", 1),             # fits in memory, no disk here holds it
 ])
-def test_an_absurd_count_is_refused_at_once(tmp_path, capsys, count, words):
+def test_an_absurd_count_is_refused_at_once(tmp_path, capsys, count, words, code):
     """A count that no memory or disk could hold is refused in one line, in well under a second
     of work, before any row is drawn or any file made."""
     path = tmp_path / "huge.toml"
     path.write_text(f"[prior]\nrealisations = {count}\ndesign = 'random'\nceiling_k = 64\n"
                     "[parameters]\nmu_d = { uniform = [0.3, 0.5] }\n")  # rows of >= 30 kB: petabytes
     t0 = time.process_time()
-    assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 1
+    assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == code
     assert time.process_time() - t0 < 5.0
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and words in lines[0], lines
@@ -168,7 +159,7 @@ def test_a_bad_row_is_named_before_anything_runs(tmp_path, capsys):
     path = tmp_path / "bad.toml"
     path.write_text("[prior]\nrealisations = 8\n[scene]\ndt = 0.05\n[parameters]\n"
                     "xi = { uniform = [0.0, 20.0] }\n")
-    assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 1
+    assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 2
     err = capsys.readouterr().err
     lines = err.strip().splitlines()
     assert len(lines) == 1 and "row " in lines[0] and "dt=" in lines[0], err

@@ -15,6 +15,8 @@ import h5py
 import numpy as np
 import pytest
 
+from test_ensemble import _env
+
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
 TIMEOUT = 180
 IGNORED = {"wall_time", "row_crc32"}  # depend on the run (the checksums cover the wall time)
@@ -30,12 +32,6 @@ seed = 5
 xi = [0.0, 0.001]
 mu_d = [0.5, 0.55]
 """
-
-
-def _env(**extra):
-    env = {k: v for k, v in os.environ.items() if not k.startswith("SLIDERS_ENSEMBLE_")}
-    env.update({k: str(v) for k, v in extra.items()})
-    return env
 
 
 def study(args, n=None, **env):
@@ -157,15 +153,15 @@ def test_xarray_view_has_the_axes_as_dimensions(spec, tmp_path):
 def test_most_expensive_points_are_queued_first(tmp_path):
     from types import SimpleNamespace
 
-    from sliders.runs.study import _plan_root, parse_study
+    from sliders.runs.study import parse_study, plan_study
 
     st = parse_study({"study": {"realisations": 2}, "scene": {"mode": "explore"},
                       "axes": {"n_sliders": [10, 40, 20]}})
     args = SimpleNamespace(out=str(tmp_path / "o.h5"), backend=None, resume=False,
                            overwrite=False, study="s.toml")
-    plan = _plan_root(args, st)
+    plan = plan_study(args, st)
     # rows t = point * R + realisation: N = 40 (point 1), then N = 20 (point 2), then N = 10
-    assert plan["pending"].tolist() == [2, 3, 4, 5, 0, 1]
+    assert plan.pending.tolist() == [2, 3, 4, 5, 0, 1]
 
 
 def test_paired_difference_uses_the_pairs():

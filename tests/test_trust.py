@@ -515,21 +515,24 @@ def test_reading_an_ensemble_being_written_says_busy(tmp_path):
 # ---------------------------------------------------------------------------
 # 5. inputs
 # ---------------------------------------------------------------------------
-def test_study_resume_compares_meaning_and_names_the_differing_key(tmp_path, capsys):
-    from sliders.runs import study
+def test_study_resume_compares_meaning_and_names_the_differing_key(tmp_path, capsys,
+                                                                   monkeypatch):
+    from sliders.runs import scheduler, study
 
     a, b, c = tmp_path / "a.toml", tmp_path / "b.toml", tmp_path / "c.toml"
     a.write_text(STUDY_TEXT)
     b.write_text(STUDY_SAME)
     c.write_text(STUDY_TEXT.replace("mu_d = 0.5", "mu_d = 0.45"))
     out = tmp_path / "s.h5"
-    env = dict(os.environ)
-    os.environ["SLIDERS_ENSEMBLE_STOP_AFTER"] = "1"
-    try:
+    completed = scheduler.Root.completed
+
+    def stop_after_one(root, code):  # as if SIGTERM came after the first row
+        completed(root, code)
+        root.stop("test: stop after one row", 15)
+
+    with monkeypatch.context() as m:
+        m.setattr(scheduler.Root, "completed", stop_after_one)
         study.main([str(a), "--out", str(out), "--quiet"])
-    finally:
-        os.environ.clear()
-        os.environ.update(env)
     capsys.readouterr()
     code = study.main([str(c), "--out", str(out), "--resume", "--quiet"])
     line = one_line(code, capsys.readouterr().err)

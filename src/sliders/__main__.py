@@ -25,7 +25,8 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Run one scene to the avalanche and write an HDF5 file "
                                    "(load it with sliders.TiltResult.load).")
     add_scene_arguments(p)
-    p.add_argument("--backend", choices=BACKENDS, default="fortran")
+    p.add_argument("--backend", choices=BACKENDS, default="fortran",
+                   help=f"tilt backend, one of {{{', '.join(BACKENDS)}}} (default fortran)")
     p.add_argument("--out", required=True, metavar="FILE.h5", help="output HDF5 file")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p.add_argument("--quiet", action="store_true", help="no progress line")

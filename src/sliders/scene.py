@@ -467,14 +467,19 @@ def scene_keys() -> tuple[SceneKey, ...]:
     return tuple(keys[k] for k in sorted(keys, key=_file_order))
 
 
-def read_toml(path, where: str, error: type[Exception]) -> dict[str, Any]:
-    """The tables of a TOML file; a missing, unreadable or invalid file raises
-    ``error`` with one line that starts with ``where``."""
+def read_toml(path, where: str, error: type[Exception], data: bytes | None = None) -> dict[str, Any]:
+    """The tables of a TOML file (or of ``data``, its bytes as read elsewhere: MPI rank 0);
+    a missing, unreadable or invalid file raises ``error`` with one line that starts with
+    ``where``."""
     import tomllib
 
     try:
+        if data is not None:
+            return tomllib.loads(data.decode("utf-8"))
         with open(path, "rb") as fh:
             return tomllib.load(fh)
+    except UnicodeDecodeError as exc:
+        raise error(f"{where} is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except FileNotFoundError:
         raise error(f"{where} does not exist") from None
     except tomllib.TOMLDecodeError as exc:
@@ -483,10 +488,11 @@ def read_toml(path, where: str, error: type[Exception]) -> dict[str, Any]:
         raise error(f"{where} cannot be read ({exc.strerror})") from None
 
 
-def toml_values(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """The scene keys of a TOML file (its [scene] table, or the top level), as written."""
+def toml_values(path: str | os.PathLike[str], text: bytes | None = None) -> dict[str, Any]:
+    """The scene keys of a TOML file (its [scene] table, or the top level), as written
+    (``text``: the file's bytes, when they were read elsewhere)."""
     where = f"scene file {str(path)!r}"
-    data = read_toml(path, where, SceneError)
+    data = read_toml(path, where, SceneError, text)
     known = {key.name for key in scene_keys()}
     if "scene" in data:
         outside = [k for k in data if k != "scene"]

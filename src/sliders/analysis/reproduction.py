@@ -949,7 +949,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="take the statistics (P_i, stopped forces, A) from this ensemble file "
                         "instead of running --runs chains of N = --n-stats")
     p.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
-    p.add_argument("--backend", choices=("fortran", "numpy"), default="fortran")
+    p.add_argument("--backend", choices=("fortran", "numpy"), default="fortran",
+                   help="tilt backend, one of {fortran, numpy} (default fortran)")
     p.add_argument("--out", default="REPRODUCTION.md", help="output Markdown file")
     return p
 

@@ -178,17 +178,17 @@ def parse_study(data: dict, where: str = "study") -> Study:
     return study
 
 
-def load_study(path) -> Study:
+def load_study(path, data: bytes | None = None) -> Study:
     """Read and validate a study file (TOML: ``[study]``, ``[scene]``, ``[axes]``).
 
     Every point's scene is built before anything runs; a bad key, an empty
     axis or a value invalid at one point raises ``StudyError`` naming the axis
-    and the point.
+    and the point.  ``data``: the file's bytes, when they were read elsewhere (MPI rank 0).
     """
     from ..scene import read_toml
 
     where = f"study file {os.fspath(path)!r}"
-    return parse_study(read_toml(path, where, StudyError), where)
+    return parse_study(read_toml(path, where, StudyError, data), where)
 
 
 def check_points_memory(study: Study, ranks: int = 1) -> None:

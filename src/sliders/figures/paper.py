@@ -761,7 +761,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--study", metavar="FILE.h5",
                    help="the figures of a study file (python -m sliders.study) against its axes")
     p.add_argument("--paper-size", action="store_true", help="the paper's system sizes")
-    p.add_argument("--backend", choices=("fortran", "numpy"), default="fortran")
+    p.add_argument("--backend", choices=("fortran", "numpy"), default="fortran",
+                   help="tilt backend, one of {fortran, numpy} (default fortran)")
     p.add_argument("--only", nargs="+", metavar="NAME",
                    help="only these figures (see --list; short names such as bin_heights and the "
                         "paper's labels such as distrib2 work too)")

@@ -16,7 +16,14 @@ takes an exclusive ``flock`` on the sidecar file ``<path>.lock``, which holds
 
 The claim is on the file the path names (``safeio.resolve_target``: symlinks
 resolved), so that two runs reaching one file through different paths meet
-at one lock.  The sidecar is opened without following a symlink
+at one lock.  A file has one identity (device and inode) but may have several
+names (hard links), each with its own sidecar; so an existing output is also
+locked itself, by an open-file-description lock (``F_OFD_SETLK``) of one byte
+far past any data (``IDENTITY_OFFSET``): a second claim of the same file
+under another name fails like one under the same name, whether or not HDF5
+locks its files (``HDF5_USE_FILE_LOCKING=FALSE``).  Such locks and HDF5's
+``flock`` are independent on Linux; a created file joins the claim
+(``bind``) as soon as it exists.  The sidecar is opened without following a symlink
 (``O_NOFOLLOW``) and must be a regular file: a planted ``OUT.lock`` link
 never makes a run truncate the file it points to.  Within one process a
 claim is re-entrant (``tilt --out`` holds it while ``TiltResult.save``, which
@@ -39,6 +46,8 @@ import stat
 
 LOCK_SUFFIX = ".lock"
 NO_LOCKING = (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL)
+IDENTITY_OFFSET = 1 << 62  # the byte locked for the file's identity: past any data
+_LOCKED = (errno.EAGAIN, errno.EACCES)  # F_OFD_SETLK: held by another open file
 
 
 class ClaimError(OSError):
@@ -83,6 +92,7 @@ class OutputClaim:
         self.previous_holder: str | None = None  # a dead run's stale claim, taken over
         self.leftovers: list[tuple[str, int]] = []  # (name, bytes) of temporaries removed
         self._nested = False
+        self._identity_fd: int | None = None  # the output itself, locked (see the module doc)
 
     def acquire(self) -> "OutputClaim":
         """Take the claim (an exclusive lock of ``<path>.lock``) or raise naming its holder; returns self."""
@@ -128,17 +138,39 @@ class OutputClaim:
             except OSError:  # a full disk: the lock holds all the same, unnamed
                 pass
             self.fd = fd
+            try:
+                self.bind()
+            except ClaimError:
+                self.release()
+                raise
             _HELD[self.target.real] = self
             if self.locking:  # no other writer alive: an earlier one's temporaries are garbage
                 self.leftovers = remove_leftovers(self.target.real)
             return self
         raise ClaimError(f"cannot take the claim {self.lock_path!r}: it keeps being replaced")
 
+    def bind(self) -> None:
+        """Lock the output file itself (its device and inode) for the claim, if it exists:
+        a created or replaced file joins the claim; ClaimError if another claim holds it."""
+        self._unbind()
+        fd = _identity_lock(self.target.real)
+        if fd == -1:
+            raise ClaimError(f"{self.path!r} is being written by another run, which reaches "
+                             "the same file under another name (a hard link); wait for it to "
+                             "finish, or stop it, or choose another output")
+        self._identity_fd = fd
+
+    def _unbind(self) -> None:
+        if self._identity_fd is not None:
+            os.close(self._identity_fd)  # drops the lock
+            self._identity_fd = None
+
     def release(self) -> None:
         """Give the claim up (unlock and close; the lock file is removed)."""
         if self._nested:
             self._nested = False
             return
+        self._unbind()
         if self.fd is None:
             return
         if _HELD.get(self.target.real) is self:
@@ -156,6 +188,38 @@ class OutputClaim:
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+def claim_of(path) -> "OutputClaim | None":
+    """The claim this process holds on the file ``path`` names, else None."""
+    from .safeio import resolve_target
+
+    return _HELD.get(resolve_target(path).real)
+
+
+def _identity_lock(path: str) -> int | None:
+    """An open descriptor of the regular file ``path`` holding the identity lock; None when
+    there is nothing to lock (no such file, not writable, no such locks here); -1 when
+    another open file holds it."""
+    import struct
+
+    if not hasattr(fcntl, "F_OFD_SETLK"):
+        return None
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_NOFOLLOW | os.O_CLOEXEC | os.O_NONBLOCK)
+    except OSError:  # missing (created later: bind), read-only, or a link planted meanwhile
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            return None
+        # struct flock: l_type, l_whence, l_start, l_len, l_pid (0 for OFD locks)
+        fcntl.fcntl(fd, fcntl.F_OFD_SETLK,
+                    struct.pack("hhqqi4x", fcntl.F_WRLCK, os.SEEK_SET, IDENTITY_OFFSET, 1, 0))
+    except OSError as exc:
+        os.close(fd)
+        return -1 if exc.errno in _LOCKED else None
+    return fd
 
 
 def _read(fd: int) -> str:

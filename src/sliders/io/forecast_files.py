@@ -28,6 +28,7 @@ import sys
 
 import numpy as np
 
+from .. import units
 from .catalogue import Catalogue
 from .safeio import (_fsync_dir, leftover_temporaries, publish_bytes, resolve_target,
                      temporary_beside)
@@ -166,8 +167,7 @@ def complete_publication(folder: str) -> int:
 # ---------------------------------------------------------------------------
 # a measured catalogue
 # ---------------------------------------------------------------------------
-ANGLE_UNITS = {"deg": math.pi / 180.0, "degree": math.pi / 180.0, "degrees": math.pi / 180.0,
-               "rad": 1.0, "radian": 1.0, "radians": 1.0}
+ANGLE_UNITS = units.ANGLE_UNITS  # the one table of angle units, kept importable here
 
 
 def _column_name(raw: str) -> tuple[str, str | None]:
@@ -365,18 +365,6 @@ def tilt_in_range(angle: float, what: str) -> float:
 
 
 def parse_angle(text: str, default_scale: float) -> float:
-    """``"27.5deg"``, ``"0.48 rad"`` or a bare number (in ``default_scale``) -> radians."""
-    t = text.strip().lower()
-    for u in sorted(ANGLE_UNITS, key=len, reverse=True):
-        if t.endswith(u):
-            num, scale = t[:-len(u)].strip(), ANGLE_UNITS[u]
-            break
-    else:
-        num, scale = t, default_scale
-    try:
-        x = float(num)
-    except ValueError:
-        raise ForecastInputError(f"angle {text!r} not understood (e.g. 27.5deg or 0.48rad)") from None
-    if not math.isfinite(x):
-        raise ForecastInputError(f"angle {text!r} is not finite")
-    return x * scale
+    """``"27.5deg"``, ``"0.48 rad"`` or a bare number (in ``default_scale``) -> radians
+    (``sliders.units.parse_angle``, refusing with ``ForecastInputError``)."""
+    return units.parse_angle(text, default_scale, ForecastInputError)

@@ -1,8 +1,13 @@
 """The runs layer: how simulations are scheduled, stored and resumed.
 
+* ``command``: the shape every run command shares (parser pieces, agreement
+  rounds over the ranks, inputs read by rank 0, claims, ``RunPlan``, one-line errors);
+* ``scheduler``: rows served over the ranks, stopped on a signal, reported;
+* ``rows``: one realisation of a scene as a row of a file;
 * ``ensemble``: MPI (or serial) ensembles of disorder realisations into one HDF5 file;
-* ``study``: parameter studies through the same scheduler;
+* ``study``: parameter studies; ``prior``: prior ensembles (material drawn per row);
 * ``merge``: chunk files of one ensemble merged into one;
+* ``forecast``: the forecasting commands;
 * ``parallel``: optional MPI, the serial stand-in, aborts;
 * ``cli``: the scene's command-line options shared by every command.
 

@@ -11,20 +11,82 @@ import typing
 from ..scene import (DEFAULT_MODE, SPEED_MODES, Scene, SceneError, check_writable, scene_keys,
                      toml_values)
 
+# What each scene option means and its unit (the model's units, ``Scene``: time tau,
+# length g tau^2, force m g, angles in radians; "" for a count or a name).
+SCENE_OPTIONS = {
+    "n_sliders": ("N, the number of sliders", ""),
+    "xi": ("stiffness of the springs to the upper plate", "units of k, the neighbours' spring"),
+    "spring_length": ("natural length of the springs between neighbours", "g tau^2"),
+    "mu_d": ("dynamic friction coefficient", ""),
+    "mu_s_mean": ("mean static friction coefficient", ""),
+    "sigma_mu": ("width of the Gaussian static coefficients", ""),
+    "seed": ("key of every random draw, 0 to 2**32 - 1", ""),
+    "ends": ("a free chain or one between immobile walls", ""),
+    "initial_forces": ("the preparation of the forces", ""),
+    "mode": ("named speed/accuracy setting giving dt, refine-tol, max-event-duration", ""),
+    "dt": ("Velocity-Verlet time step", "tau"),
+    "refine_tol": ("width to which a slider's start or stop is bracketed", "tau"),
+    "max_event_duration": ("cap on the duration of one rearrangement", "tau"),
+    "max_events": ("stop after this many rearrangements", ""),
+    "alpha_max": ("stop tilting at this angle", "angle"),
+    "force_tol": ("tolerance of the stability test of a resting slider", "m g"),
+    "avalanche": ("avalanche criterion", ""),
+    "loading": ("tilt the incline, or push the first slider at a fixed incline", ""),
+    "tilt": ("pushed_end only: the fixed incline", "angle"),
+    "drive_stiffness": ("pushed_end only: stiffness K of the driver's spring", "units of k"),
+    "drive_max": ("pushed_end only: the driver's limit", "g tau^2"),
+    "record": ("what each event keeps", ""),
+}
+ANGLE_HELP = "an angle: 0.5rad, 30deg, or a bare number in rad"
+
+
+def _choices(name: str):
+    """The fixed set of values of a scene option, if it has one."""
+    from .. import scene
+
+    table = {"ends": scene.ENDS, "record": scene.RECORDS, "avalanche": scene.AVALANCHE_CRITERIA,
+             "initial_forces": scene.INITIAL_FORCES, "loading": scene.LOADINGS,
+             "mode": tuple(SPEED_MODES)}
+    return tuple(table[name]) if name in table else None
+
+
+def _scene_option_help(name: str, default, choices) -> str:
+    """The help of one scene option: meaning, choices, unit, default (angles in rad and deg)."""
+    from ..units import format_angle
+
+    meaning, unit = SCENE_OPTIONS.get(name, (name.replace("_", " "), ""))
+    parts = [meaning + (f" [{unit}]" if unit and unit != "angle" else "")]
+    if choices:
+        parts.append("one of {" + ", ".join(choices) + "}")
+    if unit == "angle":
+        parts.append(ANGLE_HELP)
+    if default is None:
+        parts.append(f"default from --mode (default {DEFAULT_MODE}: "
+                     f"{SPEED_MODES[DEFAULT_MODE][name]!r})")
+    else:
+        parts.append(f"default {format_angle(default) if unit == 'angle' else repr(default)}")
+    return "; ".join(parts)
+
 
 def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
-    """One option per flat scene key (``--n-sliders``, ``--xi``, ...) plus ``--scene FILE.toml``."""
-    group = parser.add_argument_group("scene (defaults: the paper's parameters)")
+    """One option per flat scene key (``--n-sliders``, ``--xi``, ...) plus ``--scene FILE.toml``;
+    angles are read by ``sliders.units.parse_angle`` (rad or deg)."""
+    group = parser.add_argument_group("scene (defaults: the paper's parameters; units: time "
+                                      "tau, length g tau^2, force m g)")
     group.add_argument("--scene", metavar="FILE.toml",
                        help="read the scene from a TOML file; options given here override it")
     for f in scene_keys():
-        conv = f.type
-        default = (f"from --mode (default {DEFAULT_MODE!r}: {SPEED_MODES[DEFAULT_MODE][f.name]!r})"
-                   if f.default is None else f"default {f.default!r}")
-        choices = tuple(SPEED_MODES) if f.name == "mode" else None
+        conv = _angle if SCENE_OPTIONS.get(f.name, ("", ""))[1] == "angle" else f.type
+        choices = _choices(f.name)
         group.add_argument("--" + f.name.replace("_", "-"), dest=f.name, type=_typed(conv, f.name),
                            default=None, metavar=None if choices else f.name.upper(),
-                           choices=choices, help=default)
+                           choices=choices, help=_scene_option_help(f.name, f.default, choices))
+
+
+def _angle(text: str) -> float:
+    from ..units import parse_angle
+
+    return parse_angle(text)
 
 
 def _typed(conv, name):
@@ -32,15 +94,17 @@ def _typed(conv, name):
         try:
             return conv(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} expects {conv.__name__}, got {text!r}") from None
+            what = "an angle (e.g. 0.5rad or 30deg)" if conv is _angle else conv.__name__
+            raise argparse.ArgumentTypeError(f"{name} expects {what}, got {text!r}") from None
     return parse
 
 
-def given_scene_values(args: argparse.Namespace) -> dict:
-    """The scene values given on the command line: ``--scene`` file, then the options."""
+def given_scene_values(args: argparse.Namespace, scene_text: bytes | None = None) -> dict:
+    """The scene values given on the command line: ``--scene`` file (``scene_text``: its bytes,
+    read by MPI rank 0), then the options."""
     values: dict = {}
     if args.scene:
-        values.update(toml_values(args.scene))
+        values.update(toml_values(args.scene, scene_text))
         Scene.from_dict(values)  # the file alone must be a valid scene
     for f in scene_keys():
         given = getattr(args, f.name, None)
@@ -49,9 +113,10 @@ def given_scene_values(args: argparse.Namespace) -> dict:
     return values
 
 
-def scene_from_args(args: argparse.Namespace) -> Scene:
-    """The Scene given by ``--scene`` and the per-field options (validated)."""
-    return Scene.from_dict(given_scene_values(args))
+def scene_from_args(args: argparse.Namespace, scene_text: bytes | None = None) -> Scene:
+    """The Scene given by ``--scene`` (``scene_text``: its bytes, read by MPI rank 0) and the
+    per-field options (validated)."""
+    return Scene.from_dict(given_scene_values(args, scene_text))
 
 
 def disagreements(stored: Scene, given: dict) -> str:

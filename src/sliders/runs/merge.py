@@ -128,14 +128,10 @@ def _check_folder(out: str, real: str) -> None:
                          f"{describe_os_error(exc, folder)}") from None
 
 
-def _merge_claimed(out: str, inputs: list[str], overwrite: bool) -> dict:
-    """``merge`` once ``out`` is checked and claimed: read, build beside, publish by rename."""
-    from ..keyed_random import realisation_seed
-    from ..analysis.observables import StatisticsGrids, statistics_layout
-    from ..scene import Scene
-    from ..io import safeio
-    from ..io.storage import (GatherFile, StorageError, _check_space, file_attributes, make_layout,
-                              read_header, read_rows)
+def _read_chunks(inputs: list[str]) -> list[tuple[str, dict]]:
+    """The headers of the chunk files, in realisation order, checked to be chunks of one
+    ensemble that cover realisations 0..R-1 once each."""
+    from ..io.storage import StorageError, read_header
 
     heads = []
     for p in inputs:
@@ -163,11 +159,23 @@ def _merge_claimed(out: str, inputs: list[str], overwrite: bool) -> dict:
             raise MergeError(f"realisations {expected}..{first - 1} are in no input file "
                              f"(the next one is {_describe(p, h)})")
         expected = first + int(h["attrs"]["realisations"])
-    n_total = expected
+    return heads
 
+
+def _merged_layout(heads: list[tuple[str, dict]]):
+    """The layout of the whole ensemble the chunks belong to; every chunk's columns and seeds
+    checked against it."""
+    from .rows import realisation_seeds
+    from ..analysis.observables import StatisticsGrids, statistics_layout
+    from ..scene import Scene
+    from ..io.storage import file_attributes, make_layout
+
+    h0 = heads[0][1]
+    last = heads[-1][1]["attrs"]
+    n_total = int(last.get("first_realisation", 0)) + int(last["realisations"])
     scene = Scene.from_dict(json.loads(h0["attrs"]["scene"]))
     grids = StatisticsGrids.from_arrays(h0["grids"])
-    seeds = np.array([realisation_seed(scene.seed, r) for r in range(n_total)], dtype=np.uint32)
+    seeds = realisation_seeds(scene.seed, 0, n_total)
     attrs = file_attributes(scene.to_dict(), scene.seed, n_total, str(h0["attrs"]["backend"]))
     attrs["first_realisation"] = 0
     layout = make_layout(n_total, seeds, h0["grids"],
@@ -183,36 +191,55 @@ def _merge_claimed(out: str, inputs: list[str], overwrite: bool) -> dict:
         if not np.array_equal(h["seeds"], seeds[first:first + h["seeds"].size]):
             raise MergeError(f"{p!r} holds other seeds than realisations "
                              f"{first}..{first + h['seeds'].size - 1} of this scene")
+    return layout
+
+
+def _write_merged(tmp: str, heads, layout, out: str) -> int:
+    """Build the merged file ``out`` at ``tmp`` (rows done in the chunks, then the description);
+    the number of rows done."""
+    from ..io.conventions import describe_ensemble_file
+    from ..io.storage import GatherFile, read_rows
+
+    names = [c.name for c in layout.columns]
+    handler = GatherFile.build(tmp, layout)
+    n_done = 0
+    try:
+        for p, h in heads:
+            first = int(h["attrs"].get("first_realisation", 0))
+            rows = read_rows(p)
+            for i in np.flatnonzero(h["done"]):
+                handler.write_row(first + int(i), {n: rows[n][i] for n in names})
+                handler.mark_done(first + int(i))
+                n_done += 1
+        handler.flush()
+    finally:
+        handler.close()
+    # the chunks' commands first; describe adds this merge
+    described = describe_ensemble_file(tmp, "\n".join(str(h["attrs"]["history"])
+                                                      for _, h in heads
+                                                      if h["attrs"].get("history")))
+    if described is not True:
+        raise MergeError(f"cannot write {out!r}: {described}")
+    return n_done
+
+
+def _merge_claimed(out: str, inputs: list[str], overwrite: bool) -> dict:
+    """``merge`` once ``out`` is checked and claimed: read, build beside, publish by rename."""
+    from ..io import safeio
+    from ..io.storage import StorageError, _check_space
+
+    heads = _read_chunks(inputs)
+    layout = _merged_layout(heads)
     try:
         _check_space(out, layout)
     except StorageError as exc:
         raise MergeError(f"cannot write {out!r}: {exc}") from None
     except OSError as exc:
         raise MergeError(f"cannot write {safeio.describe_os_error(exc, out)}") from None
-    from ..io.conventions import describe_ensemble_file
-
     tmp = None
     try:
         tmp = safeio.temporary_beside(out)
-        handler = GatherFile.build(tmp, layout)
-        n_done = 0
-        try:
-            for p, h in heads:
-                first = int(h["attrs"].get("first_realisation", 0))
-                rows = read_rows(p)
-                for i in np.flatnonzero(h["done"]):
-                    handler.write_row(first + int(i), {n: rows[n][i] for n in names})
-                    handler.mark_done(first + int(i))
-                    n_done += 1
-            handler.flush()
-        finally:
-            handler.close()
-        # the chunks' commands first; describe adds this merge
-        described = describe_ensemble_file(tmp, "\n".join(str(h["attrs"]["history"])
-                                                          for _, h in heads
-                                                          if h["attrs"].get("history")))
-        if described is not True:
-            raise MergeError(f"cannot write {out!r}: {described}")
+        n_done = _write_merged(tmp, heads, layout, out)
         safeio.fsync_path(tmp)
         safeio.publish(tmp, out, overwrite=True)  # the old file stays until this rename
     except StorageError as exc:
@@ -224,7 +251,7 @@ def _merge_claimed(out: str, inputs: list[str], overwrite: bool) -> dict:
     finally:
         if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
-    return {"realisations": n_total, "done": n_done, "inputs": len(heads)}
+    return {"realisations": layout.n_realisations, "done": n_done, "inputs": len(heads)}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -236,8 +263,8 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(2)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run ``python -m sliders.merge`` (join the chunk files of one ensemble); returns the exit code."""
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m sliders.merge``."""
     p = _Parser(
         prog="python -m sliders.merge",
         description="Join ensemble chunk files (python -m sliders.ensemble --chunk I/K) into one "
@@ -245,7 +272,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("out", metavar="OUT.h5", help="merged ensemble file")
     p.add_argument("inputs", metavar="IN.h5", nargs="+", help="chunk files, in any order")
     p.add_argument("--overwrite", action="store_true", help="replace an existing OUT.h5")
-    args = p.parse_args(argv)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``python -m sliders.merge`` (join the chunk files of one ensemble); returns the exit code."""
+    from .command import error_line
+
+    args = build_parser().parse_args(argv)
     notes: list[str] = []
 
     def stop(signum, frame):
@@ -259,7 +293,7 @@ def main(argv: list[str] | None = None) -> int:
     except (MergeError, OSError, ValueError, RuntimeError) as exc:
         for note in notes:
             sys.stderr.write(f"merge: note: {note}\n")
-        sys.stderr.write("error: " + " ".join(str(exc).split()) + "\n")
+        sys.stderr.write(error_line(str(exc)) + "\n")
         return 1
     except KeyboardInterrupt:
         sys.stderr.write(f"merge: interrupted; {args.out} is unchanged and no temporary file is "

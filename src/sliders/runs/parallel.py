@@ -65,6 +65,11 @@ class SerialComm:
 ABORT_GRACE = 0.5
 
 
+def error_line(message: str) -> str:
+    """``message`` as the one line a refusal or a failure prints: ``error: ...``, no line breaks."""
+    return "error: " + " ".join(str(message).split())
+
+
 def abort(comm, line: str | None = None, code: int = 1):
     """Write ``line`` (if any) to stderr, let the launcher forward it, then end every rank."""
     if line is not None:

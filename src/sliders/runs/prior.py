@@ -21,16 +21,21 @@ A prior file::
     n_sliders = { choice = [100, 200, 400] }
 
 Distributions: ``uniform = [a, b]``, ``loguniform = [a, b]`` (0 < a < b),
-``choice = [v, ...]`` (equal weights; numbers or, for ``initial_forces``,
+``choice = [v, ...]`` (equal weights; finite numbers or, for ``initial_forces``,
 names); ``zero = p`` adds an atom at 0 of weight p to a uniform or loguniform
-law.  The unit design (one column per drawn parameter, in name order) goes
+law.  ``n_sliders`` is an integer: a fixed integer or a choice of integers.
+``ceiling_k`` is at most the largest ``n_sliders`` (a chain has no more
+distances than sliders).  A prior is refused before anything is drawn when its
+plan (about ``PLAN_BYTES_PER_ROW`` bytes a row on every rank) would not fit in
+half the memory available, or when it has more than ``MAX_REALISATIONS``
+rows.  The unit design (one column per drawn parameter, in name order) goes
 through each marginal's inverse CDF (Sobol and random points are sequences:
 row r's values depend on r and the seed only; a Latin hypercube is
 stratified over all R rows, so its rows also depend on R).  Every row's scene is built and checked
 before anything runs; a bad prior or row is refused in one line naming it.
 
-Scheduling is the ensemble's (``ensemble._Root`` / ``ensemble._worker``, dynamic,
-one file, ``--resume``); a row depends only on its index and the seed, so the
+Scheduling is every run command's (``runs.scheduler``, dynamic, one file,
+``--resume``; the command's shape: ``runs.command``); a row depends only on its index and the seed, so the
 file's content is the same with any number of ranks and after any
 interruption.  A row: the catalogue of every event to the avalanche
 (``catalogue.Catalogue``), the parameters, alpha_c, the status, and the
@@ -45,7 +50,6 @@ forces.  The file: ``sliders.io.prior_file``.
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import math
@@ -58,7 +62,11 @@ from typing import Any
 
 import numpy as np
 
-from .parallel import abort
+from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, UsageError,
+                      check_new_or_resume, check_run_options, input_command_parser, open_output,
+                      run_planned)
+from .rows import realisation_seeds, status_code
+from .scheduler import serve_rows, tilt_interruptibly
 from ..io.prior_file import (HANDLERS, catalogue_events, prior_attributes, prior_layout,
                              read_prior_header, write_view)
 
@@ -69,14 +77,20 @@ DRAWABLE = ("mu_d", "mu_s_mean", "mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders
             "spring_length", "initial_forces")
 MATERIAL = ("mu_d", "mu_s_mean", "sigma_mu", "xi", "n_sliders",
             "initial_forces")  # always in the file (the last: the preparation)
-MAX_REALISATIONS = 10**8  # rows of one file: the design is drawn in memory (5 x 8 bytes a row)
+INTEGERS = ("n_sliders",)  # drawn parameters that are integers (a choice of integers)
+MAX_REALISATIONS = 10**7  # rows of one file: the plan is drawn in memory on every rank
+PLAN_BYTES_PER_ROW = 160  # the design, every parameter, seed, order and flags of a row
+PLAN_MEMORY_SHARE = 0.5  # of the memory available, at most, for the plans of one node
 PRIOR_KEYS = ("realisations", "design", "seed", "ceiling_step", "ceiling_k")
 DEFAULT_CEILING_STEP = 0.01
 DEFAULT_CEILING_K = 8
 
 
-class PriorError(ValueError):
-    """A bad prior file: one line naming the table, the parameter or the row."""
+class PriorError(UsageError, ValueError):
+    """A bad prior file: one line naming the table, the parameter or the row (exit status 2)."""
+
+    def __init__(self, message: str, code: int = 2):
+        super().__init__(message, code)
 
 
 # ---------------------------------------------------------------------------
@@ -121,12 +135,34 @@ class Marginal:
         return min(vals), max(vals)
 
 
+def _check_number(where: str, value) -> None:
+    """A drawn or fixed value must be a finite number (not a boolean, not NaN)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise PriorError(f"{where}: {value!r} is not a number (true and false are not numbers)")
+    if not math.isfinite(value):
+        raise PriorError(f"{where}: {value!r} is not a finite number")
+
+
+def _check_values(name: str, kind: str, values: list) -> None:
+    """The values of a fixed parameter or a choice: names for ``initial_forces``, finite
+    numbers otherwise, integers for ``INTEGERS``."""
+    where = f"[parameters] {name}"
+    if name == "initial_forces":
+        if not all(isinstance(v, str) for v in values):
+            raise PriorError(f"{where}: give names (the preparations), not {values!r}")
+        return
+    for v in values:
+        _check_number(where, v)
+        if name in INTEGERS and not isinstance(v, int):
+            raise PriorError(f"{where} = {v!r}: {name} is an integer; give integers "
+                             "(a number or choice = [..])")
+
+
 def parse_marginal(name: str, spec) -> Marginal:
     """One ``[parameters]`` entry: a number, a name, or a table with one distribution."""
     where = f"[parameters] {name}"
-    if isinstance(spec, bool):
-        raise PriorError(f"{where} = {spec!r}: give a number or a distribution table")
-    if isinstance(spec, (int, float, str)):
+    if isinstance(spec, (bool, int, float, str)):
+        _check_values(name, "fixed", [spec])
         return Marginal(name, "fixed", (spec,))
     if not isinstance(spec, dict):
         raise PriorError(f"{where}: give a number or a table such as {{ uniform = [a, b] }}")
@@ -148,9 +184,11 @@ def parse_marginal(name: str, spec) -> Marginal:
         if zero:
             raise PriorError(f"{where}: zero = p goes with uniform or loguniform; put 0 among "
                              "the choices instead")
-        if len({type(v) for v in values}) > 1 and not all(isinstance(v, (int, float)) for v in values):
-            raise PriorError(f"{where}: the choices mix numbers and names")
+        _check_values(name, kind, values)
         return Marginal(name, kind, tuple(values))
+    if name in INTEGERS or name == "initial_forces":
+        raise PriorError(f"{where}: a {kind} law draws real numbers; {name} takes "
+                         f"{'integers' if name in INTEGERS else 'names'}: give choice = [..]")
     if len(values) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                                    and math.isfinite(v) for v in values):
         raise PriorError(f"{where}: {kind} needs [low, high], two finite numbers")
@@ -240,17 +278,24 @@ class Prior:
                              else float(x))
         return self.base_scene.replace(seed=self.seed(r), **changes)
 
-    def scenes(self) -> list:
-        """Every row's scene, each checked; the first bad one raises PriorError naming row and parameter."""
+    def check_rows(self):
+        """Build and check every row's scene (one at a time: none is kept); the first bad one
+        raises PriorError naming row and parameter.  Returns the scene of the largest chain."""
         from ..scene import SceneError
 
-        out = []
+        largest = None
         for r in range(self.realisations):
             try:
-                out.append(self.scene(r))
+                scene = self.scene(r)
             except SceneError as exc:
                 raise PriorError(f"{self.where}: row {r}: {exc}") from None
-        return out
+            if largest is None or scene.n_sliders > largest.n_sliders:
+                largest = scene
+        return largest
+
+    def seeds(self) -> np.ndarray:
+        """Every row's scene seed (``seed(r)`` of each), uint32."""
+        return realisation_seeds(self.base_seed, 0, self.realisations)
 
     def ceiling_alpha(self) -> np.ndarray:
         """The ceiling's grid: multiples of ``ceiling_step`` up to the prior's largest
@@ -299,9 +344,9 @@ def parse_prior(data: dict, where: str = "prior") -> Prior:
         raise PriorError(f"{where}: [prior] realisations = {R!r} must be an integer >= 1")
     if R > MAX_REALISATIONS:
         raise PriorError(f"{where}: [prior] realisations = {R} is more than one file holds "
-                         f"(at most {MAX_REALISATIONS:.0e}: the design alone would need "
-                         f"{R * 5 * 8 / 1e9:.3g} GB of memory); split it into several priors "
-                         "with different seeds")
+                         f"(at most {MAX_REALISATIONS:.0e}: the plan alone would need "
+                         f"{R * PLAN_BYTES_PER_ROW / 1e9:.3g} GB of memory on every rank); split "
+                         "it into several priors with different seeds")
     design = head.get("design", "sobol")
     if design not in DESIGNS:
         raise PriorError(f"{where}: [prior] design = {design!r} must be one of {DESIGNS}")
@@ -342,12 +387,16 @@ def parse_prior(data: dict, where: str = "prior") -> Prior:
         raise PriorError(f"{where}: [scene] {exc}") from None
     if not base.loading.drive_is_angle:
         raise PriorError(f"{where}: [scene] loading = {base.loading.name!r}: a prior ensemble tilts")
-    marginals = {name: parse_marginal(name, spec) for name, spec in params.items()}
-    for name, m in marginals.items():
-        numeric = not (m.kind in ("choice", "fixed") and isinstance(m.values[0], str))
-        if (name == "initial_forces") == numeric:
-            raise PriorError(f"[parameters] {name}: {'give names' if numeric else 'give numbers'}")
+    try:
+        marginals = {name: parse_marginal(name, spec) for name, spec in params.items()}
+    except PriorError as exc:
+        raise PriorError(f"{where}: {exc}") from None
     _check_friction_ranges(marginals, base, where)
+    n_top = marginals["n_sliders"].support()[1] if "n_sliders" in marginals else base.n_sliders
+    if k > n_top:
+        raise PriorError(f"{where}: [prior] ceiling_k = {k} is more than the largest chain "
+                         f"(n_sliders up to {n_top}): a chain has one distance to threshold per "
+                         "slider; give ceiling_k <= n_sliders")
     spec = {"prior": {"realisations": R, "design": design, "seed": seed, "ceiling_step": step,
                       "ceiling_k": k}, "scene": scene_values, "parameters": params}
     digest = hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
@@ -369,12 +418,28 @@ def _check_friction_ranges(marginals: dict, base, where: str) -> None:
                          "allow mu_d >= mu_s_mean; draw mu_s_minus_mu_d > 0 instead")
 
 
-def load_prior(path) -> Prior:
-    """The prior of a TOML file (see the module's docstring); PriorError on any bad entry."""
+def load_prior(path, data: bytes | None = None) -> Prior:
+    """The prior of a TOML file (see the module's docstring); PriorError on any bad entry.
+    ``data``: the file's bytes, when they were read elsewhere (MPI rank 0)."""
     from ..scene import read_toml
 
     where = f"prior file {str(path)!r}"
-    return parse_prior(read_toml(path, where, PriorError), where)
+    return parse_prior(read_toml(path, where, PriorError, data), where)
+
+
+def check_plan_memory(prior: Prior, node_ranks: int = 1) -> None:
+    """Refuse, before anything is drawn, a prior whose plan (``PLAN_BYTES_PER_ROW`` a row on
+    each of the ``node_ranks`` ranks of this node) would not fit in ``PLAN_MEMORY_SHARE`` of
+    the memory available."""
+    from ..scene import available_memory
+
+    need = prior.realisations * PLAN_BYTES_PER_ROW * node_ranks
+    free = available_memory()
+    if free is not None and need > PLAN_MEMORY_SHARE * free:
+        raise PriorError(f"{prior.where}: [prior] realisations = {prior.realisations}: planning "
+                         f"them needs about {need / 1e9:.3g} GB of memory on this node "
+                         f"({node_ranks} rank(s)), {free / 1e9:.3g} GB are available; split the "
+                         "prior into several with different seeds")
 
 
 # ---------------------------------------------------------------------------
@@ -430,24 +495,18 @@ def run_with_ceiling(scene, grid: np.ndarray, k: int, backend: str = "fortran", 
 
 def compute_prior_row(prior: Prior, r: int, backend: str, grid: np.ndarray, progress=None) -> dict:
     """Row ``r`` of the prior file: its catalogue, parameters, alpha_c, status and ceiling."""
-    from .ensemble import STATUS_CODES, UNKNOWN_STATUS, _tilt_interruptibly
     from ..io.prior_file import PARAMETERS
 
     started = time.perf_counter()
-    delay = os.environ.get("SLIDERS_ENSEMBLE_TEST_DELAY")  # the ensemble's test hook
-    if delay:
-        time.sleep(float(delay))
-        if progress is not None:
-            progress(None)
     scene = prior.scene(r)
 
     def piece(sc, be, pr, state=None):
-        return _tilt_interruptibly(sc, be, pr, state=state)
+        return tilt_interruptibly(sc, be, pr, state=state)
 
     cat, ceiling, pieces = run_with_ceiling(scene, grid, prior.ceiling_k, backend, progress, piece)
     last = pieces[-1]
     row: dict[str, Any] = {
-        "status": STATUS_CODES.get(last.status, UNKNOWN_STATUS),
+        "status": status_code(last.status),
         "alpha_c": float(last.alpha_c),
         "n_events": len(cat),
         "slider_steps": int(sum(p.total_slider_steps for p in pieces)),
@@ -465,33 +524,25 @@ def compute_prior_row(prior: Prior, r: int, backend: str, grid: np.ndarray, prog
 # ---------------------------------------------------------------------------
 # command line and run
 # ---------------------------------------------------------------------------
-def build_parser(rank: int = 0) -> argparse.ArgumentParser:
+def build_parser(rank: int = 0) -> CommandParser:
     """The command line of ``python -m sliders.prior`` (help printed by rank 0 only)."""
-    from .ensemble import _Parser, add_output_options
-
-    p = _Parser(prog="python -m sliders.prior",
-                description="Run a prior ensemble: every row draws its material from the prior "
-                            "(a seeded scipy.stats.qmc design) and keeps the catalogue of every "
-                            "event up to the avalanche and the ceiling, over MPI ranks with the "
-                            "ensemble's dynamic scheduling, into one HDF5 file.")
-    p.rank = rank
-    p.add_argument("prior", metavar="PRIOR.toml", help="prior file: [prior], [scene], [parameters]")
-    add_output_options(p)
+    p = input_command_parser(
+        "python -m sliders.prior",
+        "Run a prior ensemble: every row draws its material from the prior (a seeded "
+        "scipy.stats.qmc design) and keeps the catalogue of every event up to the avalanche and "
+        "the ceiling, over MPI ranks with dynamic scheduling, into one HDF5 file.",
+        rank, "prior", "PRIOR.toml", "prior file: [prior], [scene], [parameters]")
     p.set_defaults(storage="gather")  # ragged events: rank 0 writes (sliders.io.prior_file)
     return p
 
 
-def _plan_root(args, prior: Prior) -> dict[str, Any]:
+def plan_prior(args, prior: Prior) -> RunPlan:
     """Rank 0, holding the claim: a new file or a resume of the same prior."""
-    from .ensemble import DEFAULT_BACKEND, UsageError
     from ..io.storage import StorageError
 
     out = args.out
     backend = args.backend or DEFAULT_BACKEND
-    resume = args.resume and os.path.exists(out)
-    if os.path.exists(out) and not (args.overwrite or resume):
-        raise UsageError(f"--out {out!r} exists; pass --resume to complete it or --overwrite "
-                         "to replace it")
+    resume = check_new_or_resume(args)
     R = prior.realisations
     done = np.zeros(R, dtype=bool)
     attrs = None
@@ -515,82 +566,56 @@ def _plan_root(args, prior: Prior) -> dict[str, Any]:
         attrs = prior_attributes(prior.spec, prior.digest, prior.base_seed, R, backend,
                                  sorted(prior.values()), prior.ceiling_k)
         attrs["parameter_choices"] = json.dumps(prior.choices())
-    seeds = [prior.seed(r) for r in range(R)]
-    layout = prior_layout(R, seeds, prior.storage_types(), prior.ceiling_alpha(),
+    layout = prior_layout(R, prior.seeds(), prior.storage_types(), prior.ceiling_alpha(),
                           prior.ceiling_k, attrs)
     # the largest chains first (cost ~ N^2), so that the last rows to finish are short ones
-    n = prior.values()["n_sliders"]
-    order = sorted(range(R), key=lambda r: (-int(n[r]), r))
-    pending = np.array([r for r in order if not done[r]], dtype=np.int64)
-    return {"layout": layout, "resume": resume, "done": done, "pending": pending,
-            "backend": backend}
+    order = np.argsort(-np.asarray(prior.values()["n_sliders"], dtype=np.int64), kind="stable")
+    pending = order[~done[order]]
+    return RunPlan(layout, backend, resume, done, pending)
+
+
+def prepare_prior(args, inputs, world) -> Prior:
+    """The prior, every row's scene and the memory checked (every rank, rank 0's bytes)."""
+    from ..io.storage import check_room
+    from ..scene import check_memory
+
+    check_run_options(args, world.comm, world.have_mpi)
+    prior = load_prior(args.prior, inputs[args.prior])
+    check_plan_memory(prior, world.node_ranks)  # before any row is drawn
+    if not (args.resume and os.path.exists(args.out)):
+        # a count no disk could hold is refused before any row is drawn; a row holds at
+        # least its ceiling (G x K distances) and a few scalars, its events come on top
+        check_room(args.out, prior.realisations,
+                   8 * prior.ceiling_alpha().size * prior.ceiling_k + 256)
+    check_memory(prior.check_rows(), world.node_ranks)  # every row, before anything runs
+    return prior
+
+
+def run_prior(comm, args, prior, plan: RunPlan) -> int:
+    """Create or open the file, serve the rows, report (every rank)."""
+    handler = open_output(comm, args, plan, HANDLERS, "gather")
+    if handler is None:
+        return 1
+    grid = plan.layout.grids["ceiling_alpha"]
+
+    def compute(r: int, progress):
+        return compute_prior_row(prior, int(r), plan.backend, grid, progress)
+
+    ctx = {"compute_row": compute, "interval": args.progress_interval, "quiet": args.quiet,
+           "label": ("prior", "rows")}
+    if comm.rank == 0 and not args.quiet:
+        sys.stderr.write(f"prior: {'resuming' if plan.resume else 'starting'} "
+                         f"{plan.pending.size} of {plan.total} rows (backend {plan.backend}) "
+                         f"on {comm.size} rank(s) -> {args.out}\n")
+        sys.stderr.flush()
+    return serve_rows(comm, handler, plan.pending, plan.total, ctx, args.out,
+                      lambda: write_view(args.out, prior.base_scene.to_dict()))
 
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sliders.prior PRIOR.toml --out FILE.h5``: run (or resume) a prior ensemble; the exit code."""
-    from .ensemble import _claim_output, check_run_options, run_planned
-    from ..io.storage import check_room
-    from ..scene import check_memory
-
-    def prepare(comm, have_mpi, node_ranks, claims):  # a PriorError is a ValueError
-        args = build_parser(comm.rank).parse_args(argv)
-        check_run_options(args, comm, have_mpi)
-        prior = load_prior(args.prior)
-        if not (args.resume and os.path.exists(args.out)):
-            # a count no disk could hold is refused before any row is drawn; a row holds at
-            # least its ceiling (G x K distances) and a few scalars, its events come on top
-            check_room(args.out, prior.realisations,
-                       8 * prior.ceiling_alpha().size * prior.ceiling_k + 256)
-        scenes = prior.scenes()  # every row checked before anything runs
-        check_memory(max(scenes, key=lambda s: s.n_sliders), node_ranks)
-        plan = None
-        if comm.rank == 0:
-            claims.append(_claim_output(args, "prior"))
-            plan = _plan_root(args, prior)
-        return args, prior, plan
-
-    return run_planned(prepare, lambda comm, args, prior, plan: _run(args, comm, prior, plan))
-
-
-def _run(args, comm, prior: Prior, plan) -> int:
-    from .ensemble import _error_line, serve_rows
-    from ..io.safeio import os_reason
-
-    rank = comm.rank
-    layout = plan["layout"]
-    handler = err = None
-    try:
-        cls = HANDLERS["gather"]
-        if not plan["resume"]:
-            cls.create(args.out, layout, comm, overwrite=args.overwrite).close()
-        handler = cls.open_for_resume(args.out, layout, comm)
-    except Exception as exc:  # noqa: BLE001
-        err = f"cannot {'open' if plan['resume'] else 'create'} {args.out!r}: {os_reason(exc)}"
-    errors = comm.allgather(err)
-    if any(errors):
-        if rank == next(i for i, e in enumerate(errors) if e):
-            sys.stderr.write(_error_line(errors[rank]) + "\n")
-        if all(errors):
-            return 1
-        abort(comm)
-
-    grid = layout.grids["ceiling_alpha"]
-    backend = plan["backend"]
-
-    def compute(r: int, progress):
-        return compute_prior_row(prior, int(r), backend, grid, progress)
-
-    pending = plan["pending"]
-    total = prior.realisations
-    ctx = {"R": total, "compute_row": compute, "interval": args.progress_interval,
-           "quiet": args.quiet, "label": ("prior", "rows")}
-    if rank == 0 and not args.quiet:
-        verb = "resuming" if plan["resume"] else "starting"
-        sys.stderr.write(f"prior: {verb} {pending.size} of {total} rows (backend {backend}) on "
-                         f"{comm.size} rank(s) -> {args.out}\n")
-        sys.stderr.flush()
-    return serve_rows(comm, handler, pending, total, ctx, "prior", args.out,
-                      lambda: write_view(args.out, prior.base_scene.to_dict()))
+    return run_planned(RunCommand("prior", build_parser, prepare_prior, plan_prior, run_prior,
+                                   input_option=("prior", "prior file")), argv)
 
 
 if __name__ == "__main__":

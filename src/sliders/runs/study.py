@@ -18,8 +18,8 @@ at every point, so that two points differ only by their parameters and their
 difference is measured on pairs (``study_analysis``).  ``seed`` cannot be an
 axis for that reason.
 
-Scheduling is the ensemble's (``ensemble._Root`` / ``ensemble._worker``, dynamic,
-one file): row t of the run is realisation ``t % R`` of point ``t // R``; the
+Scheduling is every run command's (``runs.scheduler``, dynamic, one file; the
+command's shape: ``runs.command``): row t of the run is realisation ``t % R`` of point ``t // R``; the
 queue holds the rows of the most expensive points first (cost ~ N^2 / dt), so
 that the last rows to finish are short ones.  A row depends only on its point
 and realisation, so the file is the same with any number of ranks.
@@ -30,17 +30,18 @@ opens as one dataset): ``sliders.io.study_file``.
 
 from __future__ import annotations
 
-import argparse
 import json
-import os
 import sys
-from typing import Any
 
 import numpy as np
 
+from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, UsageError,
+                      add_storage_option, check_new_or_resume, check_run_options,
+                      input_command_parser, open_output, run_planned)
+from .rows import compute_row, realisation_seeds
+from .scheduler import serve_rows
 from ..io.study_file import (HANDLERS, read_study_header, study_attributes, study_layout,
                             write_view)
-from .parallel import abort
 
 from ..analysis.study_spec import (NOT_AXES, STUDY_PREFIX, Study, StudyError,  # noqa: F401 - kept importable here
                                       check_points_memory, load_study, parse_study)
@@ -83,13 +84,12 @@ def _point_statistics(scene, grids=None) -> dict:
 
 
 def _point_layout(study: Study, p: int, backend: str):
-    from ..keyed_random import realisation_seed
     from ..analysis.observables import default_grids
     from ..io.storage import file_attributes, make_layout
 
     scene = study.scenes[p]
     R = study.realisations
-    seeds = [realisation_seed(study.base_seed, r) for r in range(R)]  # the same at every point
+    seeds = realisation_seeds(study.base_seed, 0, R)  # the same at every point
     grids = default_grids(scene)
     stats = _point_statistics(scene, grids)
     attrs = file_attributes(scene.to_dict(), study.base_seed, R, backend)
@@ -106,35 +106,26 @@ def make_study_layout(study: Study, backend: str, attrs: dict | None = None):
 # ---------------------------------------------------------------------------
 # command line and run
 # ---------------------------------------------------------------------------
-def build_parser(rank: int = 0) -> argparse.ArgumentParser:
+def build_parser(rank: int = 0) -> CommandParser:
     """The command line of ``python -m sliders.study`` (help printed by rank 0 only)."""
-    from .ensemble import _Parser, add_output_options
-    from ..io.storage import STORAGES
-
-    p = _Parser(prog="python -m sliders.study",
-                description="Sweep scene parameters: R realisations (common random numbers: the "
-                            "same seeds at every point) at each point of the product of the axes, "
-                            "over MPI ranks with the ensemble's dynamic scheduling, into one HDF5 "
-                            "file (one group per point).")
-    p.rank = rank
-    p.add_argument("study", metavar="STUDY.toml", help="study file: [study], [scene], [axes]")
-    add_output_options(p)
-    p.add_argument("--storage", choices=STORAGES, default="auto", help="file writer (as ensemble)")
+    p = input_command_parser(
+        "python -m sliders.study",
+        "Sweep scene parameters: R realisations (common random numbers: the same seeds at every "
+        "point) at each point of the product of the axes, over MPI ranks with dynamic scheduling, "
+        "into one HDF5 file (one group per point).",
+        rank, "study", "STUDY.toml", "study file: [study], [scene], [axes]")
+    add_storage_option(p)
     return p
 
 
-def _plan_root(args, study: Study) -> dict[str, Any]:
+def plan_study(args, study: Study) -> RunPlan:
     """Rank 0, holding the claim: new file or resume against the same study."""
-    from .ensemble import DEFAULT_BACKEND, UsageError
     from ..analysis.study_spec import spec_difference
     from ..io.storage import StorageError, check_room, statistics_row_bytes
 
     out = args.out
     backend = args.backend or DEFAULT_BACKEND
-    resume = args.resume and os.path.exists(out)
-    if os.path.exists(out) and not (args.overwrite or resume):
-        raise UsageError(f"--out {out!r} exists; pass --resume to complete it or --overwrite "
-                         "to replace it")
+    resume = check_new_or_resume(args)
     P, R = len(study.points), study.realisations
     done = np.zeros(P * R, dtype=bool)
     attrs = None
@@ -168,73 +159,52 @@ def _plan_root(args, study: Study) -> dict[str, Any]:
     order = sorted(range(P), key=lambda p: (-study.cost(p), p))
     tasks = [p * R + r for p in order for r in range(R)]
     pending = np.array([t for t in tasks if not done[t]], dtype=np.int64)
-    return {"layout": layout, "resume": resume, "done": done, "pending": pending,
-            "backend": backend}
+    return RunPlan(layout, backend, resume, done, pending)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m sliders.study STUDY.toml --out FILE.h5``: run (or resume) a study; the exit code."""
-    from .ensemble import _claim_output, check_run_options, compute_row, run_planned
-
-    def prepare(comm, have_mpi, node_ranks, claims):  # a StudyError is a ValueError
-        args = build_parser(comm.rank).parse_args(argv)
-        storage = check_run_options(args, comm, have_mpi)
-        study = load_study(args.study)
-        check_points_memory(study, node_ranks)  # every point, before the file is created
-        plan = None
-        if comm.rank == 0:
-            claims.append(_claim_output(args, "study"))
-            plan = _plan_root(args, study)
-        return args, study, storage, plan
-
-    return run_planned(prepare, lambda comm, args, study, storage, plan:
-                       _run(args, comm, study, plan, storage, compute_row))
+def prepare_study(args, inputs, world) -> dict:
+    """The study and every point's memory (every rank, rank 0's bytes); a StudyError is a
+    ValueError."""
+    storage = check_run_options(args, world.comm, world.have_mpi)
+    study = load_study(args.study, inputs[args.study])
+    check_points_memory(study, world.node_ranks)  # every point, before the file is created
+    return {"study": study, "storage": storage}
 
 
-def _run(args, comm, study, plan, storage, compute_row) -> int:
-    from .ensemble import _error_line, serve_rows
+def run_study(comm, args, local, plan: RunPlan) -> int:
+    """Create or open the file, serve the rows, report (every rank)."""
     from ..analysis.observables import StatisticsGrids
-    from ..io.safeio import os_reason
 
-    rank = comm.rank
-    layout = plan["layout"]
-    handler = err = None
-    try:
-        cls = HANDLERS[storage]
-        if not plan["resume"]:
-            cls.create(args.out, layout, comm, overwrite=args.overwrite).close()
-        handler = cls.open_for_resume(args.out, layout, comm)
-    except Exception as exc:  # noqa: BLE001
-        err = f"cannot {'open' if plan['resume'] else 'create'} {args.out!r}: {os_reason(exc)}"
-    errors = comm.allgather(err)
-    if any(errors):
-        if rank == next(i for i, e in enumerate(errors) if e):
-            sys.stderr.write(_error_line(errors[rank]) + "\n")
-        if all(errors):
-            return 1
-        abort(comm)
-
+    study, storage = local["study"], local["storage"]
+    handler = open_output(comm, args, plan, HANDLERS, storage)
+    if handler is None:
+        return 1
     R = study.realisations
-    grids = [StatisticsGrids.from_arrays(lay.grids) for lay in layout.points]
-    backend = plan["backend"]
+    grids = [StatisticsGrids.from_arrays(lay.grids) for lay in plan.layout.points]
 
     def compute(t: int, progress):
         p, r = divmod(int(t), R)
         # the point's scene keeps the base seed: realisation r has the same seed at every point
-        return compute_row(study.scenes[p], r, backend, grids[p], progress, 0, extra_statistics)
+        return compute_row(study.scenes[p], r, plan.backend, grids[p], progress, 0,
+                           extra_statistics)
 
-    pending = plan["pending"]
-    total = len(study.points) * R
-    ctx = {"R": total, "compute_row": compute, "interval": args.progress_interval,
-           "quiet": args.quiet, "label": ("study", "(point, realisation) rows")}
-    if rank == 0 and not args.quiet:
-        verb = "resuming" if plan["resume"] else "starting"
-        sys.stderr.write(f"study: {verb} {pending.size} of {total} rows ({len(study.points)} points "
-                         f"x {R} realisations, backend {backend}) on {comm.size} rank(s), storage "
-                         f"{storage} -> {args.out}\n")
+    ctx = {"compute_row": compute, "interval": args.progress_interval, "quiet": args.quiet,
+           "label": ("study", "(point, realisation) rows")}
+    if comm.rank == 0 and not args.quiet:
+        sys.stderr.write(f"study: {'resuming' if plan.resume else 'starting'} "
+                         f"{plan.pending.size} of {plan.total} rows ({len(study.points)} "
+                         f"points x {R} realisations, backend {plan.backend}) on {comm.size} "
+                         f"rank(s), storage {storage} -> {args.out}\n")
         sys.stderr.flush()
-    return serve_rows(comm, handler, pending, total, ctx, "study", args.out,
+    return serve_rows(comm, handler, plan.pending, plan.total, ctx, args.out,
                       lambda: write_view(args.out, study))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m sliders.study STUDY.toml --out FILE.h5``: run (or resume) a study; the exit code."""
+    return run_planned(RunCommand("study", build_parser, prepare_study,
+                                  lambda args, local: plan_study(args, local["study"]), run_study,
+                                  input_option=("study", "study file")), argv)
 
 
 if __name__ == "__main__":
