@@ -121,6 +121,23 @@ def test_recalibrated_intervals_cover_about_their_share():
     assert 0.65 < cov < 0.92
 
 
+def test_out_of_fold_calibration_covers_about_its_share_in_tilt_and_event_bins():
+    """Without a validation set the calibration uses every training row's out-of-fold residuals,
+    in Mondrian bins of the tilt reached crossed with bins of the events so far."""
+    train, test = synthetic_set(150, seed=1), synthetic_set(60, seed=3)
+    f = Learned(draws_per_row=24, max_iter=30, random_state=0).fit(train)
+    assert f.n_calibration_cuts_ == f.n_training_cuts_
+    assert f.calibration_edges_.size == 3 and f.calibration_event_edges_.size >= 1
+    from sliders.analysis.forecast import training_cuts
+
+    cuts = training_cuts(test, 10, np.random.default_rng(9))
+    q, _ = f.quantiles(cuts)
+    cov = np.mean((q[:, 1] <= cuts.alpha_c) & (cuts.alpha_c <= q[:, 17]))
+    assert 0.65 < cov < 0.92
+    with pytest.raises(ValueError, match="calibration"):
+        Learned(calibration="lead").fit(train)
+
+
 def test_alarm_sequences_and_roc():
     lead = np.tile([0.05, 0.03, 0.01], 4)
     row = np.repeat(np.arange(4), 3)

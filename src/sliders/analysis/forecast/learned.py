@@ -12,9 +12,13 @@ forecasts it as one of its kind).
 Three layers beside the regressors, each a scikit-learn or crepes object:
 
 * the calibration: a Mondrian conformal predictive system
-  (``crepes.ConformalPredictiveSystem``) on held-out cuts, normalised by the
-  predicted spread and conditioned on bins of the tilt reached: what the
-  forecaster observes, never the lead, which it cannot know;
+  (``crepes.ConformalPredictiveSystem``), normalised by the predicted spread
+  and conditioned on bins of the tilt reached and of the events so far: what
+  the forecaster observes, never the lead, which it cannot know.  Its
+  residuals are out of fold (``CALIBRATION_FOLDS`` regressors, each fitted
+  without a fold of the training rows, predict that fold), so every training
+  row calibrates and the regressors kept are fitted on every row; a
+  ``validation`` set, when given, calibrates instead;
 * the domain: ``sklearn.neighbors.LocalOutlierFactor(novelty=True)`` on the
   training cuts' features, and the tilt reached against the training
   avalanche angles.  Out of the domain the interval is widened to hold the
@@ -45,6 +49,8 @@ TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
 #: what a learned forecaster sees: every feature, or only those of the angles and sizes of
 #: the events (no displacement, no slider positions: what any experiment records)
 INPUTS = ("all", "angles_sizes")
+#: where the conformal calibration's residuals come from when no validation set is given
+CALIBRATIONS = ("out_of_fold", "held_out")
 ANGLES_SIZES_FEATURES = ("tilt", "n_events", "last_event", "quiet", "first_event", "moves",
                          "max_size", "max_size_recent", "mean_size_recent", "since_largest",
                          "share_large", *MEASUREMENT_FEATURES)
@@ -65,8 +71,10 @@ DOMAIN_NEIGHBOURS = 20
 MAX_BINS = 63
 #: fewest calibration cuts per Mondrian bin (the 5 % and 95 % levels need 20 at least)
 MIN_PER_BIN = 200
-#: share of calibration cuts held out of the training rows when no validation set is given
+#: share of the training rows held out for the calibration (``calibration="held_out"``)
 CALIBRATION_SHARE = 0.25
+#: folds of the training rows whose out-of-fold residuals calibrate (when no validation set is given)
+CALIBRATION_FOLDS = 4
 
 
 def with_design(cuts, inverse_rate: bool = True):
@@ -97,8 +105,12 @@ class Learned(Forecaster):
     degrade : bool
         Degrade every training cut by a measurement drawn from
         ``measurement.MEASUREMENT_RANGES``.
-    calibration_bins : int
-        Mondrian bins of the tilt reached in the conformal calibration.
+    calibration_bins, calibration_event_bins : int
+        Mondrian bins of the tilt reached, and in each of the events so far,
+        in the conformal calibration (fewer when the calibration cuts are few).
+    calibration : {"out_of_fold", "held_out"}
+        Without a ``validation`` set: calibrate on the training cuts' out-of-fold
+        residuals, or hold ``CALIBRATION_SHARE`` of the training rows out for it.
     domain_contamination : float
         Share of training cuts the novelty detector counts as outliers.
     random_state : int
@@ -107,8 +119,9 @@ class Learned(Forecaster):
 
     def __init__(self, inputs: str = "all", draws_per_row: int = 10, max_iter: int = 200,
                  learning_rate: float = 0.08, max_leaf_nodes: int = 15, min_samples_leaf: int = 40,
-                 degrade: bool = True, calibration_bins: int = 4,
-                 domain_contamination: float = 0.03, random_state: int = 0):
+                 degrade: bool = True, calibration_bins: int = 4, calibration_event_bins: int = 4,
+                 calibration: str = "out_of_fold", domain_contamination: float = 0.03,
+                 random_state: int = 0):
         self.inputs = inputs
         self.draws_per_row = draws_per_row
         self.max_iter = max_iter
@@ -117,6 +130,8 @@ class Learned(Forecaster):
         self.min_samples_leaf = min_samples_leaf
         self.degrade = degrade
         self.calibration_bins = calibration_bins
+        self.calibration_event_bins = calibration_event_bins
+        self.calibration = calibration
         self.domain_contamination = domain_contamination
         self.random_state = random_state
 
@@ -170,33 +185,59 @@ class Learned(Forecaster):
         train : CatalogueSet
             Training realisations.
         validation : CatalogueSet, optional
-            Realisations for the calibration; by default ``CALIBRATION_SHARE``
-            of ``train``'s rows are held out for it.
+            Realisations for the calibration; by default (``calibration``)
+            the residuals of ``CALIBRATION_FOLDS`` out-of-fold regressors on
+            ``train``'s own cuts, or ``CALIBRATION_SHARE`` of its rows held out.
         cuts, validation_cuts : Cuts, optional
             Cuts already drawn (``training_cuts``), shared by several forecasters.
         """
         if self.inputs not in INPUTS:
             raise ValueError(f"inputs={self.inputs!r} must be one of {INPUTS}")
+        if self.calibration not in CALIBRATIONS:
+            raise ValueError(f"calibration={self.calibration!r} must be one of {CALIBRATIONS}")
         rng = np.random.default_rng(self.random_state)
-        if validation is None and validation_cuts is None:
+        if self.calibration == "held_out" and validation is None and validation_cuts is None:
             hold = rng.random(len(train)) < CALIBRATION_SHARE
             train, validation = train.subset(~hold), train.subset(hold)
         cuts = self.training_cuts(train, rng) if cuts is None else cuts
-        vcuts = self.training_cuts(validation, rng) if validation_cuts is None else validation_cuts
+        held_out = validation is not None or validation_cuts is not None
+        if held_out and validation_cuts is None:
+            validation_cuts = self.training_cuts(validation, rng)
         x, names = self.design(cuts)
         self.columns_ = np.isfinite(x).any(axis=0)  # a feature never seen (e.g. no slider indices)
         self.feature_names_ = [n for n, k in zip(names, self.columns_) if k]
         y_log = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
-        self.models_ = [self._regressor(level).fit(x[:, self.columns_], y_log)
-                        for level in TRAINED_LEVELS]
+        self.models_ = self._fit_regressors(x[:, self.columns_], y_log)
         self.climatology_ = Climatology().fit(train)
         self.domain_columns_ = np.array([names.index(n) for n in DOMAIN_FEATURES])
         self._fit_domain(self._domain_view(x), rng)
-        self._fit_calibration(vcuts)
+        if held_out:
+            self._fit_calibration(validation_cuts, self._raw_log_remaining(validation_cuts))
+            self.n_calibration_cuts_ = len(validation_cuts)
+        else:
+            self._fit_calibration(cuts, self._out_of_fold(cuts, x[:, self.columns_], y_log, rng))
+            self.n_calibration_cuts_ = len(cuts)
         self.n_training_cuts_ = len(cuts)
-        self.n_calibration_cuts_ = len(vcuts)
         return self
 
+    def _fit_regressors(self, x, y_log):
+        """One quantile regressor of the log remaining angle per level of ``TRAINED_LEVELS``."""
+        return [self._regressor(level).fit(x, y_log) for level in TRAINED_LEVELS]
+
+    def _out_of_fold(self, cuts, x, y_log, rng):
+        """(n, len(TRAINED_LEVELS)) each cut's log remaining angles by regressors fitted
+        without its realisation's fold (folds of realisations, not of cuts)."""
+        fold_of_row = rng.integers(0, CALIBRATION_FOLDS, int(cuts.row.max()) + 1)
+        fold = fold_of_row[cuts.row]
+        z = np.zeros((len(cuts), TRAINED_LEVELS.size))
+        for k in range(CALIBRATION_FOLDS):
+            out = fold == k
+            if out.any() and (~out).any():
+                models = self._fit_regressors(x[~out], y_log[~out])
+                z[out] = np.column_stack([m.predict(x[out]) for m in models])
+            else:  # too few realisations for this fold: the regressors kept
+                z[out] = np.column_stack([m.predict(x[out]) for m in self.models_])
+        return np.sort(z, axis=1)
     def _regressor(self, level):
         from sklearn.ensemble import HistGradientBoostingRegressor
 
@@ -226,22 +267,34 @@ class Learned(Forecaster):
                                contamination=self.domain_contamination)).fit(x[take])
         self.top_tilt_ = float(np.quantile(self.climatology_.alpha_c_, DOMAIN_TILT_QUANTILE))
 
-    def _fit_calibration(self, vcuts):
+    def _fit_calibration(self, vcuts, z):
         """A Mondrian conformal predictive system on the calibration cuts (crepes).
 
-        Residuals of the predicted median log remaining angle, normalised by
-        the predicted spread (half the 10-90 % width), in bins of the tilt
-        reached (edges at the calibration cuts' quantiles).
+        ``z``: their predicted log remaining angles (``_raw_log_remaining``
+        or out of fold).  Residuals of the predicted median, normalised by the
+        predicted spread (half the 10-90 % width), in bins of the tilt reached
+        crossed with bins of the events so far (edges at the calibration cuts'
+        quantiles; as many bins of tilt as ``MIN_PER_BIN`` cuts allow, up to
+        ``calibration_bins``, then of events in each).
         """
         from crepes import ConformalPredictiveSystem
 
-        z = self._raw_log_remaining(vcuts)
         truth = np.log(np.maximum(vcuts.alpha_c - vcuts.tilt_now, 1e-9))
         centre, spread = self._centre_spread(z)
-        n_bins = int(np.clip(len(vcuts) // MIN_PER_BIN, 1, self.calibration_bins))
-        self.calibration_edges_ = np.quantile(vcuts.tilt_now, np.linspace(0, 1, n_bins + 1)[1:-1])
-        bins = np.searchsorted(self.calibration_edges_, vcuts.tilt_now)
-        self.calibration_ = ConformalPredictiveSystem().fit(truth - centre, sigmas=spread, bins=bins)
+        cells = len(vcuts) // MIN_PER_BIN
+        tilt_bins = int(np.clip(cells, 1, self.calibration_bins))
+        event_bins = int(np.clip(cells // tilt_bins, 1, self.calibration_event_bins))
+        self.calibration_edges_ = np.quantile(vcuts.tilt_now, np.linspace(0, 1, tilt_bins + 1)[1:-1])
+        self.calibration_event_edges_ = np.quantile(_log_events(vcuts),
+                                                    np.linspace(0, 1, event_bins + 1)[1:-1])
+        self.calibration_ = ConformalPredictiveSystem().fit(truth - centre, sigmas=spread,
+                                                            bins=self._calibration_bin(vcuts))
+
+    def _calibration_bin(self, cuts):
+        """Each cut's Mondrian category: its bin of tilt reached times its bin of events so far."""
+        tilt_bin = np.searchsorted(self.calibration_edges_, cuts.tilt_now)
+        events_bin = np.searchsorted(self.calibration_event_edges_, _log_events(cuts))
+        return tilt_bin * (self.calibration_event_edges_.size + 1) + events_bin
 
     @staticmethod
     def _centre_spread(z):
@@ -282,8 +335,7 @@ class Learned(Forecaster):
         x, _ = self.design(cuts)
         z = self._raw_log_remaining(cuts, x)
         centre, spread = self._centre_spread(z)
-        bins = np.searchsorted(self.calibration_edges_, cuts.tilt_now)
-        zc = self.calibration_.predict(centre, sigmas=spread, bins=bins,
+        zc = self.calibration_.predict(centre, sigmas=spread, bins=self._calibration_bin(cuts),
                                        lower_percentiles=100 * LEVELS)
         zc = np.asarray(zc, dtype=float).reshape(len(cuts), LEVELS.size)
         q = cuts.tilt_now[:, None] + np.exp(np.sort(np.clip(zc, -20.0, 2.0), axis=1))
@@ -296,6 +348,11 @@ class Learned(Forecaster):
             half = LEVELS < 0.5
             q[out] = np.where(half[None, :], lower, upper)
         return q, out
+
+
+def _log_events(cuts) -> np.ndarray:
+    """(n,) log(1 + the number of events so far) of each cut."""
+    return np.log1p(np.array([len(c) for c in cuts.catalogues], dtype=float))
 
 
 class Ceiling(Learned):
