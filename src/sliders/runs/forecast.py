@@ -791,31 +791,36 @@ def add_evaluate_arguments(e: argparse.ArgumentParser) -> None:
     e.add_argument("--figures", default=None, help="where the figures go (default --out)")
     e.add_argument("--fractions", type=float, nargs=3, default=(0.5, 0.1, 0.4),
                    metavar=("TRAIN", "VALID", "TEST"), help="the split by realisation")
-    e.add_argument("--leads-deg", type=float, nargs="+", default=list(DEFAULT_LEADS_DEG))
+    e.add_argument("--leads-deg", type=float, nargs="+", default=list(DEFAULT_LEADS_DEG),
+                   metavar="DEG", help="leads before the avalanche at which test runs are cut, degrees")
     e.add_argument("--tilts", type=float, nargs="+", default=list(DEFAULT_TILTS),
                    help="fixed tilts at which the test runs are cut, radians")
     e.add_argument("--boot", type=int, default=400, help="bootstrap resamples")
     e.add_argument("--alarm-rows", type=int, default=1000, help="test realisations for the alarm")
     e.add_argument("--max-iter", type=int, default=300, help="boosting iterations")
     e.add_argument("--only", default=None, help="comma-separated forecaster names (and the baselines)")
-    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--seed", type=int, default=0,
+                   help="key of the split and of the forecasters' random draws")
     e.add_argument("--all-tables", action="store_true", help="print every lead and tilt")
-    e.add_argument("--no-figures", action="store_true")
-    e.add_argument("--quiet", action="store_true")
+    e.add_argument("--no-figures", action="store_true", help="publish no figures")
+    e.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
 def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
     """The options of ``predict``."""
-    pr.add_argument("catalogue", metavar="CATALOGUE.csv")
+    pr.add_argument("catalogue", metavar="CATALOGUE.csv",
+                    help="the measured events: angle [deg] or angle [rad], size (docs/forecasting.md)")
     pr.add_argument("--tilt-now", default=None, metavar="ANGLE",
-                    help="tilt reached, e.g. 27.5deg (default: the last event's angle)")
+                    help="tilt reached: 0.48rad, 27.5deg, or a bare number in rad (default: the last "
+                         "event's angle)")
     pr.add_argument("--within", type=float, default=ALARM_DELTA_DEG, metavar="DEG",
                     help="the alarm's horizon, degrees")
     pr.add_argument("--model", default=None, metavar="FILE",
                     help="model file written by train or evaluate (default: the one shipped "
                          "inside the package)")
     pr.add_argument("--method", default="learned", choices=PREDICT_METHODS,
-                    help="the forecaster (all: every one side by side)")
+                    help="the forecaster, one of {" + ", ".join(PREDICT_METHODS)
+                         + "} (all: every one side by side)")
     pr.add_argument("--angle-resolution", type=float, default=0.0, metavar="DEG",
                     help="standard deviation of each measured angle's error, degrees")
     pr.add_argument("--min-size", type=float, default=1.0, metavar="SIZE",
@@ -823,7 +828,7 @@ def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
     pr.add_argument("--missed-fraction", type=float, default=0.0, metavar="SHARE",
                     help="share of events missed at random, in [0, 1)")
     pr.add_argument("--size-unit", default="sliders", choices=("sliders", "arbitrary"),
-                    help="sizes count sliders, or are in an unknown unit (grains, area, pixels)")
+                    help="sliders: sizes count sliders; arbitrary: an unknown unit (grains, area, pixels)")
     pr.add_argument("--json", action="store_true", help="one JSON object (radians)")
     pr.add_argument("--verbose", action="store_true", help="print the model's whole provenance")
 

@@ -44,8 +44,8 @@ def add_train_arguments(t) -> None:
     t.add_argument("--hold-out", type=float, default=0.0, metavar="SHARE",
                    help="share of the rows kept out of the fit, to measure the model on "
                         "(their indices go into the provenance)")
-    t.add_argument("--seed", type=int, default=0)
-    t.add_argument("--quiet", action="store_true")
+    t.add_argument("--seed", type=int, default=0, help="key of the fit's random draws")
+    t.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
 def add_catalogue_arguments(c) -> None:
@@ -55,7 +55,7 @@ def add_catalogue_arguments(c) -> None:
     at = c.add_mutually_exclusive_group(required=True)
     at.add_argument("--lead", metavar="ANGLE", help="cut this far before the avalanche, e.g. 3deg")
     at.add_argument("--at", metavar="ANGLE", help="cut at this tilt, e.g. 25deg")
-    c.add_argument("--out", required=True, metavar="FILE.csv")
+    c.add_argument("--out", required=True, metavar="FILE.csv", help="the catalogue CSV written")
 
 
 def run_prior(args, prior_out: str, log) -> None:
