@@ -30,7 +30,7 @@ import numpy as np
 
 from .. import units
 from .catalogue import Catalogue
-from .safeio import (_fsync_dir, leftover_temporaries, publish_bytes, resolve_target,
+from .safeio import (fsync_dir, leftover_temporaries, publish_bytes, resolve_target,
                      temporary_beside)
 
 
@@ -158,9 +158,9 @@ def complete_publication(folder: str) -> int:
             os.replace(tmp, target)
             moved += 1
     for flushed in {os.path.dirname(target): target for _, target in moves}.values():
-        _fsync_dir(flushed)  # the renames survive a power loss
+        fsync_dir(flushed)  # the renames survive a power loss
     os.unlink(path)
-    _fsync_dir(path)
+    fsync_dir(path)
     return moved
 
 

@@ -351,7 +351,7 @@ def publish(tmp: str, path, overwrite: bool) -> None:
             raise IsADirectoryError(errno.EINVAL, "not a regular file", target)
         if overwrite:
             os.replace(tmp, target)
-            _fsync_dir(target)
+            fsync_dir(target)
             return
         try:
             os.link(tmp, target)
@@ -362,7 +362,7 @@ def publish(tmp: str, path, overwrite: bool) -> None:
             fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
             os.close(fd)
             os.replace(tmp, target)
-        _fsync_dir(target)
+        fsync_dir(target)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
@@ -403,7 +403,7 @@ def fsync_path(path) -> None:
         os.close(fd)
 
 
-def _fsync_dir(path: str) -> None:
+def fsync_dir(path: str) -> None:
     """Flush the directory entry of a renamed file (the rename survives a power loss)."""
     try:
         fd = os.open(os.path.dirname(os.path.abspath(path)), os.O_RDONLY)

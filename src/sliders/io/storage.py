@@ -250,7 +250,7 @@ class EnsembleFile:
             try:
                 if os.path.exists(self.path) and not overwrite:
                     raise StorageError(f"{self.path!r} exists; pass --overwrite to replace it")
-                _check_space(self.path, layout)
+                check_space(self.path, layout)
                 start = ("ok", safeio.temporary_beside(self.path))
             except StorageError as exc:
                 start = ("error", str(exc))
@@ -561,7 +561,7 @@ def check_room(path: str, n_rows: int, bytes_per_row: int) -> None:
                            "free (No space left on device)")
 
 
-def _check_space(path: str, layout: Layout) -> None:
+def check_space(path: str, layout: Layout) -> None:
     """Refuse up front a file that does not fit on its file system (not half-way)."""
     need = file_size_estimate(layout)
     st = os.statvfs(os.path.dirname(safeio.resolve_target(path).real))

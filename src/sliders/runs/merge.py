@@ -226,12 +226,12 @@ def _write_merged(tmp: str, heads, layout, out: str) -> int:
 def _merge_claimed(out: str, inputs: list[str], overwrite: bool) -> dict:
     """``merge`` once ``out`` is checked and claimed: read, build beside, publish by rename."""
     from ..io import safeio
-    from ..io.storage import StorageError, _check_space
+    from ..io.storage import StorageError, check_space
 
     heads = _read_chunks(inputs)
     layout = _merged_layout(heads)
     try:
-        _check_space(out, layout)
+        check_space(out, layout)
     except StorageError as exc:
         raise MergeError(f"cannot write {out!r}: {exc}") from None
     except OSError as exc:
