@@ -77,6 +77,20 @@ def open_for_reading(path):
     return f
 
 
+def open_checked(path, file_format: str, versions, where: str | None = None):
+    """An HDF5 file open for reading with its kind (``file_format``) and format version
+    (one of ``versions``) checked: StorageError in one line, the file closed, if not."""
+    p = os.fspath(path)
+    f = open_for_reading(p)
+    try:
+        safeio.check_header(f, file_format, where or repr(p), StorageError, coordinates=False,
+                            versions=versions)
+    except Exception:
+        f.close()
+        raise
+    return f
+
+
 def damaged(path, exc: Exception) -> StorageError:
     """One line for a failure while reading ``path``: the error's own words for an
     integrity or storage error, else "is damaged (the HDF5 error)"."""

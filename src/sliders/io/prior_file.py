@@ -56,7 +56,7 @@ from .. import status
 from . import formats, h5tools, safeio
 from .catalogue import EVENT_COLUMNS, Catalogue, CatalogueSet
 from .conventions import ENSEMBLE_ROW_VARIABLES, add_provenance
-from .h5tools import (ROW_DIGEST, StorageError, done_mask, open_for_reading, plain_attributes,
+from .h5tools import (ROW_DIGEST, StorageError, open_checked, done_mask, open_for_reading, plain_attributes,
                       row_damage)
 from .storage import BASE_COLUMNS, Column, GatherFile, Layout, create_structure
 
@@ -272,11 +272,9 @@ def _read(path, with_events: bool = True) -> dict[str, Any]:
 
     p = os.fspath(path)
     where = repr(p)
-    f = open_for_reading(p)
+    f = open_checked(p, FORMAT, KNOWN_VERSIONS, where)
     try:
         with f:
-            safeio.check_header(f, FORMAT, where, StorageError, coordinates=False,
-                                versions=KNOWN_VERSIONS)
             attrs = plain_attributes(f)
             grid = safeio.read_checked(f["ceiling_alpha"] if int(attrs["format_version"]) > 1
                                        else f["grids"]["ceiling_alpha"], where)

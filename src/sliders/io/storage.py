@@ -59,7 +59,7 @@ import numpy as np
 
 from .. import status
 from . import formats, safeio
-from .h5tools import (ROW_DIGEST, StorageError, damaged, done_mask, open_for_reading,
+from .h5tools import (ROW_DIGEST, StorageError, open_checked, damaged, done_mask, open_for_reading,
                       plain_attributes, row_damage)
 
 FORMAT = formats.ENSEMBLE
@@ -607,11 +607,9 @@ def read_rows(path) -> dict[str, np.ndarray]:
 
     p = os.fspath(path)
     out: dict[str, np.ndarray] = {}
-    f = open_for_reading(p)
+    f = open_checked(p, FORMAT, KNOWN_VERSIONS)
     try:
         with f:
-            safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
-                                versions=KNOWN_VERSIONS)
             rg = f["realisations"]
             rg.visititems(lambda name, obj: out.__setitem__(name, obj[()])
                           if isinstance(obj, h5py.Dataset) else None)
@@ -629,11 +627,9 @@ def read_rows(path) -> dict[str, np.ndarray]:
 def damaged_rows(path) -> list[int]:
     """The rows marked done whose values fail their checksums (``--resume`` recomputes them)."""
     p = os.fspath(path)
-    f = open_for_reading(p)
+    f = open_checked(p, FORMAT, KNOWN_VERSIONS)
     try:
         with f:
-            safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
-                                versions=KNOWN_VERSIONS)
             rg = f["realisations"]
             order = json.loads(rg[ROW_DIGEST].attrs["columns"])
             out = {name: rg[name][()] for name in order + ["done", ROW_DIGEST]}

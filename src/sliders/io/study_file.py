@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from . import formats, safeio
-from .h5tools import (ROW_DIGEST, StorageError, damaged, open_for_reading, plain_attributes,
+from .h5tools import (ROW_DIGEST, StorageError, open_checked, plain_attributes,
                       row_damage)
 from .storage import GatherFile, Layout, MpioFile, create_structure
 
@@ -193,14 +193,11 @@ HANDLERS = {"mpio": StudyMpioFile, "gather": StudyGatherFile}
 # ---------------------------------------------------------------------------
 def read_study_header(path) -> dict[str, Any]:
     """Root attributes and, per point, its done mask (checksums of the rows verified)."""
-    import h5py
 
     p = os.fspath(path)
-    f = open_for_reading(p)
+    f = open_checked(p, FORMAT, KNOWN_VERSIONS)
     try:
         with f:
-            safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
-                                versions=KNOWN_VERSIONS)
             attrs = plain_attributes(f)
             done, damaged = [], []
             for name in sorted(f["points"]):
@@ -221,21 +218,8 @@ def read_study_header(path) -> dict[str, Any]:
 
 def read_study_spec(path) -> dict[str, Any]:
     """The study as the file stores it (root attribute ``study``): scene, axes, zip, realisations."""
-    with _open_checked(path) as f:
+    with open_checked(path, FORMAT, KNOWN_VERSIONS) as f:
         return json.loads(f.attrs["study"])
-
-
-def _open_checked(path):
-    """The study file open for reading, its kind and version checked (StorageError, one line)."""
-    p = os.fspath(path)
-    f = open_for_reading(p)
-    try:
-        safeio.check_header(f, FORMAT, repr(p), StorageError, coordinates=False,
-                            versions=KNOWN_VERSIONS)
-    except Exception:
-        f.close()
-        raise
-    return f
 
 
 def read_point_rows(path, p: int) -> dict[str, np.ndarray]:
@@ -243,7 +227,7 @@ def read_point_rows(path, p: int) -> dict[str, np.ndarray]:
     import h5py
 
     out: dict[str, np.ndarray] = {}
-    with _open_checked(path) as f:
+    with open_checked(path, FORMAT, KNOWN_VERSIONS) as f:
         rg = f["points"][point_name(p)]["realisations"]
         rg.visititems(lambda name, obj: out.__setitem__(name, obj[()])
                       if isinstance(obj, h5py.Dataset) else None)

@@ -143,6 +143,19 @@ def check_new_or_resume(args) -> bool:
     return bool(args.resume and exists)
 
 
+def resume_header(args, read_header):
+    """Rank 0, holding the claim: ``read_header(args.out)`` when ``--out`` is resumed (a file
+    that cannot be resumed is a UsageError in one line), None when it is started."""
+    from ..io.storage import StorageError
+
+    if not check_new_or_resume(args):
+        return None
+    try:
+        return read_header(args.out)
+    except StorageError as exc:
+        raise UsageError(f"--resume: {exc}") from None
+
+
 def claim_output(args, program: str):
     """Rank 0, before anything is created or read: the claim on ``args.out`` (an
     ``io.filelock.OutputClaim``, held to the end); ``program`` names the command."""

@@ -63,7 +63,7 @@ from typing import Any
 import numpy as np
 
 from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, UsageError,
-                      check_new_or_resume, check_run_options, input_command_parser, open_output,
+                      resume_header, check_run_options, input_command_parser, open_output,
                       run_planned)
 from .rows import realisation_seeds, status_code
 from .scheduler import serve_rows, tilt_interruptibly
@@ -538,19 +538,15 @@ def build_parser(rank: int = 0) -> CommandParser:
 
 def plan_prior(args, prior: Prior) -> RunPlan:
     """Rank 0, holding the claim: a new file or a resume of the same prior."""
-    from ..io.storage import StorageError
 
     out = args.out
     backend = args.backend or DEFAULT_BACKEND
-    resume = check_new_or_resume(args)
+    head = resume_header(args, read_prior_header)
+    resume = head is not None
     R = prior.realisations
     done = np.zeros(R, dtype=bool)
     attrs = None
     if resume:
-        try:
-            head = read_prior_header(out)
-        except StorageError as exc:
-            raise UsageError(f"--resume: {exc}") from None
         attrs = head["attrs"]
         if attrs.get("prior_digest") != prior.digest:
             raise UsageError(f"--resume: {out!r} holds a different prior; start a new file or "

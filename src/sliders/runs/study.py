@@ -36,7 +36,7 @@ import sys
 import numpy as np
 
 from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, UsageError,
-                      add_storage_option, check_new_or_resume, check_run_options,
+                      add_storage_option, resume_header, check_run_options,
                       input_command_parser, open_output, run_planned)
 from .rows import compute_row, realisation_seeds
 from .scheduler import serve_rows
@@ -125,15 +125,12 @@ def plan_study(args, study: Study) -> RunPlan:
 
     out = args.out
     backend = args.backend or DEFAULT_BACKEND
-    resume = check_new_or_resume(args)
+    head = resume_header(args, read_study_header)
+    resume = head is not None
     P, R = len(study.points), study.realisations
     done = np.zeros(P * R, dtype=bool)
     attrs = None
     if resume:
-        try:
-            head = read_study_header(out)
-        except StorageError as exc:
-            raise UsageError(f"--resume: {exc}") from None
         attrs = head["attrs"]
         differ = (spec_difference(json.loads(attrs["study"]), study, repr(args.study))
                   if attrs.get("study_digest") != study.digest else "")
