@@ -286,6 +286,15 @@ _ERRNO_IN_TEXT = re.compile(r"errno = (\d+)")
 _REASONS_IN_TEXT = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EIO, errno.EFBIG)
 
 
+def disk_usage(path):
+    """``shutil.disk_usage`` (total, used, free bytes) of the file system that holds ``path``'s
+    real file (symlinks followed: the disk a write reaches); OSError if it cannot be asked."""
+    import shutil
+
+    target = resolve_target(path).real
+    return shutil.disk_usage(os.path.dirname(target) or ".")
+
+
 def os_reason(exc: BaseException) -> str:
     """The operating system's reason for a failed I/O call, as words."""
     code = getattr(exc, "errno", None)

@@ -547,13 +547,11 @@ def check_room(path: str, n_rows: int, bytes_per_row: int) -> None:
     hold: checked before any per-row array (seeds, done mask) is made, so that an absurd
     count (``-R 99999999999999999999``) is refused in a blink instead of filling the memory."""
     need = int(n_rows) * int(bytes_per_row) + SPACE_MARGIN
-    target = safeio.resolve_target(path).real
     try:
-        st = os.statvfs(os.path.dirname(target) or ".")
+        size, _, free = safeio.disk_usage(path)
     except OSError as exc:
-        raise StorageError(safeio.describe_os_error(exc, os.path.dirname(target))) from None
-    free = st.f_bavail * st.f_frsize
-    size = st.f_blocks * st.f_frsize
+        folder = os.path.dirname(safeio.resolve_target(path).real)
+        raise StorageError(safeio.describe_os_error(exc, folder)) from None
     if need > free:
         whole = " (more than the whole file system holds)" if need > size else ""
         raise StorageError(f"{n_rows} rows of {bytes_per_row} bytes need about {need / 1e6:.3g} "
@@ -564,8 +562,7 @@ def check_room(path: str, n_rows: int, bytes_per_row: int) -> None:
 def check_space(path: str, layout: Layout) -> None:
     """Refuse up front a file that does not fit on its file system (not half-way)."""
     need = file_size_estimate(layout)
-    st = os.statvfs(os.path.dirname(safeio.resolve_target(path).real))
-    free = st.f_bavail * st.f_frsize
+    free = safeio.disk_usage(path).free
     if need > free:
         raise StorageError(f"it needs about {need / 1e6:.3g} MB and its file system has "
                            f"{free / 1e6:.3g} MB free (No space left on device)")

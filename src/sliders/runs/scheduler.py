@@ -111,11 +111,11 @@ def check_room_for(path: str, nbytes: int) -> None:
     """Raise OSError(ENOSPC) before writing ``nbytes`` into ``path`` if its file system has
     not twice that plus ``WRITE_MARGIN`` free: HDF5 does not survive a write that fails for
     lack of room (the error surfaces in a destructor, then the library crashes on close)."""
-    import shutil
+    from ..io.safeio import disk_usage
 
     need = 2 * nbytes + WRITE_MARGIN
     try:
-        free = shutil.disk_usage(os.path.dirname(os.path.abspath(path))).free
+        free = disk_usage(path).free
     except OSError:
         return
     if free < need:
