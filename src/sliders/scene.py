@@ -435,8 +435,9 @@ def build_part(role: str, given, flat: dict[str, Any], current=None):
                 raise SceneError(f"{role}={given!r} must be one of {tuple(registry)}")
             kind = registry[given]
         part = kind.from_flat(flat, current if type(current) is kind else None)
+    defaults = _flat_defaults()
     for key, value in flat.items():
-        if key not in part.flat_keys and value != _flat_defaults()[key]:
+        if key not in part.flat_keys and value != defaults[key]:
             owner = next(cls.name for cls in registry.values() if key in cls.flat_keys)
             raise SceneError(f"{key}={value!r} is a parameter of {role}={owner!r}; with "
                              f"{role}={part.name!r} leave it out")

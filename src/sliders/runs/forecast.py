@@ -886,5 +886,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _error(message: str, code: int) -> int:
-    print(f"sliders.forecast: error: {message}", file=sys.stderr, flush=True)
+    from .parallel import error_line
+
+    print(f"sliders.forecast: {error_line(message)}", file=sys.stderr, flush=True)
     return code

@@ -137,13 +137,13 @@ def concatenate(sets):
 
 
 def training_provenance(data, data_path: str, args) -> dict:
-    """The prior, the rows and the mode a model was trained on (shown by ``predict --verbose``)."""
+    """The prior and the mode a model was trained on (shown by ``predict --verbose``; ``train``
+    adds the rows it fitted)."""
     attrs = data.attrs
     prior = attrs.get("prior") or attrs.get("prior_spec")
     return {"prior": str(prior) if prior is not None else str(args.prior or data_path),
             "prior_digest": str(attrs.get("prior_digest", "")),
             "prior_file": str(args.prior or data_path),
-            "rows": int(np.isfinite(np.asarray(data.alpha_c, dtype=float)).sum()),
             "mode": str(attrs.get("mode", _scene_mode(attrs))),
             "skops": _version("skops"), "crepes": _version("crepes")}
 
@@ -166,7 +166,7 @@ def _version(package: str) -> str:
         return "?"
 
 
-def catalogue_csv_text(cat, scale: float = 1.0) -> str:
+def catalogue_csv_text(cat) -> str:
     """A catalogue as the CSV ``predict`` reads (angles in radians, every column)."""
     lines = ["angle [rad],size,displacement,first,last"]
     for a, s, d, f, la in zip(cat.alpha, cat.size, cat.displacement, cat.first, cat.last):
