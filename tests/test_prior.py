@@ -115,7 +115,20 @@ def test_drawn_parameters_follow_the_prior(tmp_path, design):
         assert np.array_equal(prior.unit_design(16), prior.unit_design(4000)[:16])
 
 
+def test_weighted_choices_are_drawn_in_their_shares(tmp_path):
+    """``choice = [..], weights = [..]``: each choice in its share of 4000 Sobol draws."""
+    path = tmp_path / "p.toml"
+    path.write_text(SMALL.format(R=4000, design="sobol").replace(
+        "choice = [20, 30, 40] }", "choice = [20, 30, 40], weights = [6, 3, 1] }"))
+    n = prior_run.load_prior(path).values()["n_sliders"]
+    shares = np.array([np.mean(n == k) for k in (20, 30, 40)])
+    assert np.all(np.abs(shares - [0.6, 0.3, 0.1]) < 0.02), shares
+
+
 @pytest.mark.parametrize("body, words", [
+    ("n_sliders = { choice = [20, 30], weights = [1] }", "weights needs a list of 2 numbers"),
+    ("n_sliders = { choice = [20, 30], weights = [1, 0] }", "must all be > 0"),
+    ("mu_d = { uniform = [0.3, 0.8], weights = [1, 2] }", "goes with choice"),
     ("mu_q = { uniform = [0.3, 0.8] }", "unknown parameter 'mu_q'"),
     ("mu_d = { uniform = [0.8, 0.3] }", "empty range"),
     ("mu_d = { uniform = [0.5, 0.5] }", "empty range"),

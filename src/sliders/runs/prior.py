@@ -101,13 +101,15 @@ class Marginal:
     """One parameter's law: ``kind`` in ("uniform", "loguniform", "choice", "fixed").
 
     ``values`` are the bounds (uniform, loguniform), the choices, or the
-    fixed value; ``zero`` the weight of an atom at 0 (uniform, loguniform).
+    fixed value; ``zero`` the weight of an atom at 0 (uniform, loguniform);
+    ``weights`` the relative weights of the choices (equal if empty).
     """
 
     name: str
     kind: str
     values: tuple
     zero: float = 0.0
+    weights: tuple = ()
 
     @property
     def drawn(self) -> bool:
@@ -122,8 +124,9 @@ class Marginal:
         if self.kind == "fixed":
             return np.full(u.shape, self.values[0])
         if self.kind == "choice":
-            idx = np.minimum((u * len(self.values)).astype(np.int64), len(self.values) - 1)
-            return np.asarray(self.values)[idx]
+            w = np.asarray(self.weights or [1.0] * len(self.values), dtype=np.float64)
+            edges = np.cumsum(w)[:-1] / w.sum()
+            return np.asarray(self.values)[np.searchsorted(edges, u, side="right")]
         a, b = self.values
         rest = np.clip((u - self.zero) / (1.0 - self.zero), 0.0, 1.0)
         law = (stats.uniform(a, b - a) if self.kind == "uniform" else stats.loguniform(a, b))
@@ -166,7 +169,7 @@ def parse_marginal(name: str, spec) -> Marginal:
         return Marginal(name, "fixed", (spec,))
     if not isinstance(spec, dict):
         raise PriorError(f"{where}: give a number or a table such as {{ uniform = [a, b] }}")
-    kinds = [k for k in spec if k != "zero"]
+    kinds = [k for k in spec if k not in ("zero", "weights")]
     unknown = [k for k in kinds if k not in DISTRIBUTIONS]
     if unknown:
         raise PriorError(f"{where}: unknown distribution {unknown[0]!r}; allowed are "
@@ -185,7 +188,9 @@ def parse_marginal(name: str, spec) -> Marginal:
             raise PriorError(f"{where}: zero = p goes with uniform or loguniform; put 0 among "
                              "the choices instead")
         _check_values(name, kind, values)
-        return Marginal(name, kind, tuple(values))
+        return Marginal(name, kind, tuple(values), weights=_choice_weights(where, spec, values))
+    if "weights" in spec:
+        raise PriorError(f"{where}: weights = [..] goes with choice = [..]")
     if name in INTEGERS or name == "initial_forces":
         raise PriorError(f"{where}: a {kind} law draws real numbers; {name} takes "
                          f"{'integers' if name in INTEGERS else 'names'}: give choice = [..]")
@@ -198,6 +203,20 @@ def parse_marginal(name: str, spec) -> Marginal:
     if kind == "loguniform" and a <= 0:
         raise PriorError(f"{where}: loguniform = [{a!r}, {b!r}] needs 0 < low")
     return Marginal(name, kind, (a, b), float(zero))
+
+
+def _choice_weights(where: str, spec: dict, values: list) -> tuple:
+    """The ``weights`` of a choice: one positive finite number per choice (none: equal)."""
+    if "weights" not in spec:
+        return ()
+    w = spec["weights"]
+    if not isinstance(w, list) or len(w) != len(values):
+        raise PriorError(f"{where}: weights needs a list of {len(values)} numbers, one per choice")
+    for v in w:
+        _check_number(f"{where} weights", v)
+        if v <= 0:
+            raise PriorError(f"{where}: weights = {w!r} must all be > 0")
+    return tuple(float(v) for v in w)
 
 
 @dataclass
