@@ -195,11 +195,18 @@ def _jsonable(x):
 
 
 def provenance(argv) -> dict:
-    """Versions and command of a file this command writes."""
-    import sklearn
+    """Versions and command of a file this command writes (the installed distributions' versions)."""
+    from importlib.metadata import PackageNotFoundError, version
 
-    return {"sliders": __version__, "numpy": np.__version__, "scikit-learn": sklearn.__version__,
-            "python": sys.version.split()[0], "command": "python -m sliders.forecast " + " ".join(argv),
+    def installed(package: str) -> str:
+        try:
+            return version(package)
+        except PackageNotFoundError:
+            return "?"
+
+    return {"sliders": __version__, "python": sys.version.split()[0],
+            **{p: installed(p) for p in ("numpy", "scikit-learn", "skops", "crepes")},
+            "command": "python -m sliders.forecast " + " ".join(argv),
             "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 
 

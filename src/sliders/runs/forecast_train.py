@@ -144,8 +144,7 @@ def training_provenance(data, data_path: str, args) -> dict:
     return {"prior": str(prior) if prior is not None else str(args.prior or data_path),
             "prior_digest": str(attrs.get("prior_digest", "")),
             "prior_file": str(args.prior or data_path),
-            "mode": str(attrs.get("mode", _scene_mode(attrs))),
-            "skops": _version("skops"), "crepes": _version("crepes")}
+            "mode": str(attrs.get("mode", _scene_mode(attrs)))}
 
 
 def _scene_mode(attrs) -> str:
@@ -155,15 +154,6 @@ def _scene_mode(attrs) -> str:
         return json.loads(attrs.get("prior", "{}")).get("scene", {}).get("mode", "explore")
     except (TypeError, ValueError, AttributeError):
         return "explore"
-
-
-def _version(package: str) -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version(package)
-    except PackageNotFoundError:
-        return "?"
 
 
 def catalogue_csv_text(cat) -> str:
