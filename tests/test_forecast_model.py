@@ -19,8 +19,8 @@ from sliders.analysis.forecast.learned import Learned
 from sliders.analysis.forecast.measurement import degrade
 from sliders.analysis.forecast.registry import FORECASTERS, fit_methods, make_forecasters
 from sliders.io.catalogue import Catalogue
-from sliders.io.forecast_model import (ModelFileError, default_model_path, load_forecasters,
-                                       save_forecasters)
+from sliders.io.forecast_model import (MODEL_FORMAT, ModelFileError, default_model_path,
+                                       load_forecasters, save_forecasters)
 
 from test_forecast import rate_law_catalogue, synthetic_set
 
@@ -100,7 +100,7 @@ def test_a_skops_file_naming_an_unlisted_type_is_refused(tmp_path, predict):
 
     marker = tmp_path / "ran"
     crafted = tmp_path / "crafted.skops"
-    crafted.write_bytes(sio.dumps({"format": "sliders-forecaster-2",
+    crafted.write_bytes(sio.dumps({"format": MODEL_FORMAT,
                                    "forecasters": {"learned_blind": MarkerOnLoad(str(marker))},
                                    "provenance": {}}))
     with pytest.raises(ModelFileError, match="refused.*marker_class.MarkerOnLoad"):

@@ -23,7 +23,7 @@ import io
 import pathlib
 import zipfile
 
-MODEL_FORMAT = "sliders-forecaster-2"
+MODEL_FORMAT = "sliders-forecaster-3"
 #: the shipped model's file name inside the package's data folder
 DEFAULT_MODEL_NAME = "default_forecaster.skops"
 #: every type a model file may name beyond skops' own defaults
