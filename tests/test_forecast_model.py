@@ -122,6 +122,16 @@ def test_a_model_file_holding_something_else_is_one_line(tmp_path, predict):
     assert "not the fitted forecasters" in out.stderr and "'learned_blind'" in out.stderr
 
 
+def test_a_model_file_of_another_format_asks_to_be_trained_again(tmp_path):
+    import skops.io as sio
+
+    older = tmp_path / "older.skops"
+    older.write_bytes(sio.dumps({"format": "sliders-forecaster-2", "forecasters": {},
+                                 "provenance": {}}))
+    with pytest.raises(ModelFileError, match="format sliders-forecaster-2.*train it again"):
+        load_forecasters(str(older))
+
+
 def test_the_default_model_is_never_taken_from_the_current_folder(tmp_path, predict):
     path = default_model_path()
     assert "site-packages" in str(path) or "src" in str(path)
