@@ -239,3 +239,12 @@ def test_shortest_interval_is_no_longer_than_the_central_one_and_keeps_the_media
     assert np.all(np.diff(qs, axis=1) >= 0)
     with pytest.raises(ValueError, match="interval"):
         Learned(interval="lead").fit(train)
+
+
+def test_only_the_angles_and_sizes_forecaster_reads_the_short_range_features():
+    cuts = training_cuts(synthetic_set(10, seed=1), 3, np.random.default_rng(0))
+    short = ("gap_1", "gap_share_16", "events_0.002", "ffm_event_ml_p_log_remaining")
+    _, every = Learned(inputs="all").design(cuts)
+    _, blind = Learned(inputs="angles_sizes").design(cuts)
+    assert not set(short) & set(every) and "ffm_ml_disp_p_log_remaining" in every
+    assert set(short) <= set(blind) and "ffm_ml_disp_p_log_remaining" not in blind

@@ -18,8 +18,10 @@ import numpy as np
 
 from ...io.catalogue import Catalogue, CatalogueSet
 
+#: the shortest recent window (radians): about a tenth of a degree
+SHORTEST_WINDOW = 0.002
 #: the recent windows (radians of tilt before the cut) over which rates are counted
-WINDOWS = (0.002, 0.005, 0.01, 0.02, 0.05, 0.1)
+WINDOWS = (SHORTEST_WINDOW, 0.005, 0.01, 0.02, 0.05, 0.1)
 #: the k-th last events whose distance to the tilt reached is a feature (``recent_gaps``)
 GAP_ORDERS = (1, 2, 4, 8, 16, 32)
 #: the tilt up to which the early events measure mu_s (below the transition for mu_d >= 0.3)

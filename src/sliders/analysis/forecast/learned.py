@@ -26,7 +26,13 @@ Three layers beside the regressors, each a scikit-learn or crepes object:
 * the fall-back: the conditioned climatology of the training avalanche angles.
 
 * ``Learned``: the catalogue's features only (``features.catalogue_features``);
-  with ``inputs="angles_sizes"`` only those of the events' angles and sizes.
+  with ``inputs="angles_sizes"`` only those of the events' angles and sizes,
+  with the recent gaps and the event-rate fits.
+
+The 80 % interval is the shortest one, in degrees, of the calibrated
+distribution (``interval``): the remaining angle's distribution is skewed,
+and near the avalanche, where the catalogue cannot tell a quarter of a degree
+from two degrees, its central interval would stop short of the avalanche.
 * ``Ceiling``: plus the K smallest distances of a slider to its threshold at
   the last stored angle before the cut, which only a simulation knows.
 * ``ToldMuD``: plus the true ``mu_d``.
@@ -41,7 +47,7 @@ import numpy as np
 from .base import LEVELS, Forecaster
 from .baselines import Climatology, conditioned_quantiles
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
-from .features import ceiling_features, feature_matrix, training_cuts
+from .features import SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
 from .measurement import MEASUREMENT_FEATURES, degrade_cuts
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
@@ -54,6 +60,11 @@ CALIBRATIONS = ("out_of_fold", "held_out")
 ANGLES_SIZES_FEATURES = ("tilt", "n_events", "last_event", "quiet", "first_event", "moves",
                          "max_size", "max_size_recent", "mean_size_recent", "since_largest",
                          "share_large", *MEASUREMENT_FEATURES)
+#: features of the last fraction of a degree (the recent gaps, the shortest window, the
+#: event-rate fits) that only the angles-and-sizes forecaster reads: the one of every feature
+#: leans on the lone-slider pairs and its error 3° before the avalanche was no smaller with them
+SHORT_RANGE_PREFIXES = ("gap_", "ffm_event_")
+SHORT_RANGE_SUFFIX = f"_{SHORTEST_WINDOW:g}"
 #: features that are angles: each also enters as its distance to the tilt reached
 ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model", "atan_mu_d_single")
 #: the tilt reached is outside the domain above this quantile of the training avalanche angles
@@ -120,8 +131,9 @@ class Learned(Forecaster):
     Parameters
     ----------
     inputs : {"all", "angles_sizes"}
-        Every catalogue feature, or only those of the events' angles and
-        sizes (``ANGLES_SIZES_FEATURES``, the event and move rates).
+        Every catalogue feature but the short-range ones, or only those of
+        the events' angles and sizes (``ANGLES_SIZES_FEATURES``, the event
+        and move rates, the short-range ones: ``SHORT_RANGE_PREFIXES``).
     draws_per_row : int
         Random training cuts per training realisation.
     max_iter, learning_rate, max_leaf_nodes, min_samples_leaf : int or float
@@ -181,9 +193,12 @@ class Learned(Forecaster):
         return "learned (boosting)" if self.inputs == "all" else "learned, angles + sizes only"
 
     def _selected(self, x, names):
-        """The columns this forecaster may see (all, or those of angles and sizes only)."""
+        """The columns this forecaster may see: all but the short-range ones
+        (``SHORT_RANGE_PREFIXES``), or those of angles and sizes only."""
         if self.inputs == "all":
-            return x, names
+            keep = [i for i, n in enumerate(names) if not n.startswith(SHORT_RANGE_PREFIXES)
+                    and not n.endswith(SHORT_RANGE_SUFFIX)]
+            return x[:, keep], [names[i] for i in keep]
         keep = [i for i, n in enumerate(names) if n in ANGLES_SIZES_FEATURES
                 or n.startswith(("events_", "moves_", "size_ratio_", "gap_", "ffm_event_"))
                 and not n.startswith("moves_per_slider")]
