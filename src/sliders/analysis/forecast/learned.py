@@ -431,10 +431,10 @@ class Learned(Forecaster):
         grid = self.calibration_.predict(centre, sigmas=spread,
                                          bins=self._calibration_bin(cuts, centre),
                                          lower_percentiles=self.percentiles_)
-        grid = np.sort(np.clip(np.asarray(grid, dtype=float).reshape(len(cuts), -1), -20.0, 2.0),
-                       axis=1)
-        zc = np.array([np.interp(lv, self.percentiles_, g)
-                       for lv, g in zip(self._percentiles(grid), grid)]).reshape(len(cuts), -1)
+        grid = np.asarray(grid, dtype=float).reshape(len(cuts), self.percentiles_.size)
+        grid = np.sort(np.clip(grid, -20.0, 2.0), axis=1)
+        zc = np.array([np.interp(lv, self.percentiles_, g) for lv, g in
+                       zip(self._percentiles(grid), grid)]).reshape(len(cuts), LEVELS.size)
         q = cuts.tilt_now[:, None] + np.exp(zc)
         inside, _ = self.domain(cuts, x)
         out = ~inside
