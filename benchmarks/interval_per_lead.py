@@ -18,13 +18,12 @@ climatology's.  Writes interval_per_lead.json and interval_per_lead.md to ``--ou
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 
 import numpy as np
 
-from forecast_skill import LEADS_DEG, blind, skill
+from forecast_skill import LEADS_DEG, blind, skill, write_report
 from sliders.analysis.forecast.base import LOWER, UPPER
 from sliders.analysis.forecast.evaluation import cuts_at_leads
 from sliders.analysis.forecast.learned import INTERVALS
@@ -92,13 +91,7 @@ def main():
         if entry.method in MEASURED:
             f = entry.make(200, args.seed).fit(train)
             rep["forecasters"][entry.method] = measure(f, test, MEASURED[entry.method], args.seed)
-    os.makedirs(args.out, exist_ok=True)
-    with open(os.path.join(args.out, "interval_per_lead.json"), "w") as fh:
-        json.dump(rep, fh, indent=1)
-    text = markdown(rep)
-    with open(os.path.join(args.out, "interval_per_lead.md"), "w") as fh:
-        fh.write(text)
-    print(text)
+    print(write_report(rep, args.out, "interval_per_lead", markdown))
 
 
 if __name__ == "__main__":
