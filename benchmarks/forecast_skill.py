@@ -136,6 +136,17 @@ def markdown(rep: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def write_report(rep: dict, out: str, stem: str, tables) -> str:
+    """``rep`` as ``stem``.json and ``tables(rep)`` as ``stem``.md in ``out``; returns the tables."""
+    os.makedirs(out, exist_ok=True)
+    with open(os.path.join(out, f"{stem}.json"), "w") as fh:
+        json.dump(rep, fh, indent=1)
+    text = tables(rep)
+    with open(os.path.join(out, f"{stem}.md"), "w") as fh:
+        fh.write(text)
+    return text
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--model", required=True)
@@ -165,13 +176,7 @@ def main():
                                                   np.radians(LEADS_DEG), seed=args.seed),
            "domain": domain_rates(models["learned_blind"], test, outside, args.seed),
            "degradation": degradation_curve(models["learned_blind"], test, train_ac, args.seed)}
-    os.makedirs(args.out, exist_ok=True)
-    with open(os.path.join(args.out, "forecast_skill.json"), "w") as fh:
-        json.dump(rep, fh, indent=1)
-    text = markdown(rep)
-    with open(os.path.join(args.out, "forecast_skill.md"), "w") as fh:
-        fh.write(text)
-    print(text)
+    print(write_report(rep, args.out, "forecast_skill", markdown))
     from sliders.figures.forecast import draw_measured
 
     print(" ".join(draw_measured(rep, args.out)))

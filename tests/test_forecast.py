@@ -185,3 +185,66 @@ def test_learned_forecaster_widens_its_interval_outside_its_training_domain():
     assert q[0, 1] <= qc[0, 1] and q[0, -2] >= qc[0, -2]
     busy = train.catalogue(0).cut(0.2)
     assert f.domain(Cuts.from_catalogues([busy]))[0][0]
+
+
+def test_recent_gaps_of_a_hand_made_catalogue():
+    """gap_k: the tilt reached minus the k-th last event's angle; gap_share_k = gap_k / gap_2k."""
+    from sliders.analysis.forecast.features import catalogue_features
+
+    alpha = np.array([0.1, 0.2, 0.3, 0.36, 0.38, 0.3985])
+    cat = Catalogue(alpha, np.ones(6), np.zeros(6), -np.ones(6), -np.ones(6), tilt_now=0.4)
+    f = catalogue_features(cat)
+    assert f["gap_1"] == pytest.approx(0.0015) and f["gap_2"] == pytest.approx(0.02)
+    assert f["gap_4"] == pytest.approx(0.1) and np.isnan(f["gap_8"])
+    assert f["gap_share_1"] == pytest.approx(0.075) and f["gap_share_2"] == pytest.approx(0.2)
+    assert np.isnan(f["gap_share_4"])
+    # the shortest window (0.002 rad) holds the last event only; 0.05 rad the last three
+    assert f["events_0.002"] == pytest.approx(1 / 0.002) and f["events_0.05"] == pytest.approx(3 / 0.05)
+
+
+@pytest.mark.parametrize("rate_a", [20.0, 60.0])
+def test_gap_shares_of_a_rate_law_measure_the_rate_not_the_remaining_angle(rate_a):
+    """Under the rate A / (alpha_c - alpha) the k-th last event lies (alpha_c - tilt)(e^(k/A) - 1)
+    back: cut just before an event, gap_k / gap_2k = 1 / (1 + e^(k/A)) at any remaining angle."""
+    from sliders.analysis.forecast.features import recent_gaps
+
+    whole = rate_law_catalogue(0.5, rate_a, 0.499)
+    for m in (40, 100):  # the cut lies a hair before event m: the remaining angle differs
+        cat = whole.cut(float(whole.alpha[m]) - 1e-12)
+        f = recent_gaps(cat.alpha, cat.tilt_now)
+        for k in (2, 4, 8, 16):
+            assert f[f"gap_share_{k}"] == pytest.approx(1.0 / (1.0 + np.exp(k / rate_a)), rel=1e-6)
+
+
+def test_calibration_bin_edges_keep_their_least_count_between_tied_values():
+    from sliders.analysis.forecast.learned import MIN_PER_BIN, _quantile_edges
+
+    values = np.r_[np.zeros(2 * MIN_PER_BIN), np.arange(4 * MIN_PER_BIN) % 7]
+    edges = _quantile_edges(values, 4)
+    counts = np.bincount(np.searchsorted(edges, values), minlength=4)
+    assert edges.size == 3 and np.isinf(edges[-1])  # three bins only: the ties leave no fourth
+    assert counts[:3].min() >= MIN_PER_BIN and counts[3] == 0 and counts.sum() == values.size
+
+
+def test_shortest_interval_is_no_longer_than_the_central_one_and_keeps_the_median():
+    train, test = synthetic_set(60, seed=1), synthetic_set(20, seed=2)
+    cuts = training_cuts(test, 5, np.random.default_rng(3))
+    shortest = Learned(draws_per_row=10, max_iter=20, random_state=0).fit(train)
+    central = Learned(draws_per_row=10, max_iter=20, interval="central", random_state=0).fit(train)
+    qs, qc = shortest.quantiles(cuts)[0], central.quantiles(cuts)[0]
+    lo, mid, hi = (int(np.flatnonzero(np.isclose(LEVELS, v))[0]) for v in (0.1, 0.5, 0.9))
+    assert np.allclose(qs[:, mid], qc[:, mid])
+    assert np.all(qs[:, hi] - qs[:, lo] <= qc[:, hi] - qc[:, lo] + 1e-12)
+    assert np.all(qs[:, lo] <= qc[:, lo] + 1e-12) and np.any(qs[:, lo] < qc[:, lo])
+    assert np.all(np.diff(qs, axis=1) >= 0)
+    with pytest.raises(ValueError, match="interval"):
+        Learned(interval="lead").fit(train)
+
+
+def test_only_the_angles_and_sizes_forecaster_reads_the_short_range_features():
+    cuts = training_cuts(synthetic_set(10, seed=1), 3, np.random.default_rng(0))
+    short = ("gap_1", "gap_share_16", "events_0.002", "ffm_event_ml_p_log_remaining")
+    _, every = Learned(inputs="all").design(cuts)
+    _, blind = Learned(inputs="angles_sizes").design(cuts)
+    assert not set(short) & set(every) and "ffm_ml_disp_p_log_remaining" in every
+    assert set(short) <= set(blind) and "ffm_ml_disp_p_log_remaining" not in blind

@@ -111,7 +111,8 @@ def test_scores_of_a_perfect_and_of_a_late_forecaster():
 
 
 def test_recalibrated_intervals_cover_about_their_share():
-    train, valid, test = synthetic_set(60, seed=1), synthetic_set(40, seed=2), synthetic_set(60, seed=3)
+    # 80 calibration rows: about 600 cuts, two Mondrian bins of the tilt reached
+    train, valid, test = synthetic_set(60, seed=1), synthetic_set(80, seed=2), synthetic_set(60, seed=3)
     f = Learned(draws_per_row=10, max_iter=30, random_state=0).fit(train, validation=valid)
     from sliders.analysis.forecast import training_cuts
 
@@ -123,11 +124,19 @@ def test_recalibrated_intervals_cover_about_their_share():
 
 def test_out_of_fold_calibration_covers_about_its_share_in_tilt_and_event_bins():
     """Without a validation set the calibration uses every training row's out-of-fold residuals,
-    in Mondrian bins of the tilt reached crossed with bins of the events so far."""
+    in Mondrian bins of the tilt reached, of the events so far within each, and of the predicted
+    remaining angle within those; every bin holds MIN_PER_BIN calibration cuts at least."""
+    from sliders.analysis.forecast.learned import MIN_PER_BIN
+
     train, test = synthetic_set(150, seed=1), synthetic_set(60, seed=3)
-    f = Learned(draws_per_row=24, max_iter=30, random_state=0).fit(train)
-    assert f.n_calibration_cuts_ == f.n_training_cuts_
-    assert f.calibration_edges_.size == 3 and f.calibration_event_edges_.size >= 1
+    f = Learned(draws_per_row=24, max_iter=30, calibration_bins=2, calibration_event_bins=2,
+                calibration_remaining_bins=2, random_state=0).fit(train)
+    assert f.n_calibration_cuts_ == f.n_training_cuts_ >= 8 * MIN_PER_BIN
+    assert f.calibration_edges_.size == 1 and f.calibration_event_edges_.shape == (2, 1)
+    assert f.calibration_remaining_edges_.shape == (4, 1)  # two of predicted remaining angle
+    filled = f.calibration_counts_[f.calibration_counts_ > 0]
+    assert filled.size > 4 and filled.min() >= MIN_PER_BIN
+    assert filled.sum() == f.n_calibration_cuts_
     from sliders.analysis.forecast import training_cuts
 
     cuts = training_cuts(test, 10, np.random.default_rng(9))

@@ -19,8 +19,8 @@ from sliders.analysis.forecast.learned import Learned
 from sliders.analysis.forecast.measurement import degrade
 from sliders.analysis.forecast.registry import FORECASTERS, fit_methods, make_forecasters
 from sliders.io.catalogue import Catalogue
-from sliders.io.forecast_model import (ModelFileError, default_model_path, load_forecasters,
-                                       save_forecasters)
+from sliders.io.forecast_model import (MODEL_FORMAT, ModelFileError, default_model_path,
+                                       load_forecasters, save_forecasters)
 
 from test_forecast import rate_law_catalogue, synthetic_set
 
@@ -100,7 +100,7 @@ def test_a_skops_file_naming_an_unlisted_type_is_refused(tmp_path, predict):
 
     marker = tmp_path / "ran"
     crafted = tmp_path / "crafted.skops"
-    crafted.write_bytes(sio.dumps({"format": "sliders-forecaster-2",
+    crafted.write_bytes(sio.dumps({"format": MODEL_FORMAT,
                                    "forecasters": {"learned_blind": MarkerOnLoad(str(marker))},
                                    "provenance": {}}))
     with pytest.raises(ModelFileError, match="refused.*marker_class.MarkerOnLoad"):
@@ -120,6 +120,16 @@ def test_a_model_file_holding_something_else_is_one_line(tmp_path, predict):
     out = predict([str(catalogue), "--model", str(path)])
     assert out.returncode == 2 and out.stderr.count("\n") == 1
     assert "not the fitted forecasters" in out.stderr and "'learned_blind'" in out.stderr
+
+
+def test_a_model_file_of_another_format_asks_to_be_trained_again(tmp_path):
+    import skops.io as sio
+
+    older = tmp_path / "older.skops"
+    older.write_bytes(sio.dumps({"format": "sliders-forecaster-2", "forecasters": {},
+                                 "provenance": {}}))
+    with pytest.raises(ModelFileError, match="format sliders-forecaster-2.*train it again"):
+        load_forecasters(str(older))
 
 
 def test_the_default_model_is_never_taken_from_the_current_folder(tmp_path, predict):

@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 from sliders.io import safeio
+from sliders.io.forecast_model import MODEL_FORMAT
 from sliders.runs import ensemble, study
 from sliders.runs import forecast as rf
 
@@ -498,7 +499,6 @@ def test_pickle_model_file_is_refused_unread(tmp_path, catalogue, capsys):
 def test_model_naming_a_class_this_version_lacks_is_one_line(tmp_path, catalogue, capsys,
                                                               monkeypatch):
     import sliders.analysis.forecast.learned as learned
-    from sliders.io.forecast_model import MODEL_FORMAT
 
     Vanished.__module__, Vanished.__qualname__ = learned.__name__, "Vanished"
     monkeypatch.setattr(learned, "Vanished", Vanished, raising=False)
@@ -524,9 +524,9 @@ def test_model_of_a_forecaster_lacking_what_this_version_reads_is_one_line(
 
 @pytest.mark.parametrize("contents, words", [
     ([1, 2, 3], "not a sliders model file of format"),
-    ({"format": "sliders-forecaster-2", "provenance": {},
+    ({"format": MODEL_FORMAT, "provenance": {},
       "forecasters": {"learned_blind": "not a forecaster"}}, "not the fitted forecasters"),
-    ({"format": "sliders-forecaster-2", "provenance": {}, "forecasters": {}},
+    ({"format": MODEL_FORMAT, "provenance": {}, "forecasters": {}},
      "no forecaster of angles and sizes"),
 ])
 def test_model_holding_the_wrong_contents_is_one_line(tmp_path, catalogue, capsys, contents,

@@ -23,7 +23,7 @@ import io
 import pathlib
 import zipfile
 
-MODEL_FORMAT = "sliders-forecaster-2"
+MODEL_FORMAT = "sliders-forecaster-3"
 #: the shipped model's file name inside the package's data folder
 DEFAULT_MODEL_NAME = "default_forecaster.skops"
 #: every type a model file may name beyond skops' own defaults
@@ -125,6 +125,10 @@ def load_forecasters(path) -> tuple[dict, dict]:
         obj = sio.loads(blob, trusted=sorted(ALLOWED_TYPES))
     except Exception as exc:  # noqa: BLE001
         raise ModelFileError(f"{path}: damaged model file ({type(exc).__name__})") from None
+    if isinstance(obj, dict) and str(obj.get("format", "")).startswith("sliders-forecaster-") \
+            and obj["format"] != MODEL_FORMAT:
+        raise ModelFileError(f"{path}: a model file of format {obj['format']}; this version reads "
+                             f"{MODEL_FORMAT}: train it again")
     if not isinstance(obj, dict) or obj.get("format") != MODEL_FORMAT:
         raise ModelFileError(f"{path}: not a sliders model file of format {MODEL_FORMAT}")
     forecasters, prov = obj.get("forecasters"), obj.get("provenance")

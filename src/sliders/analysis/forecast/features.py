@@ -18,8 +18,12 @@ import numpy as np
 
 from ...io.catalogue import Catalogue, CatalogueSet
 
+#: the shortest recent window (radians): about a tenth of a degree
+SHORTEST_WINDOW = 0.002
 #: the recent windows (radians of tilt before the cut) over which rates are counted
-WINDOWS = (0.005, 0.01, 0.02, 0.05, 0.1)
+WINDOWS = (SHORTEST_WINDOW, 0.005, 0.01, 0.02, 0.05, 0.1)
+#: the k-th last events whose distance to the tilt reached is a feature (``recent_gaps``)
+GAP_ORDERS = (1, 2, 4, 8, 16, 32)
 #: the tilt up to which the early events measure mu_s (below the transition for mu_d >= 0.3)
 EARLY_ANGLE = 0.2
 #: lone-slider estimates of mu_d within this of each other agree
@@ -274,6 +278,7 @@ def catalogue_features(cat: Catalogue, arbitrary_size: bool = False) -> dict:
     f["single_slider_agree"] = float(agree)
     f["atan_mu_d_single"] = float(np.arctan(mu_d)) if np.isfinite(mu_d) else np.nan
     f.update(size_ratios(cat))
+    f.update(recent_gaps(alpha, t))
     if arbitrary_size:
         for k in f:
             if k in SIZE_IN_SLIDERS or k.startswith(("moves_", "delta_mu", "mu_s_early", "atan_mu")):
@@ -292,6 +297,26 @@ def size_ratios(cat: Catalogue) -> dict:
         f[f"size_ratio_recent_{w:g}"] = float(size[recent].mean()) / mean if recent.any() else np.nan
     big = size > 2.0 * mean
     f["share_large"] = float(big.mean()) if size.size else np.nan
+    return f
+
+
+def recent_gaps(alpha: np.ndarray, tilt_now: float) -> dict:
+    """How far back the k-th last events lie, and how that distance grows with k.
+
+    ``gap_k`` = tilt reached - angle of the k-th last event (``GAP_ORDERS``;
+    NaN with fewer events).  Under a rate ``A / (alpha_c - alpha)`` the k-th
+    last event lies ``(alpha_c - tilt)(exp(k / A) - 1)`` back: the ratios
+    ``gap_share_k = gap_k / gap_2k`` (in [0, 1], free of any angle scale)
+    measure ``A``, the gaps then the remaining angle; under a steady rate the
+    share is about one half.  The last fraction of a degree, which windows
+    of fixed width blur, is read from the events themselves.
+    """
+    n = alpha.size
+    gap = {k: tilt_now - float(alpha[n - k]) if n >= k else np.nan for k in GAP_ORDERS}
+    f = {f"gap_{k}": g for k, g in gap.items()}
+    for k in GAP_ORDERS[:-1]:
+        wide = gap[2 * k]
+        f[f"gap_share_{k}"] = gap[k] / wide if wide > 0 else np.nan
     return f
 
 

@@ -26,7 +26,13 @@ Three layers beside the regressors, each a scikit-learn or crepes object:
 * the fall-back: the conditioned climatology of the training avalanche angles.
 
 * ``Learned``: the catalogue's features only (``features.catalogue_features``);
-  with ``inputs="angles_sizes"`` only those of the events' angles and sizes.
+  with ``inputs="angles_sizes"`` only those of the events' angles and sizes,
+  with the recent gaps and the event-rate fits.
+
+The 80 % interval is the shortest one, in degrees, of the calibrated
+distribution (``interval``): the remaining angle's distribution is skewed,
+and near the avalanche, where the catalogue cannot tell a quarter of a degree
+from two degrees, its central interval would stop short of the avalanche.
 * ``Ceiling``: plus the K smallest distances of a slider to its threshold at
   the last stored angle before the cut, which only a simulation knows.
 * ``ToldMuD``: plus the true ``mu_d``.
@@ -41,7 +47,7 @@ import numpy as np
 from .base import LEVELS, Forecaster
 from .baselines import Climatology, conditioned_quantiles
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
-from .features import ceiling_features, feature_matrix, training_cuts
+from .features import SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
 from .measurement import MEASUREMENT_FEATURES, degrade_cuts
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
@@ -54,6 +60,11 @@ CALIBRATIONS = ("out_of_fold", "held_out")
 ANGLES_SIZES_FEATURES = ("tilt", "n_events", "last_event", "quiet", "first_event", "moves",
                          "max_size", "max_size_recent", "mean_size_recent", "since_largest",
                          "share_large", *MEASUREMENT_FEATURES)
+#: features of the last fraction of a degree (the recent gaps, the shortest window, the
+#: event-rate fits) that only the angles-and-sizes forecaster reads: the one of every feature
+#: leans on the lone-slider pairs and its error 3° before the avalanche was no smaller with them
+SHORT_RANGE_PREFIXES = ("gap_", "ffm_event_")
+SHORT_RANGE_SUFFIX = f"_{SHORTEST_WINDOW:g}"
 #: features that are angles: each also enters as its distance to the tilt reached
 ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model", "atan_mu_d_single")
 #: the tilt reached is outside the domain above this quantile of the training avalanche angles
@@ -69,7 +80,15 @@ DOMAIN_SAMPLE = 1500
 DOMAIN_NEIGHBOURS = 20
 #: bins of each feature in the boosting (the model file keeps every bin's threshold)
 MAX_BINS = 63
-#: fewest calibration cuts per Mondrian bin (the 5 % and 95 % levels need 20 at least)
+#: what the 80 % interval is: the central one (10 % to 90 % of the calibrated distribution), or
+#: the shortest one in degrees (a low side of ``LOW_SHARES``, the high side the rest of the 20 %)
+INTERVALS = ("central", "shortest")
+#: the shares (%) of the calibrated distribution below the shortest 80 % interval tried
+LOW_SHARES = np.arange(1.0, 10.5)
+#: the calibrated distribution's percentiles read for every cut (the levels are interpolated;
+#: those below 100 / (cuts of the smallest Mondrian bin + 1) are left out)
+CPS_PERCENTILES = np.r_[0.5, np.arange(1.0, 100.0), 99.5]
+#: fewest calibration cuts per Mondrian bin (the 0.5 % and 99.5 % percentiles read need 200)
 MIN_PER_BIN = 200
 #: share of the training rows held out for the calibration (``calibration="held_out"``)
 CALIBRATION_SHARE = 0.25
@@ -77,16 +96,32 @@ CALIBRATION_SHARE = 0.25
 CALIBRATION_FOLDS = 4
 
 
+def event_rate_fits() -> list:
+    """The event-rate inverse-rate fits whose best remaining angle (log) every input sees."""
+    return [LinearInverseRate("events"), PointProcessInverseRate("events", None)]
+
+
+def displacement_rate_fits() -> list:
+    """The displacement-rate inverse-rate fits whose best remaining angle ``inputs="all"`` sees."""
+    return [LinearInverseRate("displacement"), PointProcessInverseRate("displacement", None)]
+
+
+def best_log_remaining(cuts, fits) -> np.ndarray:
+    """(n, len(fits)) each fit's most likely log remaining angle for every cut (NaN: no fit)."""
+    return np.array([[f.best_log_remaining(c) for f in fits]
+                     for c in cuts.catalogues]).reshape(-1, len(fits))
+
+
 def with_design(cuts, inverse_rate: bool = True):
     """The same cuts with their features computed once (shared by several forecasters).
 
-    ``inverse_rate``: also the displacement-rate fits that ``Learned(inputs="all")`` reads.
+    Their features, the event-rate fits and, with ``inverse_rate``, the
+    displacement-rate fits that ``Learned(inputs="all")`` reads.
     """
-    cache = {**cuts.cache, "features": feature_matrix(cuts)}
+    cache = {**cuts.cache, "features": feature_matrix(cuts),
+             "inverse_rate_events": best_log_remaining(cuts, event_rate_fits())}
     if inverse_rate:
-        fits = [LinearInverseRate("displacement"), PointProcessInverseRate("displacement", None)]
-        cache["inverse_rate"] = np.array([[f.best_log_remaining(c) for f in fits]
-                                          for c in cuts.catalogues]).reshape(-1, 2)
+        cache["inverse_rate"] = best_log_remaining(cuts, displacement_rate_fits())
     return replace(cuts, cache=cache)
 
 
@@ -96,8 +131,9 @@ class Learned(Forecaster):
     Parameters
     ----------
     inputs : {"all", "angles_sizes"}
-        Every catalogue feature, or only those of the events' angles and
-        sizes (``ANGLES_SIZES_FEATURES``, the event and move rates).
+        Every catalogue feature but the short-range ones, or only those of
+        the events' angles and sizes (``ANGLES_SIZES_FEATURES``, the event
+        and move rates, the short-range ones: ``SHORT_RANGE_PREFIXES``).
     draws_per_row : int
         Random training cuts per training realisation.
     max_iter, learning_rate, max_leaf_nodes, min_samples_leaf : int or float
@@ -105,9 +141,17 @@ class Learned(Forecaster):
     degrade : bool
         Degrade every training cut by a measurement drawn from
         ``measurement.MEASUREMENT_RANGES``.
-    calibration_bins, calibration_event_bins : int
-        Mondrian bins of the tilt reached, and in each of the events so far,
-        in the conformal calibration (fewer when the calibration cuts are few).
+    calibration_bins, calibration_event_bins, calibration_remaining_bins : int
+        Mondrian bins of the tilt reached, in each of the events so far, and
+        in each of those of the predicted remaining angle, in the conformal
+        calibration (fewer when the calibration cuts are few).
+    interval : {"shortest", "central"}
+        The 80 % interval (the quantiles at 10 % and 90 %): the shortest one
+        in degrees of the calibrated distribution, between its
+        ``LOW_SHARES`` and 80 % above (the levels between warped
+        piecewise linearly, the median kept), or its central one.  The
+        remaining angle's distribution is skewed (most likely small, possibly
+        large), so the shortest interval reaches further down and less far up.
     calibration : {"out_of_fold", "held_out"}
         Without a ``validation`` set: calibrate on the training cuts' out-of-fold
         residuals, or hold ``CALIBRATION_SHARE`` of the training rows out for it.
@@ -120,6 +164,7 @@ class Learned(Forecaster):
     def __init__(self, inputs: str = "all", draws_per_row: int = 10, max_iter: int = 200,
                  learning_rate: float = 0.08, max_leaf_nodes: int = 15, min_samples_leaf: int = 40,
                  degrade: bool = True, calibration_bins: int = 4, calibration_event_bins: int = 4,
+                 calibration_remaining_bins: int = 1, interval: str = "shortest",
                  calibration: str = "out_of_fold", domain_contamination: float = 0.03,
                  random_state: int = 0):
         self.inputs = inputs
@@ -131,6 +176,8 @@ class Learned(Forecaster):
         self.degrade = degrade
         self.calibration_bins = calibration_bins
         self.calibration_event_bins = calibration_event_bins
+        self.calibration_remaining_bins = calibration_remaining_bins
+        self.interval = interval
         self.calibration = calibration
         self.domain_contamination = domain_contamination
         self.random_state = random_state
@@ -146,11 +193,14 @@ class Learned(Forecaster):
         return "learned (boosting)" if self.inputs == "all" else "learned, angles + sizes only"
 
     def _selected(self, x, names):
-        """The columns this forecaster may see (all, or those of angles and sizes only)."""
+        """The columns this forecaster may see: all but the short-range ones
+        (``SHORT_RANGE_PREFIXES``), or those of angles and sizes only."""
         if self.inputs == "all":
-            return x, names
+            keep = [i for i, n in enumerate(names) if not n.startswith(SHORT_RANGE_PREFIXES)
+                    and not n.endswith(SHORT_RANGE_SUFFIX)]
+            return x[:, keep], [names[i] for i in keep]
         keep = [i for i, n in enumerate(names) if n in ANGLES_SIZES_FEATURES
-                or n.startswith(("events_", "moves_", "size_ratio_"))
+                or n.startswith(("events_", "moves_", "size_ratio_", "gap_", "ffm_event_"))
                 and not n.startswith("moves_per_slider")]
         return x[:, keep], [names[i] for i in keep]
 
@@ -158,16 +208,20 @@ class Learned(Forecaster):
         """The regressor's input for ``cuts``: (n, F) and the feature names.
 
         The catalogue's and the measurement's features, the model's angles
-        minus the tilt, and (every input) the best remaining angle (log) of
-        the displacement-rate inverse-rate fits.
+        minus the tilt, the best remaining angle (log) of the event-rate
+        inverse-rate fits and (``inputs="all"``) of the displacement-rate ones.
         """
         x, names = cuts.cache["features"] if "features" in cuts.cache else feature_matrix(cuts)
         t = cuts.tilt_now[:, None]
         extra = [x[:, names.index(a)][:, None] - t for a in ANGLE_FEATURES]
         x, names = np.hstack([x, *extra]), names + [f"{a}_minus_tilt" for a in ANGLE_FEATURES]
+        events = (cuts.cache["inverse_rate_events"] if "inverse_rate_events" in cuts.cache
+                  else best_log_remaining(cuts, event_rate_fits()))
+        x = np.hstack([x, events])
+        names = names + ["ffm_event_linear_log_remaining", "ffm_event_ml_p_log_remaining"]
         if self.inputs == "all":
             ffm = (cuts.cache["inverse_rate"] if "inverse_rate" in cuts.cache
-                   else with_design(cuts).cache["inverse_rate"])
+                   else best_log_remaining(cuts, displacement_rate_fits()))
             x = np.hstack([x, ffm])
             names = names + ["ffm_linear_disp_log_remaining", "ffm_ml_disp_p_log_remaining"]
         return self._selected(x, names)
@@ -193,6 +247,8 @@ class Learned(Forecaster):
         """
         if self.inputs not in INPUTS:
             raise ValueError(f"inputs={self.inputs!r} must be one of {INPUTS}")
+        if self.interval not in INTERVALS:
+            raise ValueError(f"interval={self.interval!r} must be one of {INTERVALS}")
         if self.calibration not in CALIBRATIONS:
             raise ValueError(f"calibration={self.calibration!r} must be one of {CALIBRATIONS}")
         rng = np.random.default_rng(self.random_state)
@@ -272,10 +328,13 @@ class Learned(Forecaster):
 
         ``z``: their predicted log remaining angles (``_raw_log_remaining``
         or out of fold).  Residuals of the predicted median, normalised by the
-        predicted spread (half the 10-90 % width), in bins of the tilt reached
-        crossed with bins of the events so far (edges at the calibration cuts'
-        quantiles; as many bins of tilt as ``MIN_PER_BIN`` cuts allow, up to
-        ``calibration_bins``, then of events in each).
+        predicted spread (half the 10-90 % width), in nested bins of what the
+        forecaster observes or predicts: the tilt reached, within each of its
+        bins the events so far, within each of those the predicted remaining
+        angle (edges at the calibration cuts' quantiles within their cell; as
+        many bins as ``MIN_PER_BIN`` cuts per cell allow, up to
+        ``calibration_bins``, ``calibration_event_bins`` and
+        ``calibration_remaining_bins``).
         """
         from crepes import ConformalPredictiveSystem
 
@@ -284,17 +343,51 @@ class Learned(Forecaster):
         cells = len(vcuts) // MIN_PER_BIN
         tilt_bins = int(np.clip(cells, 1, self.calibration_bins))
         event_bins = int(np.clip(cells // tilt_bins, 1, self.calibration_event_bins))
-        self.calibration_edges_ = np.quantile(vcuts.tilt_now, np.linspace(0, 1, tilt_bins + 1)[1:-1])
-        self.calibration_event_edges_ = np.quantile(_log_events(vcuts),
-                                                    np.linspace(0, 1, event_bins + 1)[1:-1])
-        self.calibration_ = ConformalPredictiveSystem().fit(truth - centre, sigmas=spread,
-                                                            bins=self._calibration_bin(vcuts))
+        remaining_bins = int(np.clip(cells // (tilt_bins * event_bins), 1,
+                                     self.calibration_remaining_bins))
+        self.calibration_edges_ = _quantile_edges(vcuts.tilt_now, tilt_bins)
+        tilt_bin = np.searchsorted(self.calibration_edges_, vcuts.tilt_now)
+        self.calibration_event_edges_ = _nested_edges(_log_events(vcuts), tilt_bin, tilt_bins,
+                                                      event_bins)
+        cell = tilt_bin * event_bins + _nested_bin(self.calibration_event_edges_, tilt_bin,
+                                                   _log_events(vcuts))
+        self.calibration_remaining_edges_ = _nested_edges(centre, cell, tilt_bins * event_bins,
+                                                          remaining_bins)
+        bins = self._calibration_bin(vcuts, centre)
+        self.calibration_counts_ = np.bincount(bins)
+        # the percentiles every bin holds a residual below (crepes' lower index >= 0)
+        fewest = self.calibration_counts_[self.calibration_counts_ > 0].min()
+        self.percentiles_ = CPS_PERCENTILES[CPS_PERCENTILES >= 100.0 / (fewest + 1)]
+        self.calibration_ = ConformalPredictiveSystem().fit(truth - centre, sigmas=spread, bins=bins)
 
-    def _calibration_bin(self, cuts):
-        """Each cut's Mondrian category: its bin of tilt reached times its bin of events so far."""
+    def _calibration_bin(self, cuts, centre):
+        """Each cut's Mondrian category: its bin of tilt reached, of events so far within it,
+        and of predicted remaining angle (``centre``, log) within that."""
         tilt_bin = np.searchsorted(self.calibration_edges_, cuts.tilt_now)
-        events_bin = np.searchsorted(self.calibration_event_edges_, _log_events(cuts))
-        return tilt_bin * (self.calibration_event_edges_.size + 1) + events_bin
+        event_bins = self.calibration_event_edges_.shape[1] + 1
+        cell = tilt_bin * event_bins + _nested_bin(self.calibration_event_edges_, tilt_bin,
+                                                   _log_events(cuts))
+        remaining_bins = self.calibration_remaining_edges_.shape[1] + 1
+        return cell * remaining_bins + _nested_bin(self.calibration_remaining_edges_, cell, centre)
+
+    def _percentiles(self, grid):
+        """(n, len(LEVELS)) the calibrated distribution's percentiles reported at ``LEVELS``.
+
+        ``grid``: each cut's log remaining angle at ``percentiles_`` (``CPS_PERCENTILES``
+        that the smallest Mondrian bin resolves; beyond them, their ends).
+        Central: the levels themselves.  Shortest: the low share ``p`` of
+        ``LOW_SHARES`` whose interval [p, 80 + p] is shortest in angle, the
+        levels mapped piecewise linearly through 10 % -> p, 50 % -> 50 %,
+        90 % -> 80 + p.
+        """
+        central = np.tile(100.0 * LEVELS, (grid.shape[0], 1))
+        if self.interval == "central":
+            return central
+        ends = np.array([np.interp(np.r_[LOW_SHARES, LOW_SHARES + 80.0], self.percentiles_, g)
+                         for g in grid]).reshape(grid.shape[0], 2, LOW_SHARES.size)
+        p = LOW_SHARES[np.argmin(np.exp(ends[:, 1]) - np.exp(ends[:, 0]), axis=1)]
+        return np.array([np.interp(100.0 * LEVELS, [0.0, 10.0, 50.0, 90.0, 100.0],
+                                   [0.0, s, 50.0, 80.0 + s, 100.0]) for s in p]).reshape(central.shape)
 
     @staticmethod
     def _centre_spread(z):
@@ -335,10 +428,14 @@ class Learned(Forecaster):
         x, _ = self.design(cuts)
         z = self._raw_log_remaining(cuts, x)
         centre, spread = self._centre_spread(z)
-        zc = self.calibration_.predict(centre, sigmas=spread, bins=self._calibration_bin(cuts),
-                                       lower_percentiles=100 * LEVELS)
-        zc = np.asarray(zc, dtype=float).reshape(len(cuts), LEVELS.size)
-        q = cuts.tilt_now[:, None] + np.exp(np.sort(np.clip(zc, -20.0, 2.0), axis=1))
+        grid = self.calibration_.predict(centre, sigmas=spread,
+                                         bins=self._calibration_bin(cuts, centre),
+                                         lower_percentiles=self.percentiles_)
+        grid = np.asarray(grid, dtype=float).reshape(len(cuts), self.percentiles_.size)
+        grid = np.sort(np.clip(grid, -20.0, 2.0), axis=1)
+        zc = np.array([np.interp(lv, self.percentiles_, g) for lv, g in
+                       zip(self._percentiles(grid), grid)]).reshape(len(cuts), LEVELS.size)
+        q = cuts.tilt_now[:, None] + np.exp(zc)
         inside, _ = self.domain(cuts, x)
         out = ~inside
         if out.any():  # widened: the conditioned climatology's interval held too
@@ -348,6 +445,32 @@ class Learned(Forecaster):
             half = LEVELS < 0.5
             q[out] = np.where(half[None, :], lower, upper)
         return q, out
+
+
+def _quantile_edges(values, bins: int) -> np.ndarray:
+    """(bins - 1,) inner edges splitting ``values`` into ``bins`` bins of about equal counts,
+    each of at least ``MIN_PER_BIN`` (an edge that would leave fewer, e.g. between tied
+    values, is dropped; its place padded with +inf, an empty bin no value reaches)."""
+    values = np.sort(np.asarray(values, dtype=float))
+    edges = []
+    for e in np.quantile(values, np.linspace(0, 1, bins + 1)[1:-1]) if values.size else []:
+        at_or_below = np.searchsorted(values, e, side="right")  # a value on an edge is below it
+        below = at_or_below - np.searchsorted(values, edges[-1] if edges else -np.inf, side="right")
+        above = values.size - at_or_below
+        if below >= MIN_PER_BIN and above >= MIN_PER_BIN:
+            edges.append(float(e))
+    return np.array(edges + [np.inf] * (bins - 1 - len(edges)))
+
+
+def _nested_edges(values, cell, cells: int, bins: int) -> np.ndarray:
+    """(cells, bins - 1) ``_quantile_edges`` of ``values`` within each cell."""
+    return np.array([_quantile_edges(values[cell == c], bins) for c in range(cells)]).reshape(
+        cells, bins - 1)
+
+
+def _nested_bin(edges, cell, values) -> np.ndarray:
+    """(n,) each value's bin within its cell's edges (``_nested_edges``)."""
+    return np.array([np.searchsorted(edges[c], v) for c, v in zip(cell, values)], dtype=np.int64)
 
 
 def _log_events(cuts) -> np.ndarray:
