@@ -47,19 +47,20 @@ def simulate(prior, rows):
     return out
 
 
-def measured(path, lengths) -> dict:
+def measured(path) -> dict:
     """What each row of a complete prior file took in its own run (seconds a row, by N)."""
     import h5py
 
     with h5py.File(path, "r") as h:
         seconds = h["realisations/wall_time"][:]
-        n = h["realisations/parameters/n_sliders"][:]
+        rows = h["realisations"]  # the parameters are its columns (format 2) or a group of them
+        n = (rows["n_sliders"] if "n_sliders" in rows else rows["parameters/n_sliders"])[:]
         done = h["realisations/done"][:].astype(bool)
     return {"file": os.path.abspath(path), "rows": int(done.sum()),
             "seconds_per_row": float(seconds[done].mean()),
             "seconds_all_rows": float(seconds[done].sum()),
             "seconds_per_row_by_n": {int(k): float(seconds[done & (n == k)].mean())
-                                     for k in lengths if (done & (n == k)).any()}}
+                                     for k in np.unique(n[done])}}
 
 
 def main():
@@ -72,6 +73,7 @@ def main():
     p.add_argument("--cores", type=int, default=2)
     p.add_argument("--max-iter", type=int, default=150)
     args = p.parse_args()
+    seen = None if args.measured is None else measured(args.measured)
     prior = load_prior(args.prior)
     n_all = prior.values()["n_sliders"].astype(int)
     lengths, share = np.unique(n_all, return_counts=True)
@@ -103,8 +105,8 @@ def main():
                "rows_in_budget": int(budget / (sim_per_row + fit_per_row)),
                "note": "fit cost per row measured on few rows; it grows slowly with the rows "
                        "(boosting is about linear, the outlier factor n log n on a capped sample)"}
-    if args.measured:
-        summary["measured"] = measured(args.measured, lengths)
+    if seen is not None:
+        summary["measured"] = seen
     line = json.dumps(summary)
     print(line)
     os.makedirs(os.path.join(HERE, "results"), exist_ok=True)

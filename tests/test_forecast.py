@@ -241,6 +241,33 @@ def test_shortest_interval_is_no_longer_than_the_central_one_and_keeps_the_media
         Learned(interval="lead").fit(train)
 
 
+def test_the_shortest_interval_leaves_the_probability_within_to_the_distribution():
+    """The shortest interval's quantiles sit at other levels than ``LEVELS``; read at those
+    levels, P(avalanche within delta) is the calibrated distribution's, as the central reading
+    of the same fitted forecaster gives it; read at ``LEVELS`` it would not be."""
+    from sklearn.base import clone
+
+    train, test = synthetic_set(60, seed=1), synthetic_set(20, seed=2)
+    cuts = training_cuts(test, 5, np.random.default_rng(3))
+    shortest = Learned(draws_per_row=10, max_iter=20, random_state=0).fit(train)
+    central = clone(shortest).set_params(interval="central")
+    central.__dict__.update({k: v for k, v in vars(shortest).items() if k.endswith("_")})
+    qs, _, ls = shortest.quantiles(cuts, levels=True)
+    qc, _, lc = central.quantiles(cuts, levels=True)
+    lo = int(np.flatnonzero(np.isclose(LEVELS, 0.1))[0])
+    assert np.allclose(lc, LEVELS) and np.all(ls[:, lo] <= 0.1) and np.any(ls[:, lo] < 0.1)
+    delta = np.radians(1.0)
+    p_central = probability_within(qc, cuts.tilt_now, delta)
+    p_shortest = probability_within(qs, cuts.tilt_now, delta, ls)
+    assert np.max(np.abs(p_shortest - p_central)) < 0.03
+    p_misread = probability_within(qs, cuts.tilt_now, delta)
+    assert np.max(np.abs(p_misread - p_central)) > np.max(np.abs(p_shortest - p_central))
+    i = int(np.argmin(ls[:, lo]))  # one forecast alone carries its levels
+    one = shortest.predict(cuts.catalogues[i])
+    assert one.levels is not None and np.allclose(one.levels, ls[i])
+    assert one.probability_within(delta) == pytest.approx(p_shortest[i])
+
+
 def test_only_the_angles_and_sizes_forecaster_reads_the_short_range_features():
     cuts = training_cuts(synthetic_set(10, seed=1), 3, np.random.default_rng(0))
     short = ("gap_1", "gap_share_16", "events_0.002", "ffm_event_ml_p_log_remaining")

@@ -489,7 +489,7 @@ def score_set(args, set_name, cset, rows, forecasters, labels, results, log) -> 
             if any(getattr(cuts, n) is None for n in f.needs):
                 continue
             t = time.time()
-            preds[f.name] = f.quantiles(cuts)
+            preds[f.name] = f.quantiles(cuts, levels=True)
             log(f"forecast: {set_name}/{kind}: {f.name} on {len(cuts)} cuts in {time.time() - t:.1f} s")
         sc = ev.score(preds, cuts, group, len(names), n_boot=args.boot, seed=args.seed)
         results["sets"].setdefault(set_name, {})[kind] = {"groups": names, "scores": sc}
@@ -533,8 +533,8 @@ def score_alarm(args, data, split, forecasters, labels, results, log) -> list[st
         if f.name not in names_where("alarm") or any(getattr(cuts, n) is None for n in f.needs):
             continue
         t = time.time()
-        q, _ = f.quantiles(cuts)
-        p = ev.alarm_probabilities(q, cuts, delta)
+        q, _, levels = f.quantiles(cuts, levels=True)
+        p = ev.alarm_probabilities(q, cuts, delta, levels)
         roc = ev.alarm_roc(p, lead, delta)
         seq = ev.alarm_sequences(p, lead, cuts.row, thresholds)
         rec = ev.recommended_threshold(seq)

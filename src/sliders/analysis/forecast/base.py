@@ -45,12 +45,19 @@ class Forecast:
         True when the forecaster's own method gave no answer (e.g. an
         inverse-rate fit without acceleration) and it fell back on the
         conditioned climatology.
+    levels : numpy.ndarray, optional
+        The probability below each quantile, when not ``LEVELS``: a forecaster
+        whose 80 % interval is not the central one (the learned ones: the
+        shortest) reports the distribution's quantiles at these levels in the
+        places of ``LEVELS``, so that ``interval`` is its interval and
+        ``probability_within`` still reads the distribution itself.
     """
 
     quantiles: np.ndarray
     tilt_now: float
     forecaster: str
     fallback: bool = False
+    levels: np.ndarray | None = None
 
     @property
     def point(self) -> float:
@@ -64,7 +71,9 @@ class Forecast:
 
     def probability_within(self, delta: float) -> float:
         """Probability that the avalanche comes before the tilt reaches ``tilt_now + delta``."""
-        return float(probability_within(self.quantiles[None, :], np.array([self.tilt_now]), delta)[0])
+        levels = None if self.levels is None else self.levels[None, :]
+        return float(probability_within(self.quantiles[None, :], np.array([self.tilt_now]), delta,
+                                        levels)[0])
 
     def as_dict(self, delta: float) -> dict:
         """The forecast as plain JSON-able values (radians), with the alarm for ``delta``."""
@@ -75,8 +84,10 @@ class Forecast:
                 "fallback": self.fallback}
 
 
-def probability_within(quantiles: np.ndarray, tilt_now: np.ndarray, delta: float) -> np.ndarray:
-    """P(alpha_c <= tilt_now + delta) from rows of quantiles at ``LEVELS``.
+def probability_within(quantiles: np.ndarray, tilt_now: np.ndarray, delta: float,
+                       levels: np.ndarray | None = None) -> np.ndarray:
+    """P(alpha_c <= tilt_now + delta) from rows of quantiles at ``LEVELS`` (or at ``levels``,
+    (n, len(LEVELS)), each row's own).
 
     The distribution function is interpolated linearly between the quantiles,
     from 0 at the lower end (the tilt reached, or the 5 % quantile if that is
@@ -88,14 +99,15 @@ def probability_within(quantiles: np.ndarray, tilt_now: np.ndarray, delta: float
     lo = np.minimum(q[:, :1] - (q[:, 1:2] - q[:, :1]), q[:, :1])
     hi = q[:, -1:] + (q[:, -1:] - q[:, -2:-1])
     xp = np.concatenate([lo, q, hi], axis=1)
-    fp = np.concatenate([[0.0], LEVELS, [1.0]])
+    lv = np.broadcast_to(LEVELS if levels is None else np.asarray(levels, dtype=float), q.shape)
+    fp = np.concatenate([np.zeros((q.shape[0], 1)), lv, np.ones((q.shape[0], 1))], axis=1)
     out = np.empty(q.shape[0])
     for i in range(q.shape[0]):
         x = xp[i]
         if x[-1] <= x[0]:  # a point mass
             out[i] = float(t[i] >= x[0])
         else:
-            out[i] = np.interp(t[i], x, fp)
+            out[i] = np.interp(t[i], x, fp[i])
     return out
 
 
@@ -122,8 +134,10 @@ def quantiles_of_grid(grid: np.ndarray, log_density: np.ndarray) -> np.ndarray:
     return np.interp(LEVELS, cdf, grid)
 
 
-def pinball_crps(quantiles: np.ndarray, truth: np.ndarray) -> np.ndarray:
-    """CRPS of each row of quantiles at ``LEVELS`` against the truth, from the quantile scores.
+def pinball_crps(quantiles: np.ndarray, truth: np.ndarray,
+                 levels: np.ndarray | None = None) -> np.ndarray:
+    """CRPS of each row of quantiles at ``LEVELS`` (or at each row's ``levels``) against the
+    truth, from the quantile scores.
 
     CRPS = 2 * integral over levels of the pinball loss; the mean over the
     uniform ``LEVELS`` approximates the integral (the tails beyond 5 % and
@@ -131,8 +145,9 @@ def pinball_crps(quantiles: np.ndarray, truth: np.ndarray) -> np.ndarray:
     """
     q = np.asarray(quantiles, dtype=float)
     y = np.asarray(truth, dtype=float)[:, None]
+    lv = LEVELS if levels is None else np.asarray(levels, dtype=float)
     diff = y - q
-    loss = np.maximum(LEVELS * diff, (LEVELS - 1.0) * diff)
+    loss = np.maximum(lv * diff, (lv - 1.0) * diff)
     return 2.0 * loss.mean(axis=1)
 
 
@@ -171,7 +186,7 @@ class Forecaster(BaseEstimator):
         """
         return self
 
-    def quantiles(self, cuts) -> tuple[np.ndarray, np.ndarray]:
+    def quantiles(self, cuts, levels: bool = False) -> tuple:
         """Forecasts of many cuts at once.
 
         Parameters
@@ -179,21 +194,30 @@ class Forecaster(BaseEstimator):
         cuts : sliders.analysis.forecast.features.Cuts
             The catalogues as seen at their tilts (and the simulation's
             extras, for the forecasters that need them).
+        levels : bool
+            Also return the probability below each quantile.
 
         Returns
         -------
         quantiles : numpy.ndarray
-            (n, len(LEVELS)) ``alpha_c`` in radians, sorted along axis 1.
+            (n, len(LEVELS)) ``alpha_c`` in radians, sorted along axis 1:
+            columns ``LOWER`` and ``UPPER`` are the 80 % interval.
         fallback : numpy.ndarray
             (n,) bool: where the method gave no answer of its own.
+        levels : numpy.ndarray
+            (n, len(LEVELS)) only if asked: ``LEVELS``, unless the forecaster's
+            80 % interval is not the central one (``Forecast.levels``).
         """
         for need in self.needs:
             if getattr(cuts, need) is None:
                 raise ForecastError(f"forecaster {self.name!r} needs {need!r}, which only a "
                                     "simulated catalogue set has")
-        q, fb = self._quantiles(cuts)
+        q, fb, *lv = self._quantiles(cuts)
         q = np.sort(np.asarray(q, dtype=float), axis=1)
-        return q, np.asarray(fb, dtype=bool)
+        if not levels:
+            return q, np.asarray(fb, dtype=bool)
+        lv = np.array(np.broadcast_to(lv[0] if lv else LEVELS, q.shape), dtype=float)
+        return q, np.asarray(fb, dtype=bool), lv
 
     def predict(self, catalogue, measurement=None) -> Forecast:
         """The forecast for one ``Catalogue`` (its ``tilt_now`` is the tilt reached).
@@ -203,8 +227,9 @@ class Forecaster(BaseEstimator):
         """
         from .features import Cuts
 
-        q, fb = self.quantiles(Cuts.from_catalogues([catalogue], measurement))
-        return Forecast(q[0], float(catalogue.tilt_now), self.name, bool(fb[0]))
+        q, fb, lv = self.quantiles(Cuts.from_catalogues([catalogue], measurement), levels=True)
+        levels = None if np.array_equal(lv[0], LEVELS) else lv[0]
+        return Forecast(q[0], float(catalogue.tilt_now), self.name, bool(fb[0]), levels)
 
     def _quantiles(self, cuts):
         raise NotImplementedError

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import LOWER, MEDIAN, UPPER, pinball_crps, probability_within
+from .base import LEVELS, LOWER, MEDIAN, UPPER, pinball_crps, probability_within
 from .features import Cuts
 
 
@@ -103,7 +103,7 @@ def _p90(x, axis):
 
 def score_group(q: np.ndarray, fallback: np.ndarray, truth: np.ndarray, tilt: np.ndarray,
                 q_conditioned: np.ndarray, q_climatology: np.ndarray, n_boot: int,
-                rng: np.random.Generator) -> dict:
+                rng: np.random.Generator, levels: np.ndarray | None = None) -> dict:
     """The metrics of one forecaster on one group of cuts (one lead, or one tilt), with 90 % CIs.
 
     Each metric is a triple (value, 5 %, 95 %) over ``n_boot`` resamplings of
@@ -126,7 +126,7 @@ def score_group(q: np.ndarray, fallback: np.ndarray, truth: np.ndarray, tilt: np
     err = q[:, MEDIAN] - truth
     ab = np.abs(err)
     cov = (q[:, LOWER] <= truth) & (truth <= q[:, UPPER])
-    crps = pinball_crps(q, truth)
+    crps = pinball_crps(q, truth, levels)
     crps_clim = pinball_crps(q_climatology, truth)
     ab_cond = np.abs(q_conditioned[:, MEDIAN] - truth)
     remaining = truth - tilt
@@ -158,17 +158,19 @@ def score(predictions: dict, cuts: Cuts, group: np.ndarray, n_groups: int, n_boo
     """``score_group`` for every forecaster and every group: ``{name: [metrics of group 0, ...]}``.
 
     ``predictions`` maps a forecaster's name to its ``(quantiles, fallback)``
-    on ``cuts``; it must hold ``reference`` and ``climatology``.
+    or ``(quantiles, fallback, levels)`` on ``cuts``
+    (``Forecaster.quantiles``); it must hold ``reference`` and ``climatology``.
     """
     out = {}
     truth, tilt = cuts.alpha_c, cuts.tilt_now
-    for name, (q, fb) in predictions.items():
+    for name, (q, fb, *levels) in predictions.items():
+        lv = levels[0] if levels else np.broadcast_to(LEVELS, q.shape)
         rows = []
         for g in range(n_groups):
             m = group == g
             rng = np.random.default_rng([seed, g])  # the same resamples for every forecaster
             rows.append(score_group(q[m], fb[m], truth[m], tilt[m], predictions[reference][0][m],
-                                    predictions[climatology][0][m], n_boot, rng))
+                                    predictions[climatology][0][m], n_boot, rng, lv[m]))
         out[name] = rows
     return out
 
@@ -225,6 +227,8 @@ def recommended_threshold(seq: dict, share: float = 0.9) -> float:
     return float(ok.max()) if ok.size else float(seq["thresholds"].min())
 
 
-def alarm_probabilities(q: np.ndarray, cuts: Cuts, delta: float) -> np.ndarray:
-    """P(avalanche within ``delta``) of each cut, from its quantiles."""
-    return probability_within(q, cuts.tilt_now, delta)
+def alarm_probabilities(q: np.ndarray, cuts: Cuts, delta: float,
+                        levels: np.ndarray | None = None) -> np.ndarray:
+    """P(avalanche within ``delta``) of each cut, from its quantiles (at ``levels``, if not
+    ``LEVELS``: ``Forecaster.quantiles(cuts, levels=True)``)."""
+    return probability_within(q, cuts.tilt_now, delta, levels)

@@ -78,7 +78,9 @@ DOMAIN_FEATURES = ("tilt", "n_events", "first_event", "quiet", "since_largest", 
 DOMAIN_SAMPLE = 1500
 #: neighbours of the local outlier factor (the model file keeps their distances for every cut)
 DOMAIN_NEIGHBOURS = 20
-#: bins of each feature in the boosting (the model file keeps every bin's threshold)
+#: bins of each feature in the boosting by default (the model file keeps every bin's threshold);
+#: the forecaster of every feature takes 255, the most the boosting allows: its best feature,
+#: mu_d from lone-slider pairs, is exact, and 63 bins of it are about a degree wide
 MAX_BINS = 63
 #: what the 80 % interval is: the central one (10 % to 90 % of the calibrated distribution), or
 #: the shortest one in degrees (a low side of ``LOW_SHARES``, the high side the rest of the 20 %)
@@ -136,7 +138,7 @@ class Learned(Forecaster):
         and move rates, the short-range ones: ``SHORT_RANGE_PREFIXES``).
     draws_per_row : int
         Random training cuts per training realisation.
-    max_iter, learning_rate, max_leaf_nodes, min_samples_leaf : int or float
+    max_iter, learning_rate, max_leaf_nodes, min_samples_leaf, max_bins : int or float
         Of ``HistGradientBoostingRegressor``.
     degrade : bool
         Degrade every training cut by a measurement drawn from
@@ -163,6 +165,7 @@ class Learned(Forecaster):
 
     def __init__(self, inputs: str = "all", draws_per_row: int = 10, max_iter: int = 200,
                  learning_rate: float = 0.08, max_leaf_nodes: int = 15, min_samples_leaf: int = 40,
+                 max_bins: int = MAX_BINS,
                  degrade: bool = True, calibration_bins: int = 4, calibration_event_bins: int = 4,
                  calibration_remaining_bins: int = 1, interval: str = "shortest",
                  calibration: str = "out_of_fold", domain_contamination: float = 0.03,
@@ -173,6 +176,7 @@ class Learned(Forecaster):
         self.learning_rate = learning_rate
         self.max_leaf_nodes = max_leaf_nodes
         self.min_samples_leaf = min_samples_leaf
+        self.max_bins = max_bins
         self.degrade = degrade
         self.calibration_bins = calibration_bins
         self.calibration_event_bins = calibration_event_bins
@@ -300,7 +304,7 @@ class Learned(Forecaster):
         return HistGradientBoostingRegressor(
             loss="quantile", quantile=float(level), max_iter=self.max_iter,
             learning_rate=self.learning_rate, max_leaf_nodes=self.max_leaf_nodes,
-            min_samples_leaf=self.min_samples_leaf, max_bins=MAX_BINS, early_stopping=False,
+            min_samples_leaf=self.min_samples_leaf, max_bins=self.max_bins, early_stopping=False,
             random_state=self.random_state)
 
     def _domain_view(self, x):
@@ -433,9 +437,11 @@ class Learned(Forecaster):
                                          lower_percentiles=self.percentiles_)
         grid = np.asarray(grid, dtype=float).reshape(len(cuts), self.percentiles_.size)
         grid = np.sort(np.clip(grid, -20.0, 2.0), axis=1)
+        percent = self._percentiles(grid)
         zc = np.array([np.interp(lv, self.percentiles_, g) for lv, g in
-                       zip(self._percentiles(grid), grid)]).reshape(len(cuts), LEVELS.size)
+                       zip(percent, grid)]).reshape(len(cuts), LEVELS.size)
         q = cuts.tilt_now[:, None] + np.exp(zc)
+        levels = percent / 100.0
         inside, _ = self.domain(cuts, x)
         out = ~inside
         if out.any():  # widened: the conditioned climatology's interval held too
@@ -444,7 +450,8 @@ class Learned(Forecaster):
             upper = np.maximum(q[out], qc)
             half = LEVELS < 0.5
             q[out] = np.where(half[None, :], lower, upper)
-        return q, out
+            levels[out] = LEVELS  # no distribution of its own: read at the nominal levels
+        return q, out, levels
 
 
 def _quantile_edges(values, bins: int) -> np.ndarray:

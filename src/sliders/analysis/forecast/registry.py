@@ -56,7 +56,7 @@ FORECASTERS = (
     # the tilt (its out-of-fold residuals, from regressors without a quarter of the rows, are
     # too small for the one fitted on every row: 0.67 coverage 20° before the avalanche)
     Entry(lambda it, s: Learned(max_iter=it, degrade=False, calibration_event_bins=1,
-                                calibration="held_out", random_state=s),
+                                calibration="held_out", max_bins=255, random_state=s),
           alarm=True, example=True, method="learned"),
     Entry(lambda it, s: Learned(inputs="angles_sizes", max_iter=it, random_state=s), alarm=True,
           example=True, method="learned_blind"),

@@ -77,10 +77,10 @@ def coverage_report(forecaster, cset, rows, leads, path: str | None = None,
     sub = cset.subset(np.asarray(rows))
     cuts = training_cuts(sub, draws_per_row, np.random.default_rng(seed))
     cuts = degrade(cuts) if degrade is not None else cuts
-    q, _ = forecaster.quantiles(cuts)
+    q, _, levels = forecaster.quantiles(cuts, levels=True)
     truth = cuts.alpha_c
     events = np.array([len(c) for c in cuts.catalogues], dtype=float)
-    p = probability_within(q, cuts.tilt_now, delta)
+    p = probability_within(q, cuts.tilt_now, delta, levels)
     report = {"all_cuts": _coverage(q, truth),
               "per_tilt_bin": _binned(q, truth, cuts.tilt_now, OBSERVED_BINS),
               "per_events_bin": _binned(q, truth, events, OBSERVED_BINS),
