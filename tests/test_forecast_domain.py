@@ -20,7 +20,7 @@ def fitted():
     """A domain check fitted on degraded cuts of synthetic rows (thousands of events each)."""
     train = synthetic_set(60, seed=1)
     rng = np.random.default_rng(0)
-    cuts = degrade_cuts(training_cuts(train, 8, rng), rng)
+    cuts = degrade_cuts(training_cuts(train, 20, rng), rng)
     return DomainCheck().fit(cuts, train.alpha_c), train
 
 
@@ -57,13 +57,13 @@ def test_domain_check_is_a_scikit_learn_estimator(fitted):
     check, _ = fitted
     copy = clone(check)
     assert copy.get_params() == check.get_params() and not hasattr(copy, "detectors_")
-    assert len(check.detectors_) == 2 and 0.3 < check.top_tilt_ <= 0.6
+    assert len(check.detectors_) == 3 and 0.3 < check.top_tilt_ <= 0.6
     with pytest.raises(ValueError, match="unknown domain features"):
         DomainCheck(features=("tilt", "mu_d")).fit(Cuts.from_catalogues([sparse_pile()]), [0.5])
 
 
 def test_learned_delegates_its_domain_to_the_check():
-    f = Learned(inputs="angles_sizes", draws_per_row=8, max_iter=5).fit(synthetic_set(60, seed=2))
+    f = Learned(inputs="angles_sizes", draws_per_row=20, max_iter=5).fit(synthetic_set(60, seed=2))
     assert isinstance(f.domain_, DomainCheck)
     inside, why = f.domain(Cuts.from_catalogues([sparse_pile(n=3)]))
     assert not inside[0] and "local outlier factor" in why[0]

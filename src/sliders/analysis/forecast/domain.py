@@ -8,18 +8,17 @@ catalogue holds:
 * a novelty detector (``sklearn.neighbors.LocalOutlierFactor(novelty=True)``
   after a ``StandardScaler``) on features that say what pile made the
   catalogue, read *through its measurement*: event rates are counted as if
-  no event had been missed (divided by the share kept), one rate counts only
-  the events large enough (``COMMON_SIZE`` sliders) that every detection
-  threshold of the training measurements records them, and the detection
-  threshold and the missed share are features themselves.  A catalogue said
-  to be complete is then compared with complete training catalogues: a pile
-  prepared without internal forces, silent up to a tilt where every complete
-  training catalogue has events, cannot pass for one of which most events
-  were missed.
+  no event had been missed (divided by the share kept), and one rate counts
+  only the events large enough (``COMMON_SIZE`` sliders) that every detection
+  threshold of the training measurements records them.
 
-Sizes in an arbitrary unit count no sliders: those catalogues have a
-detector of their own, on the features that need no unit (``IN_SLIDERS``
-left out).
+One detector per class of measurement (``MEASUREMENT_CLASSES``): a catalogue
+said to be complete is compared with complete training catalogues only, so
+that a small pile, or one prepared without internal forces and silent up to a
+tilt where every complete training catalogue has events, cannot pass for a
+pile of which most events were missed.  Sizes in an arbitrary unit count no
+sliders: those catalogues are compared on the features that need no unit
+(``IN_SLIDERS`` left out).
 
 The features are standardised, not mapped through their training quantiles:
 a quantile transform clips every value beyond the training range to its
@@ -41,16 +40,16 @@ RECENT = 0.05
 #: recent; all events, and those of ``COMMON_SIZE`` sliders or more), as if none were missed;
 #: the first event's tilt (absolute, and over the tilt reached) and the tilt since the last;
 #: the sizes (largest over the mean, share above twice the mean, the largest, the share of
-#: lone slips, the recent largest and mean); the measurement (detection threshold, missed share)
+#: lone slips, the recent largest and mean)
 DOMAIN_FEATURES = ("tilt", "log_rate", "log_rate_recent", "onset", "onset_ratio", "quiet",
                    "size_ratio_max", "share_large", "log_rate_common", "log_rate_common_recent",
-                   "log_max_size", "share_one", "log_max_size_recent", "log_mean_size_recent",
-                   "log_min_size", "missed_fraction")
+                   "log_max_size", "share_one", "log_max_size_recent", "log_mean_size_recent")
 #: the features that count sliders (NaN for sizes in an arbitrary unit)
 IN_SLIDERS = ("log_rate_common", "log_rate_common_recent", "log_max_size", "share_one",
-              "log_max_size_recent", "log_mean_size_recent", "log_min_size")
-#: the size units with a detector of their own (``measurement.SIZE_UNITS``)
-UNIT_CLASSES = ("sliders", "arbitrary")
+              "log_max_size_recent", "log_mean_size_recent")
+#: the classes of measurement with a detector each: sizes in sliders with no event missed and
+#: every size detected; sizes in sliders otherwise; sizes in an arbitrary unit
+MEASUREMENT_CLASSES = ("complete", "incomplete", "arbitrary")
 
 
 def domain_features(cuts, names=DOMAIN_FEATURES) -> np.ndarray:
@@ -82,8 +81,7 @@ def _features_of(cat, m) -> dict:
          "log_rate_recent": np.log1p(recent.sum() / kept / RECENT),
          "onset": onset, "onset_ratio": onset / t, "quiet": t - float(alpha[-1]) if n else t,
          "size_ratio_max": float(size.max()) / mean if n else np.nan,
-         "share_large": float(np.mean(size > 2.0 * mean)) if n else np.nan,
-         "missed_fraction": m.missed_fraction}
+         "share_large": float(np.mean(size > 2.0 * mean)) if n else np.nan}
     if m.size_unit == "arbitrary":
         return f
     common = size >= COMMON_SIZE
@@ -92,18 +90,18 @@ def _features_of(cat, m) -> dict:
               "log_max_size": np.log(float(size.max())) if n else 0.0,
               "share_one": float(np.mean(size == 1)) if n else np.nan,
               "log_max_size_recent": np.log(float(size[recent].max())) if recent.any() else 0.0,
-              "log_mean_size_recent": np.log(float(size[recent].mean())) if recent.any() else 0.0,
-              "log_min_size": np.log(m.min_size)})
+              "log_mean_size_recent": np.log(float(size[recent].mean())) if recent.any() else 0.0})
     return f
 
 
-def unit_class(cuts) -> np.ndarray:
-    """(n,) each cut's index in ``UNIT_CLASSES`` (sizes in sliders, or in an arbitrary unit)."""
-    return np.array([UNIT_CLASSES.index(m.size_unit) for m in cuts.measurements()], dtype=int)
+def measurement_class(cuts) -> np.ndarray:
+    """(n,) each cut's index in ``MEASUREMENT_CLASSES``."""
+    return np.array([2 if m.size_unit == "arbitrary" else 0 if m.missed_fraction == 0
+                     and m.min_size <= 1 else 1 for m in cuts.measurements()], dtype=int)
 
 
 class DomainCheck(BaseEstimator):
-    """The training domain of a forecaster: the top tilt and a novelty detector per size unit.
+    """The training domain of a forecaster: the top tilt and a novelty detector per measurement.
 
     Parameters
     ----------
@@ -119,21 +117,21 @@ class DomainCheck(BaseEstimator):
         distances for every training cut it keeps).
     max_samples : int
         Training cuts each detector learns from (a random subset: the model
-        file keeps them, twice with the neighbour tree).
+        file keeps them, with the neighbour tree and each one's neighbours).
     random_state : int
         Seeds the subset (unless ``fit`` is given an order).
 
     Attributes
     ----------
     detectors_ : list
-        Per ``UNIT_CLASSES``: a fitted pipeline (imputer, standard scaler,
-        local outlier factor), or None without enough training cuts of that unit.
+        Per ``MEASUREMENT_CLASSES``: a fitted pipeline (imputer, standard scaler,
+        local outlier factor), or None without enough training cuts of that class.
     top_tilt_ : float
         The highest tilt reached inside the domain, radians.
     """
 
     def __init__(self, features: tuple = DOMAIN_FEATURES, tilt_quantile: float = 0.995,
-                 contamination: float = 0.025, n_neighbors: int = 35, max_samples: int = 1500,
+                 contamination: float = 0.03, n_neighbors: int = 35, max_samples: int = 1500,
                  random_state: int = 0):
         self.features = features
         self.tilt_quantile = tilt_quantile
@@ -145,26 +143,26 @@ class DomainCheck(BaseEstimator):
     def fit(self, cuts, alpha_c, order=None):
         """Learn the domain from training ``cuts`` (``features.Cuts``, measured as recorded) and
         the training avalanche angles ``alpha_c``; ``order``: a permutation of the cuts whose
-        first ``max_samples`` of each size unit are kept (default: drawn from ``random_state``).
+        first ``max_samples`` of each measurement class are kept (default: drawn from ``random_state``).
         """
         unknown = sorted(set(self.features) - set(DOMAIN_FEATURES))
         if unknown:
             raise ValueError(f"unknown domain features {unknown}; known: {DOMAIN_FEATURES}")
-        x, unit = domain_features(cuts, self.features), unit_class(cuts)
+        x, kind = domain_features(cuts, self.features), measurement_class(cuts)
         if order is None:
             order = np.random.default_rng(self.random_state).permutation(len(cuts))
         order = np.asarray(order, dtype=int)
         self.detectors_ = []
-        for k, label in enumerate(UNIT_CLASSES):
-            rows = order[unit[order] == k][:self.max_samples]
+        for k, label in enumerate(MEASUREMENT_CLASSES):
+            rows = order[kind[order] == k][:self.max_samples]
             self.detectors_.append(self._detector().fit(x[rows][:, self._columns(label)])
                                    if rows.size > self.n_neighbors else None)
         self.top_tilt_ = float(np.quantile(np.asarray(alpha_c, dtype=float), self.tilt_quantile))
         return self
 
     def _columns(self, label) -> list:
-        """The features a detector of size unit ``label`` compares."""
-        return [i for i, f in enumerate(self.features) if label == "sliders" or f not in IN_SLIDERS]
+        """The features the detector of measurement class ``label`` compares."""
+        return [i for i, f in enumerate(self.features) if label != "arbitrary" or f not in IN_SLIDERS]
 
     def _detector(self):
         from sklearn.impute import SimpleImputer
@@ -178,11 +176,11 @@ class DomainCheck(BaseEstimator):
                                contamination=self.contamination))
 
     def novel(self, cuts) -> np.ndarray:
-        """(n,) True where a cut is unlike every training cut of its size unit."""
-        x, unit = domain_features(cuts, self.features), unit_class(cuts)
+        """(n,) True where a cut is unlike every training cut of its measurement class."""
+        x, kind = domain_features(cuts, self.features), measurement_class(cuts)
         out = np.zeros(len(cuts), dtype=bool)
-        for k, label in enumerate(UNIT_CLASSES):
-            rows = unit == k
+        for k, label in enumerate(MEASUREMENT_CLASSES):
+            rows = kind == k
             if rows.any() and self.detectors_[k] is not None:
                 out[rows] = self.detectors_[k].predict(x[rows][:, self._columns(label)]) < 0
         return out

@@ -111,7 +111,7 @@ class Learned(Forecaster):
     def __init__(self, inputs: str = "all", draws_per_row: int = 10, max_iter: int = 200,
                  learning_rate: float = 0.08, max_leaf_nodes: int = 15, min_samples_leaf: int = 40,
                  degrade: bool = True, calibration_bins: int = 4, calibration_event_bins: int = 4,
-                 calibration: str = "out_of_fold", domain_contamination: float = 0.025,
+                 calibration: str = "out_of_fold", domain_contamination: float = 0.03,
                  random_state: int = 0):
         self.inputs = inputs
         self.draws_per_row = draws_per_row
