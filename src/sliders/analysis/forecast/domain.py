@@ -31,6 +31,8 @@ from __future__ import annotations
 import numpy as np
 from sklearn.base import BaseEstimator
 
+from .features import n_sliders_estimate
+
 #: events at least this large (sliders) are recorded by every training measurement's
 #: detection threshold (``measurement.MEASUREMENT_RANGES["min_size"]`` goes up to 5)
 COMMON_SIZE = 5.0
@@ -47,6 +49,12 @@ DOMAIN_FEATURES = ("tilt", "log_rate", "log_rate_recent", "onset", "onset_ratio"
 #: the features that count sliders (NaN for sizes in an arbitrary unit)
 IN_SLIDERS = ("log_rate_common", "log_rate_common_recent", "log_max_size", "share_one",
               "log_max_size_recent", "log_mean_size_recent")
+#: fewest training cuts of a class of measurement for a detector of its own (fewer: the class
+#: is checked on the tilt only, a density on so few cuts would flag its own kind)
+MIN_CLASS_CUTS = 100
+#: with the slider indices of the movers (``Learned(inputs="all")``): the number of sliders they
+#: show (``features.n_sliders_estimate``), as a log
+WITH_POSITIONS = DOMAIN_FEATURES + ("log_n_sliders",)
 #: the classes of measurement with a detector each: sizes in sliders with no event missed and
 #: every size detected; sizes in sliders otherwise; sizes in an arbitrary unit
 MEASUREMENT_CLASSES = ("complete", "incomplete", "arbitrary")
@@ -77,7 +85,7 @@ def _features_of(cat, m) -> dict:
     recent = alpha > t - RECENT
     mean = float(size.mean()) if n else np.nan
     onset = float(alpha[0]) if n else t
-    f = {"tilt": t, "log_rate": np.log1p(n / kept / t),
+    f = {"tilt": t, "log_rate": np.log1p(n / kept / t), "log_n_sliders": np.log(n_sliders_estimate(cat)),
          "log_rate_recent": np.log1p(recent.sum() / kept / RECENT),
          "onset": onset, "onset_ratio": onset / t, "quiet": t - float(alpha[-1]) if n else t,
          "size_ratio_max": float(size.max()) / mean if n else np.nan,
@@ -125,13 +133,14 @@ class DomainCheck(BaseEstimator):
     ----------
     detectors_ : list
         Per ``MEASUREMENT_CLASSES``: a fitted pipeline (imputer, standard scaler,
-        local outlier factor), or None without enough training cuts of that class.
+        local outlier factor), or None with fewer than ``MIN_CLASS_CUTS`` training cuts
+        of that class.
     top_tilt_ : float
         The highest tilt reached inside the domain, radians.
     """
 
     def __init__(self, features: tuple = DOMAIN_FEATURES, tilt_quantile: float = 0.995,
-                 contamination: float = 0.03, n_neighbors: int = 35, max_samples: int = 1500,
+                 contamination: float = 0.03, n_neighbors: int = 35, max_samples: int = 1000,
                  random_state: int = 0):
         self.features = features
         self.tilt_quantile = tilt_quantile
@@ -145,9 +154,9 @@ class DomainCheck(BaseEstimator):
         the training avalanche angles ``alpha_c``; ``order``: a permutation of the cuts whose
         first ``max_samples`` of each measurement class are kept (default: drawn from ``random_state``).
         """
-        unknown = sorted(set(self.features) - set(DOMAIN_FEATURES))
+        unknown = sorted(set(self.features) - set(WITH_POSITIONS))
         if unknown:
-            raise ValueError(f"unknown domain features {unknown}; known: {DOMAIN_FEATURES}")
+            raise ValueError(f"unknown domain features {unknown}; known: {WITH_POSITIONS}")
         x, kind = domain_features(cuts, self.features), measurement_class(cuts)
         if order is None:
             order = np.random.default_rng(self.random_state).permutation(len(cuts))
@@ -156,7 +165,8 @@ class DomainCheck(BaseEstimator):
         for k, label in enumerate(MEASUREMENT_CLASSES):
             rows = order[kind[order] == k][:self.max_samples]
             self.detectors_.append(self._detector().fit(x[rows][:, self._columns(label)])
-                                   if rows.size > self.n_neighbors else None)
+                                   if rows.size >= max(MIN_CLASS_CUTS, self.n_neighbors + 1)
+                                   else None)
         self.top_tilt_ = float(np.quantile(np.asarray(alpha_c, dtype=float), self.tilt_quantile))
         return self
 

@@ -41,7 +41,7 @@ import numpy as np
 
 from .base import LEVELS, Forecaster
 from .baselines import Climatology, conditioned_quantiles
-from .domain import DomainCheck
+from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import ceiling_features, feature_matrix, training_cuts
 from .measurement import MEASUREMENT_FEATURES, degrade_cuts
@@ -238,8 +238,10 @@ class Learned(Forecaster):
             random_state=self.random_state)
 
     def _fit_domain(self, cuts, rng):
-        """The domain check (``domain.DomainCheck``) on the training cuts, as measured."""
-        self.domain_ = DomainCheck(contamination=self.domain_contamination,
+        """The domain check (``domain.DomainCheck``) on the training cuts, as measured (with the
+        number of sliders the movers' indices show, if the forecaster reads them)."""
+        features = WITH_POSITIONS if self.inputs == "all" else DOMAIN_FEATURES
+        self.domain_ = DomainCheck(features, contamination=self.domain_contamination,
                                    random_state=self.random_state).fit(
             cuts, self.climatology_.alpha_c_, order=rng.permutation(len(cuts)))
 
