@@ -11,6 +11,7 @@ Pure computation on ``sliders.io.catalogue`` objects: no running, no plotting.
 * ``physics``: the paper's half-angle rule and the model-based estimate of mu_d;
 * ``learned``: gradient-boosted quantile regressors with a conformal calibration and a
   domain check, the ceiling and the told-mu_d variants;
+* ``domain``: whether a catalogue, read through its measurement, is like the training ones;
 * ``evaluation``: the split, the cuts at leads, the metrics with bootstrap intervals, the alarm.
 """
 

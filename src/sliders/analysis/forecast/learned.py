@@ -19,10 +19,11 @@ Three layers beside the regressors, each a scikit-learn or crepes object:
   without a fold of the training rows, predict that fold), so every training
   row calibrates and the regressors kept are fitted on every row; a
   ``validation`` set, when given, calibrates instead;
-* the domain: ``sklearn.neighbors.LocalOutlierFactor(novelty=True)`` on the
-  training cuts' features, and the tilt reached against the training
-  avalanche angles.  Out of the domain the interval is widened to hold the
-  conditioned climatology's too, and said so (``fallback``);
+* the domain (``domain.DomainCheck``): a local outlier factor on the
+  training cuts' event rates and sizes read through their measurement, and
+  the tilt reached against the training avalanche angles.  Out of the domain
+  the interval is widened to hold the conditioned climatology's too, and
+  said so (``fallback``);
 * the fall-back: the conditioned climatology of the training avalanche angles.
 
 * ``Learned``: the catalogue's features only (``features.catalogue_features``);
@@ -46,6 +47,7 @@ import numpy as np
 
 from .base import LEVELS, Forecaster
 from .baselines import Climatology, conditioned_quantiles
+from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
 from .measurement import MEASUREMENT_FEATURES, degrade_cuts
@@ -67,17 +69,6 @@ SHORT_RANGE_PREFIXES = ("gap_", "ffm_event_")
 SHORT_RANGE_SUFFIX = f"_{SHORTEST_WINDOW:g}"
 #: features that are angles: each also enters as its distance to the tilt reached
 ANGLE_FEATURES = ("atan_mu_d_model", "atan_mu_s_model", "atan_mu_d_single")
-#: the tilt reached is outside the domain above this quantile of the training avalanche angles
-DOMAIN_TILT_QUANTILE = 0.995
-#: what the novelty detector compares (few features, so that a density in their space means
-#: something): the tilt, how many events and how recent, their rates, the sizes' spread
-DOMAIN_FEATURES = ("tilt", "n_events", "first_event", "quiet", "since_largest", "events_0.01",
-                   "events_0.05", "events_0.1", "size_ratio_max", "share_large")
-#: training cuts the novelty detector learns from (a random subset: its cost grows as n log n,
-#: and the model file keeps them, twice: 1500 cuts of 60 features are about 1.5 MB)
-DOMAIN_SAMPLE = 1500
-#: neighbours of the local outlier factor (the model file keeps their distances for every cut)
-DOMAIN_NEIGHBOURS = 20
 #: bins of each feature in the boosting by default (the model file keeps every bin's threshold);
 #: the forecaster of every feature takes 255, the most the boosting allows: its best feature,
 #: mu_d from lone-slider pairs, is exact, and 63 bins of it are about a degree wide
@@ -269,8 +260,7 @@ class Learned(Forecaster):
         y_log = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
         self.models_ = self._fit_regressors(x[:, self.columns_], y_log)
         self.climatology_ = Climatology().fit(train)
-        self.domain_columns_ = np.array([names.index(n) for n in DOMAIN_FEATURES])
-        self._fit_domain(self._domain_view(x), rng)
+        self._fit_domain(cuts, rng)
         if held_out:
             self._fit_calibration(validation_cuts, self._raw_log_remaining(validation_cuts))
             self.n_calibration_cuts_ = len(validation_cuts)
@@ -307,25 +297,13 @@ class Learned(Forecaster):
             min_samples_leaf=self.min_samples_leaf, max_bins=self.max_bins, early_stopping=False,
             random_state=self.random_state)
 
-    def _domain_view(self, x):
-        """The novelty detector's features (``DOMAIN_FEATURES``) of a design."""
-        return x[:, self.domain_columns_]
-
-    def _fit_domain(self, x, rng):
-        """The novelty detector on (a subset of) the training cuts' features, and the top tilt."""
-        from sklearn.impute import SimpleImputer
-        from sklearn.neighbors import LocalOutlierFactor
-        from sklearn.pipeline import make_pipeline
-        from sklearn.preprocessing import QuantileTransformer
-
-        take = rng.permutation(x.shape[0])[:DOMAIN_SAMPLE]
-        self.domain_ = make_pipeline(
-            SimpleImputer(strategy="median", keep_empty_features=True),
-            QuantileTransformer(n_quantiles=200, output_distribution="normal",
-                                random_state=self.random_state),
-            LocalOutlierFactor(n_neighbors=DOMAIN_NEIGHBOURS, novelty=True,
-                               contamination=self.domain_contamination)).fit(x[take])
-        self.top_tilt_ = float(np.quantile(self.climatology_.alpha_c_, DOMAIN_TILT_QUANTILE))
+    def _fit_domain(self, cuts, rng):
+        """The domain check (``domain.DomainCheck``) on the training cuts, as measured (with the
+        number of sliders the movers' indices show, if the forecaster reads them)."""
+        features = WITH_POSITIONS if self.inputs == "all" else DOMAIN_FEATURES
+        self.domain_ = DomainCheck(features, contamination=self.domain_contamination,
+                                   random_state=self.random_state).fit(
+            cuts, self.climatology_.alpha_c_, order=rng.permutation(len(cuts)))
 
     def _fit_calibration(self, vcuts, z):
         """A Mondrian conformal predictive system on the calibration cuts (crepes).
@@ -408,25 +386,14 @@ class Learned(Forecaster):
     def domain(self, cuts, x=None) -> tuple[np.ndarray, list[str]]:
         """Whether each cut lies in the training domain, and if not, why (one phrase).
 
-        Out: the tilt reached above ``DOMAIN_TILT_QUANTILE`` of the training
-        avalanche angles, or features the novelty detector finds unlike every
-        training cut's.  ``x``: the cuts' ``design``, if already computed.
+        Out: the tilt reached above a high quantile of the training avalanche
+        angles, or event rates and sizes that the novelty detector finds
+        unlike every training cut's (``domain.DomainCheck``).  ``x``: unused,
+        the check reads the catalogues and their measurement.
         """
-        x = self.design(cuts)[0] if x is None else x
-        novel = self.domain_.predict(self._domain_view(x)) < 0 if len(cuts) else np.zeros(0, bool)
-        high = cuts.tilt_now > self.top_tilt_
-        reasons = []
-        for h, nv, t in zip(high, novel, cuts.tilt_now):
-            why = []
-            if h:
-                why.append(f"the tilt reached ({np.degrees(t):.2f}°) is above "
-                           f"{100 * DOMAIN_TILT_QUANTILE:g} % of the training avalanche angles "
-                           f"({np.degrees(self.top_tilt_):.2f}°)")
-            if nv:
-                why.append("the catalogue's features are unlike every training catalogue's at "
-                           "its tilt (local outlier factor)")
-            reasons.append("; ".join(why))
-        return ~(high | novel), reasons
+        if not isinstance(getattr(self, "domain_", None), DomainCheck):
+            raise AttributeError("the forecaster's domain check is of another version")
+        return self.domain_.check(cuts)
 
     def _quantiles(self, cuts):
         x, _ = self.design(cuts)
