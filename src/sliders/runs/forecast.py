@@ -626,7 +626,7 @@ FALLBACK_REASONS = {
                    "and too few early events to estimate mu_d: the conditioned climatology is "
                    "given instead",
     "learned": "out of the training domain: the interval is widened to hold the conditioned "
-               "climatology's too",
+               "climatology's and the training's remaining angles too",
 }
 
 
@@ -732,7 +732,8 @@ def print_forecasts(args, report: dict, forecasts, path, prov, complete: bool) -
           f"({deg(first.tilt_now):.2f}°)")
     if not report["in_domain"]:
         print(f"OUT OF THE TRAINING DOMAIN: {report['domain_reason']}; the learned interval is "
-              "widened to hold the conditioned climatology's too, and no forecast here is "
+              "widened to hold the conditioned climatology's and the training's remaining "
+              "angles too, and no forecast here is "
               "calibrated: retrain on a prior that holds this pile (python -m sliders.forecast train)")
     for method, f, fc in forecasts:
         lo, hi = fc.interval

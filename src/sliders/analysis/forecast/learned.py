@@ -22,7 +22,8 @@ Three layers beside the regressors, each a scikit-learn or crepes object:
 * the domain (``domain.DomainCheck``): a local outlier factor on the
   training cuts' event rates and sizes read through their measurement, and
   the tilt reached against the training avalanche angles.  Out of the domain
-  the interval is widened to hold the conditioned climatology's too, and
+  the interval is widened to hold the conditioned climatology's and the
+  training cuts' remaining angles from the tilt reached too, and
   said so (``fallback``);
 * the fall-back: the conditioned climatology of the training avalanche angles.
 
@@ -260,6 +261,7 @@ class Learned(Forecaster):
         y_log = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
         self.models_ = self._fit_regressors(x[:, self.columns_], y_log)
         self.climatology_ = Climatology().fit(train)
+        self.remaining_quantiles_ = np.quantile(cuts.alpha_c - cuts.tilt_now, LEVELS)
         self._fit_domain(cuts, rng)
         if held_out:
             self._fit_calibration(validation_cuts, self._raw_log_remaining(validation_cuts))
@@ -411,10 +413,14 @@ class Learned(Forecaster):
         levels = percent / 100.0
         inside, _ = self.domain(cuts, x)
         out = ~inside
-        if out.any():  # widened: the conditioned climatology's interval held too
-            qc = conditioned_quantiles(self.climatology_.alpha_c_, cuts.tilt_now[out])[0]
-            lower = np.minimum(q[out], qc)
-            upper = np.maximum(q[out], qc)
+        if out.any():  # widened: the conditioned climatology's interval held too, and the
+            # training cuts' remaining angles from the tilt reached (which still mean something
+            # where the tilt is above every training avalanche angle)
+            t = cuts.tilt_now[out]
+            qc = conditioned_quantiles(self.climatology_.alpha_c_, t)[0]
+            qr = t[:, None] + self.remaining_quantiles_[None, :]
+            lower = np.minimum(np.minimum(q[out], qc), qr)
+            upper = np.maximum(np.maximum(q[out], qc), qr)
             half = LEVELS < 0.5
             q[out] = np.where(half[None, :], lower, upper)
             levels[out] = LEVELS  # no distribution of its own: read at the nominal levels
