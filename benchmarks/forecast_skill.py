@@ -26,6 +26,7 @@ import argparse
 import json
 import math
 import os
+from dataclasses import replace
 
 import numpy as np
 
@@ -57,8 +58,6 @@ DEGRADATIONS = {
 
 def blind(cuts):
     """The cuts as angles and sizes only (no displacement, no movers)."""
-    from dataclasses import replace
-
     from sliders.io.catalogue import Catalogue
 
     cats = [Catalogue(c.alpha, c.size, np.zeros(len(c)), np.full(len(c), -1), np.full(len(c), -1),
@@ -98,8 +97,12 @@ def domain_rates(forecaster, test, outside: dict, seed) -> dict:
         inside, _ = forecaster.domain(cuts)
         late, _ = cuts_at_leads(cset, np.arange(len(cset)), [math.radians(3.0)])
         inside_late, _ = forecaster.domain(blind(late))
+        told = replace(blind(late), measurement=[Measurement(n_sliders=int(n)) for n in
+                                                 np.asarray(cset.parameters["n_sliders"])[late.row]])
+        inside_told, _ = forecaster.domain(told)
         out[label] = {"flagged_random_cuts": float(np.mean(~inside)), "n_cuts": int(len(cuts)),
                       "flagged_3deg": float(np.mean(~inside_late)), "n_3deg": int(len(late)),
+                      "flagged_3deg_told_n": float(np.mean(~inside_told)),
                       "skill_3deg": skill(forecaster, blind(late), forecaster.climatology_.alpha_c_)}
     return out
 
@@ -122,11 +125,11 @@ def markdown(rep: dict) -> str:
         for b, v in rep["coverage"][kind].items():
             what = "tilt (rad)" if kind == "per_tilt_bin" else "events so far"
             lines.append(f"| {what} {b} | {v['coverage']:.2f} | {v['n']} |")
-    lines += ["", "| set | flagged (random cuts) | flagged (3° before) | 3° before: / cond. clim. |"
-              " coverage |", "|---|---|---|---|---|"]
+    lines += ["", "| set | flagged (random cuts) | flagged (3° before) | 3° before, N told |"
+              " 3° before: / cond. clim. | coverage |", "|---|---|---|---|---|---|"]
     for label, v in rep["domain"].items():
         lines.append(f"| {label} | {v['flagged_random_cuts']:.2f} ({v['n_cuts']}) | "
-                     f"{v['flagged_3deg']:.2f} ({v['n_3deg']}) | "
+                     f"{v['flagged_3deg']:.2f} ({v['n_3deg']}) | {v['flagged_3deg_told_n']:.2f} | "
                      f"{v['skill_3deg']['vs_conditioned']:.2f} | {v['skill_3deg']['coverage']:.2f} |")
     lines += ["", "| measured as | / cond. clim. | coverage | flagged out of domain |",
               "|---|---|---|---|"]

@@ -161,6 +161,24 @@ def test_the_shipped_model_loads_and_predicts():
     assert f.point > 0.5 and f.interval[0] <= f.point <= f.interval[1]
 
 
+def test_a_pile_of_known_size_outside_the_training_piles_is_flagged(tmp_path, predict):
+    """``--sliders N``: the shipped model's piles hold 50-800 sliders; a pile of 12 is outside,
+    said so in the text and the JSON, and a bad N is refused in one line."""
+    cat = rate_law_catalogue(0.6, 80.0, 0.5)
+    path = tmp_path / "pile.csv"
+    path.write_text("angle [rad],size\n" + "".join(f"{a:.12g},1\n" for a in cat.alpha))
+    small = predict([str(path), "--sliders", "12", "--json"])
+    d = json.loads(small.stdout)
+    assert small.returncode == 0 and d["in_domain"] is False and d["measurement"]["n_sliders"] == 12
+    assert "a pile of 12 sliders, outside the training piles' 50-800" in d["domain_reason"]
+    text = predict([str(path), "--sliders", "12"])
+    assert "OUT OF THE TRAINING DOMAIN: a pile of 12 sliders" in text.stdout
+    told = json.loads(predict([str(path), "--sliders", "200", "--json"]).stdout)
+    assert "sliders, outside" not in told["domain_reason"]
+    bad = predict([str(path), "--sliders", "0"])
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "sliders" in bad.stderr
+
+
 def test_method_all_on_an_exact_inverse_rate_catalogue(tmp_path, model_file, predict):
     """Rate exactly 1 / (0.6 - alpha): the maximum-likelihood inverse rate finds 0.6 within 0.03."""
     cat = rate_law_catalogue(0.6, 120.0, 0.55)
@@ -218,7 +236,7 @@ def test_degraded_catalogues_and_the_flags_reach_the_features(tmp_path, model_fi
     assert out.returncode == 0, out.stderr
     d = json.loads(out.stdout)
     assert d["measurement"] == {"angle_resolution_deg": pytest.approx(0.3), "min_size": 21.0,
-                                "missed_fraction": 0.5, "size_unit": "arbitrary"}
+                                "missed_fraction": 0.5, "size_unit": "arbitrary", "n_sliders": None}
     bad = predict([str(path), "--model", model_file, "--missed-fraction", "1.5"])
     assert bad.returncode == 2 and "missed fraction" in bad.stderr and bad.stderr.count("\n") == 1
 

@@ -677,7 +677,7 @@ def measurement_of(args):
 
     try:
         return Measurement(math.radians(args.angle_resolution), args.min_size,
-                           args.missed_fraction, args.size_unit)
+                           args.missed_fraction, args.size_unit, args.sliders)
     except ValueError as exc:
         raise ForecastInputError(f"measurement flags: {exc}") from None
 
@@ -686,7 +686,7 @@ def vars_of(measurement) -> dict:
     """The measurement as JSON values (the angle error in degrees, as given)."""
     return {"angle_resolution_deg": math.degrees(measurement.angle_resolution),
             "min_size": measurement.min_size, "missed_fraction": measurement.missed_fraction,
-            "size_unit": measurement.size_unit}
+            "size_unit": measurement.size_unit, "n_sliders": measurement.n_sliders}
 
 
 def fallback_reason(method: str, forecast, complete: bool = True) -> str | None:
@@ -837,6 +837,9 @@ def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
                     help="share of events missed at random, in [0, 1)")
     pr.add_argument("--size-unit", default="sliders", choices=("sliders", "arbitrary"),
                     help="sliders: sizes count sliders; arbitrary: an unknown unit (grains, area, pixels)")
+    pr.add_argument("--sliders", type=int, default=None, metavar="N",
+                    help="the number of sliders of the pile, if known: a pile outside the "
+                         "training piles' is out of the domain")
     pr.add_argument("--json", action="store_true", help="one JSON object (radians)")
     pr.add_argument("--verbose", action="store_true", help="print the model's whole provenance")
 

@@ -137,6 +137,10 @@ class DomainCheck(BaseEstimator):
         of that class.
     top_tilt_ : float
         The highest tilt reached inside the domain, radians.
+    n_sliders_range_ : numpy.ndarray or None
+        The fewest and most sliders of the training piles (None if not given
+        to ``fit``): a catalogue whose measurement names its pile's number of
+        sliders outside them is out of the domain.
     """
 
     def __init__(self, features: tuple = DOMAIN_FEATURES, tilt_quantile: float = 0.995,
@@ -149,10 +153,11 @@ class DomainCheck(BaseEstimator):
         self.max_samples = max_samples
         self.random_state = random_state
 
-    def fit(self, cuts, alpha_c, order=None):
+    def fit(self, cuts, alpha_c, order=None, n_sliders=None):
         """Learn the domain from training ``cuts`` (``features.Cuts``, measured as recorded) and
         the training avalanche angles ``alpha_c``; ``order``: a permutation of the cuts whose
-        first ``max_samples`` of each measurement class are kept (default: drawn from ``random_state``).
+        first ``max_samples`` of each measurement class are kept (default: drawn from ``random_state``);
+        ``n_sliders``: the training piles' numbers of sliders, if known.
         """
         unknown = sorted(set(self.features) - set(WITH_POSITIONS))
         if unknown:
@@ -168,6 +173,8 @@ class DomainCheck(BaseEstimator):
                                    if rows.size >= max(MIN_CLASS_CUTS, self.n_neighbors + 1)
                                    else None)
         self.top_tilt_ = float(np.quantile(np.asarray(alpha_c, dtype=float), self.tilt_quantile))
+        n = None if n_sliders is None else np.asarray(n_sliders, dtype=float)
+        self.n_sliders_range_ = None if n is None or not n.size else np.array([n.min(), n.max()])
         return self
 
     def _columns(self, label) -> list:
@@ -199,9 +206,16 @@ class DomainCheck(BaseEstimator):
         """Whether each cut lies in the domain, and if not, why (one phrase each)."""
         novel = self.novel(cuts)
         high = cuts.tilt_now > self.top_tilt_
+        told = [m.n_sliders for m in cuts.measurements()]
+        span = getattr(self, "n_sliders_range_", None)
+        other = np.array([span is not None and n is not None and not span[0] <= n <= span[1]
+                          for n in told], dtype=bool)
         reasons = []
-        for h, nv, t in zip(high, novel, cuts.tilt_now):
+        for h, nv, t, o, n in zip(high, novel, cuts.tilt_now, other, told):
             why = []
+            if o:
+                why.append(f"a pile of {n} sliders, outside the training piles' "
+                           f"{span[0]:.0f}-{span[1]:.0f}")
             if h:
                 why.append(f"the tilt reached ({np.degrees(t):.2f}°) is above "
                            f"{100 * self.tilt_quantile:g} % of the training avalanche angles "
@@ -210,4 +224,4 @@ class DomainCheck(BaseEstimator):
                 why.append("the catalogue's event rates and sizes, read through its measurement, "
                            "are unlike every training catalogue's (local outlier factor)")
             reasons.append("; ".join(why))
-        return ~(high | novel), reasons
+        return ~(high | novel | other), reasons

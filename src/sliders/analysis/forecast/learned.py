@@ -262,7 +262,7 @@ class Learned(Forecaster):
         self.models_ = self._fit_regressors(x[:, self.columns_], y_log)
         self.climatology_ = Climatology().fit(train)
         self.remaining_quantiles_ = np.quantile(cuts.alpha_c - cuts.tilt_now, LEVELS)
-        self._fit_domain(cuts, rng)
+        self._fit_domain(cuts, rng, train.parameters.get("n_sliders"))
         if held_out:
             self._fit_calibration(validation_cuts, self._raw_log_remaining(validation_cuts))
             self.n_calibration_cuts_ = len(validation_cuts)
@@ -299,13 +299,13 @@ class Learned(Forecaster):
             min_samples_leaf=self.min_samples_leaf, max_bins=self.max_bins, early_stopping=False,
             random_state=self.random_state)
 
-    def _fit_domain(self, cuts, rng):
+    def _fit_domain(self, cuts, rng, n_sliders=None):
         """The domain check (``domain.DomainCheck``) on the training cuts, as measured (with the
         number of sliders the movers' indices show, if the forecaster reads them)."""
         features = WITH_POSITIONS if self.inputs == "all" else DOMAIN_FEATURES
         self.domain_ = DomainCheck(features, contamination=self.domain_contamination,
                                    random_state=self.random_state).fit(
-            cuts, self.climatology_.alpha_c_, order=rng.permutation(len(cuts)))
+            cuts, self.climatology_.alpha_c_, order=rng.permutation(len(cuts)), n_sliders=n_sliders)
 
     def _fit_calibration(self, vcuts, z):
         """A Mondrian conformal predictive system on the calibration cuts (crepes).

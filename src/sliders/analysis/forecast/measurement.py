@@ -46,12 +46,17 @@ class Measurement:
     size_unit : {"sliders", "arbitrary"}
         Sizes count sliders moved, or are in an unknown unit (grains, area,
         pixels): then only size ratios are used.
+    n_sliders : int, optional
+        The number of sliders of the pile, if known.  Not a feature (the
+        catalogue's own rates carry it); the domain check compares it with
+        the training piles'.
     """
 
     angle_resolution: float = 0.0
     min_size: float = 1.0
     missed_fraction: float = 0.0
     size_unit: str = "sliders"
+    n_sliders: int | None = None
 
     def __post_init__(self):
         if not (math.isfinite(self.angle_resolution) and self.angle_resolution >= 0):
@@ -62,6 +67,10 @@ class Measurement:
             raise ValueError(f"missed fraction {self.missed_fraction!r} must be in [0, 1)")
         if self.size_unit not in SIZE_UNITS:
             raise ValueError(f"size unit {self.size_unit!r} must be one of {SIZE_UNITS}")
+        if self.n_sliders is not None and (isinstance(self.n_sliders, bool)
+                                           or not isinstance(self.n_sliders, int)
+                                           or self.n_sliders < 1):
+            raise ValueError(f"number of sliders {self.n_sliders!r} must be a whole number >= 1")
 
     def as_features(self, catalogue: Catalogue) -> np.ndarray:
         """The four measurement features of ``catalogue`` (``MEASUREMENT_FEATURES``).
