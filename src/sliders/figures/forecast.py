@@ -209,8 +209,15 @@ def figure_lead_coverage(report, out_dir, name="forecast_lead_coverage"):
         ax = axes[1]
         ax.plot([0, 1], [0, 1], color="0.5", ls="--", lw=1, label="perfect")
         rel = report["coverage"]["reliability"]["bins"]
-        ax.plot([b["p_mean"] for b in rel], [b["observed"] for b in rel], "o-",
-                color=SHOWN["learned_blind"][0], label="angles + sizes")
+        p = np.array([b["p_mean"] for b in rel])
+        n = np.array([b["n"] for b in rel], dtype=float)
+        # the spread a calibrated forecast's bin of n cuts would show (binomial)
+        observed = np.array([b["observed"] for b in rel])
+        se = np.sqrt(p * (1 - p) / n)
+        bars = np.vstack([np.minimum(se, observed), np.minimum(se, 1 - observed)])  # within [0, 1]
+        ax.errorbar(p, observed, yerr=bars, fmt="o-", capsize=3, color=SHOWN["learned_blind"][0],
+                    label="angles + sizes (bars: ±1 s.e. if calibrated)")
+        ax.set_ylim(-0.02, 1.02)
         ax.set_xlabel("forecast P(avalanche within 1°)")
         ax.set_ylabel("observed frequency")
         ax.legend(loc="lower right", fontsize="small")
