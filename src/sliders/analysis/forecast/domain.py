@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 from sklearn.base import BaseEstimator
+from sklearn.utils.metadata_routing import UNUSED
 
 from .features import n_sliders_estimate
 
@@ -142,6 +143,11 @@ class DomainCheck(BaseEstimator):
         to ``fit``): a catalogue whose measurement names its pile's number of
         sliders outside them is out of the domain.
     """
+
+    # the arguments of fit are data, not metadata to route through a meta-estimator:
+    # no set_fit_request
+    __metadata_request__fit = {"cuts": UNUSED, "alpha_c": UNUSED, "order": UNUSED,
+                               "n_sliders": UNUSED}
 
     def __init__(self, features: tuple = DOMAIN_FEATURES, tilt_quantile: float = 0.995,
                  contamination: float = 0.03, n_neighbors: int = 35, max_samples: int = 1000,

@@ -27,14 +27,14 @@ Three layers beside the regressors, each a scikit-learn or crepes object:
   said so (``fallback``);
 * the fall-back: the conditioned climatology of the training avalanche angles.
 
-* ``Learned``: the catalogue's features only (``features.catalogue_features``);
-  with ``inputs="angles_sizes"`` only those of the events' angles and sizes,
-  with the recent gaps and the event-rate fits.
-
 The 80 % interval is the shortest one, in degrees, of the calibrated
 distribution (``interval``): the remaining angle's distribution is skewed,
 and near the avalanche, where the catalogue cannot tell a quarter of a degree
 from two degrees, its central interval would stop short of the avalanche.
+
+* ``Learned``: the catalogue's features only (``features.catalogue_features``);
+  with ``inputs="angles_sizes"`` only those of the events' angles and sizes,
+  with the recent gaps and the event-rate fits.
 * ``Ceiling``: plus the K smallest distances of a slider to its threshold at
   the last stored angle before the cut, which only a simulation knows.
 * ``ToldMuD``: plus the true ``mu_d``.
