@@ -96,14 +96,15 @@ def domain_rates(forecaster, test, outside: dict, seed) -> dict:
         cuts = blind(training_cuts(cset, 5, np.random.default_rng(seed)))
         inside, _ = forecaster.domain(cuts)
         late, _ = cuts_at_leads(cset, np.arange(len(cset)), [math.radians(3.0)])
-        inside_late, _ = forecaster.domain(blind(late))
-        told = replace(blind(late), measurement=[Measurement(n_sliders=int(n)) for n in
-                                                 np.asarray(cset.parameters["n_sliders"])[late.row]])
+        late = blind(late)
+        inside_late, _ = forecaster.domain(late)
+        told = replace(late, measurement=[Measurement(n_sliders=int(n)) for n in
+                                          np.asarray(cset.parameters["n_sliders"])[late.row]])
         inside_told, _ = forecaster.domain(told)
         out[label] = {"flagged_random_cuts": float(np.mean(~inside)), "n_cuts": int(len(cuts)),
                       "flagged_3deg": float(np.mean(~inside_late)), "n_3deg": int(len(late)),
                       "flagged_3deg_told_n": float(np.mean(~inside_told)),
-                      "skill_3deg": skill(forecaster, blind(late), forecaster.climatology_.alpha_c_)}
+                      "skill_3deg": skill(forecaster, late, forecaster.climatology_.alpha_c_)}
     return out
 
 

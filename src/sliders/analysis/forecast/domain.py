@@ -213,7 +213,7 @@ class DomainCheck(BaseEstimator):
         novel = self.novel(cuts)
         high = cuts.tilt_now > self.top_tilt_
         told = [m.n_sliders for m in cuts.measurements()]
-        span = getattr(self, "n_sliders_range_", None)
+        span = self.n_sliders_range_
         other = np.array([span is not None and n is not None and not span[0] <= n <= span[1]
                           for n in told], dtype=bool)
         reasons = []

@@ -91,7 +91,8 @@ CALIBRATION_FOLDS = 4
 
 
 def event_rate_fits() -> list:
-    """The event-rate inverse-rate fits whose best remaining angle (log) every input sees."""
+    """The event-rate inverse-rate fits whose best remaining angle (log) the angles-and-sizes
+    forecaster sees (a short-range feature: ``SHORT_RANGE_PREFIXES``)."""
     return [LinearInverseRate("events"), PointProcessInverseRate("events", None)]
 
 
@@ -106,16 +107,18 @@ def best_log_remaining(cuts, fits) -> np.ndarray:
                      for c in cuts.catalogues]).reshape(-1, len(fits))
 
 
-def with_design(cuts, inverse_rate: bool = True):
+def with_design(cuts, inputs: str = "all"):
     """The same cuts with their features computed once (shared by several forecasters).
 
-    Their features, the event-rate fits and, with ``inverse_rate``, the
-    displacement-rate fits that ``Learned(inputs="all")`` reads.
+    Their features and the inverse-rate fits that ``Learned(inputs=inputs)``
+    reads: of the displacement rate for ``"all"``, of the event rate for
+    ``"angles_sizes"``.
     """
-    cache = {**cuts.cache, "features": feature_matrix(cuts),
-             "inverse_rate_events": best_log_remaining(cuts, event_rate_fits())}
-    if inverse_rate:
+    cache = {**cuts.cache, "features": feature_matrix(cuts)}
+    if inputs == "all":
         cache["inverse_rate"] = best_log_remaining(cuts, displacement_rate_fits())
+    else:
+        cache["inverse_rate_events"] = best_log_remaining(cuts, event_rate_fits())
     return replace(cuts, cache=cache)
 
 
@@ -196,7 +199,7 @@ class Learned(Forecaster):
                     and not n.endswith(SHORT_RANGE_SUFFIX)]
             return x[:, keep], [names[i] for i in keep]
         keep = [i for i, n in enumerate(names) if n in ANGLES_SIZES_FEATURES
-                or n.startswith(("events_", "moves_", "size_ratio_", "gap_", "ffm_event_"))
+                or n.startswith(("events_", "moves_", "size_ratio_", *SHORT_RANGE_PREFIXES))
                 and not n.startswith("moves_per_slider")]
         return x[:, keep], [names[i] for i in keep]
 
@@ -204,28 +207,29 @@ class Learned(Forecaster):
         """The regressor's input for ``cuts``: (n, F) and the feature names.
 
         The catalogue's and the measurement's features, the model's angles
-        minus the tilt, the best remaining angle (log) of the event-rate
-        inverse-rate fits and (``inputs="all"``) of the displacement-rate ones.
+        minus the tilt, and the best remaining angle (log) of the inverse-rate
+        fits: of the displacement rate (``inputs="all"``), or of the event rate.
         """
         x, names = cuts.cache["features"] if "features" in cuts.cache else feature_matrix(cuts)
         t = cuts.tilt_now[:, None]
         extra = [x[:, names.index(a)][:, None] - t for a in ANGLE_FEATURES]
         x, names = np.hstack([x, *extra]), names + [f"{a}_minus_tilt" for a in ANGLE_FEATURES]
-        events = (cuts.cache["inverse_rate_events"] if "inverse_rate_events" in cuts.cache
-                  else best_log_remaining(cuts, event_rate_fits()))
-        x = np.hstack([x, events])
-        names = names + ["ffm_event_linear_log_remaining", "ffm_event_ml_p_log_remaining"]
         if self.inputs == "all":
             ffm = (cuts.cache["inverse_rate"] if "inverse_rate" in cuts.cache
                    else best_log_remaining(cuts, displacement_rate_fits()))
             x = np.hstack([x, ffm])
             names = names + ["ffm_linear_disp_log_remaining", "ffm_ml_disp_p_log_remaining"]
+        else:
+            events = (cuts.cache["inverse_rate_events"] if "inverse_rate_events" in cuts.cache
+                      else best_log_remaining(cuts, event_rate_fits()))
+            x = np.hstack([x, events])
+            names = names + ["ffm_event_linear_log_remaining", "ffm_event_ml_p_log_remaining"]
         return self._selected(x, names)
 
     def training_cuts(self, train, rng):
         """Random cuts of ``train``, degraded if ``degrade``, with their features."""
         cuts = training_cuts(train, self.draws_per_row, rng)
-        return with_design(degrade_cuts(cuts, rng) if self.degrade else cuts, self.inputs == "all")
+        return with_design(degrade_cuts(cuts, rng) if self.degrade else cuts, self.inputs)
 
     def fit(self, train, y=None, validation=None, cuts=None, validation_cuts=None):
         """Fit the regressors, the domain and the conformal calibration.
@@ -331,10 +335,9 @@ class Learned(Forecaster):
                                      self.calibration_remaining_bins))
         self.calibration_edges_ = _quantile_edges(vcuts.tilt_now, tilt_bins)
         tilt_bin = np.searchsorted(self.calibration_edges_, vcuts.tilt_now)
-        self.calibration_event_edges_ = _nested_edges(_log_events(vcuts), tilt_bin, tilt_bins,
-                                                      event_bins)
-        cell = tilt_bin * event_bins + _nested_bin(self.calibration_event_edges_, tilt_bin,
-                                                   _log_events(vcuts))
+        events = _log_events(vcuts)
+        self.calibration_event_edges_ = _nested_edges(events, tilt_bin, tilt_bins, event_bins)
+        cell = tilt_bin * event_bins + _nested_bin(self.calibration_event_edges_, tilt_bin, events)
         self.calibration_remaining_edges_ = _nested_edges(centre, cell, tilt_bins * event_bins,
                                                           remaining_bins)
         bins = self._calibration_bin(vcuts, centre)
@@ -385,13 +388,13 @@ class Learned(Forecaster):
             return np.zeros((0, TRAINED_LEVELS.size))
         return np.sort(np.column_stack([m.predict(x[:, self.columns_]) for m in self.models_]), axis=1)
 
-    def domain(self, cuts, x=None) -> tuple[np.ndarray, list[str]]:
+    def domain(self, cuts) -> tuple[np.ndarray, list[str]]:
         """Whether each cut lies in the training domain, and if not, why (one phrase).
 
         Out: the tilt reached above a high quantile of the training avalanche
         angles, or event rates and sizes that the novelty detector finds
-        unlike every training cut's (``domain.DomainCheck``).  ``x``: unused,
-        the check reads the catalogues and their measurement.
+        unlike every training cut's (``domain.DomainCheck``, which reads the
+        catalogues and their measurement).
         """
         if not isinstance(getattr(self, "domain_", None), DomainCheck):
             raise AttributeError("the forecaster's domain check is of another version")
@@ -411,7 +414,7 @@ class Learned(Forecaster):
                        zip(percent, grid)]).reshape(len(cuts), LEVELS.size)
         q = cuts.tilt_now[:, None] + np.exp(zc)
         levels = percent / 100.0
-        inside, _ = self.domain(cuts, x)
+        inside, _ = self.domain(cuts)
         out = ~inside
         if out.any():  # widened: the conditioned climatology's interval held too, and the
             # training cuts' remaining angles from the tilt reached (which still mean something
