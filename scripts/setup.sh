@@ -177,7 +177,7 @@ printf '%s' "$SUMMARY"
 # ---- what to do after set-up ----------------------------------------------------
 case "${1:-}" in
   "") ;;
-  test) shift; exec "$PY" -m pytest -q -n "${SLIDERS_TEST_WORKERS:-$(nproc)}" "$@" ;;
-  fast) shift; exec "$PY" -m pytest -q -n "${SLIDERS_TEST_WORKERS:-$(nproc)}" -m "not slow" "$@" ;;
+  test) shift; exec "$PY" -m pytest -q -n "${SLIDERS_TEST_WORKERS:-$(nproc)}" --dist loadgroup "$@" ;;
+  fast) shift; exec "$PY" -m pytest -q -n "${SLIDERS_TEST_WORKERS:-$(nproc)}" --dist loadgroup -m "not slow" "$@" ;;
   run) shift; main_job "$@" ;;
 esac
