@@ -379,7 +379,7 @@ contains
     logical :: crossed, resolved, draws_ok
 
     call drive_terms(p%loading, alpha, sin_a, cos_a)
-    friction = kinetic_force(p%mu_d, cos_a)
+    friction = kinetic_force(p%friction, cos_a)
     sum0 = ws%sum_du
     mean0 = sum0/real(p%chain%n, dp)
     call begin_event(p, ws, mu, sin_a, cos_a, friction, n_trig)
@@ -550,8 +550,7 @@ contains
         ws%stops_start(i) = n_stops(i)
       end if
       n_stops(i) = n_stops(i) + 1
-      ws%mu_new(k) = draw_at_stop(p%seed, int(i - 1, i8), n_stops(i), &
-                                  p%mu_s_mean, p%sigma_mu, p%mu_d, draw_status)
+      ws%mu_new(k) = draw_at_stop(p%friction, p%seed, int(i - 1, i8), n_stops(i), draw_status)
       if (draw_status /= 0) draws_ok = .false.
     end do
     if (.not. draws_ok) return
