@@ -33,7 +33,7 @@ COMMANDS = {
     "merge": ("sliders.runs.merge", "build_parser"),
     "tilt": ("sliders.__main__", "build_parser"),
     "reproduction": ("sliders.analysis.reproduction", "build_parser"),
-    "forecast": ("sliders.runs.forecast", "build_parser"),
+    "forecast": ("sliders.runs.forecast.cli", "build_parser"),
     "figures": ("sliders.figures.paper", "build_parser"),
 }
 
