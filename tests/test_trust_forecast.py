@@ -30,7 +30,7 @@ from sliders.io import safeio
 from sliders.io.forecast_model import MODEL_FORMAT
 from sliders.runs import ensemble, study
 from sliders.io.forecast_files import ForecastInputError, read_catalogue_csv
-from sliders.runs.forecast import cli
+from sliders.runs.forecast import cli as forecast_cli
 from sliders.runs.forecast import evaluate as rf_evaluate
 
 PY = sys.executable
@@ -83,7 +83,7 @@ def cli(*args, n=None, timeout=TIMEOUT, **kw):
 
 
 def forecast_main(capsys, *args) -> tuple[int, str]:
-    code = cli.main([str(a) for a in args])
+    code = forecast_cli.main([str(a) for a in args])
     return code, capsys.readouterr().err
 
 
@@ -122,7 +122,7 @@ def prior(tmp_path_factory) -> Path:
 def previous(prior, tmp_path_factory) -> Path:
     """A complete evaluation of ``prior`` (seed 0): the set a rerun must never damage."""
     out = tmp_path_factory.mktemp("fcprev") / "out"
-    assert cli.main(["evaluate", "--data", str(prior), "--out", str(out), "--quiet", *FAST]) == 0
+    assert forecast_cli.main(["evaluate", "--data", str(prior), "--out", str(out), "--quiet", *FAST]) == 0
     return out
 
 
