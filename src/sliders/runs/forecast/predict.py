@@ -12,24 +12,15 @@ import json
 import math
 
 from ...analysis.forecast import Cuts, Forecaster
+from ...analysis.forecast.registry import fallback_of
 from ...io.forecast_files import ForecastInputError, parse_angle, tilt_in_range
 from ...io.forecast_model import ModelFileError, default_model_path, load_forecasters
 from .catalogue import measurement_as_json, measurement_of, read_measured
 from .common import PREDICT_METHODS, jsonable
 
-#: why a method gave no forecast of its own (printed with the fallback)
-FALLBACK_REASONS = {
-    "ffm": "no acceleration of the rate in the last half of the tilt range seen (or fewer than "
-           "10 events there): the conditioned climatology is given instead",
-    "conditioned": "the conditioned climatology is the fallback itself",
-    "no_displacement": "the catalogue has no displacement column: the conditioned climatology "
-                       "is given instead",
-    "model_based": "no lone-slider slips (they need the displacement and first/last columns) "
-                   "and too few early events to estimate mu_d: the conditioned climatology is "
-                   "given instead",
-    "learned": "out of the training domain: the interval is widened to hold the conditioned "
-               "climatology's and the training's remaining angles too",
-}
+#: why a method of the displacements gave no forecast of its own on a catalogue without them
+NO_DISPLACEMENT = ("the catalogue has no displacement column: the conditioned climatology is "
+                   "given instead")
 
 
 def predict(args, argv=None) -> int:
@@ -73,9 +64,8 @@ def fallback_reason(method: str, forecast, complete: bool = True) -> str | None:
     if not forecast.fallback:
         return None
     if not complete and method.endswith("_disp"):
-        return FALLBACK_REASONS["no_displacement"]
-    return FALLBACK_REASONS.get("ffm" if method.startswith("ffm") else method,
-                                FALLBACK_REASONS["learned"])
+        return NO_DISPLACEMENT
+    return fallback_of(method)
 
 
 def load_predict_model(args):
