@@ -36,7 +36,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .parallel import MPIUnavailable, abort, error_line, get_comm, launcher_rank
-from .scheduler import StopFlag
+from .signals import StopFlag
 
 DEFAULT_BACKEND = "fortran"
 MAX_INPUT_BYTES = 1 << 20  # an input TOML larger than this is refused unread
@@ -346,7 +346,7 @@ def run_planned(command: RunCommand, argv: list[str] | None = None) -> int:
     """Run ``command`` over the ranks in agreement rounds (the module doc); the exit code.
 
     The output claims are released after the run: the next writer finds the
-    file complete.  SIGINT and SIGTERM are handled by ``scheduler.StopFlag``
+    file complete.  SIGINT and SIGTERM are handled by ``signals.StopFlag``
     from the start: a signal on any rank reaches every rank at the next step.
     """
     from .cli import ranks_on_this_node

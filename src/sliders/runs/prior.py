@@ -66,7 +66,8 @@ from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, Usage
                       resume_header, check_run_options, input_command_parser, open_output,
                       run_planned)
 from .rows import realisation_seeds, status_code
-from .scheduler import serve_rows, tilt_interruptibly
+from .scheduler import serve_rows
+from .signals import tilt_interruptibly
 from ..io.prior_file import (HANDLERS, catalogue_events, prior_attributes, prior_layout,
                              read_prior_header, write_view)
 

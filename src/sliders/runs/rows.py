@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from .. import status as status_codes
-from .scheduler import tilt_interruptibly
+from .signals import tilt_interruptibly
 
 STATUS_CODES = {name: code for code, name in status_codes.NAMES.items()}
 UNKNOWN_STATUS = -2

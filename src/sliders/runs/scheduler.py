@@ -33,14 +33,11 @@ from typing import Any
 
 from .. import status as status_codes
 from .parallel import abort, error_line
+from .signals import Interrupted, StopFlag
 
 TAG_MSG, TAG_REPLY, TAG_CTRL = 71, 72, 73
 NO_MORE, DECLINED = -1, -2  # replies to a request for an index
 PREFETCH = 2  # indices a worker asks for ahead of the one it is computing
-
-
-class Interrupted(Exception):
-    """Raised at a safe point once the run has to stop (signal or abort from rank 0)."""
 
 
 class WriteFailures:
@@ -140,82 +137,6 @@ def write_row(handler, r: int, row: dict) -> None:
 def compute(ctx: dict, r: int, progress) -> dict[str, Any]:
     """Row ``r`` of the run: ``ctx["compute_row"](r, progress)``."""
     return ctx["compute_row"](r, progress)
-
-
-class StopFlag:
-    """Signal flag (set by the handler, acted on at safe points).
-
-    ``installed()`` puts the handler on SIGINT and SIGTERM for the whole
-    command.  Inside ``interruptible()`` (a rank's local planning, a
-    realisation being computed: inside ``tilt``, outside the progress
-    callbacks, which talk MPI) no file or message is in flight, so the
-    handler also raises KeyboardInterrupt there: the kernel stops within its
-    interrupt latency, a blocked read of an input returns, and the
-    unfinished work is dropped.  Elsewhere (inside a collective call) the
-    signal is only remembered and acted on at the next safe point.
-    """
-
-    signum: int | None = None
-    computing = False
-
-    @classmethod
-    def handler(cls, signum, frame):
-        """Signal handler: remember the first signal; interrupt the work if it is interruptible."""
-        if cls.signum is None:
-            cls.signum = signum
-        if cls.computing:
-            cls.computing = False
-            raise KeyboardInterrupt
-
-    @classmethod
-    @contextlib.contextmanager
-    def installed(cls):
-        """The handler on SIGINT and SIGTERM (no signal remembered yet); restored on exit."""
-        cls.signum, cls.computing = None, False
-        old = {s: signal.signal(s, cls.handler) for s in (signal.SIGTERM, signal.SIGINT)}
-        try:
-            yield cls
-        finally:
-            for s, h in old.items():
-                signal.signal(s, h)
-
-    @classmethod
-    @contextlib.contextmanager
-    def interruptible(cls):
-        """Within: a signal raises KeyboardInterrupt (local work only, no collective call)."""
-        if cls.signum is not None:  # arrived just before
-            raise KeyboardInterrupt
-        before, cls.computing = cls.computing, True
-        try:
-            yield cls
-        finally:
-            cls.computing = before
-
-
-def tilt_interruptibly(scene, backend: str, progress, **options):
-    """``tilt`` with ``StopFlag.computing`` set except inside the progress callback
-    (``options``: more of ``tilt``'s keywords, such as ``state``)."""
-    from ..driver import tilt
-
-    def callback(p):
-        StopFlag.computing = False
-        try:
-            if progress is not None:
-                progress(p)
-        finally:
-            StopFlag.computing = True
-
-    StopFlag.computing = True
-    try:
-        if StopFlag.signum is not None:  # arrived just before
-            raise Interrupted()
-        return tilt(scene, backend=backend, progress=callback, **options)
-    except KeyboardInterrupt:  # also when the kernel caught the signal itself: stop the run
-        if StopFlag.signum is None:
-            StopFlag.signum = signal.SIGINT
-        raise
-    finally:
-        StopFlag.computing = False
 
 
 def format_duration(s: float) -> str:

@@ -33,6 +33,7 @@ from ...io.filelock import ClaimError
 from ...io.forecast_files import ForecastInputError
 from ...io.safeio import describe_os_error, os_reason
 from ..parallel import error_line, launcher_rank
+from ..signals import stopped_by_sigterm
 from .common import (ALARM_DELTA_DEG, DEFAULT_LEADS_DEG, DEFAULT_TILTS, PREDICT_METHODS,
                      TRAIN_MAX_ITER)
 
@@ -145,29 +146,17 @@ def add_catalogue_arguments(c) -> None:
     c.add_argument("--out", required=True, metavar="FILE.csv", help="the catalogue CSV written")
 
 
-class Stopped(KeyboardInterrupt):
-    """SIGTERM (or SIGINT) received: the command stops, nothing half-written is published."""
-
-    def __init__(self, signum: int):
-        super().__init__(signum)
-        self.signum = signum
-
-
-def _stop(signum, frame):
-    raise Stopped(signum)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``python -m sliders.forecast``: every failure is one line on stderr
     (status 2 for bad input, 1 for an I/O error or a fault, 128 + signal when stopped)."""
     if launcher_rank() > 0:  # a serial command: under mpirun, rank 0 alone runs it
         return 0
     argv = sys.argv[1:] if argv is None else list(argv)
-    old = signal.signal(signal.SIGTERM, _stop)
     try:
-        args = build_parser().parse_args(argv)
-        command = importlib.import_module(f"{__package__}.{args.command}")
-        return getattr(command, args.command)(args, argv)
+        with stopped_by_sigterm():
+            args = build_parser().parse_args(argv)
+            command = importlib.import_module(f"{__package__}.{args.command}")
+            return getattr(command, args.command)(args, argv)
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", signal.SIGINT)
         return _error(f"interrupted ({signal.Signals(signum).name}); nothing half-written was "
@@ -183,8 +172,6 @@ def main(argv: list[str] | None = None) -> int:
             traceback.print_exc()
         return _error(f"{type(exc).__name__}: {' '.join(str(exc).split())} (an internal error; "
                       "SLIDERS_DEBUG=1 shows where)", 1)
-    finally:
-        signal.signal(signal.SIGTERM, old)
 
 
 def _error(message: str, code: int) -> int:
