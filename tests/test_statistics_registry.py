@@ -14,6 +14,7 @@ import sliders
 from sliders import Scene
 from sliders.analysis import observables as ob
 from sliders.analysis import reproduction as rp
+from sliders.runs.reproduction import run_many, write_report
 
 
 def _runs():
@@ -50,7 +51,7 @@ def test_adding_a_statistic_is_one_entry(monkeypatch):
 
 def _small_chains():
     """Scene A of the report (N = 10, xi = 0), three realisations."""
-    return rp.run_many(10, 0.0, 3, 0, "fortran")
+    return run_many(10, 0.0, 3, 0, "fortran")
 
 
 def test_the_report_statements_in_order():
@@ -90,6 +91,6 @@ def test_adding_a_statement_is_one_entry(monkeypatch, tmp_path):
     assert rep.statements[-1].verdict == "agrees"
     meta = {"date": "d", "version": "v", "backend": "fortran", "python": "3", "wall": 1.0,
             "command": "c"}
-    text = rp.write_markdown(rep, tmp_path / "R.md", meta)
+    text = write_report(rep, tmp_path / "R.md", meta)
     assert "| 15 | Every chain avalanches (N = 10) |" in text
     assert (tmp_path / "R.md").read_text(encoding="utf-8") == text
