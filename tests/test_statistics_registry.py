@@ -9,6 +9,7 @@ import dataclasses
 import inspect
 
 import numpy as np
+import pytest
 
 import sliders
 from sliders import Scene
@@ -38,8 +39,9 @@ def test_adding_a_statistic_is_one_entry(monkeypatch):
         "largest_event", lambda g, n: (), np.int64,
         lambda run: np.int64(run.result.events["n_moved"].max()),
         lambda rows, ens: {"largest_event_mean": float(np.mean(rows["largest_event"]))},
-    )
+        units="1", meaning="sliders moved in the largest event")
     monkeypatch.setattr(ob, "STATISTICS", ob.STATISTICS + (largest,))
+    assert ob.statistic_conventions()["largest_event"] == ((), "1", "sliders moved in the largest event")
     runs = _runs()
     grids = ob.default_grids(runs[0].scene)
     assert ob.statistics_layout(grids, 12)["largest_event"] == ((), np.int64)
@@ -47,6 +49,27 @@ def test_adding_a_statistic_is_one_entry(monkeypatch):
     expected = np.mean([r.events["n_moved"].max() for r in runs])
     assert summary.extra == {"largest_event_mean": expected}
     assert summary.alpha_c_values.tolist() == [r.alpha_c for r in runs]
+
+
+def test_a_statistic_without_units_or_with_wrong_dims_is_refused():
+    rows = dict(shape=lambda g, n: (g.alpha.size,), dtype=np.int64, compute=lambda run: 0)
+    with pytest.raises(ValueError, match="units"):
+        ob.Statistic("no_units", **rows, dims=("alpha",), meaning="something per angle")
+    with pytest.raises(ValueError, match="dims"):
+        ob.Statistic("no_dims", **rows, units="1", meaning="something per angle")
+    ok = ob.Statistic("per_angle", **rows, dims=("alpha",), units="1", meaning="per angle")
+    assert ok.units == "1"
+
+
+def test_every_statistic_is_described_by_its_own_entry():
+    """The xarray conventions of a statistic are its entry's (io holds no table of them)."""
+    from sliders.io import conventions
+
+    assert not hasattr(conventions, "ENSEMBLE_STATISTICS")
+    conv = ob.statistic_conventions()
+    assert [st.name for st in ob.STATISTICS] == list(conv)
+    assert conv["cumulated_displacement"] == (("alpha",), conventions.LENGTH,
+                                              "A(alpha): sum of all displacements up to alpha")
 
 
 def _small_chains():

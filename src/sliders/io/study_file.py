@@ -246,7 +246,7 @@ AXIS_UNITS = {"alpha_max": "rad", "tilt": "rad", "dt": "tau", "spring_length": "
               "drive_max": "g tau^2"}
 
 
-def write_view(path, study) -> None:
+def write_view(path, study, statistics: dict) -> None:
     """Rank 0, file closed by the writers: named dimension scales on every dataset, and
     root variables (dims..., realisation) that show the points' rows (HDF5 virtual
     datasets: stored once, in the points' groups), so that
@@ -266,7 +266,7 @@ def write_view(path, study) -> None:
                 _point_view(f, c, study, scales)
         for p in range(len(study.points)):
             g = f["points"][point_name(p)]
-            attach_dimensions(g, ensemble_variables(g), ensemble_coordinates(g),
+            attach_dimensions(g, ensemble_variables(g, statistics), ensemble_coordinates(g),
                               inherited={"realisation": f["realisation"]})
         if "title" not in f.attrs:
             add_provenance(f, f"sliders study: {len(study.points)} points x "

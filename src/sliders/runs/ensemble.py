@@ -39,6 +39,7 @@ from .merge import chunk_range, parse_chunk
 from .parallel import SerialComm  # noqa: F401 - the readers and the row, kept importable here
 from .rows import compute_row  # noqa: F401
 from .scheduler import serve_rows
+from ..analysis.observables import statistic_conventions
 from ..analysis.summary import load_summary  # noqa: F401
 from ..io.storage import read_realisations  # noqa: F401
 from ..scene import Scene, SceneError
@@ -102,7 +103,8 @@ def run_ensemble(comm, args, local, plan: RunPlan) -> int:
     from ..io.storage import HANDLERS
 
     storage = local["storage"]
-    handler = open_output(comm, args, plan, HANDLERS, storage, describe_ensemble_file)
+    handler = open_output(comm, args, plan, HANDLERS, storage,
+                          lambda path: describe_ensemble_file(path, statistic_conventions()))
     if handler is None:
         return 1
     layout, scene = plan.layout, plan.scene

@@ -23,6 +23,8 @@ import sys
 
 import numpy as np
 
+from ..analysis.observables import statistic_conventions
+
 
 class MergeError(Exception):
     """Inputs that do not form one ensemble (one line to the user)."""
@@ -215,9 +217,8 @@ def _write_merged(tmp: str, heads, layout, out: str) -> int:
     finally:
         handler.close()
     # the chunks' commands first; describe adds this merge
-    described = describe_ensemble_file(tmp, "\n".join(str(h["attrs"]["history"])
-                                                      for _, h in heads
-                                                      if h["attrs"].get("history")))
+    history = "\n".join(str(h["attrs"]["history"]) for _, h in heads if h["attrs"].get("history"))
+    described = describe_ensemble_file(tmp, statistic_conventions(), history)
     if described is not True:
         raise MergeError(f"cannot write {out!r}: {described}")
     return n_done

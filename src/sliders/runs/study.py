@@ -43,6 +43,7 @@ from .scheduler import serve_rows
 from ..io.study_file import (HANDLERS, read_study_header, study_attributes, study_layout,
                             write_view)
 
+from ..analysis.observables import statistic_conventions
 from ..analysis.study_spec import (NOT_AXES, STUDY_PREFIX, Study, StudyError,  # noqa: F401 - kept importable here
                                       check_points_memory, load_study, parse_study)
 
@@ -68,10 +69,21 @@ def extra_statistics(result) -> dict[str, np.ndarray]:
     }
 
 
-EXTRA_LAYOUT = {STUDY_PREFIX + k: ((), t) for k, t in (
-    ("early_period", np.float64), ("early_pred", np.float64), ("early_n", np.int64),
-    ("late_period", np.float64), ("late_n", np.int64), ("sync_share", np.float64),
-    ("sync_event_share", np.float64))}
+#: the study's own statistics (``extra_statistics``), one number a row: name -> (dtype, units,
+#: meaning)
+STUDY_STATISTICS = {STUDY_PREFIX + k: v for k, v in {
+    "early_period": (np.float64, "rad", "median angle between two lone slips of one slider "
+                                        "below alpha = 0.3"),
+    "early_pred": (np.float64, "rad", "median single-slider period 2 dmu / (1 + mu_s tan alpha) "
+                                      "at those slips"),
+    "early_n": (np.int64, "1", "number of those early periods"),
+    "late_period": (np.float64, "rad", "median angle between two group slips (size >= 3) of one "
+                                       "slider above alpha = 0.35"),
+    "late_n": (np.int64, "1", "number of those late periods"),
+    "sync_share": (np.float64, "1", "share of the displacement in events of two or more groups"),
+    "sync_event_share": (np.float64, "1", "share of the events of two or more groups"),
+}.items()}
+EXTRA_LAYOUT = {k: ((), dtype) for k, (dtype, _, _) in STUDY_STATISTICS.items()}
 
 
 def _point_statistics(scene, grids=None) -> dict:
@@ -194,7 +206,14 @@ def run_study(comm, args, local, plan: RunPlan) -> int:
                          f"rank(s), storage {storage} -> {args.out}\n")
         sys.stderr.flush()
     return serve_rows(comm, handler, plan.pending, plan.total, ctx, args.out,
-                      lambda: write_view(args.out, study))
+                      lambda: write_view(args.out, study, study_conventions()))
+
+
+def study_conventions() -> dict:
+    """What a study file says of every statistic of its rows (``io.conventions.ensemble_variables``):
+    the ensemble's and the study's own."""
+    return {**statistic_conventions(),
+            **{k: ((), units, meaning) for k, (_, units, meaning) in STUDY_STATISTICS.items()}}
 
 
 def main(argv: list[str] | None = None) -> int:
