@@ -272,9 +272,7 @@ def test_a_prior_of_1e8_rows_is_refused_before_anything_is_drawn(tmp_path):
 def test_a_plan_larger_than_the_memory_is_refused(tmp_path, capsys, monkeypatch):
     """Within the row limit, a plan that would not fit in the memory of this node (here: 1 GB
     available) is refused before a row is drawn, naming the count and the memory."""
-    import sliders.scene
-
-    monkeypatch.setattr(sliders.scene, "available_memory", lambda: 1 << 30)
+    monkeypatch.setattr(prior_run, "available_memory", lambda: 1 << 30)
     path = tmp_path / "big.toml"
     path.write_text(prior_text(R=5_000_000))
     assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 2

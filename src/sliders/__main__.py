@@ -12,6 +12,7 @@ from .runs.signals import Received
 from .io.filelock import ClaimError, OutputClaim
 from .io.safeio import describe_os_error, leftovers_note
 from .scene import BACKENDS, SceneError, check_memory
+from .driver import tilt
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -61,8 +62,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args, scene) -> int:
-    from .driver import tilt
-
     line = None if args.quiet else ProgressLine()
 
     def progress(p):

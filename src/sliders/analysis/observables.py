@@ -40,6 +40,7 @@ from typing import Callable, Iterable, Mapping, Sequence
 import numpy as np
 
 from ..io.conventions import LENGTH
+from .model import n_bins
 
 __all__ = [
     "StatisticsGrids", "default_grids", "valid_limit", "valid_alphas",
@@ -138,13 +139,8 @@ class StatisticsGrids:
 
 
 def _model_n_bins(mu_s_mean: float, mu_d: float) -> int:
-    """nu(0) = ceil(2 mu_s / (2 dmu)) (same rounding as ``model.n_bins``)."""
-    try:
-        from .model import n_bins
-
-        return int(n_bins(0.0, mu_s_mean, mu_d))
-    except ImportError:  # pragma: no cover - model.py is part of the package
-        return int(math.ceil(mu_s_mean / (mu_s_mean - mu_d) - 1e-9))
+    """nu(0) = ceil(2 mu_s / (2 dmu)) (``model.n_bins`` at alpha = 0)."""
+    return int(n_bins(0.0, mu_s_mean, mu_d))
 
 
 def default_grids(scene, n_alpha: int = 55, n_force_bins: int = 120,

@@ -30,6 +30,9 @@ import numpy as np
 from ..io.storage import STATISTICS
 from ..io.study_file import read_point_rows, read_study_spec
 from .study_spec import STUDY_PREFIX, Study, parse_study
+from . import model
+from .observables import StatisticsGrids, combine, default_grids
+from .reproduction import DEPARTURE_SIGMAS, SUM_FIT_RANGE, departure_angle
 
 
 def load_study_file(path) -> tuple[Study, list[dict[str, np.ndarray]]]:
@@ -54,10 +57,6 @@ def _mean_sem(x: np.ndarray) -> tuple[float, float, int]:
 
 def point_summary(study: Study, p: int, rows: dict[str, np.ndarray]) -> dict[str, Any]:
     """Every study quantity at point p (NaN where the data do not define it)."""
-    from . import model
-    from .observables import StatisticsGrids, combine, default_grids
-    from .reproduction import DEPARTURE_SIGMAS, SUM_FIT_RANGE, departure_angle  # noqa: F401
-
     scene = study.scenes[p]
     done = rows["done"]
     out: dict[str, Any] = dict(study.points[p])

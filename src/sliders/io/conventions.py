@@ -40,6 +40,7 @@ import numpy as np
 
 from . import h5tools
 from .h5tools import Stored
+from .._version import __version__
 
 FORCE, LENGTH, TIME = "m g", "g tau^2", "tau"
 ENERGY = "m g^2 tau^2"
@@ -255,8 +256,6 @@ def scene_toml(scene: dict) -> str:
 def provenance(title: str, scene: dict | None) -> dict[str, str]:
     """Root attributes every file carries: title, source, history (this command), date, git commit, versions, the scene as TOML."""
     import h5py
-
-    from .._version import __version__
 
     now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     out = {

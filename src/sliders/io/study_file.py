@@ -34,10 +34,12 @@ from typing import Any
 
 import numpy as np
 
-from . import formats, safeio
+from . import formats, h5tools, safeio
 from .h5tools import (ROW_DIGEST, StorageError, open_checked, plain_attributes,
                       row_damage)
 from .storage import GatherFile, Layout, MpioFile, create_structure
+from .conventions import add_provenance, attach_dimensions, ensemble_coordinates, ensemble_variables
+from .._version import __version__
 
 FORMAT = formats.STUDY
 FORMAT_VERSION = 2  # 2: the root view shows the points' rows (virtual), no scalar grids
@@ -54,8 +56,6 @@ def point_name(p: int) -> str:
 
 def study_attributes(study, backend: str) -> dict[str, Any]:
     """The root attributes of a study file: the study, its digest, the dimensions, the backend."""
-    from .._version import __version__
-
     return {
         "format": FORMAT, "format_version": FORMAT_VERSION,
         "study": json.dumps(study.spec), "study_digest": study.digest,
@@ -254,9 +254,6 @@ def write_view(path, study, statistics: dict) -> None:
     ``xr.open_datatree`` every point with its grids as coordinates."""
     import h5py
 
-    from .conventions import (add_provenance, attach_dimensions, ensemble_coordinates,
-                              ensemble_variables)
-
     with h5py.File(os.fspath(path), "r+") as f:
         scales = _axis_scales(f, study)
         for c in VIEW_COLUMNS:
@@ -277,8 +274,6 @@ def write_view(path, study, statistics: dict) -> None:
 def _axis_scales(f, study) -> list:
     """The study's axes and ``realisation`` as coordinates of the root (zipped axes: values
     along the first one's dimension)."""
-    from . import h5tools
-
     scales = []
     for d in study.dims:
         name = d[0]
@@ -301,8 +296,6 @@ def _axis_scales(f, study) -> list:
 def _point_view(f, column: str, study, scales) -> None:
     """Root dataset ``column`` (dims..., realisation): a virtual dataset over the points' rows."""
     import h5py
-
-    from . import h5tools
 
     R = study.realisations
     first = f["points"][point_name(0)]["realisations"][column]

@@ -59,6 +59,7 @@ import time
 import warnings
 from dataclasses import dataclass, field
 from typing import Any
+import difflib
 
 import numpy as np
 
@@ -68,8 +69,13 @@ from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, Usage
 from .rows import realisation_seeds, status_code
 from .scheduler import serve_rows
 from .signals import tilt_interruptibly
-from ..io.prior_file import (HANDLERS, catalogue_events, prior_attributes, prior_layout,
+from ..io.prior_file import (HANDLERS, PARAMETERS, catalogue_events, prior_attributes, prior_layout,
                              read_prior_header, write_view)
+from ..driver import tilt as plain
+from ..io.catalogue import Catalogue
+from ..io.storage import check_room
+from ..keyed_random import realisation_seed
+from ..scene import Scene, SceneError, available_memory, check_memory, read_toml
 
 DESIGNS = ("sobol", "latin", "random")
 DISTRIBUTIONS = ("uniform", "loguniform", "choice")
@@ -282,8 +288,6 @@ class Prior:
 
     def seed(self, r: int) -> int:
         """Row ``r``'s scene seed."""
-        from ..keyed_random import realisation_seed
-
         return realisation_seed(self.base_seed, r)
 
     def scene(self, r: int):
@@ -301,8 +305,6 @@ class Prior:
     def check_rows(self):
         """Build and check every row's scene (one at a time: none is kept); the first bad one
         raises PriorError naming row and parameter.  Returns the scene of the largest chain."""
-        from ..scene import SceneError
-
         largest = None
         for r in range(self.realisations):
             try:
@@ -349,8 +351,6 @@ class Prior:
 
 def parse_prior(data: dict, where: str = "prior") -> Prior:
     """A ``Prior`` from the TOML tables; every error is one line starting with ``where``."""
-    from ..scene import Scene, SceneError
-
     unknown = sorted(set(data) - {"prior", "scene", "parameters"})
     if unknown:
         raise PriorError(f"{where}: unknown table [{unknown[0]}]; allowed are [prior], [scene], "
@@ -385,8 +385,6 @@ def parse_prior(data: dict, where: str = "prior") -> Prior:
         raise PriorError(f"{where}: [parameters] is missing or empty: nothing is drawn")
     for name in params:
         if name not in DRAWABLE:
-            import difflib
-
             close = difflib.get_close_matches(name, DRAWABLE, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise PriorError(f"{where}: unknown parameter {name!r}{hint}; allowed are {DRAWABLE}")
@@ -441,8 +439,6 @@ def _check_friction_ranges(marginals: dict, base, where: str) -> None:
 def load_prior(path, data: bytes | None = None) -> Prior:
     """The prior of a TOML file (see the module's docstring); PriorError on any bad entry.
     ``data``: the file's bytes, when they were read elsewhere (MPI rank 0)."""
-    from ..scene import read_toml
-
     where = f"prior file {str(path)!r}"
     return parse_prior(read_toml(path, where, PriorError, data), where)
 
@@ -451,8 +447,6 @@ def check_plan_memory(prior: Prior, node_ranks: int = 1) -> None:
     """Refuse, before anything is drawn, a prior whose plan (``PLAN_BYTES_PER_ROW`` a row on
     each of the ``node_ranks`` ranks of this node) would not fit in ``PLAN_MEMORY_SHARE`` of
     the memory available."""
-    from ..scene import available_memory
-
     need = prior.realisations * PLAN_BYTES_PER_ROW * node_ranks
     free = available_memory()
     if free is not None and need > PLAN_MEMORY_SHARE * free:
@@ -484,11 +478,7 @@ def run_with_ceiling(scene, grid: np.ndarray, k: int, backend: str = "fortran", 
     alpha_c).  ``tilt(scene, backend, progress, state=...)`` runs a piece
     (default: ``sliders.driver.tilt``).
     """
-    from ..io.catalogue import Catalogue
-
     if tilt is None:
-        from ..driver import tilt as plain
-
         def tilt(sc, be, pr, state=None):
             return plain(sc, be, state=state, progress=pr)
 
@@ -515,8 +505,6 @@ def run_with_ceiling(scene, grid: np.ndarray, k: int, backend: str = "fortran", 
 
 def compute_prior_row(prior: Prior, r: int, backend: str, grid: np.ndarray, progress=None) -> dict:
     """Row ``r`` of the prior file: its catalogue, parameters, alpha_c, status and ceiling."""
-    from ..io.prior_file import PARAMETERS
-
     started = time.perf_counter()
     scene = prior.scene(r)
 
@@ -592,9 +580,6 @@ def plan_prior(args, prior: Prior) -> RunPlan:
 
 def prepare_prior(args, inputs, world) -> Prior:
     """The prior, every row's scene and the memory checked (every rank, rank 0's bytes)."""
-    from ..io.storage import check_room
-    from ..scene import check_memory
-
     check_run_options(args, world.comm, world.have_mpi)
     prior = load_prior(args.prior, inputs[args.prior])
     check_plan_memory(prior, world.node_ranks)  # before any row is drawn

@@ -34,6 +34,7 @@ from typing import Any
 from .. import status as status_codes
 from .parallel import abort, error_line
 from .signals import Interrupted, StopFlag
+from ..io.safeio import disk_usage, os_reason
 
 TAG_MSG, TAG_REPLY, TAG_CTRL = 71, 72, 73
 NO_MORE, DECLINED = -1, -2  # replies to a request for an index
@@ -108,8 +109,6 @@ def check_room_for(path: str, nbytes: int) -> None:
     """Raise OSError(ENOSPC) before writing ``nbytes`` into ``path`` if its file system has
     not twice that plus ``WRITE_MARGIN`` free: HDF5 does not survive a write that fails for
     lack of room (the error surfaces in a destructor, then the library crashes on close)."""
-    from ..io.safeio import disk_usage
-
     need = 2 * nbytes + WRITE_MARGIN
     try:
         free = disk_usage(path).free
@@ -484,8 +483,6 @@ def _write_view(write_view, out: str, kind: str) -> None:
 
 def _failed(comm, handler, exc: BaseException, out: str) -> int:
     """One line for an error on this rank, every rank stopped; 1."""
-    from ..io.safeio import os_reason
-
     what = (f"cannot write {out!r}: {os_reason(exc)}" if isinstance(exc, OSError)
             else f"{type(exc).__name__}: {exc}")
     sys.stderr.write(error_line(f"rank {comm.rank}: {what}") + "\n")

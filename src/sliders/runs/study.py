@@ -43,9 +43,14 @@ from .scheduler import serve_rows
 from ..io.study_file import (HANDLERS, read_study_header, study_attributes, study_layout,
                             write_view)
 
-from ..analysis.observables import statistic_conventions
+from ..analysis.observables import (StatisticsGrids, default_grids, statistic_conventions,
+                                    statistics_layout)
 from ..analysis.study_spec import (NOT_AXES, STUDY_PREFIX, Study, StudyError,  # noqa: F401 - kept importable here
                                       check_points_memory, load_study, parse_study)
+from ..analysis.reproduction import burst_periods, sync_profile
+from ..analysis.study_spec import spec_difference
+from ..io.storage import (StorageError, check_room, file_attributes, make_layout,
+                          statistics_row_bytes)
 
 
 # ---------------------------------------------------------------------------
@@ -53,8 +58,6 @@ from ..analysis.study_spec import (NOT_AXES, STUDY_PREFIX, Study, StudyError,  #
 # ---------------------------------------------------------------------------
 def extra_statistics(result) -> dict[str, np.ndarray]:
     """Burst periods and the synchronisation share of one run (REPRODUCTION.md definitions)."""
-    from ..analysis.reproduction import burst_periods, sync_profile
-
     sc = result.scene
     bp = burst_periods([result], sc.delta_mu, sc.mu_s_mean)
     sy = sync_profile([result])
@@ -88,17 +91,12 @@ EXTRA_LAYOUT = {k: ((), dtype) for k, (dtype, _, _) in STUDY_STATISTICS.items()}
 
 def _point_statistics(scene, grids=None) -> dict:
     """The statistics columns of one point's rows (the ensemble's plus the study's own)."""
-    from ..analysis.observables import default_grids, statistics_layout
-
     stats = dict(statistics_layout(grids or default_grids(scene), scene.n_sliders))
     stats.update(EXTRA_LAYOUT)
     return stats
 
 
 def _point_layout(study: Study, p: int, backend: str):
-    from ..analysis.observables import default_grids
-    from ..io.storage import file_attributes, make_layout
-
     scene = study.scenes[p]
     R = study.realisations
     seeds = realisation_seeds(study.base_seed, 0, R)  # the same at every point
@@ -132,9 +130,6 @@ def build_parser(rank: int = 0) -> CommandParser:
 
 def plan_study(args, study: Study) -> RunPlan:
     """Rank 0, holding the claim: new file or resume against the same study."""
-    from ..analysis.study_spec import spec_difference
-    from ..io.storage import StorageError, check_room, statistics_row_bytes
-
     out = args.out
     backend = args.backend or DEFAULT_BACKEND
     head = resume_header(args, read_study_header)
@@ -182,8 +177,6 @@ def prepare_study(args, inputs, world) -> dict:
 
 def run_study(comm, args, local, plan: RunPlan) -> int:
     """Create or open the file, serve the rows, report (every rank)."""
-    from ..analysis.observables import StatisticsGrids
-
     study, storage = local["study"], local["storage"]
     handler = open_output(comm, args, plan, HANDLERS, storage)
     if handler is None:
