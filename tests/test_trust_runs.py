@@ -289,7 +289,7 @@ def test_a_plan_larger_than_the_memory_is_refused(tmp_path, capsys, monkeypatch)
 def test_a_full_disk_stops_a_prior_run_at_the_first_write_in_one_line(tmp_path, ranks):
     """A 600 kB file system (tmpfs in a user and mount namespace) cannot hold the run: one
     line, exit 1, no crash (HDF5 is never left with a failed write), the rows marked done
-    whole.  A write is made only with room for it and a margin (``scheduler.write_row``)."""
+    whole.  A write is made only with room for it and a margin (``writes.write_row``)."""
     (tmp_path / "p.toml").write_text(prior_text(R=40, sizes="60, 80"))
     launcher = "" if ranks is None else f"{subprocess.list2cmdline(['mpirun', '-n', str(ranks)])} "
     script = (f"mount -t tmpfs -o size=600k tmpfs {tmp_path}/mnt && "
