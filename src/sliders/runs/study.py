@@ -47,7 +47,7 @@ from ..analysis.observables import (StatisticsGrids, default_grids, statistic_co
                                     statistics_layout)
 from ..analysis.study_spec import (NOT_AXES, STUDY_PREFIX, Study, StudyError,  # noqa: F401 - kept importable here
                                       check_points_memory, load_study, parse_study)
-from ..analysis.reproduction import burst_periods, sync_profile
+from ..analysis.precursors import burst_periods, sync_profile
 from ..analysis.study_spec import spec_difference
 from ..io.storage import (StorageError, check_room, file_attributes, make_layout,
                           statistics_row_bytes)
