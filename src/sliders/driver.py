@@ -25,6 +25,7 @@ from .preparation import prepare
 from .engine.reference import NumpyEngine
 from .result import EventSparse, Result
 from .scene import BACKENDS, Scene, SceneError, check_memory
+from .engine.fortran_engine import FortranEngine
 
 CHUNK_EVENTS = {"numpy": 16, "fortran": 512}
 # A kernel call starts with O(N) set-up (forces, angles, min-tree): for long
@@ -73,8 +74,6 @@ def make_engine(scene: Scene, backend: str):
     if backend == "numpy":
         return NumpyEngine(scene)
     if backend == "fortran":
-        from .engine.fortran_engine import FortranEngine
-
         return FortranEngine(scene)
     raise SceneError(f"backend={backend!r} must be one of {BACKENDS}")
 

@@ -18,6 +18,9 @@ import numpy as np
 from .style import COLUMN_WIDTH, STYLE
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib.animation import PillowWriter  # noqa: E402
+from ..analysis.observables import valid_limit
+from ..driver import tilt
+from ..scene import Scene, SceneError
 
 ANIMATION_FRAMES = 72  # frames from alpha = 0 to alpha_c
 FINAL_FRAMES = 10  # frames holding the avalanche
@@ -31,8 +34,6 @@ def animation_scene(path=None):
     A scene that would record only a summary records displacements instead:
     the animation needs to know which sliders moved.
     """
-    from ..scene import Scene, SceneError
-
     if path is None:
         return Scene(n_sliders=10, xi=0.0, seed=1, record="displacements")
     scene = Scene.from_toml(path)
@@ -61,9 +62,6 @@ def animate_tilt(scene, out_dir="figures", name: str | None = None, backend: str
                  frames: int = ANIMATION_FRAMES, fps: int = FRAMES_PER_SECOND,
                  dpi: int = GIF_DPI) -> str:
     """Tilt ``scene`` to its end and write ``<out_dir>/<name>.gif``; returns the path."""
-    from ..driver import tilt
-    from ..analysis.observables import valid_limit
-
     result = tilt(scene, backend=backend)
     sc = result.scene
     n = sc.n_sliders
