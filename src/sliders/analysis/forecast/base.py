@@ -233,3 +233,13 @@ class Forecaster(BaseEstimator):
 
     def _quantiles(self, cuts):
         raise NotImplementedError
+
+    def check_fitted(self) -> None:
+        """Check every fitted part a forecast reads (``integrity``), as read from a model file:
+        ``integrity.IntegrityError`` on the first that is not of the form ``fit`` writes.
+
+        A forecaster that a model file never holds has no such check and refuses.
+        """
+        from .integrity import IntegrityError
+
+        raise IntegrityError(f"a {type(self).__name__} is not a forecaster a model file holds")

@@ -141,6 +141,16 @@ class _InverseRate(Forecaster):
     def _profile(self, cat):
         raise NotImplementedError
 
+    def check_fitted(self) -> None:
+        """The parameters (rate, exponent, window, block) and the climatology to fall back on."""
+        from .integrity import check_choice, check_climatology, check_int, check_number
+
+        check_choice(self.rate, "rate", ("events", "displacement"))
+        check_choice(self.exponent, "exponent", (1, None))
+        check_number(self.fraction, "fraction", 1e-6, 1.0)
+        check_int(self.block, "block", 1, 10_000)
+        check_climatology(self.climatology_, "climatology")
+
     def best_log_remaining(self, cat) -> float:
         """log of the most likely remaining angle ``alpha_c - tilt_now`` (NaN: no fit, or none in reach)."""
         ll = self._profile(cat)

@@ -400,6 +400,67 @@ class Learned(Forecaster):
             raise AttributeError("the forecaster's domain check is of another version")
         return self.domain_.check(cuts)
 
+    def check_fitted(self) -> None:
+        """Every fitted part a forecast reads, of the form ``fit`` writes (``integrity``): the
+        options, the feature columns (those of ``design``), one quantile regressor per level of
+        ``TRAINED_LEVELS`` (every tree), the climatology, the domain check, and the conformal
+        calibration's edges, bins and residuals."""
+        from crepes import ConformalPredictiveSystem
+
+        from .integrity import (check_array, check_boosting, check_choice, check_climatology,
+                                check_domain, require)
+        from .domain import MEASUREMENT_CLASSES
+
+        check_choice(self.inputs, "inputs", INPUTS)
+        check_choice(self.interval, "interval", INTERVALS)
+        check_choice(self.calibration, "calibration", CALIBRATIONS)
+        check_choice(self.degrade, "degrade", (True, False))
+        check_climatology(self.climatology_, "climatology")
+        names = self.design(_probe_cuts())[1]
+        cols = check_array(self.columns_, "feature columns", shape=(len(names),), kind="b")
+        kept = [n for n, k in zip(names, cols) if k]
+        require(isinstance(self.feature_names_, list) and self.feature_names_ == kept,
+                "the feature names are not those of the feature columns")
+        require(isinstance(self.models_, list) and len(self.models_) == TRAINED_LEVELS.size,
+                f"not {TRAINED_LEVELS.size} regressors")
+        for level, model in zip(TRAINED_LEVELS, self.models_):
+            check_boosting(model, len(kept), f"regressor of level {level:g}")
+            require(model.quantile == level, f"regressor of level {level:g} fits {model.quantile!r}")
+        check_array(self.remaining_quantiles_, "remaining angles", shape=LEVELS.shape, lo=0.0,
+                    hi=np.pi / 2, increasing=True)
+        check_domain(self.domain_, len(MEASUREMENT_CLASSES), "domain check")
+        edges = check_array(self.calibration_edges_, "calibration tilt edges", finite=False,
+                            increasing=True)
+        events = check_array(self.calibration_event_edges_, "calibration event edges", ndim=2,
+                             finite=False, increasing=True)
+        remaining = check_array(self.calibration_remaining_edges_, "calibration remaining edges",
+                                ndim=2, finite=False, increasing=True)
+        require(events.shape[0] == edges.size + 1
+                and remaining.shape[0] == events.shape[0] * (events.shape[1] + 1),
+                "the calibration's nested edges do not match")
+        cells = remaining.shape[0] * (remaining.shape[1] + 1)
+        counts = check_array(self.calibration_counts_, "calibration counts", kind="iu", lo=0)
+        require(1 <= counts.size <= cells, "calibration counts of another number of bins")
+        pct = check_array(self.percentiles_, "percentiles read", lo=0.0, hi=100.0, min_size=3)
+        require((np.diff(pct) > 0).all() and np.isin(pct, CPS_PERCENTILES).all(),
+                "the percentiles read are not the calibration's")
+        cps = self.calibration_
+        require(type(cps) is ConformalPredictiveSystem and cps.mondrian is True
+                and cps.normalized is True and cps.fitted is True,
+                "the calibration is not a fitted Mondrian normalised predictive system")
+        require(isinstance(cps.binned_alphas, tuple) and len(cps.binned_alphas) == 2,
+                "the calibration's residuals are not binned")
+        values, residuals = cps.binned_alphas
+        values = check_array(values, "calibration bins", kind="iu", lo=0, hi=cells - 1,
+                             min_size=1)
+        require((np.diff(values) > 0).all() and isinstance(residuals, list)
+                and len(residuals) == values.size, "calibration bins of another form")
+        for b, r in zip(values, residuals):
+            check_array(r, f"calibration residuals of bin {b}", min_size=1, increasing=True,
+                        lo=-1e6, hi=1e6)
+            require(b < counts.size and r.size == counts[b],
+                    f"calibration bin {b} holds another number of residuals than counted")
+
     def _quantiles(self, cuts):
         x, _ = self.design(cuts)
         z = self._raw_log_remaining(cuts, x)
@@ -428,6 +489,17 @@ class Learned(Forecaster):
             q[out] = np.where(half[None, :], lower, upper)
             levels[out] = LEVELS  # no distribution of its own: read at the nominal levels
         return q, out, levels
+
+
+def _probe_cuts():
+    """One small complete catalogue (displacements, movers): ``design`` names every feature."""
+    from ...io.catalogue import Catalogue
+    from .features import Cuts
+
+    k = np.arange(12)
+    cat = Catalogue(0.02 * (k + 1), 1 + k % 3, 0.01 * (1 + k % 2), k % 5, k % 5 + k % 3,
+                    tilt_now=0.3)
+    return Cuts.from_catalogues([cat])
 
 
 def _quantile_edges(values, bins: int) -> np.ndarray:
