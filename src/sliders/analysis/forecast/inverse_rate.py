@@ -170,8 +170,9 @@ class _InverseRate(Forecaster):
                 continue
             if int(np.nanargmax(ll)) >= REMAINING_GRID.size - 3:
                 continue  # best at the far end: no acceleration seen
-            q[i] = t[i] + np.exp(quantiles_of_grid(grid, ll))
-            fb[i] = False
+            qi = t[i] + np.exp(quantiles_of_grid(grid, ll))
+            if np.isfinite(qi).all():  # a degenerate catalogue (every event at one angle): none
+                q[i], fb[i] = qi, False
         return q, fb
 
     def _window(self, cat):

@@ -51,7 +51,7 @@ from .baselines import Climatology, conditioned_quantiles
 from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
-from .measurement import MEASUREMENT_FEATURES, degrade_cuts
+from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, degrade_cuts
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
@@ -260,6 +260,9 @@ class Learned(Forecaster):
         if held_out and validation_cuts is None:
             validation_cuts = self.training_cuts(validation, rng)
         x, names = self.design(cuts)
+        self.measurement_ranges_ = np.array([[np.nanmin(x[:, names.index(f)]),
+                                               np.nanmax(x[:, names.index(f)])]
+                                              for f in MEASUREMENT_FEATURES])
         self.columns_ = np.isfinite(x).any(axis=0)  # a feature never seen (e.g. no slider indices)
         self.feature_names_ = [n for n, k in zip(names, self.columns_) if k]
         y_log = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
@@ -398,7 +401,35 @@ class Learned(Forecaster):
         """
         if not isinstance(getattr(self, "domain_", None), DomainCheck):
             raise AttributeError("the forecaster's domain check is of another version")
-        return self.domain_.check(cuts)
+        inside, reasons = self.domain_.check(cuts)
+        ranges = self.trained_measurement()
+        for i, (cat, m) in enumerate(zip(cuts.catalogues, cuts.measurements())):
+            why = [_outside(f, v, lo, hi) for f, v, (lo, hi)
+                   in zip(MEASUREMENT_FEATURES, m.as_features(cat), ranges)
+                   if np.isfinite(v) and not lo - 1e-9 - 1e-6 * abs(lo) <= v <= hi + 1e-9 + 1e-6 * abs(hi)]
+            if why:
+                inside[i] = False
+                reasons[i] = "; ".join([r for r in (reasons[i],) if r] + why)
+        return inside, reasons
+
+    def trained_measurement(self) -> np.ndarray:
+        """(len(MEASUREMENT_FEATURES), 2) the least and the largest value of each measurement
+        feature over the training cuts: a catalogue measured outside them is out of the domain
+        (the trees would read it as the nearest training measurement).
+
+        Recorded by ``fit``; for a forecaster fitted before it was, the training
+        measurement itself: the ranges ``measurement.draw_measurements`` draws from
+        (``MEASUREMENT_RANGES``) when it degraded its training catalogues, else the
+        exact record (no angle error, every size, nothing missed, sizes in sliders).
+        """
+        recorded = getattr(self, "measurement_ranges_", None)
+        if recorded is not None:
+            return recorded
+        if not self.degrade:
+            return np.array([[0.0, 0.0], [1.0, 1.0], [0.0, 0.0], [0.0, 0.0]])
+        r = MEASUREMENT_RANGES
+        return np.array([[0.0, r["angle_resolution"][1]], [0.0, float(max(r["min_size"]))],
+                         [0.0, r["missed_fraction"][1]], [0.0, float(r["p_arbitrary"] > 0)]])
 
     def check_fitted(self) -> None:
         """Every fitted part a forecast reads, of the form ``fit`` writes (``integrity``): the
@@ -426,6 +457,10 @@ class Learned(Forecaster):
         for level, model in zip(TRAINED_LEVELS, self.models_):
             check_boosting(model, len(kept), f"regressor of level {level:g}")
             require(model.quantile == level, f"regressor of level {level:g} fits {model.quantile!r}")
+        if getattr(self, "measurement_ranges_", None) is not None:
+            ranges = check_array(self.measurement_ranges_, "training measurement ranges",
+                                 shape=(len(MEASUREMENT_FEATURES), 2), lo=0.0)
+            require((ranges[:, 0] <= ranges[:, 1]).all(), "training measurement ranges reversed")
         check_array(self.remaining_quantiles_, "remaining angles", shape=LEVELS.shape, lo=0.0,
                     hi=np.pi / 2, increasing=True)
         check_domain(self.domain_, len(MEASUREMENT_CLASSES), "domain check")
@@ -489,6 +524,20 @@ class Learned(Forecaster):
             q[out] = np.where(half[None, :], lower, upper)
             levels[out] = LEVELS  # no distribution of its own: read at the nominal levels
         return q, out, levels
+
+
+def _outside(feature: str, value: float, lo: float, hi: float) -> str:
+    """Why a measurement feature's ``value`` lies outside the training's [lo, hi] (one phrase)."""
+    if feature == "angle_resolution":
+        return (f"an angle error of {np.degrees(value):g}°, outside the training measurements' "
+                f"{np.degrees(lo):g}-{np.degrees(hi):g}°")
+    if feature == "missed_fraction":
+        return (f"a share of {value:g} of the events missed, outside the training measurements' "
+                f"{lo:g}-{hi:g}")
+    if feature == "size_arbitrary":
+        return "sizes in an arbitrary unit, which no training catalogue had"
+    return (f"a smallest size detected of {value:g} (in sliders, or over the median size in an "
+            f"arbitrary unit), outside the training measurements' {lo:g}-{hi:g}")
 
 
 def _probe_cuts():
