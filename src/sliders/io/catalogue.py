@@ -7,7 +7,8 @@ coefficients.  Per event a catalogue keeps:
 column            dtype    meaning
 ================  =======  ==========================================================
 ``alpha``         float64  tilt of the rearrangement, radians (increasing)
-``size``          int64    distinct sliders that moved
+``size``          int64    distinct sliders that moved (float64: a measured size in
+                           an arbitrary unit, an area or a volume, when not whole)
 ``displacement``  float64  sum of the sliders' displacements, g tau^2
 ``first``         int64    first (up-slope) slider that moved, 0-based (-1: unknown)
 ``last``          int64    last (down-slope) slider that moved, 0-based (-1: unknown)
@@ -52,8 +53,11 @@ class Catalogue:
     tilt_now: float | None = None
 
     def __post_init__(self):
+        size = np.asarray(self.size)
+        whole = size.dtype.kind in "iub" or bool(np.all(size == np.round(size)))
         for name in EVENT_COLUMNS:
-            setattr(self, name, np.asarray(getattr(self, name), dtype=EVENT_DTYPES[name]))
+            dtype = np.float64 if name == "size" and not whole else EVENT_DTYPES[name]
+            setattr(self, name, np.asarray(getattr(self, name), dtype=dtype))
         n = self.alpha.size
         if any(getattr(self, c).shape != (n,) for c in EVENT_COLUMNS):
             raise ValueError("catalogue columns must be 1-d and of one length")

@@ -183,10 +183,12 @@ MAX_CATALOGUE_BYTES = 64 * 2**20
 MAX_EVENTS = 1_000_000
 MAX_LINE_BYTES = 4096
 MAX_FIELD_CHARS = 64
-#: sizes and slider positions: whole numbers up to 2^53, which a float64 holds exactly
+#: slider positions: whole numbers up to 2^53, which a float64 holds exactly; sizes: positive
+#: numbers (sliders, or an area, a volume, a pixel sum: whether they must be whole is the
+#: measurement's to say, ``analysis.forecast.measurement.check_catalogue``)
 MAX_WHOLE = 2**53
 COLUMNS = ("angle", "size", "displacement", "first", "last")
-WHOLE_COLUMNS = {"size": 1, "first": 0, "last": 0}  # column -> its least value
+WHOLE_COLUMNS = {"first": 0, "last": 0}  # column -> its least value
 
 
 @contextlib.contextmanager
@@ -264,6 +266,10 @@ def _header(lines, path: str) -> tuple[list[str], float, str]:
                                  f"(header: {shown})")
     if "size" not in names:
         raise ForecastInputError(f"{path}: missing column 'size' (header: {shown})")
+    if ("first" in names) != ("last" in names):
+        given, missing = ("first", "last") if "first" in names else ("last", "first")
+        raise ForecastInputError(f"{path}: column {given!r} without {missing!r}: the first and "
+                                 f"last movers of an event go together (header: {shown})")
     unit = header[names.index("angle")][1]
     if unit is None:
         raise ForecastInputError(f"{path}: column 'angle' needs its unit: 'angle [deg]' or 'angle [rad]'")
@@ -287,6 +293,9 @@ def _value(v: str, k: int, n: str, path: str) -> float:
     if n in WHOLE_COLUMNS and not (WHOLE_COLUMNS[n] <= x <= MAX_WHOLE and x == int(x)):
         raise ForecastInputError(f"{path}: row {k}, column {n!r}: {s!r} must be a whole number "
                                  f"from {WHOLE_COLUMNS[n]} to 2**53")
+    if n == "size" and not 0 < x <= MAX_WHOLE:
+        raise ForecastInputError(f"{path}: row {k}, column 'size': {s!r} must be a positive "
+                                 "number (at most 2**53)")
     if n == "displacement" and x < 0:
         raise ForecastInputError(f"{path}: row {k}, column 'displacement': {s!r} is negative")
     return x
@@ -306,6 +315,10 @@ def _events(lines, names: list[str], scale: float, path: str) -> dict[str, array
         for n, v in zip(names, rec):
             if n:
                 cols[n].append(_value(v, k, n, path))
+        if "first" in cols and cols["first"][-1] > cols["last"][-1]:
+            raise ForecastInputError(f"{path}: row {k}, columns 'first' and 'last': the first "
+                                     f"mover ({cols['first'][-1]:.0f}) lies after the last "
+                                     f"({cols['last'][-1]:.0f})")
         a = angle[-1] * scale
         if not 0 <= a < math.pi / 2:
             raise ForecastInputError(f"{path}: row {k}, column 'angle': {rec[names.index('angle')].strip()!r}"
@@ -351,7 +364,7 @@ def read_catalogue_csv(path: str, tilt_now_text: str | None = None) -> Catalogue
         if tilt_now < alpha[-1]:
             raise ForecastInputError(f"--tilt-now {tilt_now_text}: below the last event's angle "
                                      f"({alpha[-1] / scale:g} {unit})")
-    return Catalogue(alpha, column("size", 1, np.int64), column("displacement", np.nan, np.float64),
+    return Catalogue(alpha, column("size", 1, np.float64), column("displacement", np.nan, np.float64),
                      column("first", -1, np.int64), column("last", -1, np.int64), tilt_now=tilt_now)
 
 

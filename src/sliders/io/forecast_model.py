@@ -12,21 +12,48 @@ an explicit list of the classes the package writes; anything else (a pickle,
 a zip naming another class or a function) is refused in one line, and only
 then does ``skops.io.load`` build the objects, trusting exactly that list.
 
+The file is read as data within bounds, before anything is built: a regular
+file of at most ``MAX_MODEL_BYTES``, read once; a zip of at most ``MAX_MEMBERS``
+members whose declared sizes (``zipfile`` inflates no more than a member
+declares) are bounded, each and together (``MAX_MEMBER_BYTES``,
+``MAX_INFLATED_BYTES``: no zip bomb); every NumPy member's header read first, its
+array of a numeric dtype and exactly the size its member declares.  After the
+objects are built and before any forecast, every forecaster checks every part a
+forecast reads (``check_fitted``: the trees' child indices, features and
+leaves, the calibration, the climatology, the domain check;
+``analysis.forecast.integrity``).  A file that fails any step is refused in one
+line naming it and what is wrong (``ModelFileError``).  The provenance comes
+back with every string made printable (``safeio.printable``).
+
 The default model ships inside the package (``sliders/data/``, found with
-``importlib.resources``), never looked up in the current folder.
+``importlib.resources``), never looked up in the current folder, and is also
+checked by its SHA-256 (``DEFAULT_MODEL_NAME + ".sha256"`` beside it).
 """
 
 from __future__ import annotations
 
+import hashlib
+import math
 import importlib.resources
 import io
+import os
 import pathlib
+import stat
 import zipfile
 from .safeio import publish_bytes
+
+from .safeio import printable
 
 MODEL_FORMAT = "sliders-forecaster-3"
 #: the shipped model's file name inside the package's data folder
 DEFAULT_MODEL_NAME = "default_forecaster.skops"
+#: the bounds of a model file (the shipped one: 5.3 MB, 5112 members, 14 MB inflated)
+MAX_MODEL_BYTES = 64 * 2**20
+MAX_MEMBERS = 100_000
+MAX_MEMBER_BYTES = 64 * 2**20
+MAX_INFLATED_BYTES = 256 * 2**20
+#: the SHA-256 of the shipped model, in a file beside it
+DIGEST_SUFFIX = ".sha256"
 #: every type a model file may name beyond skops' own defaults
 ALLOWED_TYPES = frozenset({
     "crepes.base.ConformalPredictiveSystem",
@@ -106,33 +133,154 @@ def _check_types(blob: bytes, where) -> None:
                              f"{', ...' if len(refused) > 3 else ''}); nothing was loaded")
 
 
+def read_model_bytes(path) -> bytes:
+    """The bytes of a model file: a regular file of at most ``MAX_MODEL_BYTES``, read once
+    through one open descriptor (a device, a fifo, a folder or a larger file is refused from
+    its status, before a byte is read)."""
+    where = printable(path)
+    try:
+        with open(path, "rb") as fh:
+            st = os.fstat(fh.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                raise ModelFileError(f"{where}: not a regular file (a model file is a skops "
+                                     "archive on disk)")
+            if st.st_size > MAX_MODEL_BYTES:
+                raise ModelFileError(f"{where}: {st.st_size / 2**20:.0f} MB; a model file holds "
+                                     f"at most {MAX_MODEL_BYTES // 2**20} MB")
+            blob = fh.read(MAX_MODEL_BYTES + 1)
+    except IsADirectoryError:
+        raise ModelFileError(f"{where}: a folder, not a model file") from None
+    except OSError as exc:
+        raise ModelFileError(f"{where}: {exc.strerror or exc}") from None
+    if len(blob) > MAX_MODEL_BYTES:  # grew while read
+        raise ModelFileError(f"{where}: more than {MAX_MODEL_BYTES // 2**20} MB")
+    return blob
+
+
+def check_archive(blob: bytes, where) -> None:
+    """The zip's members bounded before any is inflated: their number, each one's declared
+    size and their total (``zipfile`` inflates no more than a member declares); every NumPy
+    member's header read, its array numeric and of exactly the size its member declares."""
+    import numpy as np
+
+    where = printable(where)
+    try:
+        archive = zipfile.ZipFile(io.BytesIO(blob))
+        infos = archive.infolist()
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError):
+        raise ModelFileError(f"{where}: refused: not a sliders model file (a skops archive; "
+                             "a pickle is never loaded)") from None
+    if len(infos) > MAX_MEMBERS:
+        raise ModelFileError(f"{where}: {len(infos)} members; a model file holds at most "
+                             f"{MAX_MEMBERS}")
+    big = max(infos, key=lambda i: i.file_size, default=None)
+    if big is not None and big.file_size > MAX_MEMBER_BYTES:
+        raise ModelFileError(f"{where}: member {printable(big.filename)!r} inflates to "
+                             f"{big.file_size / 2**20:.0f} MB; a member holds at most "
+                             f"{MAX_MEMBER_BYTES // 2**20} MB")
+    total = sum(i.file_size for i in infos)
+    if total > MAX_INFLATED_BYTES:
+        raise ModelFileError(f"{where}: its members inflate to {total / 2**20:.0f} MB; a model "
+                             f"file holds at most {MAX_INFLATED_BYTES // 2**20} MB")
+    for info in infos:
+        if not info.filename.endswith(".npy"):
+            continue
+        try:
+            with archive.open(info) as fh:
+                version = np.lib.format.read_magic(fh)
+                read_header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                               else np.lib.format.read_array_header_2_0)
+                shape, _, dtype = read_header(fh)
+                header = fh.tell()
+        except Exception:  # noqa: BLE001 (a damaged member, a header NumPy cannot read)
+            raise ModelFileError(f"{where}: member {printable(info.filename)!r} is not a NumPy "
+                                 "array") from None
+        if dtype.hasobject or dtype.kind not in "biufV" or (dtype.kind == "V" and not dtype.fields):
+            raise ModelFileError(f"{where}: member {printable(info.filename)!r} holds an array "
+                                 f"of dtype {printable(dtype)}, not numbers")
+        size = dtype.itemsize * math.prod(shape)
+        if header + size != info.file_size:
+            raise ModelFileError(f"{where}: member {printable(info.filename)!r} declares an "
+                                 f"array of {size} bytes in {info.file_size - header}")
+
+
+def check_digest(path, blob: bytes) -> None:
+    """The shipped model's bytes against the SHA-256 stored beside it (``DIGEST_SUFFIX``)."""
+    recorded = pathlib.Path(str(path) + DIGEST_SUFFIX)
+    try:
+        expected = recorded.read_text(encoding="ascii").split()[0]
+    except (OSError, UnicodeDecodeError, IndexError):
+        raise ModelFileError(f"{printable(path)}: the shipped model's digest "
+                             f"({recorded.name}) is missing; reinstall sliders") from None
+    if hashlib.sha256(blob).hexdigest() != expected:
+        raise ModelFileError(f"{printable(path)}: not the model shipped with this version (its "
+                             "SHA-256 differs from the one recorded beside it); reinstall sliders")
+
+
+def printable_tree(value):
+    """``value`` (a provenance: dicts, lists, strings, numbers) with every string made printable."""
+    if isinstance(value, dict):
+        return {printable(k): printable_tree(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [printable_tree(v) for v in value]
+    if isinstance(value, str):
+        return printable(value)
+    return value
+
+
+def check_forecasters(forecasters: dict, where) -> None:
+    """Every forecaster's ``check_fitted`` (every part a forecast reads), in one line on the
+    first that fails."""
+    where = printable(where)
+    for method, f in forecasters.items():
+        check = getattr(f, "check_fitted", None)
+        if not isinstance(method, str) or check is None:
+            raise ModelFileError(f"{where}: {printable(repr(method))} holds a "
+                                 f"{type(f).__name__}, not a fitted forecaster")
+        try:
+            check()
+        except (ValueError, AttributeError, TypeError, KeyError, IndexError) as exc:
+            what = (f"a part is missing ({exc})" if isinstance(exc, AttributeError)
+                    else " ".join(str(exc).split()))
+            raise ModelFileError(f"{where}: forecaster {printable(method)!r}: "
+                                 f"{printable(what)}; refused") from None
+
+
 def load_forecasters(path) -> tuple[dict, dict]:
     """The forecasters and the provenance of a model file; ``ModelFileError`` in one line.
 
-    Nothing in the file runs: the types it names are checked against
-    ``ALLOWED_TYPES`` before ``skops.io.load`` builds anything.
+    Nothing in the file runs, and nothing it holds is used unchecked (module
+    docstring): its size, its members' sizes and arrays, the types it names
+    (``ALLOWED_TYPES``) before ``skops.io.load`` builds anything, then every
+    forecaster's parts (``check_forecasters``).  The shipped model is also
+    checked by its digest.
     """
     import skops.io as sio
 
-    try:
-        blob = path.read_bytes() if hasattr(path, "read_bytes") else open(path, "rb").read()
-    except OSError as exc:
-        raise ModelFileError(f"{path}: {exc.strerror or exc}") from None
+    blob = read_model_bytes(path)
+    where = printable(path)
+    if pathlib.Path(path).resolve() == default_model_path().resolve():
+        check_digest(path, blob)
     if not zipfile.is_zipfile(io.BytesIO(blob)):
-        raise ModelFileError(f"{path}: refused: not a sliders model file (a skops archive; "
+        raise ModelFileError(f"{where}: refused: not a sliders model file (a skops archive; "
                              "a pickle is never loaded)")
-    _check_types(blob, path)
+    check_archive(blob, path)
+    _check_types(blob, where)
     try:
         obj = sio.loads(blob, trusted=sorted(ALLOWED_TYPES))
+    except MemoryError:
+        raise ModelFileError(f"{where}: damaged model file (out of memory while reading it)") \
+            from None
     except Exception as exc:  # noqa: BLE001
-        raise ModelFileError(f"{path}: damaged model file ({type(exc).__name__})") from None
+        raise ModelFileError(f"{where}: damaged model file ({type(exc).__name__})") from None
     if isinstance(obj, dict) and str(obj.get("format", "")).startswith("sliders-forecaster-") \
             and obj["format"] != MODEL_FORMAT:
-        raise ModelFileError(f"{path}: a model file of format {obj['format']}; this version reads "
-                             f"{MODEL_FORMAT}: train it again")
+        raise ModelFileError(f"{where}: a model file of format {printable(obj['format'])}; this "
+                             f"version reads {MODEL_FORMAT}: train it again")
     if not isinstance(obj, dict) or obj.get("format") != MODEL_FORMAT:
-        raise ModelFileError(f"{path}: not a sliders model file of format {MODEL_FORMAT}")
+        raise ModelFileError(f"{where}: not a sliders model file of format {MODEL_FORMAT}")
     forecasters, prov = obj.get("forecasters"), obj.get("provenance")
     if not isinstance(forecasters, dict) or not isinstance(prov, dict):
-        raise ModelFileError(f"{path}: not a sliders model file of format {MODEL_FORMAT}")
-    return forecasters, prov
+        raise ModelFileError(f"{where}: not a sliders model file of format {MODEL_FORMAT}")
+    check_forecasters(forecasters, path)
+    return forecasters, printable_tree(prov)

@@ -422,3 +422,12 @@ def fsync_dir(path: str) -> None:
         pass
     finally:
         os.close(fd)
+
+
+def printable(text) -> str:
+    """``text`` with every character that is not printable escaped as Python writes it
+    (``\\x1b``, ``\\n``, ``\\u202e``): text read from a file (a model's provenance, a file
+    name) that reaches a terminal cannot clear the screen, move the cursor, colour a line or
+    reverse the text.  The space stays a space."""
+    return "".join(ch if ch == " " or ch.isprintable()
+                   else ch.encode("unicode_escape").decode("ascii") for ch in str(text))

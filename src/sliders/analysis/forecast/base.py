@@ -8,12 +8,16 @@ and the probability that the avalanche comes within the next ``delta`` of tilt.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.utils.metadata_routing import UNUSED
+
+from ...io.forecast_files import ForecastInputError
 from .features import Cuts
+from .measurement import PERFECT, check_catalogue
 
 #: quantile levels of every forecast (uniform, so that twice their mean pinball
 #: loss approximates the CRPS)
@@ -26,8 +30,9 @@ UPPER = int(np.flatnonzero(LEVELS == 0.9)[0])
 NOMINAL_COVERAGE = 0.8
 
 
-class ForecastError(ValueError):
-    """A forecaster cannot be used as asked (not fitted, missing simulation data, bad input)."""
+class ForecastError(ForecastInputError):
+    """A forecaster cannot be used as asked (not fitted, missing simulation data, bad input):
+    one line, bad input to a command (``ForecastInputError``)."""
 
 
 @dataclass(frozen=True)
@@ -52,6 +57,11 @@ class Forecast:
         shortest) reports the distribution's quantiles at these levels in the
         places of ``LEVELS``, so that ``interval`` is its interval and
         ``probability_within`` still reads the distribution itself.
+    clipped : bool
+        Set on construction: True when some quantile lay outside
+        [``tilt_now``, 90°], the angles an avalanche can come at (it has not
+        come yet, and the incline cannot tilt past vertical), and was moved to
+        that edge.
     """
 
     quantiles: np.ndarray
@@ -59,6 +69,15 @@ class Forecast:
     forecaster: str
     fallback: bool = False
     levels: np.ndarray | None = None
+    clipped: bool = False
+
+    def __post_init__(self):
+        q = np.asarray(self.quantiles, dtype=float)
+        if not np.isfinite(q).all():
+            raise ForecastError(f"forecaster {self.forecaster!r} gave no finite forecast")
+        inside = np.clip(q, self.tilt_now, math.pi / 2)
+        object.__setattr__(self, "quantiles", inside)
+        object.__setattr__(self, "clipped", bool(self.clipped or not np.array_equal(inside, q)))
 
     @property
     def point(self) -> float:
@@ -82,7 +101,7 @@ class Forecast:
                 "interval": list(self.interval), "coverage": NOMINAL_COVERAGE,
                 "tilt_now": self.tilt_now, "within": delta,
                 "probability_within": self.probability_within(delta),
-                "fallback": self.fallback}
+                "fallback": self.fallback, "clipped": self.clipped}
 
 
 def probability_within(quantiles: np.ndarray, tilt_now: np.ndarray, delta: float,
@@ -213,22 +232,55 @@ class Forecaster(BaseEstimator):
             if getattr(cuts, need) is None:
                 raise ForecastError(f"forecaster {self.name!r} needs {need!r}, which only a "
                                     "simulated catalogue set has")
-        q, fb, *lv = self._quantiles(cuts)
+        with np.errstate(all="ignore"):  # a degenerate catalogue: no fit, checked below
+            q, fb, *lv = self._quantiles(cuts)
         q = np.sort(np.asarray(q, dtype=float), axis=1)
+        fb = np.asarray(fb, dtype=bool).copy()
+        bad = ~np.isfinite(q).all(axis=1)
+        if bad.any():  # the method gave no finite answer: the conditioned climatology instead
+            q[bad] = self._fallback_quantiles(cuts.tilt_now[bad])
+            fb[bad] = True
+            if lv:
+                lv = [np.array(np.broadcast_to(lv[0], q.shape), dtype=float)]
+                lv[0][bad] = LEVELS
         if not levels:
             return q, np.asarray(fb, dtype=bool)
         lv = np.array(np.broadcast_to(lv[0] if lv else LEVELS, q.shape), dtype=float)
         return q, np.asarray(fb, dtype=bool), lv
 
+    def _fallback_quantiles(self, tilt_now: np.ndarray) -> np.ndarray:
+        """(n, len(LEVELS)) the conditioned climatology of the training avalanche angles above
+        each tilt: where a method gives no finite answer of its own."""
+        from .baselines import conditioned_quantiles
+
+        clim = getattr(self, "climatology_", None)
+        if clim is None:
+            raise ForecastError(f"forecaster {self.name!r} gave no finite forecast and has no "
+                                "climatology to fall back on")
+        return conditioned_quantiles(clim.alpha_c_, tilt_now)[0]
+
     def predict(self, catalogue, measurement=None) -> Forecast:
         """The forecast for one ``Catalogue`` (its ``tilt_now`` is the tilt reached).
 
         ``measurement``: how the catalogue was measured
-        (``measurement.Measurement``; default: a perfect record in sliders).
+        (``measurement.Measurement``; default: a perfect record in sliders);
+        the catalogue must agree with it (``measurement.check_catalogue``).
         """
+        check_catalogue(catalogue, PERFECT if measurement is None else measurement)
+
         q, fb, lv = self.quantiles(Cuts.from_catalogues([catalogue], measurement), levels=True)
         levels = None if np.array_equal(lv[0], LEVELS) else lv[0]
         return Forecast(q[0], float(catalogue.tilt_now), self.name, bool(fb[0]), levels)
 
     def _quantiles(self, cuts):
         raise NotImplementedError
+
+    def check_fitted(self) -> None:
+        """Check every fitted part a forecast reads (``integrity``), as read from a model file:
+        ``integrity.IntegrityError`` on the first that is not of the form ``fit`` writes.
+
+        A forecaster that a model file never holds has no such check and refuses.
+        """
+        from .integrity import IntegrityError
+
+        raise IntegrityError(f"a {type(self).__name__} is not a forecaster a model file holds")

@@ -42,6 +42,12 @@ class Climatology(Forecaster):
     def _quantiles(self, cuts):
         return np.tile(self.quantiles_, (len(cuts), 1)), np.zeros(len(cuts), bool)
 
+    def check_fitted(self) -> None:
+        """The avalanche angles and their quantiles (``integrity.check_climatology``)."""
+        from .integrity import check_climatology
+
+        check_climatology(self, "climatology")
+
 
 def conditioned_quantiles(alpha_c_sorted: np.ndarray, tilt_now: np.ndarray):
     """Quantiles of the training ``alpha_c`` above each tilt, and where fewer than ``MIN_ABOVE`` were.

@@ -141,6 +141,16 @@ class _InverseRate(Forecaster):
     def _profile(self, cat):
         raise NotImplementedError
 
+    def check_fitted(self) -> None:
+        """The parameters (rate, exponent, window, block) and the climatology to fall back on."""
+        from .integrity import check_choice, check_climatology, check_int, check_number
+
+        check_choice(self.rate, "rate", ("events", "displacement"))
+        check_choice(self.exponent, "exponent", (1, None))
+        check_number(self.fraction, "fraction", 1e-6, 1.0)
+        check_int(self.block, "block", 1, 10_000)
+        check_climatology(self.climatology_, "climatology")
+
     def best_log_remaining(self, cat) -> float:
         """log of the most likely remaining angle ``alpha_c - tilt_now`` (NaN: no fit, or none in reach)."""
         ll = self._profile(cat)
@@ -160,8 +170,9 @@ class _InverseRate(Forecaster):
                 continue
             if int(np.nanargmax(ll)) >= REMAINING_GRID.size - 3:
                 continue  # best at the far end: no acceleration seen
-            q[i] = t[i] + np.exp(quantiles_of_grid(grid, ll))
-            fb[i] = False
+            qi = t[i] + np.exp(quantiles_of_grid(grid, ll))
+            if np.isfinite(qi).all():  # a degenerate catalogue (every event at one angle): none
+                q[i], fb[i] = qi, False
         return q, fb
 
     def _window(self, cat):

@@ -51,7 +51,7 @@ from .baselines import Climatology, conditioned_quantiles
 from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
-from .measurement import MEASUREMENT_FEATURES, degrade_cuts
+from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, degrade_cuts
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
@@ -260,6 +260,9 @@ class Learned(Forecaster):
         if held_out and validation_cuts is None:
             validation_cuts = self.training_cuts(validation, rng)
         x, names = self.design(cuts)
+        self.measurement_ranges_ = np.array([[np.nanmin(x[:, names.index(f)]),
+                                               np.nanmax(x[:, names.index(f)])]
+                                              for f in MEASUREMENT_FEATURES])
         self.columns_ = np.isfinite(x).any(axis=0)  # a feature never seen (e.g. no slider indices)
         self.feature_names_ = [n for n, k in zip(names, self.columns_) if k]
         y_log = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
@@ -398,7 +401,100 @@ class Learned(Forecaster):
         """
         if not isinstance(getattr(self, "domain_", None), DomainCheck):
             raise AttributeError("the forecaster's domain check is of another version")
-        return self.domain_.check(cuts)
+        inside, reasons = self.domain_.check(cuts)
+        ranges = self.trained_measurement()
+        for i, (cat, m) in enumerate(zip(cuts.catalogues, cuts.measurements())):
+            why = [_outside(f, v, lo, hi) for f, v, (lo, hi)
+                   in zip(MEASUREMENT_FEATURES, m.as_features(cat), ranges)
+                   if np.isfinite(v) and not lo - 1e-9 - 1e-6 * abs(lo) <= v <= hi + 1e-9 + 1e-6 * abs(hi)]
+            if why:
+                inside[i] = False
+                reasons[i] = "; ".join([r for r in (reasons[i],) if r] + why)
+        return inside, reasons
+
+    def trained_measurement(self) -> np.ndarray:
+        """(len(MEASUREMENT_FEATURES), 2) the least and the largest value of each measurement
+        feature over the training cuts: a catalogue measured outside them is out of the domain
+        (the trees would read it as the nearest training measurement).
+
+        Recorded by ``fit``; for a forecaster fitted before it was, the training
+        measurement itself: the ranges ``measurement.draw_measurements`` draws from
+        (``MEASUREMENT_RANGES``) when it degraded its training catalogues, else the
+        exact record (no angle error, every size, nothing missed, sizes in sliders).
+        """
+        recorded = getattr(self, "measurement_ranges_", None)
+        if recorded is not None:
+            return recorded
+        if not self.degrade:
+            return np.array([[0.0, 0.0], [1.0, 1.0], [0.0, 0.0], [0.0, 0.0]])
+        r = MEASUREMENT_RANGES
+        return np.array([[0.0, r["angle_resolution"][1]], [0.0, float(max(r["min_size"]))],
+                         [0.0, r["missed_fraction"][1]], [0.0, float(r["p_arbitrary"] > 0)]])
+
+    def check_fitted(self) -> None:
+        """Every fitted part a forecast reads, of the form ``fit`` writes (``integrity``): the
+        options, the feature columns (those of ``design``), one quantile regressor per level of
+        ``TRAINED_LEVELS`` (every tree), the climatology, the domain check, and the conformal
+        calibration's edges, bins and residuals."""
+        from crepes import ConformalPredictiveSystem
+
+        from .integrity import (check_array, check_boosting, check_choice, check_climatology,
+                                check_domain, require)
+        from .domain import MEASUREMENT_CLASSES
+
+        check_choice(self.inputs, "inputs", INPUTS)
+        check_choice(self.interval, "interval", INTERVALS)
+        check_choice(self.calibration, "calibration", CALIBRATIONS)
+        check_choice(self.degrade, "degrade", (True, False))
+        check_climatology(self.climatology_, "climatology")
+        names = self.design(_probe_cuts())[1]
+        cols = check_array(self.columns_, "feature columns", shape=(len(names),), kind="b")
+        kept = [n for n, k in zip(names, cols) if k]
+        require(isinstance(self.feature_names_, list) and self.feature_names_ == kept,
+                "the feature names are not those of the feature columns")
+        require(isinstance(self.models_, list) and len(self.models_) == TRAINED_LEVELS.size,
+                f"not {TRAINED_LEVELS.size} regressors")
+        for level, model in zip(TRAINED_LEVELS, self.models_):
+            check_boosting(model, len(kept), f"regressor of level {level:g}")
+            require(model.quantile == level, f"regressor of level {level:g} fits {model.quantile!r}")
+        if getattr(self, "measurement_ranges_", None) is not None:
+            ranges = check_array(self.measurement_ranges_, "training measurement ranges",
+                                 shape=(len(MEASUREMENT_FEATURES), 2), lo=0.0)
+            require((ranges[:, 0] <= ranges[:, 1]).all(), "training measurement ranges reversed")
+        check_array(self.remaining_quantiles_, "remaining angles", shape=LEVELS.shape, lo=0.0,
+                    hi=np.pi / 2, increasing=True)
+        check_domain(self.domain_, len(MEASUREMENT_CLASSES), "domain check")
+        edges = check_array(self.calibration_edges_, "calibration tilt edges", finite=False,
+                            increasing=True)
+        events = check_array(self.calibration_event_edges_, "calibration event edges", ndim=2,
+                             finite=False, increasing=True)
+        remaining = check_array(self.calibration_remaining_edges_, "calibration remaining edges",
+                                ndim=2, finite=False, increasing=True)
+        require(events.shape[0] == edges.size + 1
+                and remaining.shape[0] == events.shape[0] * (events.shape[1] + 1),
+                "the calibration's nested edges do not match")
+        cells = remaining.shape[0] * (remaining.shape[1] + 1)
+        counts = check_array(self.calibration_counts_, "calibration counts", kind="iu", lo=0)
+        require(1 <= counts.size <= cells, "calibration counts of another number of bins")
+        pct = check_array(self.percentiles_, "percentiles read", lo=0.0, hi=100.0, min_size=3)
+        require((np.diff(pct) > 0).all() and np.isin(pct, CPS_PERCENTILES).all(),
+                "the percentiles read are not the calibration's")
+        cps = self.calibration_
+        require(type(cps) is ConformalPredictiveSystem and cps.mondrian is True
+                and cps.normalized is True and cps.fitted is True,
+                "the calibration is not a fitted Mondrian normalised predictive system")
+        require(isinstance(cps.binned_alphas, tuple) and len(cps.binned_alphas) == 2,
+                "the calibration's residuals are not binned")
+        values, residuals = cps.binned_alphas
+        values = check_array(values, "calibration bins", kind="iu", lo=0, hi=cells - 1,
+                             min_size=1)
+        require((np.diff(values) > 0).all() and isinstance(residuals, list)
+                and len(residuals) == values.size, "calibration bins of another form")
+        for b, r in zip(values, residuals):
+            check_array(r, f"calibration residuals of bin {b}", min_size=1, increasing=True,
+                        lo=-1e6, hi=1e6)
+            require(b < counts.size and r.size == counts[b],
+                    f"calibration bin {b} holds another number of residuals than counted")
 
     def _quantiles(self, cuts):
         x, _ = self.design(cuts)
@@ -428,6 +524,31 @@ class Learned(Forecaster):
             q[out] = np.where(half[None, :], lower, upper)
             levels[out] = LEVELS  # no distribution of its own: read at the nominal levels
         return q, out, levels
+
+
+def _outside(feature: str, value: float, lo: float, hi: float) -> str:
+    """Why a measurement feature's ``value`` lies outside the training's [lo, hi] (one phrase)."""
+    if feature == "angle_resolution":
+        return (f"an angle error of {np.degrees(value):g}°, outside the training measurements' "
+                f"{np.degrees(lo):g}-{np.degrees(hi):g}°")
+    if feature == "missed_fraction":
+        return (f"a share of {value:g} of the events missed, outside the training measurements' "
+                f"{lo:g}-{hi:g}")
+    if feature == "size_arbitrary":
+        return "sizes in an arbitrary unit, which no training catalogue had"
+    return (f"a smallest size detected of {value:g} (in sliders, or over the median size in an "
+            f"arbitrary unit), outside the training measurements' {lo:g}-{hi:g}")
+
+
+def _probe_cuts():
+    """One small complete catalogue (displacements, movers): ``design`` names every feature."""
+    from ...io.catalogue import Catalogue
+    from .features import Cuts
+
+    k = np.arange(12)
+    cat = Catalogue(0.02 * (k + 1), 1 + k % 3, 0.01 * (1 + k % 2), k % 5, k % 5 + k % 3,
+                    tilt_now=0.3)
+    return Cuts.from_catalogues([cat])
 
 
 def _quantile_edges(values, bins: int) -> np.ndarray:

@@ -190,3 +190,17 @@ class ModelBased(Forecaster):
             q[m] = np.maximum(est[m, None] + res[None, :], t[m, None])
             fb[m] = False
         return q, fb
+
+    def check_fitted(self) -> None:
+        """The residual quantiles of each kind of estimate (finite, increasing, within +-90°) and
+        the climatology to fall back on."""
+        from .base import LEVELS
+        from .integrity import check_array, check_climatology, require
+
+        check_climatology(self.climatology_, "climatology")
+        res = self.residual_quantiles_
+        require(isinstance(res, dict) and set(res) <= {"0", "1", "2"},
+                "residual quantiles are not keyed by kind of estimate")
+        for k, q in res.items():
+            check_array(q, f"residual quantiles {k}", shape=LEVELS.shape, lo=-np.pi / 2,
+                        hi=np.pi / 2, increasing=True)

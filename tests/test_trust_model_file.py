@@ -1,0 +1,328 @@
+"""A model file is data the package checks, never a program the libraries run.
+
+Each attack writes a model file of the allow-listed types whose contents are
+wrong (a tree whose child points past its nodes or back to itself, NaN leaves,
+a zip member that inflates to hundreds of MB, malformed calibration tables,
+provenance holding terminal control sequences) and runs ``predict --model`` in
+a subprocess with a timeout, so that a crash or a hang is seen as one: every
+outcome must be one line naming the file and exit status 2.  The fuzz test
+corrupts the shipped model's arrays at random (seeded): every outcome is the
+uncorrupted forecast or a one-line refusal, never a crash, a hang or a NaN.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import zipfile
+
+import numpy as np
+import pytest
+
+from sliders.io.forecast_model import (DIGEST_SUFFIX, MODEL_FORMAT, ModelFileError,
+                                       check_forecasters, default_model_path, load_forecasters)
+
+from test_forecast import rate_law_catalogue
+
+PREDICT = [sys.executable, "-m", "sliders.forecast", "predict"]
+#: a crash shows as a negative status, a hang as this timeout
+TIMEOUT = 90
+#: iterations of each boosted regressor kept in the reduced copy of the shipped model
+ITERATIONS = 3
+
+
+def _limit_memory():
+    """The subprocess's address space capped (2 GB): a reader without bounds fails fast."""
+    resource.setrlimit(resource.RLIMIT_AS, (2 * 2**30, 2 * 2**30))
+
+
+def run_predict(args, timeout=TIMEOUT):
+    """``predict ARGS`` in a subprocess: (status, stdout, stderr); a hang fails the test."""
+    try:
+        res = subprocess.run(PREDICT + [str(a) for a in args], capture_output=True, text=True,
+                             timeout=timeout, preexec_fn=_limit_memory)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"predict {' '.join(map(str, args))} hung for {timeout} s")
+    return res.returncode, res.stdout, res.stderr
+
+
+def write_model(path, forecasters, provenance, compression=zipfile.ZIP_DEFLATED):
+    """A model file of ``forecasters`` as an adversary writes it: skops, no check."""
+    import skops.io as sio
+
+    path.write_bytes(sio.dumps({"format": MODEL_FORMAT, "forecasters": forecasters,
+                                "provenance": provenance}, compression=compression))
+    return path
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    """The shipped model, loaded once."""
+    return load_forecasters(default_model_path())
+
+
+@pytest.fixture(scope="module")
+def reduced(shipped):
+    """The shipped model's conditioned, ffm_ml_events and learned_blind forecasters, each
+    boosted regressor cut to its first ``ITERATIONS`` trees: fast to write and read."""
+    models, prov = shipped
+    blind = copy.deepcopy(models["learned_blind"])
+    for m in blind.models_:
+        m._predictors = m._predictors[:ITERATIONS]
+    return {"conditioned": models["conditioned"], "ffm_ml_events": models["ffm_ml_events"],
+            "learned_blind": blind}, {"rows": prov["rows"], "prior": "the shipped prior"}
+
+
+@pytest.fixture(scope="module")
+def catalogue_csv(tmp_path_factory):
+    cat = rate_law_catalogue(0.6, 80.0, 0.5)
+    path = tmp_path_factory.mktemp("cat") / "cat.csv"
+    path.write_text("angle [rad],size\n" + "".join(f"{a:.12g},1\n" for a in cat.alpha))
+    return path
+
+
+@pytest.fixture(scope="module")
+def reference(reduced, catalogue_csv, tmp_path_factory):
+    """The reduced model's file and its forecast of the catalogue (JSON)."""
+    path = write_model(tmp_path_factory.mktemp("ref") / "ref.skops", *reduced)
+    code, out, err = run_predict([catalogue_csv, "--model", path, "--json"])
+    assert code == 0, err
+    return path, json.loads(out)
+
+
+def attacked(reduced, tmp_path, change, name="attack.skops", **kw):
+    """A copy of the reduced model changed by ``change(forecasters, provenance)``, written."""
+    models, prov = copy.deepcopy(reduced)
+    change(models, prov)
+    return write_model(tmp_path / name, models, prov, **kw)
+
+
+def assert_refused(code, out, err, path, *words):
+    """Exit 2, one line on stderr naming the file and saying what is wrong; nothing forecast."""
+    lines = err.strip().splitlines()
+    assert code == 2, (code, err[-2000:])
+    assert len(lines) == 1, err
+    assert str(path) in lines[0] and "internal error" not in lines[0], lines[0]
+    for w in words:
+        assert w in lines[0], lines[0]
+    assert "avalanche angle" not in out
+
+
+def first_tree(models):
+    return models["learned_blind"].models_[0]._predictors[0][0]
+
+
+def test_reduced_model_forecasts_like_a_model(reference):
+    _, d = reference
+    assert np.isfinite(d["alpha_c"]) and d["interval"][0] <= d["alpha_c"] <= d["interval"][1]
+
+
+def test_a_child_index_past_the_nodes_is_refused_not_a_segfault(reduced, catalogue_csv, tmp_path):
+    def change(models, prov):
+        nodes = first_tree(models).nodes
+        nodes["left"][0] = nodes.size + 100_000
+
+    path = attacked(reduced, tmp_path, change)
+    assert_refused(*run_predict([catalogue_csv, "--model", path]), path, "child index")
+
+
+def test_a_root_that_is_its_own_child_is_refused_not_a_hang(reduced, catalogue_csv, tmp_path):
+    def change(models, prov):
+        first_tree(models).nodes["left"][0] = 0
+
+    path = attacked(reduced, tmp_path, change)
+    assert_refused(*run_predict([catalogue_csv, "--model", path], timeout=60), path, "child index")
+
+
+def test_nan_leaves_are_refused(reduced, catalogue_csv, tmp_path):
+    def change(models, prov):
+        for m in models["learned_blind"].models_:
+            nodes = m._predictors[0][0].nodes
+            nodes["value"][nodes["is_leaf"] == 1] = np.nan
+
+    path = attacked(reduced, tmp_path, change)
+    assert_refused(*run_predict([catalogue_csv, "--model", path]), path, "leaf value")
+
+
+def test_a_member_that_inflates_to_hundreds_of_mb_is_refused_before_inflating(
+        reduced, catalogue_csv, tmp_path):
+    """320 MB of zeros in a file of 2 MB: refused from the member's declared size."""
+    def change(models, prov):
+        models["conditioned"].alpha_c_ = np.zeros(40_000_000)
+
+    path = attacked(reduced, tmp_path, change)
+    assert path.stat().st_size < 4 * 2**20
+    assert_refused(*run_predict([catalogue_csv, "--model", path]), path, "inflates")
+
+
+def test_a_device_is_refused_before_a_byte_is_read(catalogue_csv):
+    assert_refused(*run_predict([catalogue_csv, "--model", "/dev/zero"]), "/dev/zero",
+                   "not a regular file")
+
+
+def test_a_model_file_above_the_size_bound_is_refused(catalogue_csv, tmp_path):
+    path = tmp_path / "big.skops"
+    with open(path, "wb") as fh:
+        fh.truncate(65 * 2**20)  # sparse: no disk used
+    assert_refused(*run_predict([catalogue_csv, "--model", path]), path, "MB")
+
+
+def test_a_member_that_lies_about_its_array_is_refused(reduced, tmp_path):
+    """An .npy member whose header declares more data than the member holds."""
+    good = attacked(reduced, tmp_path, lambda m, p: None, name="good.skops")
+    bad = tmp_path / "lying.skops"
+    with zipfile.ZipFile(good) as src, zipfile.ZipFile(bad, "w") as dst:
+        for i, info in enumerate(src.infolist()):
+            data = src.read(info)
+            if info.filename.endswith(".npy") and i == 1:
+                data = data[:-8]
+            dst.writestr(info.filename, data)
+    with pytest.raises(ModelFileError, match="declares an array"):
+        load_forecasters(bad)
+
+
+@pytest.mark.parametrize("what", ["columns", "edges", "bins", "percentiles", "climatology"])
+def test_right_types_malformed_contents_are_one_line_naming_the_file(
+        reduced, catalogue_csv, tmp_path, what):
+    def change(models, prov):
+        f = models["learned_blind"]
+        if what == "columns":
+            f.columns_ = f.columns_[:-1]
+        elif what == "edges":
+            f.calibration_edges_ = np.linspace(0.1, 0.6, 7)
+        elif what == "bins":
+            f.calibration_.binned_alphas = (f.calibration_.binned_alphas[0] + 1000,
+                                            f.calibration_.binned_alphas[1])
+        elif what == "percentiles":
+            f.percentiles_ = np.array([50.0, 250.0, 900.0])
+        else:
+            f.climatology_.alpha_c_ = f.climatology_.alpha_c_[::-1].copy()
+
+    path = attacked(reduced, tmp_path, change)
+    assert_refused(*run_predict([catalogue_csv, "--model", path]), path, "learned_blind")
+
+
+def test_provenance_reaches_the_terminal_escaped(reduced, catalogue_csv, tmp_path):
+    """Clear screen and a fake red forecast in the provenance: printed as escapes."""
+    fake = "\x1b[2J\x1b[H\x1b[31mavalanche angle 0.1000 rad\x1b[0m\r\u202e"
+
+    def change(models, prov):
+        prov["prior"] = fake
+        prov["created"] = fake
+
+    path = attacked(reduced, tmp_path, change)
+    code, out, err = run_predict([catalogue_csv, "--model", path, "--verbose"])
+    assert code == 0, err
+    assert "\x1b" not in out and "\r" not in out and "\u202e" not in out
+    assert "\\x1b[31m" in out
+
+
+def test_a_file_name_with_control_characters_is_escaped_in_the_refusal(catalogue_csv, tmp_path):
+    path = tmp_path / "\x1b[31mmodel.skops"
+    path.write_bytes(b"PK\x05\x06" + bytes(18))
+    code, out, err = run_predict([catalogue_csv, "--model", path])
+    assert code == 2 and "\x1b" not in err and "\\x1b[31mmodel.skops" in err
+
+
+def test_the_shipped_model_matches_its_recorded_digest():
+    path = default_model_path()
+    recorded = open(str(path) + DIGEST_SUFFIX).read().split()[0]
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == recorded
+
+
+def test_a_changed_shipped_model_is_refused_by_its_digest(tmp_path, monkeypatch):
+    import sliders.io.forecast_model as fm
+
+    copy_path = tmp_path / fm.DEFAULT_MODEL_NAME
+    shutil.copyfile(default_model_path(), copy_path)
+    shutil.copyfile(str(default_model_path()) + DIGEST_SUFFIX, str(copy_path) + DIGEST_SUFFIX)
+    with open(copy_path, "r+b") as fh:  # one byte of the zip's comment area: still a zip
+        fh.seek(0, 2)
+        fh.write(b"\0")
+    monkeypatch.setattr(fm, "default_model_path", lambda: copy_path)
+    with pytest.raises(ModelFileError, match="SHA-256"):
+        fm.load_forecasters(copy_path)
+
+
+# ---------------------------------------------------------------------------
+# the fuzz: random corruptions of the shipped model's arrays
+# ---------------------------------------------------------------------------
+FUZZ_CASES = 30
+
+
+def _arrays(f):
+    """(name, getter, setter) of arrays of a learned forecaster that a forecast reads or carries."""
+    out = []
+    for i, m in enumerate(f.models_):
+        for j, (tree,) in enumerate(m._predictors):
+            for field in ("left", "right", "feature_idx", "value", "num_threshold", "is_leaf",
+                          "is_categorical", "missing_go_to_left", "gain", "count"):
+                out.append((f"tree {i}.{j} {field}", tree.nodes, field))
+    det = next(d for d in f.domain_.detectors_ if d is not None)
+    lof = det.steps[-1][1]
+    out += [("climatology", f.climatology_, "alpha_c_"), ("remaining", f, "remaining_quantiles_"),
+            ("edges", f, "calibration_edges_"), ("percentiles", f, "percentiles_"),
+            ("lof points", lof, "_fit_X"), ("lof densities", lof, "_lrd"),
+            ("scaler", det.steps[1][1], "scale_")]
+    return out
+
+
+def corrupt(models, seed: int) -> str:
+    """One seeded corruption of the learned forecaster's arrays; its description."""
+    rng = np.random.default_rng(seed)
+    f = models["learned_blind"]
+    name, holder, key = _arrays(f)[rng.integers(len(_arrays(f)))]
+    a = holder[key] if isinstance(holder, np.ndarray) else getattr(holder, key)
+    a = np.array(a)
+    k = tuple(rng.integers(0, s) for s in a.shape)
+    kind = rng.choice(["nan", "inf", "huge", "negative", "past_end", "self", "truncate"])
+    flat = a.reshape(-1)
+    idx = int(np.ravel_multi_index(k, a.shape)) if a.ndim else 0
+    if kind == "truncate" and not isinstance(holder, np.ndarray):
+        a = a[:-1]
+    elif a.dtype.kind == "f":
+        flat[idx] = {"nan": np.nan, "inf": np.inf, "huge": 1e300, "negative": -1e300,
+                     "past_end": np.nan, "self": -np.inf, "truncate": np.nan}[kind]
+    else:
+        info = np.iinfo(a.dtype)
+        flat[idx] = {"nan": info.max, "inf": info.max, "huge": info.max, "self": idx,
+                     "negative": info.min, "past_end": a.size + 7, "truncate": info.max}[kind]
+    if isinstance(holder, np.ndarray):
+        holder[key] = a
+    else:
+        setattr(holder, key, a)
+    return f"{kind} in {name}"
+
+
+@pytest.mark.parametrize("seed", range(FUZZ_CASES))
+def test_fuzz_every_corruption_is_the_forecast_or_a_refusal(reduced, reference, catalogue_csv,
+                                                            tmp_path, seed):
+    """Refused by the check in one line, or (the corruption touched nothing a forecast reads)
+    the uncorrupted forecast itself, run in a subprocess: never a crash, a hang or a NaN."""
+    models, prov = copy.deepcopy(reduced)
+    what = corrupt(models, seed)
+    try:
+        check_forecasters(copy.deepcopy(models), "corrupted")
+    except ModelFileError as exc:
+        assert "\n" not in str(exc) and str(exc).startswith("corrupted: forecaster"), what
+        return
+    path = write_model(tmp_path / "fuzz.skops", models, prov)
+    code, out, err = run_predict([catalogue_csv, "--model", path, "--json"])
+    assert code in (0, 2), (what, code, err[-2000:])
+    if code == 2:
+        assert len(err.strip().splitlines()) == 1, (what, err)
+        return
+    d = json.loads(out)
+    ref = reference[1]
+    assert d["alpha_c"] == ref["alpha_c"] and d["interval"] == ref["interval"], what
+
+
+# ---------------------------------------------------------------------------
+# exit status under mpirun
+# ---------------------------------------------------------------------------
