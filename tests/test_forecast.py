@@ -275,3 +275,40 @@ def test_only_the_angles_and_sizes_forecaster_reads_the_short_range_features():
     _, blind = Learned(inputs="angles_sizes").design(cuts)
     assert not set(short) & set(every) and "ffm_ml_disp_p_log_remaining" in every
     assert set(short) <= set(blind) and "ffm_ml_disp_p_log_remaining" not in blind
+
+
+def test_stored_accuracy_is_read_in_the_bin_of_the_forecasts_own_lead():
+    """``accuracy_table`` bins held-out cuts by the forecast lead (point - tilt), and
+    ``typical_accuracy`` reads a new forecast's bin; a bin of too few cuts holds the overall."""
+    from sliders.analysis.forecast import Forecast
+    from sliders.analysis.forecast.base import LOWER, MEDIAN, UPPER
+    from sliders.analysis.forecast.evaluation import (ACCURACY_MIN_CUTS, accuracy_table,
+                                                      typical_accuracy, typical_accuracy_line)
+
+    n = 2 * ACCURACY_MIN_CUTS
+    tilt = np.full(n, 0.3)
+    q = np.tile(np.linspace(0.0, 1.0, LEVELS.size), (n, 1)) * 1e-3 + 0.3
+    # half the cuts forecast 0.3° ahead and miss by 0.1° inside the interval, half 3° ahead and
+    # miss by 2° outside it
+    near, far = np.arange(n) < n // 2, np.arange(n) >= n // 2
+    q[near] += np.radians(0.3) - q[near, MEDIAN][:, None] + 0.3
+    q[far] += np.radians(3.0) - q[far, MEDIAN][:, None] + 0.3
+    truth = np.where(near, q[:, MEDIAN] + np.radians(0.1), q[:, MEDIAN] + np.radians(2.0))
+    q[near, LOWER], q[near, UPPER] = truth[near] - 0.01, truth[near] + 0.01
+    table = accuracy_table(q, tilt, truth, rows=n)
+    assert table["n"][0] == n // 2 and table["n"][3] == n // 2 and sum(table["n"]) == n
+    assert table["coverage"][0] == 1.0 and table["coverage"][3] == 0.0
+    assert np.isclose(table["median_abs_deg"][0], 0.1) and np.isclose(table["median_abs_deg"][3], 2.0)
+    assert table["coverage"][1] == table["overall"]["coverage"] == 0.5  # empty: the overall
+    f = Learned()
+    assert typical_accuracy(f, Forecast(np.full(LEVELS.size, 0.31), 0.3, "learned")) is None
+    f.expected_accuracy_ = table
+    far_forecast = Forecast(np.full(LEVELS.size, 0.3 + np.radians(4.0)), 0.3, "learned_blind")
+    got = typical_accuracy(f, far_forecast)
+    assert got["lead_bin_deg"] == (2.0, 5.0) and got["coverage"] == 0.0 and got["n"] == n // 2
+    assert np.isclose(got["median_abs_deg"], 2.0)
+    assert typical_accuracy_line(f, far_forecast).startswith("typical error at this stage: 2.0°")
+    late = Forecast(np.full(LEVELS.size, 0.3 + np.radians(50.0)), 0.3, "learned_blind")
+    assert typical_accuracy(f, late)["lead_bin_deg"] == (20.0, None)
+    out = Forecast(far_forecast.quantiles, 0.3, "learned_blind", fallback=True)
+    assert typical_accuracy(f, out) is None

@@ -162,19 +162,20 @@ def test_the_shipped_model_loads_and_predicts():
 
 
 def test_a_pile_of_known_size_outside_the_training_piles_is_flagged(tmp_path, predict):
-    """``--sliders N``: the shipped model's piles hold 50-800 sliders; a pile of 12 is outside,
-    said so in the text and the JSON, and a bad N is refused in one line."""
+    """``--sliders N``: the shipped model's piles hold 8-800 sliders; a pile of 4 is outside,
+    said so in the text and the JSON, one of 12 is not, and a bad N is refused in one line."""
     cat = rate_law_catalogue(0.6, 80.0, 0.5)
     path = tmp_path / "pile.csv"
     path.write_text("angle [rad],size\n" + "".join(f"{a:.12g},1\n" for a in cat.alpha))
-    small = predict([str(path), "--sliders", "12", "--json"])
+    small = predict([str(path), "--sliders", "4", "--json"])
     d = json.loads(small.stdout)
-    assert small.returncode == 0 and d["in_domain"] is False and d["measurement"]["n_sliders"] == 12
-    assert "a pile of 12 sliders, outside the training piles' 50-800" in d["domain_reason"]
-    text = predict([str(path), "--sliders", "12"])
-    assert "OUT OF THE TRAINING DOMAIN: a pile of 12 sliders" in text.stdout
-    told = json.loads(predict([str(path), "--sliders", "200", "--json"]).stdout)
-    assert "sliders, outside" not in told["domain_reason"]
+    assert small.returncode == 0 and d["in_domain"] is False and d["measurement"]["n_sliders"] == 4
+    assert "a pile of 4 sliders, outside the training piles' 8-800" in d["domain_reason"]
+    text = predict([str(path), "--sliders", "4"])
+    assert "OUT OF THE TRAINING DOMAIN: a pile of 4 sliders" in text.stdout
+    for n in ("12", "200"):
+        told = json.loads(predict([str(path), "--sliders", n, "--json"]).stdout)
+        assert "sliders, outside" not in told["domain_reason"]
     bad = predict([str(path), "--sliders", "0"])
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "sliders" in bad.stderr
 
@@ -282,6 +283,16 @@ def test_train_runs_a_prior_and_writes_a_model_file_of_its_provenance(tmp_path, 
     assert 12 <= prov["rows"] and prov["rows"] + len(prov["held_out_rows"]) <= 24
     assert "n_sliders" in prov["prior"]
     assert prov["mode"] == "explore" and prov["skops"] and prov["scikit-learn"]
+    # the provenance names no path of the machine: the prior file outside the folder by its name
+    assert prov["data_files"] == ["tiny.skops.prior.h5"]
+    assert str(tmp_path) not in json.dumps(prov)
+    # the held-out accuracy per bin of the forecast's lead, plain floats, in each learned one
+    for method in ("learned", "learned_blind"):
+        table = models[method].expected_accuracy_
+        k = len(table["lead_edges_deg"])
+        assert [len(table[c]) for c in ("median_abs_deg", "coverage", "n")] == [k, k, k]
+        assert all(isinstance(v, float) and 0.0 <= v <= 1.0 for v in table["coverage"])
+        assert sum(table["n"]) == table["overall"]["n"] > 0
     # the prior file is kept: run again, it is resumed (complete), the same rows fitted
     assert main(["train", "--prior", str(prior), "--out", str(out), "--max-iter", "3",
                  "--hold-out", "0.25", "--quiet"]) == 0

@@ -232,3 +232,142 @@ def alarm_probabilities(q: np.ndarray, cuts: Cuts, delta: float,
     """P(avalanche within ``delta``) of each cut, from its quantiles (at ``levels``, if not
     ``LEVELS``: ``Forecaster.quantiles(cuts, levels=True)``)."""
     return probability_within(q, cuts.tilt_now, delta, levels)
+
+
+#: lower edges (degrees) of the bins of a forecast's own lead, ``point - tilt_now``, in which the
+#: held-out accuracy is stored at training time (the last bin open above); the lead itself is
+#: unknown at forecast time, the forecast's lead is what the forecaster sees
+ACCURACY_LEAD_EDGES_DEG = (0.0, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
+#: fewest held-out cuts a bin of the stored accuracy needs to speak for itself (else: overall)
+ACCURACY_MIN_CUTS = 30
+
+
+def _lead_bin(forecast_lead_deg) -> np.ndarray:
+    """Each forecast lead's bin of ``ACCURACY_LEAD_EDGES_DEG`` (below 0: the first)."""
+    edges = np.asarray(ACCURACY_LEAD_EDGES_DEG)
+    return np.clip(np.searchsorted(edges, forecast_lead_deg, side="right") - 1, 0, edges.size - 1)
+
+
+def accuracy_table(q: np.ndarray, tilt_now: np.ndarray, truth: np.ndarray, rows: int) -> dict:
+    """The held-out accuracy of a forecaster per bin of its forecast lead (plain floats).
+
+    ``q``: its quantiles at ``LEVELS`` on held-out cuts at ``tilt_now``, whose
+    avalanche came at ``truth`` (radians); ``rows``: the realisations they cut.
+    Returns ``lead_edges_deg`` (lower edges, the last bin open), and per bin
+    ``median_abs_deg`` (median |point - truth|), ``coverage`` (of the 80 %
+    interval) and ``n`` (cuts); a bin of fewer than ``ACCURACY_MIN_CUTS``
+    cuts holds the overall numbers (its ``n`` still its own).  ``overall``:
+    the same over every cut.
+    """
+    q, truth = np.asarray(q, dtype=float), np.asarray(truth, dtype=float)
+    if not truth.size:
+        raise ValueError("no held-out cut to measure the accuracy on")
+    err = np.degrees(np.abs(q[:, MEDIAN] - truth))
+    inside = (q[:, LOWER] <= truth) & (truth <= q[:, UPPER])
+    b = _lead_bin(np.degrees(q[:, MEDIAN] - np.asarray(tilt_now, dtype=float)))
+    overall = {"median_abs_deg": float(np.median(err)), "coverage": float(inside.mean()),
+               "n": float(truth.size), "rows": float(rows)}
+    table = {"lead_edges_deg": [float(e) for e in ACCURACY_LEAD_EDGES_DEG],
+             "median_abs_deg": [], "coverage": [], "n": [], "overall": overall}
+    for k in range(len(ACCURACY_LEAD_EDGES_DEG)):
+        m = b == k
+        own = m.sum() >= ACCURACY_MIN_CUTS
+        table["median_abs_deg"].append(float(np.median(err[m])) if own else overall["median_abs_deg"])
+        table["coverage"].append(float(inside[m].mean()) if own else overall["coverage"])
+        table["n"].append(float(m.sum()))
+    return table
+
+
+def measure_expected_accuracy(forecasters: dict, held, seed: int = 0, draws_per_row: int = 5) -> dict:
+    """Store in every learned forecaster (``expected_accuracy_``) its accuracy on ``held``.
+
+    ``held``: realisations kept out of its training (a ``CatalogueSet`` whose
+    avalanches are known).  Each forecaster is measured on random cuts of them
+    drawn as its own training cuts are (``Learned.training_cuts``: degraded
+    as its training catalogues were), binned by its forecast lead
+    (``accuracy_table``).  Returns ``{method: table}`` of those measured.
+    """
+    out = {}
+    ok = np.flatnonzero(np.isfinite(np.asarray(held.alpha_c, dtype=float)))
+    if not ok.size:
+        return out
+    held = held.subset(ok)
+    for method, f in forecasters.items():
+        if not hasattr(f, "training_cuts"):
+            continue
+        cuts = f.training_cuts(held, np.random.default_rng([seed, 11]))
+        q, _ = f.quantiles(cuts)
+        f.expected_accuracy_ = accuracy_table(q, cuts.tilt_now, cuts.alpha_c, len(held))
+        out[method] = f.expected_accuracy_
+    return out
+
+
+def typical_accuracy(forecaster, forecast) -> dict | None:
+    """What the forecaster's held-out piles say of a forecast like ``forecast`` (``Forecast``).
+
+    Reads the table stored at training time (``measure_expected_accuracy``) in
+    the bin of the forecast's own lead (``forecast.point - forecast.tilt_now``):
+    ``median_abs_deg`` (typical error at this stage, degrees), ``coverage`` (the
+    share of held-out cuts its 80 % intervals covered), ``n`` (those cuts),
+    ``lead_bin_deg`` (the bin, degrees; its upper end None: open).  None if the
+    forecaster holds no such table (one trained without held-out rows), or if the
+    forecast fell back (out of the training domain, where the held-out piles say nothing).
+    """
+    table = getattr(forecaster, "expected_accuracy_", None)
+    if not table or forecast.fallback:
+        return None
+    edges = table["lead_edges_deg"]
+    k = int(_lead_bin(np.degrees(forecast.point - forecast.tilt_now)))
+    return {"median_abs_deg": float(table["median_abs_deg"][k]),
+            "coverage": float(table["coverage"][k]), "n": int(table["n"][k]),
+            "lead_bin_deg": (float(edges[k]), float(edges[k + 1]) if k + 1 < len(edges) else None)}
+
+
+def typical_accuracy_line(forecaster, forecast) -> str | None:
+    """``typical_accuracy`` as one line of text, e.g. "typical error at this stage: 1.6°; its
+    80 % intervals covered 0.82 of held-out piles" (None without a stored table)."""
+    t = typical_accuracy(forecaster, forecast)
+    if t is None:
+        return None
+    return (f"typical error at this stage: {t['median_abs_deg']:.1f}°; its 80 % intervals "
+            f"covered {t['coverage']:.2f} of held-out piles")
+
+
+def coverage_by_kind(forecaster, cset, kinds: dict, leads, draws_per_row: int = 10,
+                     seed: int = 0, degrade=None) -> dict:
+    """The 80 % coverage and median |error| of ``forecaster`` per kind of pile of ``cset``.
+
+    ``kinds``: ``{label: boolean mask over cset's rows}`` (e.g. bins of the number
+    of sliders, of the coupling); ``leads``: radians before the avalanche.  For each
+    kind: over random cuts (``features.training_cuts``, as the forecaster meets
+    them) and at each lead (key ``"<degrees>deg"``), ``coverage``,
+    ``median_abs_deg`` and ``n`` (cuts).  ``degrade(cuts) -> cuts``: the cuts as
+    an experiment measures them.
+    """
+    from .features import training_cuts
+
+    rows = np.flatnonzero(np.isfinite(np.asarray(cset.alpha_c, dtype=float)))
+    sub = cset.subset(rows)
+    leads = np.asarray(leads, dtype=float)
+    groups = {"random_cuts": training_cuts(sub, draws_per_row, np.random.default_rng(seed))}
+    at_leads, which = cuts_at_leads(sub, np.arange(len(sub)), leads)
+    predicted = {}
+    for key, cuts in groups.items():
+        cuts = degrade(cuts) if degrade is not None else cuts
+        predicted[key] = (forecaster.quantiles(cuts)[0], cuts.alpha_c, cuts.row, None)
+    at_leads = degrade(at_leads) if degrade is not None else at_leads
+    q_leads = forecaster.quantiles(at_leads)[0]
+    for j, lead in enumerate(leads):
+        predicted[f"{np.degrees(lead):g}deg"] = (q_leads, at_leads.alpha_c, at_leads.row, which == j)
+    out = {}
+    for label, mask in kinds.items():
+        of_kind = np.asarray(mask, dtype=bool)[rows]
+        out[label] = {}
+        for key, (q, truth, row, keep) in predicted.items():
+            m = of_kind[row] if keep is None else of_kind[row] & keep
+            inside = (q[m, LOWER] <= truth[m]) & (truth[m] <= q[m, UPPER])
+            out[label][key] = {
+                "coverage": float(inside.mean()) if m.any() else float("nan"),
+                "median_abs_deg": float(np.degrees(np.median(np.abs(q[m, MEDIAN] - truth[m]))))
+                if m.any() else float("nan"), "n": int(m.sum())}
+    return out

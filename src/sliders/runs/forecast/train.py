@@ -21,6 +21,7 @@ import time
 
 import numpy as np
 
+from ...analysis.forecast.evaluation import measure_expected_accuracy
 from ...analysis.forecast.registry import fit_methods
 from ...io.catalogue import CatalogueSet
 from ...io.forecast_files import ForecastInputError
@@ -73,15 +74,28 @@ def train(args, argv) -> int:
     held = np.random.default_rng([args.seed, 7]).random(len(data)) < args.hold_out
     train_set = data.subset(np.flatnonzero(ok & ~held))
     models = fit_methods(train_set, args.max_iter, args.seed, log)
-    prov = provenance(argv) | training_provenance(data, data_path, args)
+    measure_expected_accuracy(models, data.subset(np.flatnonzero(ok & held)), args.seed)
+    prov = provenance([portable_path(a) for a in argv]) | training_provenance(data, data_path, args)
     prov["rows"] = len(train_set)
     prov["held_out_rows"] = [int(r) for r in np.flatnonzero(held)]
-    prov["data_files"] = [os.path.abspath(p) for p in paths]
+    prov["data_files"] = [portable_path(p) for p in paths]
     prov["seconds_simulation"], prov["seconds_fit"] = t_sim, time.time() - t0 - t_sim
     size = save_forecasters(args.out, models, prov)
     log(f"forecast: wrote {args.out} ({size / 1e6:.2f} MB) from {prov['rows']} rows in "
         f"{time.time() - t0:.0f} s")
     return 0
+
+
+def portable_path(path: str) -> str:
+    """A path as a model file's provenance names it: relative to the current folder (the
+    repository) if inside it, else its file name (``--opt=PATH`` too); nothing else changes."""
+    if path.startswith("--") and "=" in path:
+        option, _, value = path.partition("=")
+        return f"{option}={portable_path(value)}"
+    if not os.path.isabs(path):
+        return path
+    rel = os.path.relpath(path, os.getcwd())
+    return rel if not rel.startswith(os.pardir) else os.path.basename(path)
 
 
 def concatenate(sets):
@@ -104,7 +118,7 @@ def training_provenance(data, data_path: str, args) -> dict:
     prior = attrs.get("prior") or attrs.get("prior_spec")
     return {"prior": str(prior) if prior is not None else str(args.prior or data_path),
             "prior_digest": str(attrs.get("prior_digest", "")),
-            "prior_file": str(args.prior or data_path),
+            "prior_file": portable_path(str(args.prior or data_path)),
             "mode": str(attrs.get("mode", _scene_mode(attrs)))}
 
 
