@@ -13,7 +13,7 @@ import pytest
 from sliders import Scene, status
 from sliders.engine import contract
 from sliders.engine.contract import Chunk, join_chunks
-from sliders.scene import LOADINGS
+from sliders.parts.loading import LOADINGS
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,7 +40,7 @@ def test_fortran_positions_match_the_contract(prefix, counts, groups):
 
 def test_schema_covers_every_event_field():
     assert contract.REAL_FIELDS + contract.INT_FIELDS != ()
-    assert set(contract.REAL_FIELDS) | set(contract.INT_FIELDS) == set(status.EVENT_FIELDS)
+    assert set(contract.REAL_FIELDS) | set(contract.INT_FIELDS) == set(contract.EVENT_FIELDS)
 
 
 def test_pack_parameters_takes_the_scene_values():
@@ -83,7 +83,7 @@ def test_the_fortran_backend_does_not_depend_on_the_reference():
 
 
 def _chunk(alphas, moved):
-    events = {f: np.zeros(len(alphas), dtype=contract.EVENT_DTYPES[f]) for f in status.EVENT_FIELDS}
+    events = {f: np.zeros(len(alphas), dtype=contract.EVENT_DTYPES[f]) for f in contract.EVENT_FIELDS}
     events["alpha"] = np.array(alphas, dtype=float)
     ptr = np.concatenate([[0], np.cumsum([len(m) for m in moved])]).astype(np.int64)
     index = np.array([i for m in moved for i in m], dtype=np.int64)

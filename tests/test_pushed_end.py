@@ -14,8 +14,7 @@ import sliders
 from sliders import Scene, prepare, status
 from sliders.chain import elastic_force
 from sliders.driver import make_engine
-from sliders.engine.loading import loading_for
-from sliders.scene import SceneError
+from sliders.parts.checks import SceneError
 from test_backends import assert_bit_for_bit, assert_same_run, libm_reference
 
 PUSHED = Scene(n_sliders=8, seed=5, loading="pushed_end", tilt=0.2, drive_stiffness=2.0,
@@ -39,7 +38,7 @@ def test_forces_balance_stability_and_energy_after_every_event(backend):
     """Sum of F_t = N sin(tilt) + driver force; every slider stable; the work
     of gravity and of the driver's spring = elastic change + dissipation."""
     sc = PUSHED
-    load = loading_for(sc)
+    load = sc.loading
     n_events = 0
     for _, before, after, chunk in pushed_events(sc, backend=backend):
         if chunk.n_events == 0:

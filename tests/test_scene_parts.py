@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders import Coulomb, PushedEnd, Scene, SceneError, Tilt
+from sliders import Coulomb, PushedEnd, Scene, SceneError, Tilt, keyed_random
 from sliders.chain import elastic_force
 from sliders.engine import contract
-from sliders.engine.loading import TIE_TOL, Loading
-from sliders.engine.parameters import check_real
+from sliders.parts.checks import check_real
+from sliders.parts.friction import Friction
+from sliders.parts.loading import TIE_TOL, Loading
 
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -31,7 +32,9 @@ def test_flat_keywords_build_the_parts():
     assert PushedEnd(tilt=0.2) == PushedEnd(incline=0.2)  # the flat key is accepted as alias
     assert Scene(alpha_max=1.0) == Scene(loading=Tilt(alpha_max=1.0))
     assert (pushed.tilt, pushed.incline, pushed.drive_stiffness, pushed.mu_d) == (0.2, 0.2, 2.0, 0.55)
-    assert pushed.loading.scene is pushed and pushed.friction.scene is pushed
+    # a part holds no scene: the same part object serves every scene it is given to
+    assert not hasattr(pushed.loading, "scene") and not hasattr(pushed.friction, "scene")
+    assert pushed.loading is Scene(loading=pushed.loading).loading
 
 
 def test_the_parts_check_their_own_values():
@@ -136,12 +139,12 @@ class UniformPull(Loading):
     def normal(self, drive: float) -> float:
         return 1.0
 
-    def forces(self, state, drives, displacement=None) -> np.ndarray:
+    def forces(self, state, xi, walls, drives, displacement=None) -> np.ndarray:
         du = state.displacement if displacement is None else np.asarray(displacement, dtype=float)
-        elastic = elastic_force(state, self.scene.xi, self.scene.walls, du)
+        elastic = elastic_force(state, xi, walls, du)
         return elastic + np.asarray(drives, dtype=float)[..., None]
 
-    def next_instability(self, elastic, mu, drive, du=None):
+    def next_instability(self, elastic, mu, drive, du, force_tol):
         """Slider n starts forwards at E_n + lambda = mu_n (the pull only grows)."""
         root = np.maximum(mu - elastic, drive)
         pull = float(root.min())
@@ -151,9 +154,9 @@ class UniformPull(Loading):
     def beyond_limit(self, drive: float) -> bool:
         return drive > self.pull_max
 
-    def runaway(self, moving, direction, weight, kinetic) -> bool:
+    def runaway(self, moving, direction, weight, kinetic, walls) -> bool:
         """Every slider of a free chain moving forwards with the pull beating kinetic friction."""
-        return (not self.scene.walls and moving.all() and np.all(direction > 0.0)
+        return (not walls and moving.all() and np.all(direction > 0.0)
                 and weight > kinetic)
 
 
@@ -193,3 +196,64 @@ def test_the_toy_loading_stops_at_its_limit_with_the_chain_at_rest():
 def test_a_loading_without_a_fortran_twin_is_refused_by_the_kernel():
     with pytest.raises(SceneError, match="loading='uniform_pull' has no Fortran twin"):
         sliders.run(Scene(n_sliders=5, loading=UniformPull(pull_max=1.0)), backend="fortran")
+
+
+# ------------------------------------------------ a new friction law costs one class
+@dataclass(frozen=True, repr=False)
+class UniformStatic(Friction):
+    """Coulomb friction whose static coefficient, at every stop, is drawn uniformly in
+    [mu_s_mean - static_width, mu_s_mean + static_width] (keyed by seed, slider, stop)."""
+
+    mu_d: float = 0.55
+    mu_s_mean: float = 0.6
+    static_width: float = 0.02
+
+    name = "uniform_static"
+    flat_keys = {"mu_d": "mu_d", "mu_s_mean": "mu_s_mean", "static_width": "static_width"}
+
+    def check_own(self) -> None:
+        check_real("static_width", self.static_width, 0.0, self.mu_s_mean - self.mu_d)
+
+    def static_threshold(self, mu_s, normal, force_tol):
+        return mu_s * normal + force_tol
+
+    def kinetic_force(self, normal):
+        return self.mu_d * normal
+
+    def draw_at_stop(self, seed, sliders, n_stops):
+        u = keyed_random.uniform(seed, sliders, n_stops, 0)
+        return self.mu_s_mean + self.static_width * (2.0 * u - 1.0)
+
+    def max_stable_incline(self):
+        return math.atan(self.mu_d)
+
+
+def test_a_friction_law_defined_here_runs_on_the_reference():
+    """The toy law is a class of this file alone: the preparation draws its coefficients,
+    the reference engine asks it for thresholds, kinetic force and draws at every stop,
+    and the run ends in the model's avalanche between atan(mu_d) and atan(max mu_s)."""
+    law = UniformStatic(mu_d=0.5, mu_s_mean=0.6, static_width=0.05)
+    scene = Scene(n_sliders=30, seed=7, mode="explore", friction=law)
+    assert scene.friction is law and scene.mu_s_mean == 0.6
+    assert scene.to_dict()["static_width"] == 0.05 and scene.to_dict()["friction"] == "uniform_static"
+    result = sliders.run(scene, backend="numpy")
+    assert result.status == "avalanche" and result.n_events > 10
+    low, high = 0.55, 0.65
+    # the coefficients are the law's: uniform draws, never the Gaussian's tails
+    for mu in (result.initial.mu_s, result.final.mu_s):
+        assert np.all((mu >= low) & (mu <= high))
+    np.testing.assert_array_equal(result.initial.mu_s,
+                                  law.draw_at_stop(7, np.arange(30), np.zeros(30, np.int64)))
+    stopped = np.flatnonzero(result.final.n_stops > 0)
+    assert stopped.size > 0  # sliders redrew at their stops, with the law's key
+    np.testing.assert_array_equal(result.final.mu_s[stopped],
+                                  law.draw_at_stop(7, stopped, result.final.n_stops[stopped]))
+    assert math.atan(0.5) < result.alpha_c <= math.atan(high)
+    # energy: the dissipation is the law's kinetic force times the path
+    scale = np.abs(result.work_gravity).max()
+    assert np.abs(result.energy_residual).max() < 1e-6 * scale
+
+
+def test_a_friction_law_without_a_fortran_twin_is_refused_by_the_kernel():
+    with pytest.raises(SceneError, match="friction='uniform_static' has no Fortran twin"):
+        sliders.run(Scene(n_sliders=5, friction=UniformStatic()), backend="fortran")

@@ -25,7 +25,8 @@ import sliders
 from sliders.io import safeio, storage, study_file
 from sliders.io.filelock import ClaimError, OutputClaim
 from sliders.runs import ensemble, merge
-from sliders.scene import SceneError, available_memory, check_memory
+from sliders.parts.checks import SceneError
+from sliders.scene import available_memory, check_memory
 from test_ensemble import (PY, SCENE_OPTS, _env, _Run, assert_same_file,
                            ensemble_args, one_error_line, run)
 from test_reliability import tilt_file  # noqa: F401 - a saved run (fixture)

@@ -16,11 +16,12 @@ from ._version import __version__
 
 from .chain import ChainState
 from .driver import Interrupted, Progress, run, tilt
-from .engine.friction import Coulomb
-from .engine.loading import PushedEnd, Tilt
+from .parts.checks import SceneError
+from .parts.friction import Coulomb
+from .parts.loading import PushedEnd, Tilt
 from .preparation import prepare
 from .result import EventSparse, Result, TiltResult
-from .scene import Scene, SceneError
+from .scene import Scene
 
 __all__ = [
     "ChainState", "Coulomb", "EventSparse", "Interrupted", "Progress", "PushedEnd", "Result",

@@ -11,7 +11,8 @@ from . import status
 from .runs.cli import ProgressLine, add_scene_arguments, check_output, fail, scene_from_args
 from .io.filelock import ClaimError, OutputClaim
 from .io.safeio import describe_os_error, leftovers_note
-from .scene import BACKENDS, SceneError, check_memory
+from .parts.checks import SceneError
+from .scene import BACKENDS, check_memory
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -24,7 +24,8 @@ from .keyed_random import realisation_seed
 from .preparation import prepare
 from .engine.reference import NumpyEngine
 from .result import EventSparse, Result
-from .scene import BACKENDS, Scene, SceneError, check_memory
+from .parts.checks import SceneError
+from .scene import BACKENDS, Scene, check_memory
 
 CHUNK_EVENTS = {"numpy": 16, "fortran": 512}
 # A kernel call starts with O(N) set-up (forces, angles, min-tree): for long

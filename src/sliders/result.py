@@ -159,9 +159,10 @@ class Result:
         e = self.events
         return e["work_gravity"] - e["elastic_change"] - e["dissipation"]
 
-    def _loading(self):
-        """The scene's loading: the forces are its (tilt or pushed end)."""
-        return self.scene.loading
+    def _forces(self, drives, displacement=None):
+        """The scene's loading's forces (tilt or pushed end) on the initial chain."""
+        sc = self.scene
+        return sc.loading.forces(self.initial, sc.xi, sc.walls, drives, displacement)
 
     def _need_displacements(self, what: str) -> EventSparse:
         if self.displacement is None:
@@ -179,7 +180,7 @@ class Result:
     def tangential_force(self) -> np.ndarray:
         """(K, N) tangential force F_t of every slider just after each event."""
         du = self.displacement_after()
-        return self._loading().forces(self.initial, self.alpha, du)
+        return self._forces(self.alpha, du)
 
     def events_before(self, alphas) -> np.ndarray:
         """For each angle, how many rearrangements happened at or below it."""
@@ -201,7 +202,7 @@ class Result:
         also feels the driver's spring K (D - u_1).
         """
         alphas = np.asarray(alphas, dtype=float)
-        return self._loading().forces(self.initial, alphas, self.displacement_at(alphas))
+        return self._forces(alphas, self.displacement_at(alphas))
 
     def prepared_force(self) -> np.ndarray:
         """The drawn tangential forces at alpha = 0, before the coupling is switched on."""
@@ -210,7 +211,7 @@ class Result:
     def start_force(self) -> np.ndarray:
         """F_t of every slider at alpha = 0 (pushed end: D = 0) when the loading
         starts (after any relaxation)."""
-        return self._loading().forces(self.initial, 0.0)
+        return self._forces(0.0)
 
     # -- HDF5 (the layout, the writer and the reader: sliders.io.tilt_file) --
     def save(self, path: str | os.PathLike[str], overwrite: bool = True) -> None:

@@ -1,7 +1,7 @@
 """A scene: one configured run (chain, friction law, loading, integrator, what to record).
 
 The friction law and the loading are parts of the scene that own their
-parameters and checks (``engine.friction``, ``engine.loading``); scene files
+parameters and checks (``parts.friction``, ``parts.loading``); scene files
 and the command line hold their flat keys (``scene_keys``).  Every value is
 checked on construction; a bad value raises ``SceneError`` whose message
 names the parameter and the allowed range.  Units are the
@@ -17,10 +17,9 @@ import sys
 from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
-from .engine.friction import FRICTIONS, Coulomb, Friction
-from .engine.loading import ALPHA_MAX_LIMIT, LOADINGS, Loading, PushedEnd, Tilt  # noqa: F401
-from .engine.parameters import (SceneError, check_choice, check_int, check_real,  # noqa: F401
-                                plain_value)
+from .parts.checks import SceneError, check_choice, check_int, check_real, plain_value
+from .parts.friction import FRICTIONS, Coulomb, Friction
+from .parts.loading import LOADINGS, Loading, Tilt
 
 ENDS = ("free", "walls")
 RECORDS = ("summary", "displacements", "forces")
@@ -211,7 +210,7 @@ class Scene:
         for role in PARTS:
             keys = _part_keys(role, given[role])
             own = {k: flat.pop(k) for k in list(flat) if k in keys}
-            object.__setattr__(self, role, build_part(role, given[role], own).bound(self))
+            object.__setattr__(self, role, build_part(role, given[role], own))
         if flat:
             raise TypeError(f"Scene() got an unexpected keyword argument {next(iter(flat))!r}")
         self._fill_from_mode()

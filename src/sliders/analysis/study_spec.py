@@ -15,7 +15,8 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..scene import Scene, SceneError, check_tilt_statistics, scene_keys
+from ..parts.checks import SceneError
+from ..scene import Scene, check_tilt_statistics, scene_keys
 
 STUDY_PREFIX = "study_"  # extra per-realisation statistics (burst periods, synchronisation)
 NOT_AXES = ("seed", "output", "record")  # seed: common random numbers; record: statistics needed

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .loading import LOADINGS
+from ..parts.loading import LOADINGS
 
 # Halvings of a crossing bracket, at most (sliders_crossing.max_halvings): a step
 # of 1 tau closes to 3e-39 within them, so only a refine_tol below what the

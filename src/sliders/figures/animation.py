@@ -31,7 +31,8 @@ def animation_scene(path=None):
     A scene that would record only a summary records displacements instead:
     the animation needs to know which sliders moved.
     """
-    from ..scene import Scene, SceneError
+    from ..parts.checks import SceneError
+    from ..scene import Scene
 
     if path is None:
         return Scene(n_sliders=10, xi=0.0, seed=1, record="displacements")

@@ -24,7 +24,7 @@ from .style import COLUMN_WIDTH, ORDER_CMAP, STYLE, panel_label, save_figure
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib import colors as mcolors  # noqa: E402
 
-from ..engine.loading import PushedEnd, loading_for  # noqa: E402
+from ..parts.loading import PushedEnd  # noqa: E402
 from ..scene import Scene  # noqa: E402
 
 NAME = "pushed_end"
@@ -52,8 +52,9 @@ def forces_before(result, events: np.ndarray) -> np.ndarray:
     """Tangential force on every slider just before each of ``events`` starts
     (at the drive it starts at), rebuilt from the recorded displacements."""
     before = np.vstack([result.initial.displacement[None, :], result.displacement_after()[:-1]])
-    return loading_for(result.scene).forces(result.initial, result.events["alpha"][events],
-                                            before[events])
+    sc = result.scene
+    return sc.loading.forces(result.initial, sc.xi, sc.walls, result.events["alpha"][events],
+                             before[events])
 
 
 def record_fronts(arrest: np.ndarray) -> np.ndarray:

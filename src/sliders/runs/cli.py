@@ -8,8 +8,8 @@ import sys
 import time
 import typing
 
-from ..scene import (DEFAULT_MODE, SPEED_MODES, Scene, SceneError, check_writable, scene_keys,
-                     toml_values)
+from ..parts.checks import SceneError
+from ..scene import DEFAULT_MODE, SPEED_MODES, Scene, check_writable, scene_keys, toml_values
 
 # What each scene option means and its unit (the model's units, ``Scene``: time tau,
 # length g tau^2, force m g, angles in radians; "" for a count or a name).

@@ -296,7 +296,7 @@ def world_or_none():
 def _failure(exc: BaseException) -> tuple[int, str]:
     """The (exit code, one line) of a failure of local work."""
     from ..analysis.study_spec import StudyError
-    from ..scene import SceneError
+    from ..parts.checks import SceneError
 
     if isinstance(exc, HelpShown):
         return exc.code, ""

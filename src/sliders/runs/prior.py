@@ -300,7 +300,7 @@ class Prior:
     def check_rows(self):
         """Build and check every row's scene (one at a time: none is kept); the first bad one
         raises PriorError naming row and parameter.  Returns the scene of the largest chain."""
-        from ..scene import SceneError
+        from ..parts.checks import SceneError
 
         largest = None
         for r in range(self.realisations):
@@ -348,7 +348,8 @@ class Prior:
 
 def parse_prior(data: dict, where: str = "prior") -> Prior:
     """A ``Prior`` from the TOML tables; every error is one line starting with ``where``."""
-    from ..scene import Scene, SceneError
+    from ..parts.checks import SceneError
+    from ..scene import Scene
 
     unknown = sorted(set(data) - {"prior", "scene", "parameters"})
     if unknown:
