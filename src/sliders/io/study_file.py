@@ -20,7 +20,7 @@ reads; its view becomes virtual when it is resumed.
 
 The writers are the ensemble's (``storage.MpioFile``, ``storage.GatherFile``)
 with one group per point: row t of the run is realisation ``t % R`` of point
-``t // R``.  The functions here take the study (``sliders.study.Study``) as
+``t // R``.  The functions here take the study (``sliders.analysis.study_spec.Study``) as
 given; what a point computes is the study module's business.
 """
 

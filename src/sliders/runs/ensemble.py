@@ -21,7 +21,7 @@ point (between chunks of events): runs in progress are dropped, rows already
 written stay, the file is closed, rank 0 prints one line and every rank exits
 with 128 + signal number.  ``--resume`` then computes the missing rows only.
 
-Ensemble statistics are not stored: ``load_summary(path)`` derives them with
+Ensemble statistics are not stored: ``analysis.summary.load_summary(path)`` derives them with
 ``observables.combine`` from the rows marked done.
 """
 
@@ -36,12 +36,10 @@ from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, Usage
                       add_output_options, add_storage_option, check_new_or_resume,
                       check_run_options, open_output, run_planned)
 from .merge import chunk_range, parse_chunk
-from .parallel import SerialComm  # noqa: F401 - the readers and the row, kept importable here
-from .rows import compute_row  # noqa: F401
+from .rows import compute_row
 from .scheduler import serve_rows
-from ..analysis.summary import load_summary  # noqa: F401
-from ..io.storage import read_realisations  # noqa: F401
-from ..scene import Scene, SceneError
+from ..parts.checks import SceneError
+from ..scene import Scene
 
 
 def build_parser(rank: int = 0) -> CommandParser:

@@ -51,7 +51,7 @@ import numpy as np
 from .._version import __version__
 from ..io.catalogue import Catalogue, CatalogueSet
 from ..io.filelock import ClaimError
-from ..io.forecast_files import (ANGLE_UNITS, ForecastInputError,  # noqa: F401
+from ..io.forecast_files import (ForecastInputError,
                                 parse_angle, read_catalogue_csv,
                                 tilt_in_range)
 from ..io.safeio import describe_os_error, os_reason

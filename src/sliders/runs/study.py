@@ -43,8 +43,7 @@ from .scheduler import serve_rows
 from ..io.study_file import (HANDLERS, read_study_header, study_attributes, study_layout,
                             write_view)
 
-from ..analysis.study_spec import (NOT_AXES, STUDY_PREFIX, Study, StudyError,  # noqa: F401 - kept importable here
-                                      check_points_memory, load_study, parse_study)
+from ..analysis.study_spec import STUDY_PREFIX, Study, check_points_memory, load_study
 
 
 # ---------------------------------------------------------------------------
