@@ -27,11 +27,11 @@ DATA = Path(__file__).resolve().parent / "data"
 # ------------------------------------------------ parts and flat keys
 def test_flat_keywords_build_the_parts():
     assert Scene(mu_d=0.5, sigma_mu=0.0) == Scene(friction=Coulomb(mu_d=0.5, sigma_mu=0.0))
-    pushed = Scene(loading="pushed_end", tilt=0.2, drive_stiffness=2.0, drive_max=9.0)
+    pushed = Scene(loading="pushed_end", incline=0.2, drive_stiffness=2.0, drive_max=9.0)
     assert pushed == Scene(loading=PushedEnd(incline=0.2, stiffness=2.0, drive_max=9.0))
-    assert PushedEnd(tilt=0.2) == PushedEnd(incline=0.2)  # the flat key is accepted as alias
     assert Scene(alpha_max=1.0) == Scene(loading=Tilt(alpha_max=1.0))
-    assert (pushed.tilt, pushed.incline, pushed.drive_stiffness, pushed.mu_d) == (0.2, 0.2, 2.0, 0.55)
+    assert (pushed.incline, pushed.drive_stiffness, pushed.mu_d) == (0.2, 2.0, 0.55)
+    assert not hasattr(pushed, "tilt")  # tilt names the loading, not the incline
     # a part holds no scene: the same part object serves every scene it is given to
     assert not hasattr(pushed.loading, "scene") and not hasattr(pushed.friction, "scene")
     assert pushed.loading is Scene(loading=pushed.loading).loading
@@ -44,16 +44,18 @@ def test_the_parts_check_their_own_values():
         PushedEnd(stiffness=0.0)
     with pytest.raises(SceneError, match=r"alpha_max=2.0 is out of range"):
         Tilt(alpha_max=2.0)
-    with pytest.raises(SceneError, match=r"tilt=0.1 and incline=0.2 name the same fixed incline"):
-        PushedEnd(0.2, tilt=0.1)
-    # a rule between parts: the incline below the friction's atan(mu_d)
-    with pytest.raises(SceneError, match=r"tilt=0.5 is out of range: allowed \[0, 0.463647609\]"):
+    with pytest.raises(SceneError, match=r"tilt=0.1 is not a scene key: .* incline is incline="):
+        Scene(loading="pushed_end", tilt=0.1)
+    with pytest.raises(SceneError, match=r"tilt=0.1 is not a scene key"):
+        Scene(n_sliders=8).replace(tilt=0.1)
+    # a rule between parts: the incline below the friction's max_stable_incline(), atan(mu_d)
+    with pytest.raises(SceneError, match=r"incline=0.5 is out of range: allowed \[0, 0.463647609\]"):
         Scene(friction=Coulomb(mu_d=0.5), loading=PushedEnd(incline=0.5))
 
 
 def test_replace_changes_a_part_by_its_flat_keys_or_whole():
     pushed = Scene(n_sliders=8, loading=PushedEnd(incline=0.2, stiffness=2.0))
-    assert pushed.replace(tilt=0.3).loading == PushedEnd(incline=0.3, stiffness=2.0)
+    assert pushed.replace(incline=0.3).loading == PushedEnd(incline=0.3, stiffness=2.0)
     assert pushed.replace(loading="tilt") == Scene(n_sliders=8)
     assert pushed.replace(loading=Tilt(alpha_max=1.0)).alpha_max == 1.0
     assert pushed.replace(mu_d=0.5).friction == Coulomb(mu_d=0.5)
@@ -62,7 +64,7 @@ def test_replace_changes_a_part_by_its_flat_keys_or_whole():
 
 
 def test_repr_shows_the_parts_that_differ_and_evaluates_back():
-    scene = Scene(n_sliders=8, mu_d=0.5, loading="pushed_end", tilt=0.2)
+    scene = Scene(n_sliders=8, mu_d=0.5, loading="pushed_end", incline=0.2)
     assert repr(scene) == ("Scene(n_sliders=8, friction=Coulomb(mu_d=0.5), "
                            "loading=PushedEnd(incline=0.2))")
     assert eval(repr(scene), vars(sliders)) == scene
@@ -79,7 +81,8 @@ def test_the_kernel_parameters_come_from_the_parts():
 
 
 # ------------------------------------------------ files of the flat layout
-# The scene attribute of a tilt file and of a pushed-end file (the flat keys, in file order).
+# The scene attribute of a tilt file and of a pushed-end file (the flat keys, in file order),
+# as files wrote it while the incline's key was "tilt".
 FLAT_FILES = [
     '{"n_sliders": 400, "xi": 0.001, "spring_length": 10.0, "mu_d": 0.55, "mu_s_mean": 0.6, '
     '"sigma_mu": 0.01, "seed": 1, "ends": "free", "initial_forces": "uniform", "mode": '
@@ -98,8 +101,14 @@ FLAT_FILES = [
 
 @pytest.mark.parametrize("text", FLAT_FILES, ids=["tilt", "pushed_end"])
 def test_flat_scene_attributes_round_trip_byte_for_byte(text):
-    scene = Scene.from_dict(json.loads(text))
-    assert json.dumps(scene.to_dict()) == text
+    """A stored scene with the old key loads; written again it holds ``incline`` in the
+    old key's place, and that text round-trips byte for byte."""
+    scene = Scene.from_stored(json.loads(text))
+    now = text.replace('"tilt": ', '"incline": ')
+    assert json.dumps(scene.to_dict()) == now
+    assert json.dumps(Scene.from_dict(json.loads(now)).to_dict()) == now
+    with pytest.raises(SceneError, match="tilt=.* is not a scene key"):
+        Scene.from_dict(json.loads(text))  # given (not stored), the old key is refused
 
 
 def test_files_written_with_the_flat_layout_load():

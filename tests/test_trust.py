@@ -429,7 +429,7 @@ def test_killed_ensemble_creation_leaves_a_temporary_the_next_run_removes(tmp_pa
 # ---------------------------------------------------------------------------
 def bump_version(path: Path, version: int = 99) -> None:
     """A file written by a future sliders: format_version changed, every checksum valid."""
-    from sliders.io.tilt_file import WHOLE_FILE_MAGIC, seal_whole_file
+    from sliders.io.run_file import WHOLE_FILE_MAGIC, seal_whole_file
 
     with h5py.File(path, "r+") as f:
         f.attrs["format_version"] = version

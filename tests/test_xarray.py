@@ -183,7 +183,7 @@ def every_kind_of_file(d: Path) -> dict[str, Path]:
     for name, scene in (("tilt", sliders.Scene(n_sliders=20, seed=1, mode="explore")),
                         ("tilt_summary", sliders.Scene(n_sliders=20, seed=1, record="summary")),
                         ("pushed_end", sliders.Scene(n_sliders=20, seed=1, loading="pushed_end",
-                                                     tilt=0.2, mode="explore"))):
+                                                     incline=0.2, mode="explore"))):
         files[name] = d / f"{name}.h5"
         sliders.tilt(scene).save(files[name])
     files["ensemble"], files["ensemble_mpio"] = ensemble_file(d, 1), ensemble_file(d, 2)

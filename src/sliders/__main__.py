@@ -62,14 +62,15 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args, scene) -> int:
-    from .driver import tilt
+    from .driver import run
 
     line = None if args.quiet else ProgressLine()
+    drive = "alpha" if scene.loading.drive_is_angle else "drive"
 
     def progress(p):
         if line is not None:
-            line.show(f"tilt N={scene.n_sliders}: alpha={p.alpha:.5f}  events={p.n_events}  "
-                      f"slider-steps={p.slider_steps:.3g}  {p.elapsed:.1f} s")
+            line.show(f"{scene.loading.name} N={scene.n_sliders}: {drive}={p.drive:.5f}  "
+                      f"events={p.n_events}  slider-steps={p.slider_steps:.3g}  {p.elapsed:.1f} s")
 
     received: list[int] = []
 
@@ -80,7 +81,7 @@ def _run(args, scene) -> int:
     # SIGTERM (batch systems, kill) stops the run as Ctrl-C does: finished events are saved
     old = {s: signal.signal(s, interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        result = tilt(scene, backend=args.backend, progress=progress, keep_partial=True)
+        result = run(scene, backend=args.backend, progress=progress, keep_partial=True)
     except ImportError as exc:
         fail(f"backend {args.backend!r} is not available: {exc}")
     finally:

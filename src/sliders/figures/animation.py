@@ -62,10 +62,10 @@ def animate_tilt(scene, out_dir="figures", name: str | None = None, backend: str
                  frames: int = ANIMATION_FRAMES, fps: int = FRAMES_PER_SECOND,
                  dpi: int = GIF_DPI) -> str:
     """Tilt ``scene`` to its end and write ``<out_dir>/<name>.gif``; returns the path."""
-    from ..driver import tilt
+    from ..driver import run
     from ..analysis.observables import valid_limit
 
-    result = tilt(scene, backend=backend)
+    result = run(scene, backend=backend)
     sc = result.scene
     n = sc.n_sliders
     end, _ = valid_limit(result)

@@ -348,7 +348,7 @@ def single_slider_run(initial_force: float | None = 0.45, backend: str = "fortra
     ``initial_force`` None keeps the random preparation of the scene; a value
     sets F_t(0) (the left wall spring at rest, the right one carrying it).
     """
-    from ..driver import tilt
+    from ..driver import run
     from ..preparation import prepare
 
     scene = single_slider_scene(seed=seed, alpha_max=alpha_max)
@@ -360,7 +360,7 @@ def single_slider_run(initial_force: float | None = 0.45, backend: str = "fortra
         state.elastic_force0[:] = f
         state.spring_extension0[:] = [0.0, f]
         state.lattice_position0[:] = 0.0
-    return tilt(scene, backend=backend, state=state)
+    return run(scene, backend=backend, state=state)
 
 
 def fig_single_slider(result=None, backend: str = "fortran", out_dir="figures",
@@ -631,7 +631,7 @@ def fig_cumulated_displacement(data, out_dir="figures", name: str = "cumulated",
                                fit_range=CUMUL_FIT, title_extra: str = ""):
     """(a) A(alpha) on a log scale, (b) <dx> per rearrangement vs alpha (paper Fig. cumul).
 
-    ``data``: an ``EnsembleSummary`` or a list of ``TiltResult`` (then (b)
+    ``data``: an ``EnsembleSummary`` or a list of ``Result`` (then (b)
     also shows every event as a grey dot).  Exponential fits on
     ``fit_range`` (dashed), rates in the legends.
     """
@@ -697,11 +697,11 @@ def scene_setups(paper_size: bool = False, backend: str = "fortran") -> dict[str
 
 
 def run_scene(n_sliders: int, xi: float, seed: int, backend: str = "fortran", **kw):
-    """Tilt one scene of N sliders to the avalanche; ``kw`` are further Scene fields.  Returns the TiltResult."""
-    from ..driver import tilt
+    """Tilt one scene of N sliders to the avalanche; ``kw`` are further Scene fields.  Returns the Result."""
+    from ..driver import run
     from ..scene import Scene
 
-    return tilt(Scene(n_sliders=n_sliders, xi=xi, seed=seed, record="displacements", **kw),
+    return run(Scene(n_sliders=n_sliders, xi=xi, seed=seed, record="displacements", **kw),
                 backend=backend)
 
 

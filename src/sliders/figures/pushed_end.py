@@ -36,9 +36,9 @@ FIGURE_SCENE = Scene(n_sliders=100, seed=2, loading="pushed_end", drive_stiffnes
 
 def pushed_end_run(scene: Scene = FIGURE_SCENE, backend: str = "fortran"):
     """The figure's run."""
-    from ..driver import tilt
+    from ..driver import run
 
-    return tilt(scene, backend=backend)
+    return run(scene, backend=backend)
 
 
 def arrest_positions(result) -> np.ndarray:
@@ -96,7 +96,7 @@ def fig_pushed_end(result, out_dir="figures", name: str = NAME):
         ax_a.set_ylim(0, sc.n_sliders + 1)
         ax_a.legend(loc="upper left", bbox_to_anchor=(0.07, 1.0), fontsize="x-small",
                     frameon=True, framealpha=0.9, edgecolor="none")
-        ax_a.set_title(f"N = {sc.n_sliders}, tilt = {sc.tilt:g}, K = {sc.drive_stiffness:g} k, "
+        ax_a.set_title(f"N = {sc.n_sliders}, incline = {sc.incline:g}, K = {sc.drive_stiffness:g} k, "
                        f"{result.n_events} events")
         panel_label(ax_a, "(a)")
 
@@ -108,13 +108,13 @@ def fig_pushed_end(result, out_dir="figures", name: str = NAME):
             ax_a.plot(drive[k], arrest[k], "o", ms=3.5, color=cmap(norm(drive[k])), zorder=3)
         levels = ((sc.mu_s_mean, r"$\bar\mu_s\cos\alpha$"), (sc.mu_d, r"$\mu_d\cos\alpha$"))
         for (mu, label), above in zip(levels, (True, False)):  # mean threshold, kinetic
-            level = mu * math.cos(sc.tilt)
+            level = mu * math.cos(sc.incline)
             ax_b.axhline(level, ls="--", lw=0.6, color="0.3")
             ax_b.annotate(label, (0.5, level), xycoords=("axes fraction", "data"),
                           xytext=(0, 2 if above else -2), textcoords="offset points",
                           ha="center", va="bottom" if above else "top", fontsize="x-small",
                           color="0.3", bbox=dict(fc="white", ec="none", pad=0.3, alpha=0.9))
-        ax_b.set_ylim(top=sc.mu_s_mean * math.cos(sc.tilt) + 0.15)
+        ax_b.set_ylim(top=sc.mu_s_mean * math.cos(sc.incline) + 0.15)
         ax_b.set_xlabel("slider $n$ (driver at $n = 1$) [1]")
         ax_b.set_ylabel(r"$F_t$ before the slip [$mg$]")
         fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax_b, label=r"$D$ [$g\tau^2$]")

@@ -189,13 +189,13 @@ class Tilt(Loading):
                 and weight > kinetic)
 
 
-@dataclass(frozen=True, repr=False, init=False)
+@dataclass(frozen=True, repr=False)
 class PushedEnd(Loading):
     """The Burridge-Knopoff loading: lambda = D, the position of a driver tied
     by a spring of stiffness K (``stiffness``, units of k) to slider 1.
 
     The incline is fixed at ``incline`` (radians, below atan(mu_d) so that
-    every slip stops; ``tilt=`` is accepted for it): every slider feels
+    every slip stops): every slider feels
     sin(incline) and presses with cos(incline).  Slider 1 (index 0) also
     feels K (D - du_1), which changes during an event as it moves (the
     driver stands still).  Only slider 1's force depends on D, so the next
@@ -203,7 +203,7 @@ class PushedEnd(Loading):
     D = du_1 + (mu_1 cos(incline) - E_1 - sin(incline)) / K.
     The run ends after the first event in which every slider moved (the
     system-spanning slip, the onset of sliding) or beyond ``drive_max``
-    (g tau^2).  Flat scene keys: ``tilt``, ``drive_stiffness``, ``drive_max``.
+    (g tau^2).  Flat scene keys: ``incline``, ``drive_stiffness``, ``drive_max``.
     """
 
     incline: float = 0.0
@@ -212,26 +212,14 @@ class PushedEnd(Loading):
 
     name = "pushed_end"
     code = 1  # sliders_contract: loading_pushed_end
-    flat_keys = {"tilt": "incline", "drive_stiffness": "stiffness", "drive_max": "drive_max"}
+    flat_keys = {"incline": "incline", "drive_stiffness": "stiffness", "drive_max": "drive_max"}
     drive_label = "driver position D"
     drive_unit = "g tau^2"
-
-    def __init__(self, incline: float = 0.0, stiffness: float = 1.0, drive_max: float = 1e9, *,
-                 tilt: float | None = None):
-        if tilt is not None:
-            if incline != 0.0:
-                raise SceneError(f"tilt={tilt!r} and incline={incline!r} name the same fixed "
-                                 "incline: give one")
-            incline = tilt
-        object.__setattr__(self, "incline", incline)
-        object.__setattr__(self, "stiffness", stiffness)
-        object.__setattr__(self, "drive_max", drive_max)
-        self.__post_init__()
 
     def check_own(self) -> None:
         """incline >= 0 (its upper bound, atan(mu_d), is the friction's: ``check``),
         stiffness > 0, drive_max > 0."""
-        check_real("tilt", self.incline, 0.0, None)
+        check_real("incline", self.incline, 0.0, None)
         check_real("drive_stiffness", self.stiffness, 0.0, None, open_low=True)
         check_real("drive_max", self.drive_max, 0.0, None, open_low=True)
 
@@ -239,10 +227,10 @@ class PushedEnd(Loading):
         """The incline below the friction's ``max_stable_incline()`` (atan(mu_d) for
         Coulomb: every slip stops), and no record='forces'."""
         bound = scene.friction.max_stable_incline()
-        check_real("tilt", self.incline, 0.0, bound,
+        check_real("incline", self.incline, 0.0, bound,
                    why="below atan(mu_d), so that every slip of the pushed chain stops")
         if self.incline == bound:
-            raise SceneError(f"tilt={self.incline!r} must be below atan(mu_d)={bound:.10g}"
+            raise SceneError(f"incline={self.incline!r} must be below atan(mu_d)={bound:.10g}"
                              " (at it the pushed chain never stops sliding)")
         if scene.record == "forces":
             raise SceneError("record='forces' rebuilds the forces of the tilt; with "

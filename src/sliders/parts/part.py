@@ -20,7 +20,7 @@ class Part:
 
     * ``name``: the part's name in a scene file (``loading = "pushed_end"``);
     * ``flat_keys``: the flat scene key of each parameter (scene files and the
-      command line hold the flat keys; ``Scene(tilt=0.2, ...)`` builds the part);
+      command line hold the flat keys; ``Scene(incline=0.2, ...)`` builds the part);
     * ``check_own``: the checks of its values alone, on construction;
       ``check(scene)``: the checks against the rest of the scene;
     * ``packed()``: its values in the kernel's packed parameters (by name).

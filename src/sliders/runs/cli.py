@@ -32,7 +32,7 @@ SCENE_OPTIONS = {
     "force_tol": ("tolerance of the stability test of a resting slider", "m g"),
     "avalanche": ("avalanche criterion", ""),
     "loading": ("tilt the incline, or push the first slider at a fixed incline", ""),
-    "tilt": ("pushed_end only: the fixed incline", "angle"),
+    "incline": ("pushed_end only: the fixed incline", "angle"),
     "drive_stiffness": ("pushed_end only: stiffness K of the driver's spring", "units of k"),
     "drive_max": ("pushed_end only: the driver's limit", "g tau^2"),
     "record": ("what each event keeps", ""),

@@ -133,7 +133,7 @@ def _resumed_scene(args, attrs: dict, scene_text) -> Scene:
 
     out = args.out
     try:
-        file_scene = Scene.from_dict(json.loads(attrs["scene"]))
+        file_scene = Scene.from_stored(json.loads(attrs["scene"]))
     except (SceneError, ValueError, KeyError) as exc:
         raise UsageError(f"--resume: {out!r} holds an unreadable scene ({exc})") from None
     try:

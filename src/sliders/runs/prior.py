@@ -482,12 +482,12 @@ def run_with_ceiling(scene, grid: np.ndarray, k: int, backend: str = "fortran", 
     |F_n|`` at each grid angle (NaN at and past the end of the run) and the
     ``TiltResult`` of every piece (the last one has the run's status and
     alpha_c).  ``tilt(scene, backend, progress, state=...)`` runs a piece
-    (default: ``sliders.driver.tilt``).
+    (default: ``sliders.driver.run``).
     """
     from ..io.catalogue import Catalogue
 
     if tilt is None:
-        from ..driver import tilt as plain
+        from ..driver import run as plain
 
         def tilt(sc, be, pr, state=None):
             return plain(sc, be, state=state, progress=pr)

@@ -195,7 +195,7 @@ class StopFlag:
 def tilt_interruptibly(scene, backend: str, progress, **options):
     """``tilt`` with ``StopFlag.computing`` set except inside the progress callback
     (``options``: more of ``tilt``'s keywords, such as ``state``)."""
-    from ..driver import tilt
+    from ..driver import run as tilt
 
     def callback(p):
         StopFlag.computing = False
