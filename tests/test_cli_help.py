@@ -22,7 +22,7 @@ UNITS = {
     "alpha_max": ("rad", "deg"), "incline": ("rad", "deg"), "tilt_now": ("rad", "deg"),
     "dt": ("[tau]",), "refine_tol": ("[tau]",), "max_event_duration": ("[tau]",),
     "spring_length": ("[g tau^2]",), "drive_max": ("[g tau^2]",), "force_tol": ("[m g]",),
-    "xi": ("units of k",), "drive_stiffness": ("units of k",),
+    "xi": ("units of k",), "driver_stiffness": ("units of k",),
     "progress_interval": ("seconds",), "within": ("deg",), "leads_deg": ("deg",),
 }
 # command -> (module, function building its parser, arguments)

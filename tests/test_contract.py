@@ -52,7 +52,8 @@ def test_pack_parameters_takes_the_scene_values():
     ints = dict(zip(contract.INT_PARAMETERS, ints))
     assert ints == {"walls": 1, "seed": 2**31 + 3, "record_sparse": 1, "relax_only": 0,
                     "max_events": 7, "loading": contract.LOADING_CODES["tilt"]}
-    pushed = Scene(n_sliders=5, loading="pushed_end", incline=0.1, drive_stiffness=3.0, drive_max=9.0)
+    pushed = Scene(n_sliders=5, loading="pushed_end", incline=0.1, driver_stiffness=3.0,
+                   drive_max=9.0)
     real, ints = contract.pack_parameters(pushed, 0.5, False, False, 1)
     by_name = dict(zip(contract.REAL_PARAMETERS, real))
     assert (by_name["tilt"], by_name["drive_stiffness"], by_name["drive_max"]) == (0.1, 3.0, 9.0)

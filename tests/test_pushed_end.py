@@ -17,7 +17,7 @@ from sliders.driver import make_engine
 from sliders.parts.checks import SceneError
 from test_backends import assert_bit_for_bit, assert_same_run, libm_reference
 
-PUSHED = Scene(n_sliders=8, seed=5, loading="pushed_end", incline=0.2, drive_stiffness=2.0,
+PUSHED = Scene(n_sliders=8, seed=5, loading="pushed_end", incline=0.2, driver_stiffness=2.0,
                mode="explore", xi=0.001)
 
 
@@ -47,7 +47,7 @@ def test_forces_balance_stability_and_energy_after_every_event(backend):
         drive = after.alpha
         force = load.tangential(elastic_force(after, sc.xi, sc.walls), math.sin(sc.incline), drive,
                                 after.displacement)
-        driver = sc.drive_stiffness * (drive - after.displacement[0])
+        driver = sc.driver_stiffness * (drive - after.displacement[0])
         assert math.isclose(force.sum(), sc.n_sliders * math.sin(sc.incline) + driver,
                             rel_tol=1e-12, abs_tol=1e-11)
         excess = np.abs(force) - after.mu_s * math.cos(sc.incline)
@@ -80,9 +80,9 @@ def test_single_slider_stick_slip_period(backend):
     """N = 1 on the driver's spring K, sigma_mu = 0: released at F = mu_s cos,
     it swings about F = mu_d cos and stops at zero velocity after moving
     2 (mu_s - mu_d) cos / K; the driver then advances by the same amount."""
-    sc = Scene(n_sliders=1, sigma_mu=0.0, loading="pushed_end", incline=0.3, drive_stiffness=4.0,
+    sc = Scene(n_sliders=1, sigma_mu=0.0, loading="pushed_end", incline=0.3, driver_stiffness=4.0,
                initial_forces="zero")
-    expected = 2.0 * (sc.mu_s_mean - sc.mu_d) * math.cos(sc.incline) / sc.drive_stiffness
+    expected = 2.0 * (sc.mu_s_mean - sc.mu_d) * math.cos(sc.incline) / sc.driver_stiffness
     slips, drives = [], []
     for _, before, after, chunk in pushed_events(sc, max_events=6, stop_at_sliding=False,
                                                  backend=backend):
@@ -118,14 +118,14 @@ def test_tilt_scenes_unchanged_by_the_new_keys():
 @pytest.mark.parametrize("values, message", [
     ({"loading": "pulled"}, "loading='pulled' must be one of"),
     ({"loading": "pushed_end", "incline": 0.6}, "incline=0.6 is out of range"),
-    ({"loading": "pushed_end", "drive_stiffness": 0.0}, "drive_stiffness=0.0 is out of range"),
+    ({"loading": "pushed_end", "driver_stiffness": 0.0}, "driver_stiffness=0.0 is out of range"),
     ({"loading": "pushed_end", "drive_max": -1.0}, "drive_max=-1.0 is out of range"),
     ({"incline": 0.1}, "incline=0.1 is a parameter of loading='pushed_end'; with loading='tilt' leave "
                        "it out"),
     # tilt names the loading: the incline's old key is refused, naming its key now
     ({"loading": "pushed_end", "tilt": 0.2}, "tilt=0.2 is not a scene key: the pushed end's fixed "
                                              "incline is incline="),
-    ({"drive_stiffness": 2.0}, "drive_stiffness=2.0 is a parameter of loading='pushed_end'"),
+    ({"driver_stiffness": 2.0}, "driver_stiffness=2.0 is a parameter of loading='pushed_end'"),
     ({"loading": "pushed_end", "alpha_max": 1.0}, "alpha_max=1.0 is a parameter of loading='tilt'"),
     ({"loading": sliders.PushedEnd(incline=0.1), "incline": 0.2},
      "incline=0.2 is a parameter of loading=PushedEnd(incline=0.1): give it there"),
@@ -141,9 +141,9 @@ def test_bad_pushed_end_values_give_one_line_errors(values, message):
 # ------------------------------------------------ Fortran against NumPy
 @pytest.mark.parametrize("scene", [
     PUSHED.replace(xi=0.0),
-    Scene(n_sliders=12, seed=2, loading="pushed_end", incline=0.0, drive_stiffness=0.5,
+    Scene(n_sliders=12, seed=2, loading="pushed_end", incline=0.0, driver_stiffness=0.5,
           ends="walls", dt=0.004, max_events=150),
-    Scene(n_sliders=10, seed=7, loading="pushed_end", incline=0.4, drive_stiffness=0.2,
+    Scene(n_sliders=10, seed=7, loading="pushed_end", incline=0.4, driver_stiffness=0.2,
           dt=0.004),
 ], ids=["free", "walls", "steep_soft_driver"])
 def test_fortran_matches_numpy_bit_for_bit(scene, monkeypatch):
@@ -202,7 +202,7 @@ def test_result_forces_include_the_driver(backend):
     force = result.tangential_force
     du = result.displacement_after()
     drive = result.events["alpha"]
-    driver = sc.drive_stiffness * (drive - du[:, 0])
+    driver = sc.driver_stiffness * (drive - du[:, 0])
     np.testing.assert_allclose(force.sum(axis=1), sc.n_sliders * math.sin(sc.incline) + driver,
                                rtol=1e-12, atol=1e-10)
     assert np.abs(force).max() <= sc.mu_s_mean + 5 * sc.sigma_mu  # stable: no force beyond any mu_s
@@ -210,7 +210,7 @@ def test_result_forces_include_the_driver(backend):
     # K dD, and it is up at a static threshold (every mu_s lies above mu_d)
     at_next = result.force_at(drive[1:] - 1e-9)
     np.testing.assert_array_equal(at_next[:, 1:], force[:-1, 1:])
-    np.testing.assert_allclose(at_next[:, 0], force[:-1, 0] + sc.drive_stiffness
+    np.testing.assert_allclose(at_next[:, 0], force[:-1, 0] + sc.driver_stiffness
                                * (drive[1:] - 1e-9 - drive[:-1]), rtol=0, atol=1e-10)
     assert np.all(at_next[:, 0] > sc.mu_d * math.cos(sc.incline))
 

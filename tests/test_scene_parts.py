@@ -27,10 +27,10 @@ DATA = Path(__file__).resolve().parent / "data"
 # ------------------------------------------------ parts and flat keys
 def test_flat_keywords_build_the_parts():
     assert Scene(mu_d=0.5, sigma_mu=0.0) == Scene(friction=Coulomb(mu_d=0.5, sigma_mu=0.0))
-    pushed = Scene(loading="pushed_end", incline=0.2, drive_stiffness=2.0, drive_max=9.0)
+    pushed = Scene(loading="pushed_end", incline=0.2, driver_stiffness=2.0, drive_max=9.0)
     assert pushed == Scene(loading=PushedEnd(incline=0.2, stiffness=2.0, drive_max=9.0))
     assert Scene(alpha_max=1.0) == Scene(loading=Tilt(alpha_max=1.0))
-    assert (pushed.incline, pushed.drive_stiffness, pushed.mu_d) == (0.2, 2.0, 0.55)
+    assert (pushed.incline, pushed.driver_stiffness, pushed.mu_d) == (0.2, 2.0, 0.55)
     assert not hasattr(pushed, "tilt")  # tilt names the loading, not the incline
     # a part holds no scene: the same part object serves every scene it is given to
     assert not hasattr(pushed.loading, "scene") and not hasattr(pushed.friction, "scene")
@@ -40,7 +40,7 @@ def test_flat_keywords_build_the_parts():
 def test_the_parts_check_their_own_values():
     with pytest.raises(SceneError, match=r"mu_s_mean=0.5 must exceed mu_d=0.5"):
         Coulomb(mu_d=0.5, mu_s_mean=0.5)
-    with pytest.raises(SceneError, match=r"drive_stiffness=0.0 is out of range"):
+    with pytest.raises(SceneError, match=r"driver_stiffness=0.0 is out of range"):
         PushedEnd(stiffness=0.0)
     with pytest.raises(SceneError, match=r"alpha_max=2.0 is out of range"):
         Tilt(alpha_max=2.0)
@@ -48,6 +48,9 @@ def test_the_parts_check_their_own_values():
         Scene(loading="pushed_end", tilt=0.1)
     with pytest.raises(SceneError, match=r"tilt=0.1 is not a scene key"):
         Scene(n_sliders=8).replace(tilt=0.1)
+    with pytest.raises(SceneError, match=r"drive_stiffness=2.0 is not a scene key: .* is "
+                                         r"driver_stiffness= \(drive names the loading's variable\)"):
+        Scene(loading="pushed_end", drive_stiffness=2.0)
     # a rule between parts: the incline below the friction's max_stable_incline(), atan(mu_d)
     with pytest.raises(SceneError, match=r"incline=0.5 is out of range: allowed \[0, 0.463647609\]"):
         Scene(friction=Coulomb(mu_d=0.5), loading=PushedEnd(incline=0.5))
@@ -82,7 +85,7 @@ def test_the_kernel_parameters_come_from_the_parts():
 
 # ------------------------------------------------ files of the flat layout
 # The scene attribute of a tilt file and of a pushed-end file (the flat keys, in file order),
-# as files wrote it while the incline's key was "tilt".
+# as files wrote it while the incline's key was "tilt" and the driver's stiffness "drive_stiffness".
 FLAT_FILES = [
     '{"n_sliders": 400, "xi": 0.001, "spring_length": 10.0, "mu_d": 0.55, "mu_s_mean": 0.6, '
     '"sigma_mu": 0.01, "seed": 1, "ends": "free", "initial_forces": "uniform", "mode": '
@@ -101,10 +104,10 @@ FLAT_FILES = [
 
 @pytest.mark.parametrize("text", FLAT_FILES, ids=["tilt", "pushed_end"])
 def test_flat_scene_attributes_round_trip_byte_for_byte(text):
-    """A stored scene with the old key loads; written again it holds ``incline`` in the
-    old key's place, and that text round-trips byte for byte."""
+    """A stored scene with the old keys loads; written again it holds ``incline`` and
+    ``driver_stiffness`` in their places, and that text round-trips byte for byte."""
     scene = Scene.from_stored(json.loads(text))
-    now = text.replace('"tilt": ', '"incline": ')
+    now = text.replace('"tilt": ', '"incline": ').replace('"drive_stiffness"', '"driver_stiffness"')
     assert json.dumps(scene.to_dict()) == now
     assert json.dumps(Scene.from_dict(json.loads(now)).to_dict()) == now
     with pytest.raises(SceneError, match="tilt=.* is not a scene key"):

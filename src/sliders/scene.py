@@ -160,7 +160,7 @@ class Scene:
         or the Burridge-Knopoff loading: the incline fixed and slider 1
         pushed down the chain by a driver on a spring, the drive the
         driver's position D, g tau^2 (flat keys ``incline``: the fixed incline
-        in [0, atan(mu_d)); ``drive_stiffness``: K, units of k;
+        in [0, atan(mu_d)); ``driver_stiffness``: K, units of k;
         ``drive_max``: the driver's limit).  docs/loadings.md.
     record : {"summary", "displacements", "forces"}
         Per-event scalars only; plus the displacement of every slider that
@@ -173,7 +173,7 @@ class Scene:
     --------
     >>> Scene(n_sliders=400, xi=0.001, seed=1).replace(mode="explore")
     Scene(n_sliders=400, xi=0.001, seed=1, mode='explore')
-    >>> Scene(n_sliders=8, loading="pushed_end", incline=0.2, drive_stiffness=2.0)
+    >>> Scene(n_sliders=8, loading="pushed_end", incline=0.2, driver_stiffness=2.0)
     Scene(n_sliders=8, loading=PushedEnd(incline=0.2, stiffness=2.0))
     """
 
@@ -306,8 +306,8 @@ class Scene:
     incline = _flat_key("incline", "The fixed incline of the pushed end, radians "
                                    "(``PushedEnd.incline``; 0 under the tilt, whose angle is the "
                                    "drive).")
-    drive_stiffness = _flat_key("drive_stiffness",
-                                "K of the pushed end's driver spring (``PushedEnd.stiffness``).")
+    driver_stiffness = _flat_key("driver_stiffness",
+                                 "K of the pushed end's driver spring (``PushedEnd.stiffness``).")
     drive_max = _flat_key("drive_max", "The pushed end's driver limit (``PushedEnd.drive_max``).")
 
     # -- convenience -------------------------------------------------------
@@ -387,7 +387,8 @@ class Scene:
     def from_stored(cls, d: dict[str, Any]) -> "Scene":
         """The scene of a file's stored keys (``to_dict`` when it was written): a key
         since renamed (``RENAMED_KEYS``) is read under its name now."""
-        return cls.from_dict({RENAMED_KEYS.get(k, k): v for k, v in d.items()})
+        return cls.from_dict({RENAMED_KEYS[k][0] if k in RENAMED_KEYS else k: v
+                              for k, v in d.items()})
 
     @classmethod
     def from_toml(cls, path: str | os.PathLike[str]) -> "Scene":
@@ -401,22 +402,26 @@ PARTS = {"friction": (Friction, FRICTIONS, Coulomb), "loading": (Loading, LOADIN
 # The order of the keys in a scene file (keys of parts added later follow, sorted).
 FILE_KEYS = ("n_sliders", "xi", "spring_length", "mu_d", "mu_s_mean", "sigma_mu", "seed", "ends",
              "initial_forces", "mode", "dt", "refine_tol", "max_event_duration", "max_events",
-             "alpha_max", "force_tol", "avalanche", "loading", "incline", "drive_stiffness",
+             "alpha_max", "force_tol", "avalanche", "loading", "incline", "driver_stiffness",
              "drive_max", "record")
 
 
-# Keys that files written earlier hold, by their name now: ``tilt`` names the
-# loading, the pushed end's fixed incline is ``incline``.  Files written with the
-# old key still load (``Scene.from_stored``); a scene given it now is refused.
-RENAMED_KEYS = {"tilt": "incline"}
+# Keys that files written earlier hold: their name now, what it is, and what the
+# old word means instead (``tilt`` names the loading, ``drive`` the loading's
+# variable).  Files written with an old key still load (``Scene.from_stored``); a
+# scene given one now is refused with a line that names the key now.
+RENAMED_KEYS = {
+    "tilt": ("incline", "the pushed end's fixed incline", "tilt names the loading, loading='tilt'"),
+    "drive_stiffness": ("driver_stiffness", "the stiffness of the pushed end's driver spring",
+                        "drive names the loading's variable"),
+}
 
 
 def _refuse_renamed_keys(keys) -> None:
     """Refuse a renamed key, with one line that names its key now."""
-    for old, new in RENAMED_KEYS.items():
+    for old, (new, what, why) in RENAMED_KEYS.items():
         if old in keys:
-            raise SceneError(f"{old}={keys[old]!r} is not a scene key: the pushed end's fixed "
-                             f"incline is {new}= ({old} names the loading, loading='tilt')")
+            raise SceneError(f"{old}={keys[old]!r} is not a scene key: {what} is {new}= ({why})")
 
 
 def _file_order(key: str) -> tuple:

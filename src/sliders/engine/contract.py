@@ -57,8 +57,9 @@ REAL_PARAMETERS = ("xi", "mu_d", "mu_s_mean", "sigma_mu", "dt", "refine_tol",
                    "tilt", "drive_stiffness", "drive_max")
 INT_PARAMETERS = ("walls", "seed", "record_sparse", "relax_only", "max_events", "loading")
 # The packed slots whose kernel name is not the flat key that fills them: the
-# kernel's "tilt" slot (par_tilt) holds the pushed end's fixed incline.
-KERNEL_SLOTS = {"tilt": "incline"}
+# kernel's "tilt" slot (par_tilt) holds the pushed end's fixed incline, its
+# "drive_stiffness" slot the driver spring's stiffness.
+KERNEL_SLOTS = {"tilt": "incline", "drive_stiffness": "driver_stiffness"}
 # The loading protocols' codes in the int parameter "loading" (sliders_contract:
 # loading_tilt, loading_pushed_end), declared by each loading (``Loading.code``).
 LOADING_CODES = {name: cls.code for name, cls in LOADINGS.items()}

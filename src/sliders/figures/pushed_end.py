@@ -30,7 +30,7 @@ from ..scene import Scene  # noqa: E402
 NAME = "pushed_end"
 # A chain long enough for fronts of many lengths (about 37 500 events to the
 # onset of sliding, 5 s on the kernel; the NumPy reference would take hours).
-FIGURE_SCENE = Scene(n_sliders=100, seed=2, loading="pushed_end", drive_stiffness=1.0,
+FIGURE_SCENE = Scene(n_sliders=100, seed=2, loading="pushed_end", driver_stiffness=1.0,
                      mode="explore")
 
 
@@ -96,7 +96,7 @@ def fig_pushed_end(result, out_dir="figures", name: str = NAME):
         ax_a.set_ylim(0, sc.n_sliders + 1)
         ax_a.legend(loc="upper left", bbox_to_anchor=(0.07, 1.0), fontsize="x-small",
                     frameon=True, framealpha=0.9, edgecolor="none")
-        ax_a.set_title(f"N = {sc.n_sliders}, incline = {sc.incline:g}, K = {sc.drive_stiffness:g} k, "
+        ax_a.set_title(f"N = {sc.n_sliders}, incline = {sc.incline:g}, K = {sc.driver_stiffness:g} k, "
                        f"{result.n_events} events")
         panel_label(ax_a, "(a)")
 

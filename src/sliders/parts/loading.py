@@ -203,7 +203,7 @@ class PushedEnd(Loading):
     D = du_1 + (mu_1 cos(incline) - E_1 - sin(incline)) / K.
     The run ends after the first event in which every slider moved (the
     system-spanning slip, the onset of sliding) or beyond ``drive_max``
-    (g tau^2).  Flat scene keys: ``incline``, ``drive_stiffness``, ``drive_max``.
+    (g tau^2).  Flat scene keys: ``incline``, ``driver_stiffness``, ``drive_max``.
     """
 
     incline: float = 0.0
@@ -212,7 +212,7 @@ class PushedEnd(Loading):
 
     name = "pushed_end"
     code = 1  # sliders_contract: loading_pushed_end
-    flat_keys = {"incline": "incline", "drive_stiffness": "stiffness", "drive_max": "drive_max"}
+    flat_keys = {"incline": "incline", "driver_stiffness": "stiffness", "drive_max": "drive_max"}
     drive_label = "driver position D"
     drive_unit = "g tau^2"
 
@@ -220,7 +220,7 @@ class PushedEnd(Loading):
         """incline >= 0 (its upper bound, atan(mu_d), is the friction's: ``check``),
         stiffness > 0, drive_max > 0."""
         check_real("incline", self.incline, 0.0, None)
-        check_real("drive_stiffness", self.stiffness, 0.0, None, open_low=True)
+        check_real("driver_stiffness", self.stiffness, 0.0, None, open_low=True)
         check_real("drive_max", self.drive_max, 0.0, None, open_low=True)
 
     def check(self, scene) -> None:

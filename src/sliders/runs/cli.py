@@ -33,7 +33,7 @@ SCENE_OPTIONS = {
     "avalanche": ("avalanche criterion", ""),
     "loading": ("tilt the incline, or push the first slider at a fixed incline", ""),
     "incline": ("pushed_end only: the fixed incline", "angle"),
-    "drive_stiffness": ("pushed_end only: stiffness K of the driver's spring", "units of k"),
+    "driver_stiffness": ("pushed_end only: stiffness K of the driver's spring", "units of k"),
     "drive_max": ("pushed_end only: the driver's limit", "g tau^2"),
     "record": ("what each event keeps", ""),
 }
