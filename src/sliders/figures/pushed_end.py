@@ -53,7 +53,7 @@ def forces_before(result, events: np.ndarray) -> np.ndarray:
     (at the drive it starts at), rebuilt from the recorded displacements."""
     before = np.vstack([result.initial.displacement[None, :], result.displacement_after()[:-1]])
     sc = result.scene
-    return sc.loading.forces(result.initial, sc.xi, sc.walls, result.events["alpha"][events],
+    return sc.loading.forces(result.initial, sc.xi, sc.walls, result.drive[events],
                              before[events])
 
 
@@ -78,7 +78,7 @@ def fig_pushed_end(result, out_dir="figures", name: str = NAME):
     sc = result.scene
     if not isinstance(sc.loading, PushedEnd):
         raise ValueError(f"fig_pushed_end needs a run of loading='pushed_end', not {sc.loading.name!r}")
-    drive = result.events["alpha"]
+    drive = result.drive
     arrest = arrest_positions(result)
     growing = record_fronts(arrest)
     shown = profile_events(arrest, sc.n_sliders)
@@ -106,7 +106,8 @@ def fig_pushed_end(result, out_dir="figures", name: str = NAME):
         for row, k in enumerate(shown):
             ax_b.plot(position, profiles[row], lw=0.7, color=cmap(norm(drive[k])))
             ax_a.plot(drive[k], arrest[k], "o", ms=3.5, color=cmap(norm(drive[k])), zorder=3)
-        levels = ((sc.mu_s_mean, r"$\bar\mu_s\cos\alpha$"), (sc.mu_d, r"$\mu_d\cos\alpha$"))
+        levels = ((sc.mu_s_mean, r"$\bar\mu_s\cos(\mathrm{incline})$"),
+                  (sc.mu_d, r"$\mu_d\cos(\mathrm{incline})$"))
         for (mu, label), above in zip(levels, (True, False)):  # mean threshold, kinetic
             level = mu * math.cos(sc.incline)
             ax_b.axhline(level, ls="--", lw=0.6, color="0.3")
