@@ -29,7 +29,8 @@ import numpy as np
 
 from sliders.analysis.forecast.registry import fit_methods
 from sliders.io.catalogue import Catalogue, CatalogueSet
-from sliders.runs.prior import compute_prior_row, load_prior
+from sliders.runs.prior import compute_prior_row
+from sliders.runs.prior_spec import load_prior
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 

@@ -20,7 +20,8 @@ import time
 import numpy as np
 
 from sliders.driver import run
-from sliders.runs.prior import compute_prior_row, load_prior
+from sliders.runs.prior import compute_prior_row
+from sliders.runs.prior_spec import load_prior
 
 
 def measure(prior, rows, mode):

@@ -17,7 +17,8 @@
 !>     unstable_sliders (here): the stability check at the current drive,
 !>     else next_drive (here): the drive of the next event, from
 !>       sliders_next_angle (coupled_next for xi > 0, else the min-tree
-!>       tree_next; the pushed end: sliders_loading's pushed_next);
+!>       tree_next), unless the loading gives it in closed form
+!>       (sliders_loading's loading_next_drive: the pushed end);
 !>     run_event (here): one rearrangement at fixed drive, begin_event then
 !>       the steps:
 !>       sliders_active_set (the moving sliders and their neighbours as runs
@@ -71,8 +72,7 @@ module sliders_events
                               ev_dissipation, ev_n_moved, ev_n_stops, ev_n_steps, ev_slider_steps
   use sliders_friction, only: static_threshold, kinetic_force, draw_at_stop
   use sliders_loading, only: drive_terms, loading_work, loading_runaway, beyond_limit, &
-                             spanning_ends_run, pushed_next, roots_from
-  use sliders_contract, only: loading_pushed_end
+                             spanning_ends_run, loading_next_drive, roots_from
   use sliders_workspace, only: tilt_params, workspace, event_record, allocate_workspace, &
                                unpack_params, interrupt_check_steps, detail_none, &
                                detail_resting, detail_state
@@ -282,9 +282,10 @@ contains
   end subroutine unstable_sliders
 
   !> The drive `angle` at which the next event starts from a stable chain at
-  !> alpha, and its n_trig triggers in ws%slist / ws%sdir: the pushed end's
-  !> slider 1 (only it feels the driver), the coupled chain's bounded search,
-  !> or the min-tree of the instability angles.
+  !> alpha, and its n_trig triggers in ws%slist / ws%sdir: the loading's own,
+  !> in closed form (sliders_loading, loading_next_drive: the pushed end's
+  !> slider 1, the only one that feels the driver), else the smallest
+  !> instability angle: the coupled chain's bounded search, or the min-tree.
   subroutine next_drive(p, ws, mu, du, alpha, angle, n_trig)
     type(tilt_params), intent(in) :: p
     type(workspace), intent(inout) :: ws
@@ -293,12 +294,12 @@ contains
     real(dp), intent(in) :: alpha
     real(dp), intent(out) :: angle
     integer(ip), intent(out) :: n_trig
+    logical :: closed_form
 
-    if (p%loading%protocol == loading_pushed_end) then
-      angle = pushed_next(p%loading, ws%elastic(1), mu(1), du(1), alpha, p%force_tol)
+    call loading_next_drive(p%loading, ws%elastic(1), mu(1), du(1), alpha, p%force_tol, &
+                            closed_form, angle, ws%slist(1), ws%sdir(1))
+    if (closed_form) then
       n_trig = 1
-      ws%slist(1) = 1
-      ws%sdir(1) = 1.0_dp
     else if (p%chain%xi /= 0.0_dp) then
       call coupled_next(ws, p%chain%n, alpha, angle, n_trig)
     else
@@ -378,7 +379,7 @@ contains
     logical :: crossed, resolved, draws_ok
 
     call drive_terms(p%loading, alpha, sin_a, cos_a)
-    friction = kinetic_force(p%mu_d, cos_a)
+    friction = kinetic_force(p%friction, cos_a)
     sum0 = ws%sum_du
     mean0 = sum0/real(p%chain%n, dp)
     call begin_event(p, ws, mu, sin_a, cos_a, friction, n_trig)
@@ -549,8 +550,7 @@ contains
         ws%stops_start(i) = n_stops(i)
       end if
       n_stops(i) = n_stops(i) + 1
-      ws%mu_new(k) = draw_at_stop(p%seed, int(i - 1, i8), n_stops(i), &
-                                  p%mu_s_mean, p%sigma_mu, p%mu_d, draw_status)
+      ws%mu_new(k) = draw_at_stop(p%friction, p%seed, int(i - 1, i8), n_stops(i), draw_status)
       if (draw_status /= 0) draws_ok = .false.
     end do
     if (.not. draws_ok) return

@@ -12,19 +12,26 @@
 !>   threshold crossing, in closed form (pushed_next).  The run ends after
 !>   the first event in which every slider moved, the onset of sliding.
 !>
-!> The event integrator (sliders_events) asks this module for the drive's
-!> terms once per event and (with sliders_next_angle) for the next critical
-!> drive between events; nothing here runs per integration step.
+!> Every branch on the protocol is here: the kernel reads the loading from
+!> the packed parameters (unpack_loading, with the driver it ties to the
+!> chain: driver_stiffness), and the event integrator (sliders_events) asks
+!> this module for the drive's terms once per event, for the next critical
+!> drive between events (loading_next_drive; the tilt's is the smallest
+!> instability angle, which sliders_next_angle finds from the roots below),
+!> for the loading's work and for the run's end; nothing here runs per
+!> integration step.
 module sliders_loading
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_positive_inf
-  use sliders_kinds, only: dp, ip
-  use sliders_contract, only: loading_tilt, loading_pushed_end
+  use sliders_kinds, only: dp, ip, i8
+  use sliders_contract, only: loading_tilt, loading_pushed_end, par_loading, par_tilt, &
+                              par_drive_stiffness, par_alpha_max, par_drive_max
   implicit none
   private
 
   public :: loading_params
+  public :: unpack_loading, driver_stiffness
   public :: drive_terms, loading_work, loading_runaway, beyond_limit, spanning_ends_run
-  public :: pushed_next
+  public :: loading_next_drive
   public :: tilt_root_cache, instability_roots, roots_from, root_lower_bounds
   public :: tie_tol
 
@@ -44,6 +51,58 @@ module sliders_loading
   real(dp), parameter :: bound_slack = 1.0e-12_dp
 
 contains
+
+  ! ----------------------------------------------------------- the protocol
+
+  !> The loading of a kernel call from its packed parameters (positions:
+  !> sliders_contract): the protocol and its values; its limit is the tilt's
+  !> alpha_max, or the pushed end's drive_max.
+  pure function unpack_loading(real_params, int_params) result(load)
+    real(dp), intent(in) :: real_params(:)
+    integer(i8), intent(in) :: int_params(:)
+    type(loading_params) :: load
+
+    load%protocol = int(int_params(par_loading), ip)
+    load%tilt = real_params(par_tilt)
+    load%stiffness = real_params(par_drive_stiffness)
+    load%limit = real_params(par_alpha_max)
+    if (load%protocol == loading_pushed_end) load%limit = real_params(par_drive_max)
+  end function unpack_loading
+
+  !> Stiffness of the spring by which the loading ties slider 1 to a driver
+  !> (sliders_chain's driver_stiffness): the pushed end's K; 0 (no driver)
+  !> for the tilt.
+  pure function driver_stiffness(load) result(stiffness)
+    type(loading_params), intent(in) :: load
+    real(dp) :: stiffness
+
+    stiffness = 0.0_dp
+    if (load%protocol == loading_pushed_end) stiffness = load%stiffness
+  end function driver_stiffness
+
+  !> The next critical drive >= drive when the loading gives it in closed
+  !> form (closed_form true): the pushed end's, where slider 1 (the only one
+  !> that feels the driver) starts downwards (pushed_next), with that
+  !> trigger and direction.  The tilt's (closed_form false) is the smallest
+  !> instability angle of the resting sliders, which the caller finds from
+  !> their roots (sliders_next_angle); critical, trigger and direction are
+  !> then not set.
+  pure subroutine loading_next_drive(load, elastic1, mu1, du1, drive, force_tol, &
+                                     closed_form, critical, trigger, direction)
+    type(loading_params), intent(in) :: load
+    real(dp), intent(in) :: elastic1, mu1, du1, drive, force_tol
+    logical, intent(out) :: closed_form
+    real(dp), intent(inout) :: critical
+    integer(ip), intent(inout) :: trigger
+    real(dp), intent(inout) :: direction
+
+    closed_form = load%protocol == loading_pushed_end
+    if (closed_form) then
+      critical = pushed_next(load, elastic1, mu1, du1, drive, force_tol)
+      trigger = 1
+      direction = 1.0_dp
+    end if
+  end subroutine loading_next_drive
 
   ! ------------------------------------------------------- the drive's terms
 

@@ -3,9 +3,9 @@
 !>
 !> In the event loop (sliders_events, tilt_run) this is asked when no slider
 !> is beyond its threshold at the current drive; run_event then starts the
-!> triggers it returns (ws%slist, directions in ws%sdir).  The pushed end
-!> asks sliders_loading's pushed_next instead (only slider 1 feels the
-!> driver).
+!> triggers it returns (ws%slist, directions in ws%sdir).  A loading whose
+!> next drive is in closed form (the pushed end: only slider 1 feels the
+!> driver) gives it instead (sliders_loading's loading_next_drive).
 !>
 !> The instability angle of every slider is cached (ws%root_down,
 !> ws%root_up).  With xi = 0 only the involved sliders of the last event

@@ -11,12 +11,11 @@ module sliders_workspace
   use sliders_kinds, only: dp, ip, i8
   use sliders_status, only: status_running
   use sliders_chain, only: chain_params
-  use sliders_loading, only: loading_params
-  use sliders_contract, only: par_xi, par_mu_d, par_mu_s_mean, par_sigma_mu, par_dt, &
-                              par_refine_tol, par_max_event_duration, par_alpha_max, &
+  use sliders_loading, only: loading_params, unpack_loading, driver_stiffness
+  use sliders_friction, only: coulomb_friction, unpack_friction
+  use sliders_contract, only: par_xi, par_dt, par_refine_tol, par_max_event_duration, &
                               par_force_tol, par_walls, par_seed, par_record_sparse, &
-                              par_relax_only, par_max_events, par_tilt, par_drive_stiffness, &
-                              par_drive_max, par_loading, loading_pushed_end
+                              par_relax_only, par_max_events
   implicit none
   private
 
@@ -37,9 +36,7 @@ module sliders_workspace
   type :: tilt_params
     type(chain_params) :: chain
     type(loading_params) :: loading   !< the drive lambda ("alpha" here) and its end
-    real(dp) :: mu_d
-    real(dp) :: mu_s_mean
-    real(dp) :: sigma_mu
+    type(coulomb_friction) :: friction   !< the friction law's parameters
     integer(i8) :: seed
     real(dp) :: dt
     real(dp) :: refine_tol
@@ -119,9 +116,9 @@ module sliders_workspace
 contains
 
   !> The parameters of a chain of n sliders from the packed arrays of a
-  !> kernel call (positions: sliders_contract).  The loading's limit is the
-  !> tilt's alpha_max, or the pushed end's drive_max, whose driver is a
-  !> spring on slider 1.
+  !> kernel call (positions: sliders_contract); the friction law and the
+  !> loading read their own (sliders_friction, sliders_loading), and the
+  !> loading says which driver it ties to the chain.
   function unpack_params(n, real_params, int_params) result(p)
     integer(ip), intent(in) :: n
     real(dp), intent(in) :: real_params(:)
@@ -131,21 +128,13 @@ contains
     p%chain%n = n
     p%chain%walls = int_params(par_walls) /= 0
     p%chain%xi = real_params(par_xi)
-    p%mu_d = real_params(par_mu_d)
-    p%mu_s_mean = real_params(par_mu_s_mean)
-    p%sigma_mu = real_params(par_sigma_mu)
+    p%friction = unpack_friction(real_params)
     p%seed = int_params(par_seed)
     p%dt = real_params(par_dt)
     p%refine_tol = real_params(par_refine_tol)
     p%max_event_duration = real_params(par_max_event_duration)
-    p%loading%protocol = int(int_params(par_loading), ip)
-    p%loading%tilt = real_params(par_tilt)
-    p%loading%stiffness = real_params(par_drive_stiffness)
-    p%loading%limit = real_params(par_alpha_max)
-    if (p%loading%protocol == loading_pushed_end) then
-      p%loading%limit = real_params(par_drive_max)
-      p%chain%driver_stiffness = p%loading%stiffness
-    end if
+    p%loading = unpack_loading(real_params, int_params)
+    p%chain%driver_stiffness = driver_stiffness(p%loading)
     p%force_tol = real_params(par_force_tol)
     p%record_sparse = int_params(par_record_sparse) /= 0
     p%relax_only = int_params(par_relax_only) /= 0

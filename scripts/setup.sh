@@ -2,11 +2,14 @@
 # One idempotent set-up of sliders; fast (seconds) once it has run before.
 #
 #   bash scripts/setup.sh                 set up only
-#   bash scripts/setup.sh test [ARGS...]  set up, then python -m pytest -q ARGS (docs build included)
+#   bash scripts/setup.sh test [ARGS...]  set up, then the whole suite on both cores (docs build included)
+#   bash scripts/setup.sh fast [ARGS...]  set up, then the fast loop: pytest -m "not slow" (about a minute)
 #   bash scripts/setup.sh run  [ARGS...]  set up, then the main job below
 #
-# Steps: Debian packages (+ SLURM for `test`) -> .venv -> Python deps -> mpi4py/h5py against MPICH
-# (wheels built once, kept in $SLIDERS_WHEEL_CACHE) -> editable install.
+# Steps: Debian packages (+ SLURM for `test`) -> .venv -> Python deps -> mpi4py (PyPI's binary
+# wheel, on MPICH's ABI) and h5py against parallel HDF5 (built once, kept in $SLIDERS_WHEEL_CACHE)
+# -> editable install.  Tests run in SLIDERS_TEST_WORKERS processes (pytest-xdist; default: the
+# number of cores), and tests that need both cores (mpirun -n 2, SLURM) run alone (tests/conftest.py).
 set -euo pipefail
 
 # ---- the main job of `setup.sh run` (the lead changes this) -----------------
@@ -23,7 +26,8 @@ APT_PACKAGES=(gfortran mpich libmpich-dev libhdf5-mpich-dev pkg-config)
 # documentation with warnings as errors; sybil: tests/test_docs_commands.py runs every page's commands
 PY_DEPS=(meson-python meson ninja numpy scipy pytest matplotlib xarray h5netcdf sphinx numpydoc myst-nb ipykernel
          scikit-learn skops crepes  # the learned forecasters: scikit-learn, skops (their model
-         sybil)                     # files, read as data), crepes (their conformal calibration)
+         sybil pytest-xdist)        # files, read as data), crepes (their conformal calibration);
+                                    # pytest-xdist: the suite on every core
 H5PY_BUILD_DEPS=(cython pkgconfig "setuptools>=77")
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -40,7 +44,7 @@ step_done() {  # step_done "what happened"
   T_STEP=$SECONDS
 }
 
-case "${1:-}" in ""|test|run) ;; *) die "unknown command '$1' (use: test, run, or nothing)" ;; esac
+case "${1:-}" in ""|test|fast|run) ;; *) die "unknown command '$1' (use: test, fast, run, or nothing)" ;; esac
 
 # ---- a. Debian packages (apt only when one is missing) ----------------------
 missing=()
@@ -82,31 +86,69 @@ PY=$VENV/bin/python
 pip() { "$PY" -m pip "$@" 2> >(grep -v "^WARNING: Location 'file:" >&2); }
 
 # ---- c. Python deps (pip's own cache keeps the downloads) ---------------------
-pip install -q "${PY_DEPS[@]}"
-step_done "pip: ${PY_DEPS[*]}"
+deps_stamp=$VENV/.sliders-deps-stamp
+deps_key=$(printf '%s\n' "${PY_DEPS[@]}" | sha256sum | cut -c1-16)
+if [ "$(cat "$deps_stamp" 2>/dev/null)" = "$deps_key" ]; then
+  step_done "pip: the same ${#PY_DEPS[@]} packages as last time, present"
+else
+  pip install -q "${PY_DEPS[@]}"
+  echo "$deps_key" > "$deps_stamp"
+  step_done "pip: ${PY_DEPS[*]}"
+fi
 
-# ---- d. MPI stack against Debian's MPICH (-O1: the default flags take 15+ min), wheels cached
-mpi_ok() { "$PY" -c 'from mpi4py import MPI; import h5py; assert h5py.get_config().mpi' 2>/dev/null; }
+# ---- d. MPI stack against Debian's MPICH, h5py's wheel cached ------------------
+# mpi4py: PyPI's binary wheel, which runs against the machine's MPICH through MPICH's ABI: it
+# loads libmpi.so.12.  Debian bookworm's libmpich12 names that library libmpich.so.12 only
+# (trixie's names it both ways), so the ABI's name is added beside it once.  Where that cannot
+# be done (no root), mpi4py is built from source against MPICH (-O1: the default flags take
+# 15+ min).  h5py: PyPI has no wheel with parallel HDF5, so it is built once, against
+# libhdf5-mpich, and kept in $WHEELS; concurrent set-ups wait for one build (flock).
+LIBDIR=/usr/lib/$(gcc -print-multiarch 2>/dev/null || echo x86_64-linux-gnu)
+mpi4py_ok() { "$PY" -c 'from mpi4py import MPI; MPI.Get_library_version()' 2>/dev/null; }
+h5py_ok() { "$PY" -c 'import h5py; assert h5py.get_config().mpi' 2>/dev/null; }
 cached() { pip install -q --no-index --no-deps --find-links "$WHEELS" "$1" 2>/dev/null; }
-if mpi_ok; then
-  step_done "mpi4py + h5py(mpi): already installed"
+if mpi4py_ok; then
+  step_done "mpi4py: already installed"
+else
+  if [ ! -e "$LIBDIR/libmpi.so.12" ] && [ -e "$LIBDIR/libmpich.so.12" ]; then
+    SUDO=(); [ "$(id -u)" -eq 0 ] || SUDO=(sudo -n)
+    "${SUDO[@]}" ln -s libmpich.so.12 "$LIBDIR/libmpi.so.12" 2>/dev/null \
+      && { "${SUDO[@]}" ldconfig 2>/dev/null || true; }
+  fi
+  pip install -q --only-binary=mpi4py mpi4py
+  if mpi4py_ok; then
+    step_done "mpi4py: PyPI's binary wheel (MPICH ABI, $LIBDIR/libmpi.so.12)"
+  else
+    mkdir -p "$WHEELS"
+    exec 9>"$WHEELS/.lock"; flock 9
+    if cached mpi4py && mpi4py_ok; then
+      step_done "mpi4py: built against MPICH, from the cache $WHEELS"
+    else
+      echo "setup.sh: no libmpi.so.12 (MPICH's ABI name): building mpi4py against MPICH (about 1.5 min)"
+      CFLAGS="-O1 -g0" pip wheel -q --no-deps --no-binary=mpi4py -w "$WHEELS" mpi4py
+      cached mpi4py && mpi4py_ok || die "mpi4py wheel built but does not load MPICH"
+      step_done "mpi4py: built against MPICH into $WHEELS"
+    fi
+    exec 9>&-
+  fi
+fi
+if h5py_ok; then
+  step_done "h5py(mpi): already installed"
 else
   mkdir -p "$WHEELS"
-  if ! cached mpi4py; then
-    echo "setup.sh: building mpi4py wheel against MPICH (about 1.5 min) into $WHEELS"
-    CFLAGS="-O1 -g0" pip wheel -q --no-deps --no-binary=mpi4py -w "$WHEELS" mpi4py
-    cached mpi4py || die "mpi4py wheel built but does not install"
-  fi
-  if ! cached h5py; then
-    echo "setup.sh: building h5py wheel with parallel HDF5 (about 1 min) into $WHEELS"
+  exec 9>"$WHEELS/.lock"; flock 9   # a second set-up waits here for the first one's build
+  if cached h5py && h5py_ok; then
+    step_done "h5py(mpi): from the cache $WHEELS"
+  else
+    echo "setup.sh: building h5py with parallel HDF5 (about 1 min, once) into $WHEELS"
     pip install -q "${H5PY_BUILD_DEPS[@]}"
     HDF5_MPI=ON HDF5_PKGCONFIG_NAME=hdf5-mpich CC=mpicc CFLAGS="-O1 -g0" \
       pip wheel -q --no-deps --no-binary=h5py --no-build-isolation -w "$WHEELS" h5py
     cached h5py || die "h5py wheel built but does not install"
+    h5py_ok || die "h5py lacks MPI support"
+    step_done "h5py(mpi): built against parallel HDF5 into $WHEELS"
   fi
-  "$PY" -c 'from mpi4py import MPI' || die "mpi4py does not load MPICH"
-  "$PY" -c 'import h5py; assert h5py.get_config().mpi' || die "h5py lacks MPI support"
-  step_done "mpi4py + h5py(mpi): installed from $WHEELS"
+  exec 9>&-
 fi
 
 # ---- e. the package itself, editable ------------------------------------------
@@ -135,6 +177,7 @@ printf '%s' "$SUMMARY"
 # ---- what to do after set-up ----------------------------------------------------
 case "${1:-}" in
   "") ;;
-  test) shift; exec "$PY" -m pytest -q "$@" ;;
+  test) shift; exec "$PY" -m pytest -q -n "${SLIDERS_TEST_WORKERS:-$(nproc)}" --dist loadgroup "$@" ;;
+  fast) shift; exec "$PY" -m pytest -q -n "${SLIDERS_TEST_WORKERS:-$(nproc)}" --dist loadgroup -m "not slow" "$@" ;;
   run) shift; main_job "$@" ;;
 esac

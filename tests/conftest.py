@@ -1,5 +1,11 @@
-"""Shared fixtures: both backends, a cache so that a scene runs once per session, and the
-one SLURM cluster of a test session.
+"""Shared fixtures: both backends, a cache so that a scene runs once per session, the one SLURM
+cluster of a test session, and the machine's cores shared between pytest-xdist workers.
+
+Cores.  Under ``pytest -n N`` every test holds one core slot while it runs (setup, call and
+teardown, so module fixtures count too); a test marked ``two_cores`` (it starts ``mpirun -n 2``,
+a SLURM job or a second busy process) holds them all, so it never runs beside another test and
+the machine is never oversubscribed.  A waiting ``two_cores`` test holds a turnstile that keeps
+new tests from starting, so it is not starved.  Without xdist nothing is locked.
 
 ``slurm`` starts munged, slurmctld and slurmd for one node on localhost
 (``scripts/slurm_local.sh start``, in a private directory with its own munge
@@ -11,6 +17,7 @@ it.  It skips only when SLURM cannot be started, saying why.
 
 from __future__ import annotations
 
+import fcntl
 import functools
 import os
 import re
@@ -30,6 +37,96 @@ SLURM_LOCAL = ROOT / "scripts" / "slurm_local.sh"
 SLURM_DAEMONS = ("munged", "slurmctld", "slurmd")
 
 BACKENDS = ("fortran", "numpy")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "two_cores: the test keeps both cores busy (mpirun -n 2, "
+                                       "SLURM, a second process); under xdist it runs alone")
+    config.addinivalue_line("markers", "slow: left out of the fast loop (pytest -m 'not slow')")
+
+
+# words of a command line that start ranks or jobs: a test running one needs both cores
+LAUNCHERS = {"mpirun", "mpiexec", "sbatch", "srun", "salloc"}
+
+
+def starts_ranks(args) -> bool:
+    """Whether a subprocess's command line launches MPI ranks or a SLURM job (also inside a
+    ``bash -c`` script, or as one of the job scripts of mpi_runs/)."""
+    argv = [args] if isinstance(args, (str, bytes, os.PathLike)) else list(args)
+    words = re.split(r"[\s;&|()'\"]+", " ".join(os.fsdecode(a) for a in argv))
+    return any(Path(w).name in LAUNCHERS or ("mpi_runs/" in w and w.endswith(".sh"))
+               for w in words)
+
+
+class CoreSlots:
+    """One xdist worker's share of the cores: shared while a test runs, all of them from the
+    moment it starts ranks or a job (or from its start, if marked ``two_cores``) to its end.
+
+    A change of hold drops the old one first, then waits at the turnstile, so two workers that
+    both upgrade never wait on each other, and a worker waiting for all cores keeps new tests
+    from taking one (no starvation)."""
+
+    def __init__(self, directory: Path):
+        directory.mkdir(exist_ok=True)
+        self.turnstile = open(directory / "turnstile", "a")
+        self.cores = open(directory / "cores", "a")
+        self.held = None
+
+    def hold(self, mode: int) -> None:
+        if self.held == mode or self.held == fcntl.LOCK_EX:
+            return
+        if self.held is not None:
+            fcntl.flock(self.cores, fcntl.LOCK_UN)
+        fcntl.flock(self.turnstile, fcntl.LOCK_EX)
+        try:
+            fcntl.flock(self.cores, mode)
+            self.held = mode
+        finally:
+            fcntl.flock(self.turnstile, fcntl.LOCK_UN)
+
+    def release(self) -> None:
+        fcntl.flock(self.cores, fcntl.LOCK_UN)
+        self.held = None
+
+
+def pytest_sessionstart(session):
+    worker = getattr(session.config, "workerinput", None)
+    if worker is None:  # not under xdist: nothing to share
+        return
+    slots = CoreSlots(Path(tempfile.gettempdir(), f"sliders-test-cores-{worker['testrunuid']}"))
+    session.config.stash[CORE_SLOTS] = slots
+    execute = subprocess.Popen._execute_child
+
+    def execute_holding_cores(self, args, *rest, **kw):
+        if slots.held is not None and starts_ranks(args):
+            slots.hold(fcntl.LOCK_EX)
+        return execute(self, args, *rest, **kw)
+
+    subprocess.Popen._execute_child = execute_holding_cores
+
+
+CORE_SLOTS = pytest.StashKey[CoreSlots]()
+
+
+def pytest_collection_modifyitems(config, items):
+    """The tests of the SLURM cluster go to one worker, which starts the session's one cluster."""
+    for item in items:
+        page = getattr(item, "callspec", None) and item.callspec.params.get("page")
+        if "slurm" in item.fixturenames or (page and "sbatch" in Path(page).read_text()):
+            item.add_marker(pytest.mark.xdist_group("slurm"))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    slots = item.config.stash.get(CORE_SLOTS, None)
+    if slots is None:
+        yield
+        return
+    slots.hold(fcntl.LOCK_EX if item.get_closest_marker("two_cores") else fcntl.LOCK_SH)
+    try:
+        yield
+    finally:
+        slots.release()
 
 
 @functools.lru_cache(maxsize=None)

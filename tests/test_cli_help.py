@@ -32,8 +32,8 @@ COMMANDS = {
     "prior": ("sliders.runs.prior", "build_parser"),
     "merge": ("sliders.runs.merge", "build_parser"),
     "tilt": ("sliders.__main__", "build_parser"),
-    "reproduction": ("sliders.analysis.reproduction", "build_parser"),
-    "forecast": ("sliders.runs.forecast", "build_parser"),
+    "reproduction": ("sliders.runs.reproduction", "build_parser"),
+    "forecast": ("sliders.runs.forecast.cli", "build_parser"),
     "figures": ("sliders.figures.paper", "build_parser"),
 }
 

@@ -64,7 +64,7 @@ def test_matches_the_dense_map_of_a_real_run():
 def test_onset_of_a_region_spanning_half_the_chain():
     """The reproduction's onset: from the first bin where the end region spans >= half of N
     in every later bin with events, the avalanche's own bin excluded."""
-    from sliders.analysis.reproduction import extremity_profile
+    from sliders.analysis.precursors import extremity_profile
 
     n = 8
     events = [(0.11, {0: 0.1}),  # small activity at the up-slope end

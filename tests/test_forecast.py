@@ -141,7 +141,7 @@ def test_probability_within_and_crps():
 
 
 def test_paper_rule_and_model_based_on_simulated_runs():
-    from sliders.runs.forecast import dev_catalogue_set
+    from sliders.runs.forecast.dev import dev_catalogue_set
 
     prior = {"mu_d": ("uniform", (0.4, 0.6)), "mu_s_minus_mu_d": ("loguniform", (0.03, 0.08)),
              "sigma_mu": ("uniform", (0.005, 0.02)), "xi": ("point", 0.0),

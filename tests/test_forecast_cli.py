@@ -13,10 +13,12 @@ import pytest
 
 from sliders.analysis.forecast import LEVELS
 from sliders.analysis.forecast import evaluation as ev
-from sliders.analysis.forecast.registry import METHODS
 from sliders.analysis.forecast.learned import Learned
+from sliders.analysis.forecast.registry import METHODS, method_of
+from sliders.io.forecast_files import ForecastInputError, read_catalogue_csv
 from sliders.io.forecast_model import ModelFileError, load_forecasters, save_forecasters
-from sliders.runs import forecast as rf
+from sliders.runs.forecast import cli
+from sliders.runs.forecast.evaluate import MODEL_NAME
 
 from test_forecast import synthetic_set
 
@@ -45,20 +47,20 @@ GOOD = "angle [deg],size,displacement\n1.0,1,0.01\n2.5,3,0.05\n4.0,2,0.02\n"
     ("# a comment line\nangle [deg],size\n\n1,1\n2,y\n", "row 5, column 'size'"),
 ])
 def test_bad_catalogues_get_one_line_naming_row_and_column(tmp_path, text, message):
-    with pytest.raises(rf.ForecastInputError, match=message):
-        rf.read_catalogue_csv(write(tmp_path, text))
+    with pytest.raises(ForecastInputError, match=message):
+        read_catalogue_csv(write(tmp_path, text))
 
 
 def test_catalogue_units_and_tilt_now(tmp_path):
-    cat = rf.read_catalogue_csv(write(tmp_path, GOOD), tilt_now_text="5deg")
+    cat = read_catalogue_csv(write(tmp_path, GOOD), tilt_now_text="5deg")
     assert np.allclose(cat.alpha, np.radians([1.0, 2.5, 4.0]))
     assert math.isclose(cat.tilt_now, math.radians(5.0))
-    rad = rf.read_catalogue_csv(write(tmp_path, "angle [rad],size\n0.1,1\n0.2,1\n"))
+    rad = read_catalogue_csv(write(tmp_path, "angle [rad],size\n0.1,1\n0.2,1\n"))
     assert rad.tilt_now == 0.2 and np.all(rad.first == -1)
-    with pytest.raises(rf.ForecastInputError, match="below the last event"):
-        rf.read_catalogue_csv(write(tmp_path, GOOD), tilt_now_text="3deg")
-    with pytest.raises(rf.ForecastInputError, match="not understood"):
-        rf.read_catalogue_csv(write(tmp_path, GOOD), tilt_now_text="five")
+    with pytest.raises(ForecastInputError, match="below the last event"):
+        read_catalogue_csv(write(tmp_path, GOOD), tilt_now_text="3deg")
+    with pytest.raises(ForecastInputError, match="not understood"):
+        read_catalogue_csv(write(tmp_path, GOOD), tilt_now_text="five")
 
 
 def test_predict_command_prints_the_forecast_and_json(tmp_path):
@@ -160,7 +162,7 @@ def test_alarm_sequences_and_roc():
 def test_evaluate_command_end_to_end(tmp_path, capsys):
     """A tiny development evaluation: the table printed, the files and the four figures written."""
     out = tmp_path / "fc"
-    code = rf.main(["evaluate", "--dev", "16", "--out", str(out), "--max-iter", "5", "--boot", "20",
+    code = cli.main(["evaluate", "--dev", "16", "--out", str(out), "--max-iter", "5", "--boot", "20",
                     "--alarm-rows", "4", "--leads-deg", "1", "3", "--tilts", "0.2", "--quiet"])
     assert code == 0
     text = capsys.readouterr().out
@@ -170,6 +172,6 @@ def test_evaluate_command_end_to_end(tmp_path, capsys):
     assert "zero" in metrics["sets"] and metrics["provenance"]["command"].startswith("python -m")
     for name in ("forecast_error", "forecast_coverage", "forecast_convergence", "forecast_roc"):
         assert (out / f"{name}.png").stat().st_size > 10000
-    model, prov = load_forecasters(out / rf.MODEL_NAME)
+    model, prov = load_forecasters(out / MODEL_NAME)
     assert set(model) == set(METHODS) and prov["rows"] == 8 and prov["prior"] == "dev"
-    assert all(rf.method_of(f) == m for m, f in model.items())
+    assert all(method_of(f) == m for m, f in model.items())

@@ -37,7 +37,7 @@ class Ran:
 @pytest.fixture
 def predict(capsys, monkeypatch):
     """Run ``predict ARGS`` in this process (``cwd``: the folder it runs in)."""
-    from sliders.runs.forecast import main
+    from sliders.runs.forecast.cli import main
 
     def run(args, cwd=None):
         if cwd is not None:
@@ -267,7 +267,7 @@ def test_coverage_per_lead_is_computed_and_written(tmp_path):
 
 
 def test_train_runs_a_prior_and_writes_a_model_file_of_its_provenance(tmp_path, capsys):
-    from sliders.runs.forecast import main
+    from sliders.runs.forecast.cli import main
 
     prior = tmp_path / "tiny.toml"
     prior.write_text('[prior]\nrealisations = 24\nseed = 3\nceiling_step = 0.5\nceiling_k = 1\n'

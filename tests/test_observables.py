@@ -264,7 +264,8 @@ def test_moving_clusters_synthetic():
 
 def test_reproduction_helpers():
     """The analysis rules of the reproduction report on synthetic data."""
-    from sliders.analysis.reproduction import departure_angle, verdict_close
+    from sliders.analysis.precursors import departure_angle
+    from sliders.analysis.reproduction import verdict_close
 
     a = np.linspace(0.0, 0.5, 51)
     y = 1.0 + 8.0 * a

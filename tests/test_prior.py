@@ -23,6 +23,7 @@ import sliders
 from sliders.io.catalogue import EVENT_COLUMNS, Catalogue, CatalogueSet
 from sliders.io.prior_file import read_prior_ensemble, read_prior_row
 from sliders.runs import prior as prior_run
+from sliders.runs import prior_spec
 from test_ensemble import _env
 
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
@@ -91,12 +92,12 @@ def assert_same_sets(a: CatalogueSet, b: CatalogueSet) -> None:
 # ---------------------------------------------------------------------------
 # the design
 # ---------------------------------------------------------------------------
-@pytest.mark.parametrize("design", prior_run.DESIGNS)
+@pytest.mark.parametrize("design", prior_spec.DESIGNS)
 def test_drawn_parameters_follow_the_prior(tmp_path, design):
     """Kolmogorov-Smirnov on 4000 draws of each marginal (no simulation), and the choices' shares."""
     path = tmp_path / "p.toml"
     path.write_text(SMALL.format(R=4000, design=design))
-    prior = prior_run.load_prior(path)
+    prior = prior_spec.load_prior(path)
     v = prior.values()
     assert stats.kstest(v["mu_d"], stats.uniform(0.3, 0.5).cdf).pvalue > 1e-3
     assert stats.kstest(v["mu_s_minus_mu_d"], stats.loguniform(0.02, 0.12).cdf).pvalue > 1e-3
@@ -120,7 +121,7 @@ def test_weighted_choices_are_drawn_in_their_shares(tmp_path):
     path = tmp_path / "p.toml"
     path.write_text(SMALL.format(R=4000, design="sobol").replace(
         "choice = [20, 30, 40] }", "choice = [20, 30, 40], weights = [6, 3, 1] }"))
-    n = prior_run.load_prior(path).values()["n_sliders"]
+    n = prior_spec.load_prior(path).values()["n_sliders"]
     shares = np.array([np.mean(n == k) for k in (20, 30, 40)])
     assert np.all(np.abs(shares - [0.6, 0.3, 0.1]) < 0.02), shares
 
@@ -141,8 +142,8 @@ def test_weighted_choices_are_drawn_in_their_shares(tmp_path):
 def test_bad_priors_are_refused_in_one_line(tmp_path, capsys, body, words):
     path = tmp_path / "bad.toml"
     path.write_text("[prior]\nrealisations = 4\n[parameters]\n" + body + "\n")
-    with pytest.raises(prior_run.PriorError, match=words):
-        prior_run.load_prior(path)
+    with pytest.raises(prior_spec.PriorError, match=words):
+        prior_spec.load_prior(path)
     assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and words.split("'")[0] in lines[0]
@@ -214,7 +215,7 @@ def test_kill9_then_resume_equals_uninterrupted(small, reference, tmp_path):
 
 def test_a_row_is_the_tilt_of_its_scene(small, reference):
     """Row r's catalogue is ``sliders.tilt`` of its scene (same seed), its ceiling the chain's."""
-    prior = prior_run.load_prior(small)
+    prior = prior_spec.load_prior(small)
     got = read_prior_ensemble(reference)
     for r in (0, 5):
         scene = prior.scene(r)

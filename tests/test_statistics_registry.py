@@ -9,11 +9,13 @@ import dataclasses
 import inspect
 
 import numpy as np
+import pytest
 
 import sliders
 from sliders import Scene
 from sliders.analysis import observables as ob
 from sliders.analysis import reproduction as rp
+from sliders.runs.reproduction import run_many, write_report
 
 
 def _runs():
@@ -37,8 +39,9 @@ def test_adding_a_statistic_is_one_entry(monkeypatch):
         "largest_event", lambda g, n: (), np.int64,
         lambda run: np.int64(run.result.events["n_moved"].max()),
         lambda rows, ens: {"largest_event_mean": float(np.mean(rows["largest_event"]))},
-    )
+        units="1", meaning="sliders moved in the largest event")
     monkeypatch.setattr(ob, "STATISTICS", ob.STATISTICS + (largest,))
+    assert ob.statistic_conventions()["largest_event"] == ((), "1", "sliders moved in the largest event")
     runs = _runs()
     grids = ob.default_grids(runs[0].scene)
     assert ob.statistics_layout(grids, 12)["largest_event"] == ((), np.int64)
@@ -48,9 +51,30 @@ def test_adding_a_statistic_is_one_entry(monkeypatch):
     assert summary.alpha_c_values.tolist() == [r.alpha_c for r in runs]
 
 
+def test_a_statistic_without_units_or_with_wrong_dims_is_refused():
+    rows = dict(shape=lambda g, n: (g.alpha.size,), dtype=np.int64, compute=lambda run: 0)
+    with pytest.raises(ValueError, match="units"):
+        ob.Statistic("no_units", **rows, dims=("alpha",), meaning="something per angle")
+    with pytest.raises(ValueError, match="dims"):
+        ob.Statistic("no_dims", **rows, units="1", meaning="something per angle")
+    ok = ob.Statistic("per_angle", **rows, dims=("alpha",), units="1", meaning="per angle")
+    assert ok.units == "1"
+
+
+def test_every_statistic_is_described_by_its_own_entry():
+    """The xarray conventions of a statistic are its entry's (io holds no table of them)."""
+    from sliders.io import conventions
+
+    assert not hasattr(conventions, "ENSEMBLE_STATISTICS")
+    conv = ob.statistic_conventions()
+    assert [st.name for st in ob.STATISTICS] == list(conv)
+    assert conv["cumulated_displacement"] == (("alpha",), conventions.LENGTH,
+                                              "A(alpha): sum of all displacements up to alpha")
+
+
 def _small_chains():
     """Scene A of the report (N = 10, xi = 0), three realisations."""
-    return rp.run_many(10, 0.0, 3, 0, "fortran")
+    return run_many(10, 0.0, 3, 0, "fortran")
 
 
 def test_the_report_statements_in_order():
@@ -90,6 +114,6 @@ def test_adding_a_statement_is_one_entry(monkeypatch, tmp_path):
     assert rep.statements[-1].verdict == "agrees"
     meta = {"date": "d", "version": "v", "backend": "fortran", "python": "3", "wall": 1.0,
             "command": "c"}
-    text = rp.write_markdown(rep, tmp_path / "R.md", meta)
+    text = write_report(rep, tmp_path / "R.md", meta)
     assert "| 15 | Every chain avalanches (N = 10) |" in text
     assert (tmp_path / "R.md").read_text(encoding="utf-8") == text

@@ -29,7 +29,9 @@ import pytest
 from sliders.io import safeio
 from sliders.io.forecast_model import MODEL_FORMAT
 from sliders.runs import ensemble, study
-from sliders.runs import forecast as rf
+from sliders.io.forecast_files import ForecastInputError, read_catalogue_csv
+from sliders.runs.forecast import cli as forecast_cli
+from sliders.runs.forecast import evaluate as rf_evaluate
 
 PY = sys.executable
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
@@ -59,7 +61,8 @@ mode = "explore"
 [axes]
 xi = [0.0, 0.001]
 """
-MODEL, TABLE, METRICS, FIGURES = rf.MODEL_NAME, rf.TABLE_NAME, rf.METRICS_NAME, rf.FIGURE_NAMES
+MODEL, TABLE, METRICS, FIGURES = (rf_evaluate.MODEL_NAME, rf_evaluate.TABLE_NAME,
+                                  rf_evaluate.METRICS_NAME, rf_evaluate.FIGURE_NAMES)
 CATALOGUE = "angle [deg],size\n" + "".join(f"{a:.2f},1\n" for a in np.linspace(1, 12, 30))
 
 
@@ -80,7 +83,7 @@ def cli(*args, n=None, timeout=TIMEOUT, **kw):
 
 
 def forecast_main(capsys, *args) -> tuple[int, str]:
-    code = rf.main([str(a) for a in args])
+    code = forecast_cli.main([str(a) for a in args])
     return code, capsys.readouterr().err
 
 
@@ -119,7 +122,7 @@ def prior(tmp_path_factory) -> Path:
 def previous(prior, tmp_path_factory) -> Path:
     """A complete evaluation of ``prior`` (seed 0): the set a rerun must never damage."""
     out = tmp_path_factory.mktemp("fcprev") / "out"
-    assert rf.main(["evaluate", "--data", str(prior), "--out", str(out), "--quiet", *FAST]) == 0
+    assert forecast_cli.main(["evaluate", "--data", str(prior), "--out", str(out), "--quiet", *FAST]) == 0
     return out
 
 
@@ -206,8 +209,8 @@ def test_out_that_is_a_file_is_refused_before_any_fitting(tmp_path, prior, capsy
     def no_fitting(*args, **kw):
         raise AssertionError("fitting started")
 
-    monkeypatch.setattr(rf, "make_forecasters", no_fitting)
-    monkeypatch.setattr(rf, "dev_catalogue_set", no_fitting)
+    monkeypatch.setattr(rf_evaluate, "make_forecasters", no_fitting)
+    monkeypatch.setattr(rf_evaluate, "dev_catalogue_set", no_fitting)
     (tmp_path / "file").write_text("mine")
     for source in (["--data", prior], ["--dev", "40"]):
         code, err = forecast_main(capsys, "evaluate", *source, "--out", tmp_path / "file")
@@ -360,7 +363,7 @@ def killed(*args, **kw):
     {action}
     os.kill(os.getpid(), signal.SIGKILL)
 target.{name} = killed
-from sliders.runs.forecast import main
+from sliders.runs.forecast.cli import main
 sys.exit(main(sys.argv[1:]))
 """
 
@@ -431,8 +434,8 @@ def test_too_many_events_are_refused_naming_the_row(tmp_path):
     with open(path, "w") as fh:
         fh.write("angle [rad],size\n")
         fh.writelines(f"{1e-6 * i:.7f},1\n" for i in range(n))
-    with pytest.raises(rf.ForecastInputError, match=f"row {n + 1}: more than"):
-        rf.read_catalogue_csv(str(path))
+    with pytest.raises(ForecastInputError, match=f"row {n + 1}: more than"):
+        read_catalogue_csv(str(path))
 
 
 @pytest.mark.parametrize("text, words", [
@@ -448,15 +451,15 @@ def test_too_many_events_are_refused_naming_the_row(tmp_path):
 def test_malformed_catalogue_is_one_line_naming_row_or_column(tmp_path, text, words):
     path = tmp_path / "bad.csv"
     path.write_bytes(text)
-    with pytest.raises(rf.ForecastInputError) as info:
-        rf.read_catalogue_csv(str(path))
+    with pytest.raises(ForecastInputError) as info:
+        read_catalogue_csv(str(path))
     assert words in str(info.value) and "\n" not in str(info.value)
 
 
 def test_spreadsheet_csv_with_a_byte_order_mark_is_read(tmp_path, previous, capsys):
     path = tmp_path / "excel.csv"
     path.write_bytes(b"\xef\xbb\xbf" + CATALOGUE.replace("\n", "\r\n").encode())
-    cat = rf.read_catalogue_csv(str(path))
+    cat = read_catalogue_csv(str(path))
     assert len(cat) == 30 and np.isclose(cat.alpha[-1], np.radians(12.0))
     code, err = forecast_main(capsys, "predict", path, "--model", previous / MODEL)
     assert code == 0, err

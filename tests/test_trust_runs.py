@@ -25,6 +25,7 @@ import pytest
 
 from sliders.io.prior_file import read_prior_ensemble, read_prior_header
 from sliders.runs import prior as prior_run
+from sliders.runs import prior_spec
 from test_ensemble import (PY, RESULTS_IGNORED, _children, _env, _Run, assert_same_file,
                            kill_tree, one_error_line, rank_pids, read_all, run)
 from test_prior import assert_same_sets
@@ -272,9 +273,7 @@ def test_a_prior_of_1e8_rows_is_refused_before_anything_is_drawn(tmp_path):
 def test_a_plan_larger_than_the_memory_is_refused(tmp_path, capsys, monkeypatch):
     """Within the row limit, a plan that would not fit in the memory of this node (here: 1 GB
     available) is refused before a row is drawn, naming the count and the memory."""
-    import sliders.scene
-
-    monkeypatch.setattr(sliders.scene, "available_memory", lambda: 1 << 30)
+    monkeypatch.setattr(prior_spec, "available_memory", lambda: 1 << 30)
     path = tmp_path / "big.toml"
     path.write_text(prior_text(R=5_000_000))
     assert prior_run.main([str(path), "--out", str(tmp_path / "x.h5")]) == 2
@@ -290,7 +289,7 @@ def test_a_plan_larger_than_the_memory_is_refused(tmp_path, capsys, monkeypatch)
 def test_a_full_disk_stops_a_prior_run_at_the_first_write_in_one_line(tmp_path, ranks):
     """A 600 kB file system (tmpfs in a user and mount namespace) cannot hold the run: one
     line, exit 1, no crash (HDF5 is never left with a failed write), the rows marked done
-    whole.  A write is made only with room for it and a margin (``scheduler.write_row``)."""
+    whole.  A write is made only with room for it and a margin (``writes.write_row``)."""
     (tmp_path / "p.toml").write_text(prior_text(R=40, sizes="60, 80"))
     launcher = "" if ranks is None else f"{subprocess.list2cmdline(['mpirun', '-n', str(ranks)])} "
     script = (f"mount -t tmpfs -o size=600k tmpfs {tmp_path}/mnt && "
@@ -338,7 +337,7 @@ def test_plans_cost_memory_per_row_not_per_scene():
     well under the bytes ``PLAN_BYTES_PER_ROW`` promises."""
     import tracemalloc
 
-    prior = prior_run.parse_prior({"prior": {"realisations": 20_000, "design": "random"},
+    prior = prior_spec.parse_prior({"prior": {"realisations": 20_000, "design": "random"},
                                    "scene": {"mode": "explore"},
                                    "parameters": {"mu_d": {"uniform": [0.3, 0.5]},
                                                   "n_sliders": {"choice": [20, 30]}}})
@@ -349,4 +348,4 @@ def test_plans_cost_memory_per_row_not_per_scene():
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     assert seeds.size == order.size == 20_000
-    assert peak < prior_run.PLAN_BYTES_PER_ROW * 20_000, peak
+    assert peak < prior_spec.PLAN_BYTES_PER_ROW * 20_000, peak

@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import argparse
 import math
-import signal
 import sys
 
 from . import status
 from .runs.cli import ProgressLine, add_scene_arguments, check_output, fail, scene_from_args
+from .runs.signals import Received
 from .io.filelock import ClaimError, OutputClaim
 from .io.safeio import describe_os_error, leftovers_note
 from .parts.checks import SceneError
 from .scene import BACKENDS, check_memory
+from .driver import run
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -62,8 +63,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args, scene) -> int:
-    from .driver import run
-
     line = None if args.quiet else ProgressLine()
     drive = "alpha" if scene.loading.drive_is_angle else "drive"
 
@@ -72,34 +71,24 @@ def _run(args, scene) -> int:
             line.show(f"{scene.loading.name} N={scene.n_sliders}: {drive}={p.drive:.5f}  "
                       f"events={p.n_events}  slider-steps={p.slider_steps:.3g}  {p.elapsed:.1f} s")
 
-    received: list[int] = []
-
-    def interrupt(signum, frame):
-        received.append(signum)
-        raise KeyboardInterrupt
-
-    # SIGTERM (batch systems, kill) stops the run as Ctrl-C does: finished events are saved
-    old = {s: signal.signal(s, interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        result = run(scene, backend=args.backend, progress=progress, keep_partial=True)
-    except ImportError as exc:
-        fail(f"backend {args.backend!r} is not available: {exc}")
-    finally:
-        # the result is being saved: a second signal waits until the file is complete
-        for s in old:
-            signal.signal(s, lambda signum, frame: received.append(signum))
-    if line is not None:
-        line.close()
-    try:
-        result.save(args.out, overwrite=args.overwrite)
-    except FileExistsError:
-        fail(f"--out {args.out!r} was created by another process during the run; "
-             "nothing was replaced (the result is lost: rerun with another --out)", code=1)
-    except OSError as exc:
-        fail(f"cannot write {describe_os_error(exc, args.out)}", code=1)
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
+    # SIGTERM (batch systems, kill) stops the run as Ctrl-C does: finished events are saved;
+    # while the result is saved a second signal waits until the file is complete
+    received = Received()
+    with received.waiting():
+        with received.stopping():
+            try:
+                result = run(scene, backend=args.backend, progress=progress, keep_partial=True)
+            except ImportError as exc:
+                fail(f"backend {args.backend!r} is not available: {exc}")
+        if line is not None:
+            line.close()
+        try:
+            result.save(args.out, overwrite=args.overwrite)
+        except FileExistsError:
+            fail(f"--out {args.out!r} was created by another process during the run; "
+                 "nothing was replaced (the result is lost: rerun with another --out)", code=1)
+        except OSError as exc:
+            fail(f"cannot write {describe_os_error(exc, args.out)}", code=1)
     if not scene.loading.drive_is_angle:  # the run ends at a driver position, not an angle
         last = f"{result.events['alpha'][-1]:.5f}" if result.n_events else "n/a"
         reached = f"last drive D={last}"
@@ -110,7 +99,7 @@ def _run(args, scene) -> int:
     if result.message:
         print(f"note: {result.message}", file=sys.stderr)
     if result.status == "interrupted":
-        return 128 + (received[0] if received else signal.SIGINT)
+        return received.exit_status()
     return 0 if result.status in {status.NAMES[code] for code in status.FINAL_OK} else 1
 
 

@@ -26,6 +26,7 @@ from .engine.reference import NumpyEngine
 from .result import EventSparse, Result
 from .parts.checks import SceneError
 from .scene import BACKENDS, Scene, check_memory
+from .engine.fortran_engine import FortranEngine
 
 CHUNK_EVENTS = {"numpy": 16, "fortran": 512}
 # A kernel call starts with O(N) set-up (forces, angles, min-tree): for long
@@ -70,8 +71,6 @@ def make_engine(scene: Scene, backend: str):
     if backend == "numpy":
         return NumpyEngine(scene)
     if backend == "fortran":
-        from .engine.fortran_engine import FortranEngine
-
         return FortranEngine(scene)
     raise SceneError(f"backend={backend!r} must be one of {BACKENDS}")
 

@@ -1,5 +1,5 @@
-"""``python -m sliders.reproduction``, the command users type: the code is ``sliders.analysis.reproduction``."""
+"""``python -m sliders.reproduction``, the command users type: the code is ``sliders.runs.reproduction``."""
 
 from ._forward import forward
 
-forward(__name__, "sliders.analysis.reproduction")
+forward(__name__, "sliders.runs.reproduction")

@@ -39,6 +39,9 @@ from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from ..io.conventions import LENGTH
+from .model import n_bins
+
 __all__ = [
     "StatisticsGrids", "default_grids", "valid_limit", "valid_alphas",
     "displacement_map", "force_history", "force_before_events", "force_histogram",
@@ -46,7 +49,7 @@ __all__ = [
     "cumulated_displacement", "mean_event_displacement", "stopped_force_ratios",
     "stopped_force_ratio_histogram", "event_sizes", "event_size_counts",
     "synchronisation", "moving_clusters", "extremity_activity", "realisation_statistics",
-    "statistics_layout", "Statistic", "STATISTICS",
+    "statistics_layout", "Statistic", "STATISTICS", "statistic_conventions",
     "EnsembleSummary", "combine", "summary_from_results", "exponential_fit",
     "linear_fit",
 ]
@@ -136,13 +139,8 @@ class StatisticsGrids:
 
 
 def _model_n_bins(mu_s_mean: float, mu_d: float) -> int:
-    """nu(0) = ceil(2 mu_s / (2 dmu)) (same rounding as ``model.n_bins``)."""
-    try:
-        from .model import n_bins
-
-        return int(n_bins(0.0, mu_s_mean, mu_d))
-    except ImportError:  # pragma: no cover - model.py is part of the package
-        return int(math.ceil(mu_s_mean / (mu_s_mean - mu_d) - 1e-9))
+    """nu(0) = ceil(2 mu_s / (2 dmu)) (``model.n_bins`` at alpha = 0)."""
+    return int(n_bins(0.0, mu_s_mean, mu_d))
 
 
 def default_grids(scene, n_alpha: int = 55, n_force_bins: int = 120,
@@ -510,16 +508,33 @@ class _Run:
 @dataclass(frozen=True)
 class Statistic:
     """One per-realisation statistic: its row's shape (from the grids and N),
-    dtype, how a run is reduced to it, and how the rows of an ensemble combine
+    dtype, how a run is reduced to it, how the rows of an ensemble combine
     (a function of (rows, ctx) giving ``EnsembleSummary`` fields; fields the
-    dataclass does not know go to ``summary.extra``).  Adding a statistic is
-    adding one entry to ``STATISTICS``."""
+    dataclass does not know go to ``summary.extra``), and what its files say
+    of it: the names of its row's axes (``dims``), its ``units`` ("1" for a
+    count or a ratio) and its ``meaning`` (the ``long_name``).  Adding a
+    statistic is adding one entry to ``STATISTICS``; one without units or
+    meaning, or whose dims do not match its shape, is refused at import."""
 
     name: str
     shape: Callable[[StatisticsGrids, int], tuple[int, ...]]
     dtype: type
     compute: Callable[[_Run], np.ndarray]
     combine: Callable[[Mapping[str, np.ndarray], "_Ensemble"], dict] | None = None
+    dims: tuple[str, ...] = ()
+    units: str = ""
+    meaning: str = ""
+
+    def __post_init__(self):
+        if not self.units or not self.meaning:
+            raise ValueError(f"statistic {self.name!r}: give its units and its meaning (units "
+                             "'1' for a count or a ratio)")
+        grids = StatisticsGrids(np.zeros(1), np.arange(2.0), np.arange(2.0), np.arange(2.0), 1,
+                                0.6, 0.5)  # the smallest grids: every axis of the row has one
+        rank = len(self.shape(grids, 3))
+        if len(self.dims) != rank:
+            raise ValueError(f"statistic {self.name!r}: {len(self.dims)} dims {self.dims} for "
+                             f"rows of {rank} axes")
 
 
 @dataclass
@@ -605,34 +620,53 @@ def _event_interval_sums(run: _Run, weights: bool) -> np.ndarray:
 # The rows of one realisation (in this order in ensemble files).
 STATISTICS = (
     Statistic("force_counts", lambda g, n: (g.alpha.size, g.force_edges.size - 1), np.int64,
-              lambda run: run.force_histogram[0], _combine_force_pdf),
+              lambda run: run.force_histogram[0], _combine_force_pdf,
+              ("alpha", "force_bin"), "1", "histogram of the N forces F_t at each angle"),
     Statistic("valid_alpha", lambda g, n: (g.alpha.size,), np.bool_,
-              lambda run: run.force_histogram[1]),  # combined through _Ensemble.valid
+              lambda run: run.force_histogram[1],  # combined through _Ensemble.valid
+              dims=("alpha",), units="1", meaning="1 where the chain is at rest at that angle"),
     Statistic("model_bin_counts", lambda g, n: (g.alpha.size, g.n_model_bins), np.int64,
               lambda run: model_bin_counts(run.result, run.grids.alpha, run.grids.mu_s_mean,
                                            run.grids.mu_d, run.grids.n_model_bins),
-              _combine_model_bins),
+              _combine_model_bins,
+              ("alpha", "model_bin"), "1", "sliders in each model bin of width 2 dmu"),
     Statistic("cumulated_displacement", lambda g, n: (g.alpha.size,), np.float64,
               lambda run: cumulated_displacement(run.result, run.grids.alpha).astype(np.float64),
-              _combine_cumulated),
+              _combine_cumulated,
+              ("alpha",), LENGTH, "A(alpha): sum of all displacements up to alpha"),
     Statistic("stopped_ratio_counts",
               lambda g, n: (g.stop_alpha_edges.size - 1, g.ratio_edges.size - 1), np.int64,
               lambda run: stopped_force_ratio_histogram(run.result, run.grids.stop_alpha_edges,
                                                         run.grids.ratio_edges),
-              _combine_stopped_ratio),
+              _combine_stopped_ratio,
+              ("stop_alpha_bin", "ratio_bin"), "1",
+              "histogram of F_t/F_t* of the sliders that moved, by event angle"),
     Statistic("event_size_counts", lambda g, n: (int(n),), np.int64,
-              lambda run: event_size_counts(run.result), _combine_event_sizes),
+              lambda run: event_size_counts(run.result), _combine_event_sizes,
+              ("event_size",), "1", "events in which s distinct sliders moved"),
     Statistic("alpha_c", lambda g, n: (), np.float64,
-              lambda run: np.float64(run.result.alpha_c), _combine_alpha_c),
+              lambda run: np.float64(run.result.alpha_c), _combine_alpha_c,
+              (), "rad", "avalanche angle (NaN if the run ended otherwise)"),
     Statistic("n_events", lambda g, n: (), np.int64,
               lambda run: np.int64(run.result.n_events),
               lambda rows, ens: {"n_events": np.asarray(rows["n_events"],
-                                                        dtype=np.int64).reshape(ens.r)}),
+                                                        dtype=np.int64).reshape(ens.r)},
+              (), "1", "number of completed rearrangements"),
     Statistic("event_counts", lambda g, n: (g.alpha.size - 1,), np.int64,
-              lambda run: _event_interval_sums(run, weights=False)),  # with the next one
+              lambda run: _event_interval_sums(run, weights=False),  # with the next one
+              dims=("alpha_interval",), units="1",
+              meaning="events with angle in [alpha_g, alpha_g+1)"),
     Statistic("event_mean_displacement_sum", lambda g, n: (g.alpha.size - 1,), np.float64,
-              lambda run: _event_interval_sums(run, weights=True), _combine_event_displacement),
+              lambda run: _event_interval_sums(run, weights=True), _combine_event_displacement,
+              ("alpha_interval",), LENGTH,
+              "sum over those events of the mean displacement of the movers"),
 )
+
+
+def statistic_conventions() -> dict[str, tuple[tuple[str, ...], str, str]]:
+    """What an ensemble file says of each statistic of ``STATISTICS``: name -> (dims of a row,
+    units, long name); ``io.conventions.ensemble_variables`` is given it."""
+    return {st.name: (st.dims, st.units, st.meaning) for st in STATISTICS}
 
 
 def statistics_layout(grids: StatisticsGrids, n_sliders: int) -> dict[str, tuple[tuple[int, ...], type]]:

@@ -1,6 +1,7 @@
-"""``python -m sliders.reproduction``: compare this package with every statement of the paper.
+"""The paper's statements judged on this package's runs (``python -m sliders.reproduction``,
+``sliders.runs.reproduction``, runs the experiments and writes the report).
 
-Writes REPRODUCTION.md: for each numbered statement of the paper (docs/model.md,
+REPRODUCTION.md holds, for each numbered statement of the paper (docs/model.md,
 "What the paper reports", and the avalanche bounds of "The avalanche"), what the paper reports,
 what this package measures, on how many runs and with which uncertainty, and
 a verdict (agrees / partly / disagrees) with an explanation where it does
@@ -11,7 +12,7 @@ Each statement is one function registered in ``CLAIMS`` with ``@claim``: the
 experiment whose runs it reads, and the thresholds of its verdict beside it
 as data; ``judge`` appends the statements of an experiment to the report.
 
-Experiments (the paper's parameters l = 10, mu_d = 0.55, mu_s = 0.6,
+The experiments (``runs.reproduction``; the paper's parameters l = 10, mu_d = 0.55, mu_s = 0.6,
 sigma_mu = 0.01; realisation r has seed ``keyed_random.realisation_seed(base, r)``):
 
 * **A**  ``--runs`` chains of N = 10, xi = 0 (first rearrangement, bursts, alpha_c);
@@ -23,13 +24,7 @@ sigma_mu = 0.01; realisation r has seed ``keyed_random.realisation_seed(base, r)
 
 from __future__ import annotations
 
-import argparse
-import datetime
 import math
-import os
-import platform
-import sys
-import time
 import warnings
 from dataclasses import dataclass, field
 from typing import Callable
@@ -38,19 +33,15 @@ import numpy as np
 
 from . import model
 from . import observables as ob
+from .precursors import (DEPARTURE_SIGMAS, END_FRACTION, EXTREMITY_BIN, HALF_CHAIN, SYNC_BIN,
+                         SYNC_FRACTION, avalanche_bounds, burst_periods, departure_angle,
+                         extremity_profile, median_onset, stopped_modes, sync_profile)
 
 # Fixed analysis choices (decided before looking at the data).
 LINEAR_FIT_RANGE = (0.0, 0.25)  # where P_1 is fitted to find the end of its linear growth
 P2_SLOPE_RANGE = (0.2, 0.4)  # the paper's range for dP_2/dalpha
 SUM_FIT_RANGE = (0.1, 0.3)  # P_1 + P_2 linear trend, to locate the transition
-DEPARTURE_SIGMAS = 3.0  # a departure is > 3 standard errors on 2 consecutive angles
 CUMUL_FIT_RANGE = (0.1, 0.45)  # exponential fits of A and <dx>
-SYNC_BIN = 0.02  # angle bins of the synchronisation indicator
-SYNC_FRACTION = 0.5  # synchronised: at least half the events of a bin have >= 2 groups
-# Extremities of scene C (statement 14): decided before looking at the data.
-EXTREMITY_BIN = 0.02  # angle bins of the extremity indicator (as SYNC_BIN)
-END_FRACTION = 0.25  # "an extremity": the first / last quarter of the chain
-HALF_CHAIN = 0.5  # "more than half the size of the system"
 # The tolerances of each verdict sit beside the function that judges it (``claim``).
 
 
@@ -80,222 +71,6 @@ def _fmt(x, nd=3) -> str:
 
 def _pm(mean, err, nd=3) -> str:
     return f"{_fmt(mean, nd)} ± {_fmt(err, nd)}"
-
-
-# -----------------------------------------------------------------------------
-# runs
-# -----------------------------------------------------------------------------
-
-
-def run_many(n_sliders: int, xi: float, runs: int, base_seed: int, backend: str, log=None,
-             label: str = ""):
-    """Tilt ``runs`` realisations of the paper's chain (seeds ``realisation_seed(base_seed, r)``); returns the TiltResults."""
-    from ..driver import tilt_realisations
-    from ..scene import Scene
-
-    out = []
-    scene = Scene(n_sliders=n_sliders, xi=xi, seed=base_seed, record="displacements")
-    runs_started = time.perf_counter()
-    for r, res in tilt_realisations(scene, runs, backend=backend):
-        out.append(res)
-        if log:
-            log(f"  {label} run {r + 1}/{runs}: N={n_sliders} xi={xi:g} {res.status} "
-                f"alpha_c={res.alpha_c:.4f} events={res.n_events} "
-                f"({time.perf_counter() - runs_started:.1f} s)")
-            runs_started = time.perf_counter()
-    return out
-
-
-# -----------------------------------------------------------------------------
-# analyses
-# -----------------------------------------------------------------------------
-
-
-def avalanche_bounds(results) -> dict:
-    """alpha_c against [atan mu_d, atan(mean mu_s)]: the scene's mean and each run's own."""
-    sc = results[0].scene
-    results = [r for r in results if r.status == "avalanche"]
-    ac = np.array([r.alpha_c for r in results])
-    lo, hi = math.atan(sc.mu_d), math.atan(sc.mu_s_mean)
-    own_hi = np.array([math.atan(r.final.mu_s.mean()) for r in results])
-    fin = np.isfinite(ac)
-    return {
-        "lo": lo, "hi": hi, "n": ac.size, "n_avalanche": int(fin.sum()),
-        "in_nominal": int(np.sum((ac >= lo) & (ac <= hi))),
-        "in_own": int(np.sum((ac >= lo) & (ac <= own_hi + 1e-12))),
-        "min": float(np.nanmin(ac)) if fin.any() else math.nan,
-        "max": float(np.nanmax(ac)) if fin.any() else math.nan,
-    }
-
-
-def burst_periods(results, dmu: float, mu_s: float) -> dict:
-    """Angle between successive rearrangements of one slider, early (alone) and late (in groups).
-
-    For every slider, the intervals between consecutive events it moved in.
-    Early: both events of size 1 below alpha = 0.3, compared with the
-    single-slider period 2 dmu / (1 + mu_s tan alpha).  Late: both events of
-    size >= 3 above alpha = 0.35, compared with dmu.
-    """
-    early, late, early_pred = [], [], []
-    for r in results:
-        d = r.displacement
-        sizes = ob.event_sizes(r)
-        a = np.asarray(r.alpha)
-        last: dict[int, int] = {}
-        for k in range(d.n_events):
-            idx, _ = d.event(k)
-            for n in idx:
-                j = last.get(int(n))
-                if j is not None:
-                    if sizes[j] == 1 and sizes[k] == 1 and a[k] < 0.3:
-                        early.append(a[k] - a[j])
-                        early_pred.append(2 * dmu / (1 + mu_s * math.tan(a[j])))
-                    elif sizes[j] >= 3 and sizes[k] >= 3 and a[j] > 0.35:
-                        late.append(a[k] - a[j])
-                last[int(n)] = k
-    e, lt = np.array(early), np.array(late)
-    return {"early_median": float(np.median(e)) if e.size else math.nan, "early_n": e.size,
-            "early_pred": float(np.median(early_pred)) if early_pred else math.nan,
-            "early_iqr": (float(np.percentile(e, 25)), float(np.percentile(e, 75))) if e.size else None,
-            "late_median": float(np.median(lt)) if lt.size else math.nan, "late_n": lt.size,
-            "late_iqr": (float(np.percentile(lt, 25)), float(np.percentile(lt, 75))) if lt.size else None}
-
-
-def sync_profile(results, alpha_max: float = 0.56) -> dict:
-    """Synchronisation indicator per angle bin, pooled over runs.
-
-    An event is *multi-region* when the sliders that moved in it form two or
-    more separate groups (``observables.moving_clusters``).  Per bin of
-    ``SYNC_BIN``: ``weighted`` = share of the total displacement that occurs
-    in multi-region events (the indicator), ``fraction`` = share of the
-    events that are multi-region, ``fraction_halves`` = share of the events
-    in which both halves of the chain move.  ``onset``: first bin from which
-    the weighted share is at least ``SYNC_FRACTION`` in every bin holding
-    events, except the bin of the avalanche (cut short by it); NaN if never.
-    Meant for one run (``run_onsets`` gives one onset per run).
-    """
-    edges = np.arange(0.0, alpha_max + SYNC_BIN, SYNC_BIN)
-    nb = edges.size - 1
-    multi, total, halves = np.zeros(nb), np.zeros(nb), np.zeros(nb)
-    disp_multi, disp_total = np.zeros(nb), np.zeros(nb)
-    for r in results:
-        a = np.asarray(r.alpha)
-        c = ob.moving_clusters(r)
-        both = ob.synchronisation(r)["all_parts"]
-        dx = np.abs(ob.event_total_displacement(r))
-        i = np.clip(np.searchsorted(edges, a, side="right") - 1, 0, nb - 1)
-        np.add.at(total, i, 1)
-        np.add.at(multi, i, c >= 2)
-        np.add.at(halves, i, both)
-        np.add.at(disp_total, i, dx)
-        np.add.at(disp_multi, i, np.where(c >= 2, dx, 0.0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        frac = multi / total
-        frac_halves = halves / total
-        weighted = disp_multi / disp_total
-    onset = math.nan
-    populated = np.flatnonzero(disp_total > 0)
-    ac = [r.alpha_c for r in results if math.isfinite(r.alpha_c)]
-    last = (np.searchsorted(edges, max(ac), side="right") - 1) if ac else nb
-    judged = populated[populated < last] if populated.size and populated[-1] == last else populated
-    for pos, j in enumerate(judged):
-        if np.all(weighted[judged[pos:]] >= SYNC_FRACTION):
-            onset = float(edges[j])
-            break
-    return {"edges": edges, "fraction": frac, "fraction_halves": frac_halves, "total": total,
-            "weighted": weighted, "onset": onset,
-            "overall": float(multi.sum() / max(total.sum(), 1)),
-            "overall_weighted": float(disp_multi.sum() / max(disp_total.sum(), 1e-300))}
-
-
-def extremity_profile(results, alpha_max: float = 0.56) -> dict:
-    """The extremity indicator (``observables.extremity_activity``) pooled and per run.
-
-    Pooled over the runs, per bin of ``EXTREMITY_BIN``: displacement shares
-    of the up-slope and down-slope quarters; per run, the extent of the
-    active region attached to each end.  ``onset_up`` / ``onset_down`` (one
-    per run): first bin from which the region attached to that end spans at
-    least ``HALF_CHAIN`` of the chain in every bin holding events, up to the
-    avalanche (its own bin, cut short, excluded as in ``sync_profile``); NaN
-    if never.
-    """
-    edges = np.arange(0.0, alpha_max + EXTREMITY_BIN, EXTREMITY_BIN)
-    nb = edges.size - 1
-    tot, up, down = np.zeros(nb), np.zeros(nb), np.zeros(nb)
-    onsets = {"up": [], "down": []}
-    extents = {"up": [], "down": []}
-    for r in results:
-        e = ob.extremity_activity(r, edges, END_FRACTION)
-        tot += e["total"]
-        up += e["up"]
-        down += e["down"]
-        populated = np.flatnonzero(e["events"] > 0)
-        if math.isfinite(r.alpha_c) and populated.size:
-            last = np.searchsorted(edges, r.alpha_c, side="right") - 1
-            populated = populated[populated < last] if populated[-1] == last else populated
-        for end in ("up", "down"):
-            ext = e[f"extent_{end}"]
-            extents[end].append(np.where(e["events"] > 0, ext, np.nan))
-            onset = math.nan
-            for pos, j in enumerate(populated):
-                if np.all(ext[populated[pos:]] >= HALF_CHAIN):
-                    onset = float(edges[j])
-                    break
-            onsets[end].append(onset)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        share_up, share_down = up / tot, down / tot
-    return {"edges": edges, "share_up": share_up, "share_down": share_down, "total": tot,
-            "overall_up": float(up.sum() / tot.sum()), "overall_down": float(down.sum() / tot.sum()),
-            "onset_up": np.array(onsets["up"]), "onset_down": np.array(onsets["down"]),
-            "extent_up": np.array(extents["up"]), "extent_down": np.array(extents["down"])}
-
-
-def _median_onset(onsets) -> float:
-    """Median over the runs, a run without an onset counting as "never" (later than any)."""
-    o = np.where(np.isfinite(onsets), onsets, np.inf)
-    m = float(np.median(o)) if o.size else math.nan
-    return m if math.isfinite(m) else math.nan
-
-
-def departure_angle(alpha, y, sem, fit_range, direction: int) -> tuple[float, dict]:
-    """First angle beyond the fit range where y leaves the fitted line by > 3 sigma (2 in a row).
-
-    direction -1: y falls below the line; +1: above.  sigma combines the
-    standard error of the point and that of the extrapolated line.
-    """
-    alpha = np.asarray(alpha)
-    sel = (alpha >= fit_range[0]) & (alpha <= fit_range[1]) & np.isfinite(y)
-    f = ob.linear_fit(alpha[sel], y[sel], sem[sel] if np.all(np.isfinite(sem[sel]) & (sem[sel] > 0))
-                      else None)
-    # covariance of intercept/slope ignored: conservative (larger) line error via both errors
-    line = f["intercept"] + f["slope"] * alpha
-    line_err = np.hypot(f["intercept_err"], f["slope_err"] * alpha)
-    sig = np.hypot(np.nan_to_num(sem, nan=0.0), line_err)
-    dev = direction * (y - line) / np.where(sig > 0, sig, np.inf)
-    out = np.isfinite(y) & (alpha > fit_range[1]) & (dev > DEPARTURE_SIGMAS)
-    idx = np.flatnonzero(out[:-1] & out[1:])
-    return (float(alpha[idx[0]]) if idx.size else math.nan), f
-
-
-def stopped_modes(summary, rebin: int = 2) -> list[dict]:
-    """Per angle bin: count, mode (bins of 0.01) and median of F_t/F_t*."""
-    g = summary.grids
-    nr = g.ratio_edges.size - 1
-    redges = g.ratio_edges[::rebin]
-    rmid = 0.5 * (redges[1:] + redges[:-1])
-    out = []
-    for j, c in enumerate(g.stop_alpha_centers):
-        n = int(summary.stopped_counts[j])
-        if n == 0:
-            continue
-        p = summary.stopped_ratio_pdf[j] * np.diff(g.ratio_edges)
-        pr = p.reshape(nr // rebin, rebin).sum(axis=1)
-        cdf = np.cumsum(p)
-        median = float(g.ratio_edges[1:][np.searchsorted(cdf, 0.5)])
-        out.append({"lo": float(g.stop_alpha_edges[j]), "hi": float(g.stop_alpha_edges[j + 1]),
-                    "n": n, "mode": float(rmid[np.argmax(pr)]), "median": median,
-                    "mean": float(np.sum(p * g.ratio_centers))})
-    return out
 
 
 # -----------------------------------------------------------------------------
@@ -554,11 +329,11 @@ def _extremities_explanation(ec: dict, two_regions: bool, upper_ok: bool, ends_s
     runs = ec["onset_up"].size
     n_up, n_down = int(np.isfinite(ec["onset_up"]).sum()), int(np.isfinite(ec["onset_down"]).sum())
     if upper_ok:
-        return text + f"; the up-slope region spans half the chain from {_median_onset(ec['onset_up']):.2f}."
+        return text + f"; the up-slope region spans half the chain from {median_onset(ec['onset_up']):.2f}."
     return (text + f". The region at the up-slope end spans half the chain until the avalanche in "
-            f"{n_up} of {runs} runs (median onset {_fmt(_median_onset(ec['onset_up']), 2)}), the "
+            f"{n_up} of {runs} runs (median onset {_fmt(median_onset(ec['onset_up']), 2)}), the "
             f"one at the down-slope end in {n_down} of {runs} (median onset "
-            f"{_fmt(_median_onset(ec['onset_down']), 2)}), against the paper's α ≈ 0.4 for the "
+            f"{_fmt(median_onset(ec['onset_down']), 2)}), against the paper's α ≈ 0.4 for the "
             "upper region.")
 
 
@@ -590,7 +365,7 @@ def extremities(ev: Evidence, *, ends_share, each_end_share, upper_onset) -> Sta
     ec, eb = extremity_profile(res_c), extremity_profile(res_b)
     ends = ec["overall_up"] + ec["overall_down"]
     two_regions = ends >= ends_share and min(ec["overall_up"], ec["overall_down"]) >= each_end_share
-    med_up, med_down = _median_onset(ec["onset_up"]), _median_onset(ec["onset_down"])
+    med_up, med_down = median_onset(ec["onset_up"]), median_onset(ec["onset_down"])
     upper_ok = np.isfinite(med_up) and upper_onset[0] <= med_up <= upper_onset[1]
     any_half = bool(np.any(np.isfinite(ec["onset_up"])) or np.any(np.isfinite(ec["onset_down"])))
     if two_regions and upper_ok:
@@ -901,8 +676,9 @@ def avalanche_bounds_statement(ev: Evidence, *, mu_d, mu_s) -> Statement:
         "Some run violates the bounds: a bug or a run that did not end in an avalanche.")
 
 
-def write_markdown(rep: Report, path, meta: dict) -> str:
-    """Write REPRODUCTION.md from the report to ``path``; returns the text."""
+def report_markdown(rep: Report, meta: dict) -> str:
+    """The text of REPRODUCTION.md: the report, and ``meta`` (date, version, backend, python,
+    wall, command) of the run that made it."""
     lines = ["# Reproduction of \"Avalanche precursors in a frictional model\"", "",
              f"Generated by `python -m sliders.reproduction` on {meta['date']} "
              f"(sliders {meta['version']}, backend `{meta['backend']}`, Python {meta['python']}, "
@@ -928,96 +704,4 @@ def write_markdown(rep: Report, path, meta: dict) -> str:
     if rep.notes:
         lines += ["## Other notes", ""] + [f"- {n}" for n in rep.notes] + [""]
     lines += ["## Timings", ""] + [f"- {k}: {v:.1f} s" for k, v in rep.timings.items()] + [""]
-    text = "\n".join(lines)
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write(text)
-    return text
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The command line of ``python -m sliders.reproduction``."""
-    p = argparse.ArgumentParser(prog="python -m sliders.reproduction",
-                                description="Compare the package with the paper's statements; "
-                                            "writes REPRODUCTION.md.")
-    p.add_argument("--runs", type=int, default=20,
-                   help="realisations of N = 10 and of N = 100 (default 20, as the paper)")
-    p.add_argument("--large-runs", type=int, default=6,
-                   help="realisations of the N = 400 scenes with and without coupling (default 6)")
-    p.add_argument("--n-large", type=int, default=400, help="N of scenes B and C (default 400)")
-    p.add_argument("--n-stats", type=int, default=100, help="N of the statistics runs (default 100)")
-    p.add_argument("--ensemble", metavar="FILE.h5",
-                   help="take the statistics (P_i, stopped forces, A) from this ensemble file "
-                        "instead of running --runs chains of N = --n-stats")
-    p.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
-    p.add_argument("--backend", choices=("fortran", "numpy"), default="fortran",
-                   help="tilt backend, one of {fortran, numpy} (default fortran)")
-    p.add_argument("--out", default="REPRODUCTION.md", help="output Markdown file")
-    return p
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Run ``python -m sliders.reproduction`` with ``argv``; returns the exit code."""
-    args = build_parser().parse_args(argv)
-    for name in ("runs", "large_runs", "n_large", "n_stats"):
-        if getattr(args, name) < (1 if name == "large_runs" else 2):
-            print(f"error: --{name.replace('_', '-')} is too small", file=sys.stderr)
-            return 2
-    from .._version import __version__
-
-    t_all = time.perf_counter()
-    rep = Report()
-
-    def log(msg):
-        print(msg, file=sys.stderr, flush=True)
-
-    t0 = time.perf_counter()
-    ev = Evidence(small=run_many(10, 0.0, args.runs, args.seed, args.backend, log, "A"))
-    rep.timings["scene A ensemble (N=10)"] = time.perf_counter() - t0
-    judge(rep, ev, "small")
-
-    t0 = time.perf_counter()
-    ev.uncoupled = run_many(args.n_large, 0.0, args.large_runs, args.seed, args.backend, log, "B")
-    ev.coupled = run_many(args.n_large, 0.001, args.large_runs, args.seed, args.backend, log, "C")
-    rep.timings[f"scenes B and C (N={args.n_large})"] = time.perf_counter() - t0
-    judge(rep, ev, "large")
-
-    t0 = time.perf_counter()
-    stats_results = []
-    if args.ensemble:
-        from .summary import load_ensemble_summary
-
-        summary, _, scene = load_ensemble_summary(args.ensemble)
-        rep.notes.append(f"Statistics from the ensemble file {args.ensemble} "
-                         f"({summary.n_realisations} finished realisations).")
-        ev.ensemble_ac = summary.alpha_c_values
-    else:
-        stats_results = run_many(args.n_stats, 0.0, args.runs, args.seed, args.backend, log, "S")
-        summary = ob.summary_from_results(stats_results)
-    rep.timings[f"statistics ensemble (N={summary.n_sliders})"] = time.perf_counter() - t0
-    ev.summary = summary
-    judge(rep, ev, "statistics")
-    ev.groups = {"N=10": ev.small, f"N={args.n_large}, xi=0": ev.uncoupled,
-                 f"N={args.n_large}, xi=0.001": ev.coupled, f"N={args.n_stats}": stats_results}
-    judge(rep, ev, "all")
-    bad = [r for grp in (ev.small, ev.uncoupled, ev.coupled, stats_results) for r in grp if r.status != "avalanche"]
-    if bad:
-        rep.notes.append(f"{len(bad)} run(s) did not end in an avalanche: "
-                         + ", ".join(f"seed {r.scene.seed}: {r.status} {r.message}" for r in bad))
-    rep.notes.append("Paper typos met on the way (docs/model.md): the caption of the coupled large "
-                     "system says N = 10 where the text says 400; the printed P_1 of Eq. (model) "
-                     "lacks a term 1/(2 μ_s) (sliders.model.bin_heights uses the corrected form); "
-                     "the caption of the single-slider figure writes μ_d = 0.6 for μ_s.")
-    wall = time.perf_counter() - t_all
-    rep.timings["total"] = wall
-    meta = {"date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"), "version": __version__,
-            "backend": args.backend, "python": platform.python_version(), "wall": wall,
-            "command": "python -m sliders.reproduction " + " ".join(argv if argv is not None
-                                                                    else sys.argv[1:])}
-    text = write_markdown(rep, args.out, meta)
-    print(text)
-    log(f"wrote {os.path.abspath(args.out)} in {wall:.0f} s")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    return "\n".join(lines)

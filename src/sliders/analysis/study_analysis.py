@@ -6,12 +6,12 @@ Definitions are REPRODUCTION.md's (``sliders.reproduction``), applied at every p
   bounds atan μ_d and atan μ̄_s (docs/model.md, "The avalanche and why α_c is bounded");
 * the observed transition angle: where P₁ + P₂ rises above its linear trend fitted on
   [0.1, 0.3] by more than 3 standard errors on two angles in a row
-  (``reproduction.departure_angle``), against the model's 2μ̄_s/(1 + e) and the angle where
+  (``precursors.departure_angle``), against the model's 2μ̄_s/(1 + e) and the angle where
   the master equations' P₃ deficit reaches 10 % (``model.transition_angle_from_p3``);
-* burst periods (``reproduction.burst_periods``, per realisation, then averaged): early =
+* burst periods (``precursors.burst_periods``, per realisation, then averaged): early =
   intervals between two single-slider events of one slider below α = 0.3, against
   2Δμ/(1 + μ_s tan α); late = between two events of ≥ 3 sliders above α = 0.35, against Δμ;
-* the synchronisation share (``reproduction.sync_profile``): share of the displacement in
+* the synchronisation share (``precursors.sync_profile``): share of the displacement in
   events whose moving sliders form ≥ 2 separate groups, per realisation.
 
 Common random numbers: realisation r has the same seed at every point, so a difference
@@ -30,6 +30,10 @@ import numpy as np
 from ..io.storage import STATISTICS
 from ..io.study_file import read_point_rows, read_study_spec
 from .study_spec import STUDY_PREFIX, Study, parse_study
+from . import model
+from .observables import StatisticsGrids, combine, default_grids
+from .precursors import DEPARTURE_SIGMAS, departure_angle
+from .reproduction import SUM_FIT_RANGE
 
 
 def load_study_file(path) -> tuple[Study, list[dict[str, np.ndarray]]]:
@@ -54,10 +58,6 @@ def _mean_sem(x: np.ndarray) -> tuple[float, float, int]:
 
 def point_summary(study: Study, p: int, rows: dict[str, np.ndarray]) -> dict[str, Any]:
     """Every study quantity at point p (NaN where the data do not define it)."""
-    from . import model
-    from .observables import StatisticsGrids, combine, default_grids
-    from .reproduction import DEPARTURE_SIGMAS, SUM_FIT_RANGE, departure_angle  # noqa: F401
-
     scene = study.scenes[p]
     done = rows["done"]
     out: dict[str, Any] = dict(study.points[p])

@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..parts.checks import SceneError
-from ..scene import Scene, check_tilt_statistics, scene_keys
+from ..scene import Scene, check_memory, check_tilt_statistics, read_toml, scene_keys
+from ..analysis.observables import default_grids
 
 STUDY_PREFIX = "study_"  # extra per-realisation statistics (burst periods, synchronisation)
 NOT_AXES = ("seed", "output", "record")  # seed: common random numbers; record: statistics needed
@@ -146,8 +147,6 @@ def _check_zip(zipped: Any, axes: dict, where: str) -> list[list[str]]:
 
 def _point_scene(base: dict, values: dict[str, Any], p: int, where: str) -> Scene:
     """The scene of point p (axis ``values`` over ``base``), checked for a study's statistics."""
-    from ..analysis.observables import default_grids
-
     try:
         scene = Scene.from_dict({**base, **values})
         check_tilt_statistics(scene)
@@ -186,8 +185,6 @@ def load_study(path, data: bytes | None = None) -> Study:
     axis or a value invalid at one point raises ``StudyError`` naming the axis
     and the point.  ``data``: the file's bytes, when they were read elsewhere (MPI rank 0).
     """
-    from ..scene import read_toml
-
     where = f"study file {os.fspath(path)!r}"
     return parse_study(read_toml(path, where, StudyError, data), where)
 
@@ -195,8 +192,6 @@ def load_study(path, data: bytes | None = None) -> Study:
 def check_points_memory(study: Study, ranks: int = 1) -> None:
     """Refuse (StudyError naming the point) a study with a point too large for the memory
     available, ``ranks`` such runs at once on one node: checked before anything is created."""
-    from ..scene import check_memory
-
     for p, (values, scene) in enumerate(zip(study.points, study.scenes)):
         try:
             check_memory(scene, ranks)

@@ -18,6 +18,10 @@ import numpy as np
 from .style import COLUMN_WIDTH, STYLE
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib.animation import PillowWriter  # noqa: E402
+from ..analysis.observables import valid_limit
+from ..driver import run
+from ..parts.checks import SceneError
+from ..scene import Scene
 
 ANIMATION_FRAMES = 72  # frames from alpha = 0 to alpha_c
 FINAL_FRAMES = 10  # frames holding the avalanche
@@ -31,9 +35,6 @@ def animation_scene(path=None):
     A scene that would record only a summary records displacements instead:
     the animation needs to know which sliders moved.
     """
-    from ..parts.checks import SceneError
-    from ..scene import Scene
-
     if path is None:
         return Scene(n_sliders=10, xi=0.0, seed=1, record="displacements")
     scene = Scene.from_toml(path)
@@ -62,9 +63,6 @@ def animate_tilt(scene, out_dir="figures", name: str | None = None, backend: str
                  frames: int = ANIMATION_FRAMES, fps: int = FRAMES_PER_SECOND,
                  dpi: int = GIF_DPI) -> str:
     """Tilt ``scene`` to its end and write ``<out_dir>/<name>.gif``; returns the path."""
-    from ..driver import run
-    from ..analysis.observables import valid_limit
-
     result = run(scene, backend=backend)
     sc = result.scene
     n = sc.n_sliders

@@ -17,19 +17,15 @@ import math
 
 import numpy as np
 
+from ..analysis.forecast.base import LOWER, MEDIAN, UPPER
+from ..analysis.forecast.registry import by_name
 from .style import COLUMN_WIDTH, STYLE, panel_label, save_figure
-
-#: the forecasters drawn, in order, with their colours (baselines grey, dashed)
-SHOWN = {"climatology": ("0.55", ":"), "conditioned": ("0.35", "--"), "now": ("0.0", ":"),
-         "last_plus_lead": ("0.7", "-."),
-         "ffm_linear_event": ("#e6ab02", "-"), "ffm_ml_event": ("#a6761d", "-"),
-         "ffm_linear_disp": ("#66a61e", "-"), "ffm_ml_disp_p": ("#1b9e77", "-"),
-         "paper_rule": ("#7570b3", "-"), "model_based": ("#e7298a", "-"),
-         "learned": ("#d95f02", "-"), "learned_blind": ("#fdae61", "-"), "ceiling": ("#1f78b4", "-"), "told_mu_d": ("#6a3d9a", "--")}
 
 
 def _style(name):
-    return SHOWN.get(name, ("0.5", "-"))
+    """(colour, line style) of a forecaster: its registry entry's (``Entry.colour``, ``.line``)."""
+    e = by_name().get(name)
+    return ("0.5", "-") if e is None else (e.colour, e.line)
 
 
 def _legend_below(fig, ax, ncol):
@@ -44,8 +40,7 @@ def _column(rows, metric, k=0):
 
 
 def _lead_scores(results, set_name="test"):
-    s = results["sets"][set_name]["lead"]["scores"]
-    return {k: v for k, v in s.items() if k in SHOWN}
+    return results["sets"][set_name]["lead"]["scores"]
 
 
 def figure_error(results, out_dir, name="forecast_error"):
@@ -119,20 +114,15 @@ def figure_convergence(example, out_dir, name="forecast_convergence"):
     """One realisation: the forecasts (median, 80 % band) as the tilt grows; the truth and the events."""
     import matplotlib.pyplot as plt
 
-    from ..analysis.forecast.base import LOWER, MEDIAN, UPPER
-
     t = np.degrees(example["tilts"])
     a_c = math.degrees(example["alpha_c"])
     with plt.rc_context(STYLE):
         fig, ax = plt.subplots(figsize=(COLUMN_WIDTH * 1.5, COLUMN_WIDTH * 1.15))
-        for nm in ("conditioned", "ffm_linear_disp", "paper_rule", "learned_blind", "model_based",
-                   "learned", "ceiling", "told_mu_d"):
-            if nm not in example["forecasts"]:
-                continue
-            q = np.degrees(example["forecasts"][nm])
+        for nm, q in example["forecasts"].items():  # the registry's example entries
+            q = np.degrees(q)
             c, ls = _style(nm)
             ax.plot(t, q[:, MEDIAN], ls, color=c, label=example["labels"][nm])
-            if nm in ("learned", "conditioned", "ceiling"):
+            if by_name()[nm].band:
                 ax.fill_between(t, q[:, LOWER], q[:, UPPER], color=c, alpha=0.15, lw=0)
         ax.axhline(a_c, color="k", lw=1.2, label=r"truth $\alpha_c$")
         ax.plot(t, t, color="k", lw=0.6, ls=":", label=r"$\alpha_{obs}$ (now)")
@@ -194,9 +184,9 @@ def figure_lead_coverage(report, out_dir, name="forecast_lead_coverage"):
         ax = axes[0]
         ax.axhspan(0.77, 0.83, color="0.85", label="target over all cuts (0.77-0.83)")
         ax.axhline(0.70, color="0.4", ls=":", lw=1, label="floor at every lead (0.70)")
-        for key, label, (colour, _) in (("coverage", "angles + sizes", SHOWN["learned_blind"]),
+        for key, label, (colour, _) in (("coverage", "angles + sizes", _style("learned_blind")),
                                         ("coverage_all_inputs", "+ displacements, positions",
-                                         SHOWN["learned"])):
+                                         _style("learned"))):
             per = report[key]["per_lead"]
             leads = np.array([float(k) for k in per])
             ax.plot(leads, [v["coverage"] for v in per.values()], "o-", color=colour, label=label)
@@ -215,7 +205,7 @@ def figure_lead_coverage(report, out_dir, name="forecast_lead_coverage"):
         observed = np.array([b["observed"] for b in rel])
         se = np.sqrt(p * (1 - p) / n)
         bars = np.vstack([np.minimum(se, observed), np.minimum(se, 1 - observed)])  # within [0, 1]
-        ax.errorbar(p, observed, yerr=bars, fmt="o-", capsize=3, color=SHOWN["learned_blind"][0],
+        ax.errorbar(p, observed, yerr=bars, fmt="o-", capsize=3, color=_style("learned_blind")[0],
                     label="angles + sizes (bars: ±1 s.e. if calibrated)")
         ax.set_ylim(-0.02, 1.02)
         ax.set_xlabel("forecast P(avalanche within 1°)")
@@ -238,14 +228,14 @@ def figure_degradation(report, out_dir, name="forecast_degradation"):
     with plt.rc_context(STYLE):
         fig, axes = plt.subplots(1, 2, figsize=(2 * COLUMN_WIDTH, 1.1 * COLUMN_WIDTH),
                                  sharey=True, layout="constrained")
-        axes[0].barh(y, ratio, color=SHOWN["learned_blind"][0])
+        axes[0].barh(y, ratio, color=_style("learned_blind")[0])
         axes[0].axvline(0.4, color="0.3", ls=":", lw=1, label="target 0.4")
         axes[0].axvline(1.0, color="0.6", ls="--", lw=1, label="conditioned climatology")
         axes[0].set_yticks(y, labels)
         axes[0].set_xlabel("median |error| / conditioned climatology's")
         axes[0].legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize="small",
                        frameon=False)
-        axes[1].barh(y, cover, color=SHOWN["learned"][0])
+        axes[1].barh(y, cover, color=_style("learned")[0])
         axes[1].axvline(0.75, color="0.3", ls=":", lw=1, label="target 0.75")
         axes[1].axvline(0.8, color="0.6", ls="--", lw=1, label="nominal 0.8")
         axes[1].set_xlim(0, 1)

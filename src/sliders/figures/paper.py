@@ -52,6 +52,10 @@ from ..analysis import observables as ob  # noqa: E402
 from ..analysis.summary import load_ensemble_summary  # noqa: E402,F401 - F.load_ensemble_summary
 from ..io.storage import check_ensemble_file  # noqa: E402
 from .pushed_end import NAME as PUSHED_END, fig_pushed_end, pushed_end_run  # noqa: E402
+from ..analysis import model
+from ..driver import run, tilt_realisations
+from ..preparation import prepare
+from ..scene import Scene
 
 
 @dataclass(frozen=True)
@@ -309,8 +313,6 @@ def fig_scene(result, name: str = "scene", label: str = "", out_dir="figures",
 def single_slider_scene(seed: int = 3, alpha_max: float = 0.6, mu_s: float = 0.6,
                         mu_d: float = 0.55, dt: float = 1e-3):
     """The paper's single slider (N = 1 between walls) tilted to ``alpha_max`` (radians), time step ``dt`` (tau)."""
-    from ..scene import Scene
-
     return Scene(n_sliders=1, ends="walls", sigma_mu=0.0, mu_s_mean=mu_s, mu_d=mu_d, seed=seed,
                  alpha_max=alpha_max, record="forces", dt=dt)
 
@@ -348,9 +350,6 @@ def single_slider_run(initial_force: float | None = 0.45, backend: str = "fortra
     ``initial_force`` None keeps the random preparation of the scene; a value
     sets F_t(0) (the left wall spring at rest, the right one carrying it).
     """
-    from ..driver import run
-    from ..preparation import prepare
-
     scene = single_slider_scene(seed=seed, alpha_max=alpha_max)
     state = prepare(scene)
     if initial_force is not None:
@@ -373,8 +372,6 @@ def fig_single_slider(result=None, backend: str = "fortran", out_dir="figures",
     rearrangement angles (``model.single_slider_angles``) are marked on both
     limits (open circles: top of each drop, crosses: bottom).
     """
-    from ..analysis import model
-
     if result is None:
         result = single_slider_run(initial_force, backend=backend, seed=seed, alpha_max=alpha_max)
     sc = result.scene
@@ -559,8 +556,6 @@ def fig_bin_heights(summary, out_dir="figures", name: str = "bin_heights",
     Stirling, Eq. (21); grey dash-dotted: the exact solution of Eq. (20).  Every
     line has a legend entry: one legend for the bins, one for the line styles.
     """
-    from ..analysis import model
-
     g = summary.grids
     nu = g.n_model_bins
     if bins is None:
@@ -698,9 +693,6 @@ def scene_setups(paper_size: bool = False, backend: str = "fortran") -> dict[str
 
 def run_scene(n_sliders: int, xi: float, seed: int, backend: str = "fortran", **kw):
     """Tilt one scene of N sliders to the avalanche; ``kw`` are further Scene fields.  Returns the Result."""
-    from ..driver import run
-    from ..scene import Scene
-
     return run(Scene(n_sliders=n_sliders, xi=xi, seed=seed, record="displacements", **kw),
                 backend=backend)
 
@@ -708,9 +700,6 @@ def run_scene(n_sliders: int, xi: float, seed: int, backend: str = "fortran", **
 def run_ensemble(n_sliders: int = 100, runs: int = 20, base_seed: int = 0, xi: float = 0.0,
                  backend: str = "fortran", keep_results: bool = False, progress=None):
     """Serial ensemble: (summary, results or None).  Seeds keyed_random.realisation_seed(base, r)."""
-    from ..driver import tilt_realisations
-    from ..scene import Scene
-
     scene = Scene(n_sliders=n_sliders, xi=xi, seed=base_seed, record="displacements")
     grids = ob.default_grids(scene)
     rows, results = [], []

@@ -26,6 +26,7 @@ from matplotlib import colors as mcolors  # noqa: E402
 
 from ..parts.loading import PushedEnd  # noqa: E402
 from ..scene import Scene  # noqa: E402
+from ..driver import run
 
 NAME = "pushed_end"
 # A chain long enough for fronts of many lengths (about 37 500 events to the
@@ -36,8 +37,6 @@ FIGURE_SCENE = Scene(n_sliders=100, seed=2, loading="pushed_end", driver_stiffne
 
 def pushed_end_run(scene: Scene = FIGURE_SCENE, backend: str = "fortran"):
     """The figure's run."""
-    from ..driver import run
-
     return run(scene, backend=backend)
 
 

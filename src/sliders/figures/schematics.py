@@ -21,6 +21,9 @@ import numpy as np
 from .style import COLUMN_WIDTH, STYLE, save_figure
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib.patches import FancyArrowPatch, Polygon  # noqa: E402
+from ..analysis import model
+from ..preparation import prepare
+from ..scene import Scene
 
 # -----------------------------------------------------------------------------
 # Fig. 1: the system
@@ -38,9 +41,6 @@ def sketch_chain(n_sliders: int = SKETCH_SLIDERS, seed: int = 2, xi: float = 0.0
     x_n^(c) = mean(x) + (n - (N+1)/2) l*, l* = (x_N - x_1)/(N - 1): the plate
     moves with the barycentre (paper Eq. bary).
     """
-    from ..preparation import prepare
-    from ..scene import Scene
-
     scene = Scene(n_sliders=n_sliders, xi=xi, seed=seed)
     x = np.asarray(prepare(scene).lattice_position0, dtype=float)
     l_star = (x[-1] - x[0]) / (n_sliders - 1)
@@ -178,8 +178,6 @@ def histogram_model_bins(alpha: float, mu_s_mean: float = 0.6, mu_d: float = 0.5
     (``model.integrate_master_equations(variable_nu=True)``), which conserves
     probability: sum_i 2 dmu P_i = 1.
     """
-    from ..analysis import model
-
     dmu = mu_s_mean - mu_d
     nu = int(model.n_bins(alpha, mu_s_mean, mu_d))
     heights = np.asarray(model.integrate_master_equations([alpha], mu_s_mean, mu_d,

@@ -16,6 +16,7 @@ import numpy as np
 
 from .style import COLUMN_WIDTH, ORDER_CMAP, PNG_DPI, STYLE, save_figure
 from ..analysis.study_analysis import load_study_file, paired_difference, point_summary
+from ..io import formats
 
 LABELS = {"n_sliders": "N", "xi": r"$\xi$", "mu_d": r"$\mu_d$", "mu_s_mean": r"$\bar\mu_s$",
           "sigma_mu": r"$\sigma_\mu$"}
@@ -249,8 +250,6 @@ def draw_study(path, out_dir, formats=("png", "pdf"), dpi: int = PNG_DPI,
 
 def check_study_file(path) -> None:
     """One-line errors for a file that is not a readable study."""
-    from ..io import formats
-
     p = os.fspath(path)
     probe = formats.probe_file(p)
     if probe.state == "missing":

@@ -40,6 +40,7 @@ import numpy as np
 
 from . import h5tools
 from .h5tools import Stored
+from .._version import __version__
 
 FORCE, LENGTH, TIME = "m g", "g tau^2", "tau"
 ENERGY = "m g^2 tau^2"
@@ -127,20 +128,6 @@ ENSEMBLE_ROW_VARIABLES = {
     "slider_steps": ("1", "integration work of the run (slider-steps)"),
     "wall_time": ("s", "wall time of the realisation"),
 }
-ENSEMBLE_STATISTICS = {
-    "force_counts": (("alpha", "force_bin"), "1", "histogram of the N forces F_t at each angle"),
-    "valid_alpha": (("alpha",), "1", "1 where the chain is at rest at that angle"),
-    "model_bin_counts": (("alpha", "model_bin"), "1", "sliders in each model bin of width 2 dmu"),
-    "cumulated_displacement": (("alpha",), LENGTH, "A(alpha): sum of all displacements up to alpha"),
-    "stopped_ratio_counts": (("stop_alpha_bin", "ratio_bin"), "1",
-                             "histogram of F_t/F_t* of the sliders that moved, by event angle"),
-    "event_size_counts": (("event_size",), "1", "events in which s distinct sliders moved"),
-    "alpha_c": ((), "rad", "avalanche angle (NaN if the run ended otherwise)"),
-    "n_events": ((), "1", "number of completed rearrangements"),
-    "event_counts": (("alpha_interval",), "1", "events with angle in [alpha_g, alpha_g+1)"),
-    "event_mean_displacement_sum": (("alpha_interval",), LENGTH,
-                                    "sum over those events of the mean displacement of the movers"),
-}
 ENSEMBLE_GRIDS = {
     "alpha": ("alpha", "rad", "angles at which the statistics are sampled"),
     "force_edges": ("force_edge", FORCE, "edges of the force histogram"),
@@ -156,8 +143,13 @@ def _centres(edges: np.ndarray) -> np.ndarray:
     return 0.5 * (edges[1:] + edges[:-1])
 
 
-def ensemble_variables(h5file) -> dict[str, Variable]:
-    """Dimensions, units and long name of every dataset of an ensemble file (path: Variable)."""
+def ensemble_variables(h5file, statistics: dict) -> dict[str, Variable]:
+    """Dimensions, units and long name of every dataset of an ensemble file (path: Variable).
+
+    ``statistics``: name -> (dims of a row, units, long name) of the per-realisation
+    statistics, declared where each is defined (``analysis.observables.STATISTIC_CONVENTIONS``,
+    and a study's own); a statistic of the file it does not declare is described as such.
+    """
     out = {}
     for k, (dim, u, ln) in ENSEMBLE_GRIDS.items():
         out[f"grids/{k}"] = Variable((dim,) if dim else (), u, ln)
@@ -165,8 +157,9 @@ def ensemble_variables(h5file) -> dict[str, Variable]:
         out[f"realisations/{k}"] = Variable(("realisation",), u, ln)
     stats = h5file["realisations/statistics"] if "realisations/statistics" in h5file else {}
     for k in stats:
-        dims, u, ln = ENSEMBLE_STATISTICS.get(k, ((), "1", k.replace("_", " ")))
-        if len(dims) != stats[k].ndim - 1:  # a statistic this table does not know: index axes
+        dims, u, ln = statistics.get(k, ((), "1", f"{k.replace('_', ' ')} (not declared by "
+                                                   "this version of sliders)"))
+        if len(dims) != stats[k].ndim - 1:  # a statistic not declared here: index axes
             dims = tuple(f"{k}_axis{i}" for i in range(1, stats[k].ndim))
         out[f"realisations/statistics/{k}"] = Variable(("realisation",) + dims, u, ln)
     if "realisations/row_crc32" in h5file:
@@ -264,8 +257,6 @@ def provenance(title: str, scene: dict | None) -> dict[str, str]:
     """Root attributes every file carries: title, source, history (this command), date, git commit, versions, the scene as TOML."""
     import h5py
 
-    from .._version import __version__
-
     now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     out = {
         "title": title,
@@ -351,11 +342,12 @@ def describe_tilt_file(h5file, result) -> None:
 RESUME_HISTORY_MIN_FREE = 1 << 20
 
 
-def describe_ensemble_file(path, earlier_history: str | None = None) -> bool | str:
+def describe_ensemble_file(path, statistics: dict,
+                           earlier_history: str | None = None) -> bool | str:
     """Describe an ensemble file (one process, no writer holding it): True, or why not.
 
-    ``earlier_history``: the history of the files this one was made from (the
-    chunks of a merge), written before this command's line.
+    ``statistics``: as ``ensemble_variables``'s.  ``earlier_history``: the history of the
+    files this one was made from (the chunks of a merge), written before this command's line.
     """
     import h5py
 
@@ -369,17 +361,17 @@ def describe_ensemble_file(path, earlier_history: str | None = None) -> bool | s
         with h5py.File(os.fspath(path), "r+") as f:
             if earlier_history is not None:
                 f.attrs["history"] = earlier_history
-            _describe_ensemble(f)
+            _describe_ensemble(f, statistics)
     except (OSError, KeyError, ValueError) as exc:
         return " ".join(str(exc).split()) or type(exc).__name__
     return True
 
 
-def _describe_ensemble(f) -> None:
+def _describe_ensemble(f, statistics: dict) -> None:
     scene = json.loads(f.attrs["scene"])
     first = int(f.attrs.get("first_realisation", 0))
     n = int(f.attrs["realisations"])
     part = f" (realisations {first}..{first + n - 1})" if first else ""
-    describe(f, ensemble_variables(f), ensemble_coordinates(f),
+    describe(f, ensemble_variables(f, statistics), ensemble_coordinates(f),
              f"sliders ensemble: {n} realisations{part} of N = {scene['n_sliders']}, "
              f"xi = {scene['xi']:g}", scene)

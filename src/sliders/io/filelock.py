@@ -43,6 +43,8 @@ import fcntl
 import os
 import socket
 import stat
+import struct
+from .safeio import is_special, remove_leftovers, resolve_target
 
 LOCK_SUFFIX = ".lock"
 NO_LOCKING = (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL)
@@ -65,8 +67,6 @@ _HELD: dict[str, "OutputClaim"] = {}  # real path -> the claim this process hold
 def current_holder(path) -> str | None:
     """The run named by the claim file of ``path`` ("pid P on HOST"), else None (read only,
     never locked: for messages about a file known to be busy)."""
-    from .safeio import resolve_target
-
     lock_path = resolve_target(path).real + LOCK_SUFFIX
     try:
         fd = os.open(lock_path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
@@ -82,8 +82,6 @@ class OutputClaim:
     """Exclusive claim on an output path (see the module doc)."""
 
     def __init__(self, path):
-        from .safeio import resolve_target
-
         self.path = os.fspath(path)
         self.target = resolve_target(self.path)
         self.lock_path = self.target.real + LOCK_SUFFIX
@@ -96,8 +94,6 @@ class OutputClaim:
 
     def acquire(self) -> "OutputClaim":
         """Take the claim (an exclusive lock of ``<path>.lock``) or raise naming its holder; returns self."""
-        from .safeio import is_special, remove_leftovers
-
         if is_special(self.target.real):  # a device (/dev/full) or fifo: no file of ours to protect
             return self
         if self.target.real in _HELD:  # this process holds it already (tilt --out, then save)
@@ -192,8 +188,6 @@ class OutputClaim:
 
 def claim_of(path) -> "OutputClaim | None":
     """The claim this process holds on the file ``path`` names, else None."""
-    from .safeio import resolve_target
-
     return _HELD.get(resolve_target(path).real)
 
 
@@ -201,8 +195,6 @@ def _identity_lock(path: str) -> int | None:
     """An open descriptor of the regular file ``path`` holding the identity lock; None when
     there is nothing to lock (no such file, not writable, no such locks here); -1 when
     another open file holds it."""
-    import struct
-
     if not hasattr(fcntl, "F_OFD_SETLK"):
         return None
     try:

@@ -32,6 +32,7 @@ from .. import units
 from .catalogue import Catalogue
 from .safeio import (fsync_dir, leftover_temporaries, publish_bytes, resolve_target,
                      temporary_beside)
+from .filelock import ClaimError, OutputClaim
 
 
 class ForecastInputError(ValueError):
@@ -53,8 +54,6 @@ MAX_JOURNAL_BYTES = 2**20
 
 def claim_folder(folder: str):
     """Claim the output folder ``folder`` (``io.filelock.OutputClaim`` on the lock inside it)."""
-    from .filelock import ClaimError, OutputClaim
-
     try:
         return OutputClaim(os.path.join(resolve_target(folder).real, CLAIM_NAME)).acquire()
     except ClaimError as exc:

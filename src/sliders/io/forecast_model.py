@@ -22,6 +22,7 @@ import importlib.resources
 import io
 import pathlib
 import zipfile
+from .safeio import publish_bytes
 
 MODEL_FORMAT = "sliders-forecaster-3"
 #: the shipped model's file name inside the package's data folder
@@ -84,8 +85,6 @@ def forecasters_bytes(forecasters: dict, provenance: dict, where: str = "model")
 
 def save_forecasters(path: str, forecasters: dict, provenance: dict) -> int:
     """Write a model file atomically (``forecasters_bytes``); returns its size in bytes."""
-    from .safeio import publish_bytes
-
     blob = forecasters_bytes(forecasters, provenance, path)
     publish_bytes(path, blob, overwrite=True)
     return len(blob)

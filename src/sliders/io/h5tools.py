@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import safeio
+from .filelock import current_holder
 
 ROW_DIGEST = "row_crc32"
 # netCDF-4's mark of a dimension that has a length but no coordinate values (no storage)
@@ -59,8 +60,6 @@ def open_for_reading(path):
     except OSError as exc:
         text = " ".join(str(exc).split())
         if "unable to lock file" in text or "errno = 11" in text:
-            from .filelock import current_holder
-
             holder = current_holder(p) or "another process"
             raise StorageError(f"{p!r} is busy: {holder} is writing it (HDF5 locks a file "
                                "while it is written); read it once that run has finished") \

@@ -59,6 +59,7 @@ from .conventions import ENSEMBLE_ROW_VARIABLES, add_provenance
 from .h5tools import (ROW_DIGEST, StorageError, open_checked, done_mask, open_for_reading, plain_attributes,
                       row_damage)
 from .storage import BASE_COLUMNS, Column, GatherFile, Layout, create_structure
+from .._version import __version__
 
 FORMAT = formats.PRIOR
 FORMAT_VERSION = 2
@@ -126,8 +127,6 @@ def prior_layout(n_rows: int, seeds, parameters: dict[str, np.dtype], ceiling_al
 def prior_attributes(spec: dict, digest: str, base_seed: int, n_rows: int, backend: str,
                      parameter_names, ceiling_k: int) -> dict[str, Any]:
     """The root attributes of a new prior file (the prior as JSON, its digest, seed, versions)."""
-    from .._version import __version__
-
     return {
         "format": FORMAT, "format_version": FORMAT_VERSION,
         "prior": json.dumps(spec, sort_keys=True), "prior_digest": digest,

@@ -33,8 +33,10 @@ import stat
 import tempfile
 import zlib
 from typing import NamedTuple
+import shutil
 
 import numpy as np
+from . import formats
 
 # Every dataset written by sliders carries this attribute: CRC-32 of its dtype,
 # shape and bytes (``crc32_of``).  The root group carries ATTRS_DIGEST over its
@@ -243,8 +245,6 @@ def check_header(h5file, fmt: str, where: str, wrong_kind=ValueError,
     versions known), and its root attributes (and coordinate variables) pass their
     checksums.  Every reader (tilt, ensemble, study) opens a file through this, raising
     its own error."""
-    from . import formats
-
     found = h5file.attrs.get("format")
     if isinstance(found, bytes):
         found = found.decode(errors="replace")
@@ -289,8 +289,6 @@ _REASONS_IN_TEXT = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno
 def disk_usage(path):
     """``shutil.disk_usage`` (total, used, free bytes) of the file system that holds ``path``'s
     real file (symlinks followed: the disk a write reaches); OSError if it cannot be asked."""
-    import shutil
-
     target = resolve_target(path).real
     return shutil.disk_usage(os.path.dirname(target) or ".")
 

@@ -54,6 +54,7 @@ import os
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
+import time
 
 import numpy as np
 
@@ -61,6 +62,8 @@ from .. import status
 from . import formats, safeio
 from .h5tools import (ROW_DIGEST, StorageError, open_checked, damaged, done_mask, open_for_reading,
                       plain_attributes, row_damage)
+from .._version import __version__
+from ..scene import Scene
 
 FORMAT = formats.ENSEMBLE
 FORMAT_VERSION = 1
@@ -128,8 +131,6 @@ def make_layout(n_realisations: int, seeds, grids: dict[str, np.ndarray],
 
 def file_attributes(scene_dict: dict, base_seed: int, n_realisations: int, backend: str) -> dict:
     """Root attributes of a new ensemble file: format, scene (JSON), seeds, count, backend, versions."""
-    from .._version import __version__
-
     return {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
@@ -364,8 +365,6 @@ class EnsembleFile:
         self._ds[ROW_DIGEST] = rg[ROW_DIGEST]
 
     def _write_local(self, r: int, row: dict[str, Any]) -> None:
-        import time
-
         t = time.perf_counter()
         values = self._row_arrays(row)
         for name, v in values.items():
@@ -375,8 +374,6 @@ class EnsembleFile:
         self.write_seconds += time.perf_counter() - t
 
     def _done_local(self, r: int) -> None:
-        import time
-
         t = time.perf_counter()
         self._ds["done"][r] = 1
         self.write_seconds += time.perf_counter() - t
@@ -484,8 +481,6 @@ class GatherFile(EnsembleFile):
     def flush(self):
         """Flush rank 0's file to the operating system (the time is added to ``write_seconds``)."""
         if self.comm.rank == 0 and self.file is not None:
-            import time
-
             t = time.perf_counter()
             self.file.flush()
             self.write_seconds += time.perf_counter() - t
@@ -711,8 +706,6 @@ def read_done_statistics(path):
 
     ``sliders.analysis.summary.load_summary`` averages them.
     """
-    from ..scene import Scene
-
     head = read_header(path)
     rows = read_realisations(path)
     if not rows["statistics"]:

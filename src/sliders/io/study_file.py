@@ -34,10 +34,12 @@ from typing import Any
 
 import numpy as np
 
-from . import formats, safeio
+from . import formats, h5tools, safeio
 from .h5tools import (ROW_DIGEST, StorageError, open_checked, plain_attributes,
                       row_damage)
 from .storage import GatherFile, Layout, MpioFile, create_structure
+from .conventions import add_provenance, attach_dimensions, ensemble_coordinates, ensemble_variables
+from .._version import __version__
 
 FORMAT = formats.STUDY
 FORMAT_VERSION = 2  # 2: the root view shows the points' rows (virtual), no scalar grids
@@ -54,8 +56,6 @@ def point_name(p: int) -> str:
 
 def study_attributes(study, backend: str) -> dict[str, Any]:
     """The root attributes of a study file: the study, its digest, the dimensions, the backend."""
-    from .._version import __version__
-
     return {
         "format": FORMAT, "format_version": FORMAT_VERSION,
         "study": json.dumps(study.spec), "study_digest": study.digest,
@@ -246,16 +246,13 @@ AXIS_UNITS = {"alpha_max": "rad", "incline": "rad", "dt": "tau", "spring_length"
               "drive_max": "g tau^2"}
 
 
-def write_view(path, study) -> None:
+def write_view(path, study, statistics: dict) -> None:
     """Rank 0, file closed by the writers: named dimension scales on every dataset, and
     root variables (dims..., realisation) that show the points' rows (HDF5 virtual
     datasets: stored once, in the points' groups), so that
     ``xr.open_dataset(path, engine="h5netcdf")`` shows the axes as dimensions and
     ``xr.open_datatree`` every point with its grids as coordinates."""
     import h5py
-
-    from .conventions import (add_provenance, attach_dimensions, ensemble_coordinates,
-                              ensemble_variables)
 
     with h5py.File(os.fspath(path), "r+") as f:
         scales = _axis_scales(f, study)
@@ -266,7 +263,7 @@ def write_view(path, study) -> None:
                 _point_view(f, c, study, scales)
         for p in range(len(study.points)):
             g = f["points"][point_name(p)]
-            attach_dimensions(g, ensemble_variables(g), ensemble_coordinates(g),
+            attach_dimensions(g, ensemble_variables(g, statistics), ensemble_coordinates(g),
                               inherited={"realisation": f["realisation"]})
         if "title" not in f.attrs:
             add_provenance(f, f"sliders study: {len(study.points)} points x "
@@ -277,8 +274,6 @@ def write_view(path, study) -> None:
 def _axis_scales(f, study) -> list:
     """The study's axes and ``realisation`` as coordinates of the root (zipped axes: values
     along the first one's dimension)."""
-    from . import h5tools
-
     scales = []
     for d in study.dims:
         name = d[0]
@@ -301,8 +296,6 @@ def _axis_scales(f, study) -> list:
 def _point_view(f, column: str, study, scales) -> None:
     """Root dataset ``column`` (dims..., realisation): a virtual dataset over the points' rows."""
     import h5py
-
-    from . import h5tools
 
     R = study.realisations
     first = f["points"][point_name(0)]["realisations"][column]

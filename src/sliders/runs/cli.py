@@ -7,9 +7,13 @@ import os
 import sys
 import time
 import typing
+import socket
 
 from ..parts.checks import SceneError
 from ..scene import DEFAULT_MODE, SPEED_MODES, Scene, check_writable, scene_keys, toml_values
+from .. import scene
+from ..io.safeio import check_output_name, is_special, resolve_target
+from ..units import format_angle, parse_angle
 
 # What each scene option means and its unit (the model's units, ``Scene``: time tau,
 # length g tau^2, force m g, angles in radians; "" for a count or a name).
@@ -42,8 +46,6 @@ ANGLE_HELP = "an angle: 0.5rad, 30deg, or a bare number in rad"
 
 def _choices(name: str):
     """The fixed set of values of a scene option, if it has one."""
-    from .. import scene
-
     table = {"ends": scene.ENDS, "record": scene.RECORDS, "avalanche": scene.AVALANCHE_CRITERIA,
              "initial_forces": scene.INITIAL_FORCES, "loading": scene.LOADINGS,
              "mode": tuple(SPEED_MODES)}
@@ -52,8 +54,6 @@ def _choices(name: str):
 
 def _scene_option_help(name: str, default, choices) -> str:
     """The help of one scene option: meaning, choices, unit, default (angles in rad and deg)."""
-    from ..units import format_angle
-
     meaning, unit = SCENE_OPTIONS.get(name, (name.replace("_", " "), ""))
     parts = [meaning + (f" [{unit}]" if unit and unit != "angle" else "")]
     if choices:
@@ -84,8 +84,6 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _angle(text: str) -> float:
-    from ..units import parse_angle
-
     return parse_angle(text)
 
 
@@ -134,8 +132,6 @@ def check_output(path: str, overwrite: bool, option: str = "--out") -> None:
     empty, non-UTF-8 or too long name (``safeio.check_output_name``), a folder that is
     missing or not writable, or an existing file without ``--overwrite``.  A symlink is
     written through (``safeio.resolve_target``): the checks apply to the file it names."""
-    from ..io.safeio import check_output_name, is_special, resolve_target
-
     try:
         check_output_name(path)
     except ValueError as exc:
@@ -153,7 +149,6 @@ def ranks_on_this_node(comm) -> int:
     their memory adds up against one MemAvailable."""
     if comm.size == 1:
         return 1
-    import socket
 
     hosts = comm.allgather(socket.gethostname())
     return hosts.count(socket.gethostname())

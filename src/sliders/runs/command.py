@@ -36,7 +36,14 @@ from typing import Any, Callable
 import numpy as np
 
 from .parallel import MPIUnavailable, abort, error_line, get_comm, launcher_rank
-from .scheduler import StopFlag
+from .signals import StopFlag
+from .cli import check_output, ranks_on_this_node
+from ..analysis.study_spec import StudyError
+from ..io.filelock import OutputClaim, claim_of
+from ..io.safeio import is_special, leftovers_note, os_reason
+from ..io.storage import CollectiveFailure, STORAGES, StorageError, choose_storage
+from ..parts.checks import SceneError
+from ..scene import BACKENDS
 
 DEFAULT_BACKEND = "fortran"
 MAX_INPUT_BYTES = 1 << 20  # an input TOML larger than this is refused unread
@@ -92,8 +99,6 @@ def input_command_parser(prog: str, description: str, rank: int, name: str, meta
 def add_output_options(p: argparse.ArgumentParser, progress_interval: float = 10.0) -> None:
     """The options of a run into one file: ``--out``, ``--backend``, ``--resume``,
     ``--overwrite``, ``--progress-interval``, ``--quiet``."""
-    from ..scene import BACKENDS
-
     p.add_argument("--out", required=True, metavar="FILE.h5", help="output HDF5 file")
     p.add_argument("--backend", choices=BACKENDS, default=None,
                    help=f"tilt backend, one of {{{', '.join(BACKENDS)}}} (default "
@@ -110,8 +115,6 @@ def add_output_options(p: argparse.ArgumentParser, progress_interval: float = 10
 
 def add_storage_option(p: argparse.ArgumentParser) -> None:
     """``--storage``: the file writer (parallel h5py, rows gathered to rank 0, or auto)."""
-    from ..io.storage import STORAGES
-
     p.add_argument("--storage", choices=STORAGES, default="auto",
                    help=f"file writer, one of {{{', '.join(STORAGES)}}}: parallel h5py (mpio), "
                         "rows gathered to rank 0 (gather), or auto: mpio with several ranks when "
@@ -121,8 +124,6 @@ def add_storage_option(p: argparse.ArgumentParser) -> None:
 def check_run_options(args, comm, have_mpi: bool) -> str:
     """The options every run shares (--resume/--overwrite, --progress-interval,
     --storage), checked; returns the storage to use."""
-    from ..io.storage import StorageError, choose_storage
-
     if args.resume and args.overwrite:
         raise UsageError("--resume and --overwrite exclude each other", code=2)
     if not args.progress_interval >= 0:
@@ -146,8 +147,6 @@ def check_new_or_resume(args) -> bool:
 def resume_header(args, read_header):
     """Rank 0, holding the claim: ``read_header(args.out)`` when ``--out`` is resumed (a file
     that cannot be resumed is a UsageError in one line), None when it is started."""
-    from ..io.storage import StorageError
-
     if not check_new_or_resume(args):
         return None
     try:
@@ -159,10 +158,6 @@ def resume_header(args, read_header):
 def claim_output(args, program: str):
     """Rank 0, before anything is created or read: the claim on ``args.out`` (an
     ``io.filelock.OutputClaim``, held to the end); ``program`` names the command."""
-    from .cli import check_output
-    from ..io.filelock import OutputClaim
-    from ..io.safeio import is_special, leftovers_note
-
     check_output(args.out, overwrite=True)  # a writable file path (existence checked later)
     if is_special(args.out):
         raise UsageError(f"--out {args.out!r} is not a regular file (a device or a fifo): the "
@@ -295,9 +290,6 @@ def world_or_none():
 
 def _failure(exc: BaseException) -> tuple[int, str]:
     """The (exit code, one line) of a failure of local work."""
-    from ..analysis.study_spec import StudyError
-    from ..parts.checks import SceneError
-
     if isinstance(exc, HelpShown):
         return exc.code, ""
     if isinstance(exc, UsageError):
@@ -346,11 +338,9 @@ def run_planned(command: RunCommand, argv: list[str] | None = None) -> int:
     """Run ``command`` over the ranks in agreement rounds (the module doc); the exit code.
 
     The output claims are released after the run: the next writer finds the
-    file complete.  SIGINT and SIGTERM are handled by ``scheduler.StopFlag``
+    file complete.  SIGINT and SIGTERM are handled by ``signals.StopFlag``
     from the start: a signal on any rank reaches every rank at the next step.
     """
-    from .cli import ranks_on_this_node
-
     got = world_or_none()
     if got is None:
         return 1
@@ -403,10 +393,6 @@ def open_output(comm, args, plan: RunPlan, handlers: dict, storage: str, describ
     description; it returns True or the reason it failed.  A created file's
     identity joins rank 0's claim (``OutputClaim.bind``).
     """
-    from ..io.filelock import claim_of
-    from ..io.safeio import os_reason
-    from ..io.storage import CollectiveFailure, StorageError
-
     rank = comm.rank
     handler = err = None
     try:

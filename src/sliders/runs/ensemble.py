@@ -38,14 +38,20 @@ from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, Usage
 from .merge import chunk_range, parse_chunk
 from .rows import compute_row
 from .scheduler import serve_rows
+from ..analysis.observables import (StatisticsGrids, default_grids, statistic_conventions,
+                                    statistics_layout)
 from ..parts.checks import SceneError
-from ..scene import Scene
+from ..scene import Scene, check_memory, check_tilt_statistics
+from .cli import add_scene_arguments, disagreements, given_scene_values, scene_from_args
+from ..driver import make_engine
+from ..io.conventions import describe_ensemble_file
+from ..io.storage import (HANDLERS, StorageError, check_room, damaged_rows, file_attributes,
+                          make_layout, read_header, statistics_row_bytes)
+from ..keyed_random import realisation_seed
 
 
 def build_parser(rank: int = 0) -> CommandParser:
     """The command line of ``python -m sliders.ensemble`` (only ``rank`` 0 prints help and errors)."""
-    from .cli import add_scene_arguments
-
     p = CommandParser(
         prog="python -m sliders.ensemble",
         description="Tilt R realisations of one scene (seed of realisation r = "
@@ -70,10 +76,6 @@ def build_parser(rank: int = 0) -> CommandParser:
 def prepare_ensemble(args, inputs, world) -> dict:
     """Every check that needs no file (every rank, same answer): the scene, the counts,
     the options, the backend, the memory of ``world.node_ranks`` runs."""
-    from .cli import scene_from_args
-    from ..driver import make_engine
-    from ..scene import check_memory, check_tilt_statistics
-
     scene = scene_from_args(args, inputs.get(args.scene))
     if args.realisations is not None and args.realisations < 1:
         raise UsageError(f"--realisations={args.realisations} must be at least 1")
@@ -95,12 +97,9 @@ def prepare_ensemble(args, inputs, world) -> dict:
 
 def run_ensemble(comm, args, local, plan: RunPlan) -> int:
     """Create or open the file, serve the rows, report (every rank)."""
-    from ..analysis.observables import StatisticsGrids
-    from ..io.conventions import describe_ensemble_file
-    from ..io.storage import HANDLERS
-
     storage = local["storage"]
-    handler = open_output(comm, args, plan, HANDLERS, storage, describe_ensemble_file)
+    handler = open_output(comm, args, plan, HANDLERS, storage,
+                          lambda path: describe_ensemble_file(path, statistic_conventions()))
     if handler is None:
         return 1
     layout, scene = plan.layout, plan.scene
@@ -129,8 +128,6 @@ def run_ensemble(comm, args, local, plan: RunPlan) -> int:
 
 def _resumed_scene(args, attrs: dict, scene_text) -> Scene:
     """The scene of the file to resume, checked against the scene options given."""
-    from .cli import disagreements, given_scene_values
-
     out = args.out
     try:
         file_scene = Scene.from_stored(json.loads(attrs["scene"]))
@@ -166,8 +163,6 @@ def _resume_counts(args, attrs: dict, R, first: int) -> tuple[str, int, int]:
 def _check_resumable(out: str, head: dict, layout, grids: dict) -> np.ndarray:
     """The rows of ``out`` still to compute (missing or failing their checksums); the
     file's grids, columns and seeds must be this version's."""
-    from ..io.storage import StorageError, damaged_rows
-
     for k, v in grids.items():
         if k not in head["grids"] or not np.array_equal(head["grids"][k], v):
             raise UsageError(f"--resume: the statistics grid {k!r} of {out!r} differs from "
@@ -194,11 +189,6 @@ def _check_resumable(out: str, head: dict, layout, grids: dict) -> np.ndarray:
 def plan_ensemble(args, local: dict) -> RunPlan:
     """Rank 0 (holding the claim on --out): output file checks, resume compatibility, the
     scene and backend (the file's with --resume), the layout; ``local``: ``prepare_ensemble``'s."""
-    from ..keyed_random import realisation_seed
-    from ..analysis.observables import default_grids, statistics_layout
-    from ..io.storage import (StorageError, check_room, file_attributes, make_layout, read_header,
-                              statistics_row_bytes)
-
     scene, scene_text = local["scene"], local["scene_values"]
     backend = args.backend or DEFAULT_BACKEND
     out = args.out

@@ -20,8 +20,22 @@ import argparse
 import json
 import os
 import sys
+import signal
+import tempfile
 
 import numpy as np
+
+from ..analysis.observables import StatisticsGrids, statistic_conventions, statistics_layout
+from .command import error_line
+from .rows import realisation_seeds
+from ..io import safeio
+from ..io.conventions import describe_ensemble_file
+from ..io.filelock import ClaimError, OutputClaim
+from ..io.safeio import (check_output_name, describe_os_error, is_special, leftovers_note,
+                         resolve_target)
+from ..io.storage import (GatherFile, StorageError, check_space, file_attributes, make_layout,
+                          read_header, read_rows)
+from ..scene import Scene
 
 
 class MergeError(Exception):
@@ -68,9 +82,6 @@ def merge(out, inputs, overwrite: bool = False, notes=None) -> dict:
     receives lines for the user (temporary files of an earlier, killed merge
     that were removed).
     """
-    from ..io.filelock import ClaimError, OutputClaim
-    from ..io.safeio import check_output_name, is_special, resolve_target
-
     out = os.fspath(out)
     if not inputs:
         raise MergeError("no input files")
@@ -101,8 +112,6 @@ def merge(out, inputs, overwrite: bool = False, notes=None) -> dict:
                              "concurrent writer could not be detected; --overwrite is refused "
                              "there (delete the file first, or write elsewhere)")
         if claim.leftovers and notes is not None:
-            from ..io.safeio import leftovers_note
-
             notes.append(leftovers_note(claim.leftovers))
         if is_special(target.real):  # appeared meanwhile
             raise MergeError(f"{out!r} is not a regular file")
@@ -113,8 +122,6 @@ def merge(out, inputs, overwrite: bool = False, notes=None) -> dict:
 
 def _check_folder(out: str, real: str) -> None:
     """The folder of ``out`` exists and takes a new file (probed, as for an ensemble)."""
-    import tempfile
-
     folder = os.path.dirname(real) or "."
     if not os.path.isdir(folder):
         raise MergeError(f"{out!r}: directory {folder!r} does not exist")
@@ -122,8 +129,6 @@ def _check_folder(out: str, real: str) -> None:
         with tempfile.TemporaryFile(dir=folder):
             pass
     except OSError as exc:
-        from ..io.safeio import describe_os_error
-
         raise MergeError(f"cannot create files beside {out!r}: "
                          f"{describe_os_error(exc, folder)}") from None
 
@@ -131,8 +136,6 @@ def _check_folder(out: str, real: str) -> None:
 def _read_chunks(inputs: list[str]) -> list[tuple[str, dict]]:
     """The headers of the chunk files, in realisation order, checked to be chunks of one
     ensemble that cover realisations 0..R-1 once each."""
-    from ..io.storage import StorageError, read_header
-
     heads = []
     for p in inputs:
         try:
@@ -165,11 +168,6 @@ def _read_chunks(inputs: list[str]) -> list[tuple[str, dict]]:
 def _merged_layout(heads: list[tuple[str, dict]]):
     """The layout of the whole ensemble the chunks belong to; every chunk's columns and seeds
     checked against it."""
-    from .rows import realisation_seeds
-    from ..analysis.observables import StatisticsGrids, statistics_layout
-    from ..scene import Scene
-    from ..io.storage import file_attributes, make_layout
-
     h0 = heads[0][1]
     last = heads[-1][1]["attrs"]
     n_total = int(last.get("first_realisation", 0)) + int(last["realisations"])
@@ -197,9 +195,6 @@ def _merged_layout(heads: list[tuple[str, dict]]):
 def _write_merged(tmp: str, heads, layout, out: str) -> int:
     """Build the merged file ``out`` at ``tmp`` (rows done in the chunks, then the description);
     the number of rows done."""
-    from ..io.conventions import describe_ensemble_file
-    from ..io.storage import GatherFile, read_rows
-
     names = [c.name for c in layout.columns]
     handler = GatherFile.build(tmp, layout)
     n_done = 0
@@ -215,9 +210,8 @@ def _write_merged(tmp: str, heads, layout, out: str) -> int:
     finally:
         handler.close()
     # the chunks' commands first; describe adds this merge
-    described = describe_ensemble_file(tmp, "\n".join(str(h["attrs"]["history"])
-                                                      for _, h in heads
-                                                      if h["attrs"].get("history")))
+    history = "\n".join(str(h["attrs"]["history"]) for _, h in heads if h["attrs"].get("history"))
+    described = describe_ensemble_file(tmp, statistic_conventions(), history)
     if described is not True:
         raise MergeError(f"cannot write {out!r}: {described}")
     return n_done
@@ -225,9 +219,6 @@ def _write_merged(tmp: str, heads, layout, out: str) -> int:
 
 def _merge_claimed(out: str, inputs: list[str], overwrite: bool) -> dict:
     """``merge`` once ``out`` is checked and claimed: read, build beside, publish by rename."""
-    from ..io import safeio
-    from ..io.storage import StorageError, check_space
-
     heads = _read_chunks(inputs)
     layout = _merged_layout(heads)
     try:
@@ -277,15 +268,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``python -m sliders.merge`` (join the chunk files of one ensemble); returns the exit code."""
-    from .command import error_line
-
     args = build_parser().parse_args(argv)
     notes: list[str] = []
 
     def stop(signum, frame):
         raise KeyboardInterrupt
-
-    import signal
 
     old = signal.signal(signal.SIGTERM, stop)  # a batch system's stop: as Ctrl-C, cleanly
     try:

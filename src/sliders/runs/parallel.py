@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 
 # Variables that MPICH (Hydra, PMI), Open MPI and PMIx launchers set in every rank.
 LAUNCHER_VARIABLES = ("PMI_RANK", "PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "OMPI_COMM_WORLD_RANK",
@@ -80,8 +81,6 @@ def abort(comm, line: str | None = None, code: int = 1):
         except (OSError, ValueError):  # a closed or broken stream: nothing more to say
             pass
     if comm.size > 1:
-        import time
-
         time.sleep(ABORT_GRACE)
     comm.Abort(code)
 

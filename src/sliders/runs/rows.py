@@ -13,7 +13,11 @@ from typing import Any
 import numpy as np
 
 from .. import status as status_codes
-from .scheduler import tilt_interruptibly
+from .signals import tilt_interruptibly
+from ..analysis.observables import realisation_statistics
+from ..driver import realisation_scene
+from ..io.storage import STATISTICS
+from ..keyed_random import key_hash
 
 STATUS_CODES = {name: code for code, name in status_codes.NAMES.items()}
 UNKNOWN_STATUS = -2
@@ -29,10 +33,6 @@ def compute_row(scene, r: int, backend: str, grids, progress=None,
     """Row ``r`` of a file starting at realisation ``first``: realisation ``first + r`` of the
     scene (base columns + statistics/<key>).  ``extra_statistics(result)`` -> {key: value}
     adds statistics of the caller's own (a study's burst periods and synchronisation)."""
-    from ..driver import realisation_scene
-    from ..io.storage import STATISTICS
-    from ..analysis.observables import realisation_statistics
-
     started = time.perf_counter()
     result = tilt_interruptibly(realisation_scene(scene, first + r), backend, progress)
     stats = {} if scene.record == "summary" else realisation_statistics(result, grids)
@@ -52,7 +52,5 @@ def compute_row(scene, r: int, backend: str, grids, progress=None,
 def realisation_seeds(base_seed: int, first: int, count: int) -> np.ndarray:
     """The seeds of realisations ``first`` to ``first + count - 1`` (``keyed_random.realisation_seed``
     of each), as one uint32 array: 4 bytes a row."""
-    from ..keyed_random import key_hash
-
     index = np.arange(first, first + count, dtype=np.uint64).astype(np.uint32)
     return np.asarray(key_hash(base_seed, index, 0xFFFFFFFE, 0), dtype=np.uint32)

@@ -21,8 +21,6 @@ other error on a rank stops the run at once with one line (exit 1).
 
 from __future__ import annotations
 
-import contextlib
-import errno
 import math
 import os
 import signal
@@ -33,189 +31,18 @@ from typing import Any
 
 from .. import status as status_codes
 from .parallel import abort, error_line
+from .signals import Interrupted, StopFlag
+from .writes import WriteFailures, check_room_for, growth_bytes, write_row
+from ..io.safeio import os_reason
 
 TAG_MSG, TAG_REPLY, TAG_CTRL = 71, 72, 73
 NO_MORE, DECLINED = -1, -2  # replies to a request for an index
 PREFETCH = 2  # indices a worker asks for ahead of the one it is computing
 
 
-class Interrupted(Exception):
-    """Raised at a safe point once the run has to stop (signal or abort from rank 0)."""
-
-
-class WriteFailures:
-    """Failed writes that h5py reports only from a destructor.
-
-    HDF5 writes some data late (its caches), and h5py reports a failure there
-    (a full disk: errno 28) as an "exception ignored" in an object's
-    destructor, which Python prints and forgets.  While ``watching()``, such
-    exceptions are kept (the first one) instead of printed, and ``check()``,
-    called after every written row, raises the first as an OSError: the run
-    stops at the first failed write with one line.
-    """
-
-    first: BaseException | None = None
-
-    @classmethod
-    @contextlib.contextmanager
-    def watching(cls):
-        """Keep the exceptions raised in destructors (the first one) while inside."""
-        cls.first = None
-        old = sys.unraisablehook
-
-        def keep(unraisable):
-            if cls.first is None:
-                cls.first = unraisable.exc_value
-
-        sys.unraisablehook = keep
-        try:
-            yield cls
-        finally:
-            sys.unraisablehook = old
-
-    @classmethod
-    def check(cls) -> None:
-        """Raise the first kept failure as an OSError (errno 28 for a full disk)."""
-        exc = cls.first
-        if exc is None:
-            return
-        if isinstance(exc, OSError) and exc.errno:
-            raise exc
-        text = " ".join(str(exc).split())
-        code = errno.ENOSPC if "errno = 28" in text else errno.EIO
-        raise OSError(code, f"{os.strerror(code)} ({text[:200]})")
-
-
-WRITE_MARGIN = 1 << 20  # bytes kept free beyond a row's own: HDF5 allocates chunks and metadata
-
-
-def payload_bytes(value) -> int:
-    """The bytes of the arrays in a row (or a batch of rows: dicts, lists, tuples of arrays)."""
-    if isinstance(value, dict):
-        return sum(payload_bytes(v) for v in value.values())
-    if isinstance(value, (list, tuple)):
-        return sum(payload_bytes(v) for v in value)
-    return int(getattr(value, "nbytes", 8))
-
-
-def growth_bytes(handler, rows) -> int:
-    """The bytes that writing ``rows`` (one row, or a worker's batch of ``(op, r, row)``) adds
-    to the file beyond the rows the file allocated when it was created (a prior row's events)."""
-    if isinstance(rows, list):
-        return sum(growth_bytes(handler, op[2]) for op in rows if isinstance(op[2], dict))
-    allocated = {c.name for c in handler.layout.columns}
-    return payload_bytes({k: v for k, v in rows.items() if k not in allocated})
-
-
-def check_room_for(path: str, nbytes: int) -> None:
-    """Raise OSError(ENOSPC) before writing ``nbytes`` into ``path`` if its file system has
-    not twice that plus ``WRITE_MARGIN`` free: HDF5 does not survive a write that fails for
-    lack of room (the error surfaces in a destructor, then the library crashes on close)."""
-    from ..io.safeio import disk_usage
-
-    need = 2 * nbytes + WRITE_MARGIN
-    try:
-        free = disk_usage(path).free
-    except OSError:
-        return
-    if free < need:
-        raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} ({free / 1e6:.3g} MB free, "
-                                    f"the next write needs about {need / 1e6:.3g} MB with its margin)")
-
-
-def write_row(handler, r: int, row: dict) -> None:
-    """Write row ``r``, mark it done and flush; a failed write raises (``WriteFailures``), and
-    a row that grows the file is written only with room for it (``check_room_for``)."""
-    if handler.kind != "gather" or handler.comm.rank == 0:  # this rank writes the row itself
-        grows = growth_bytes(handler, row)
-        if grows:  # the file's own rows were allocated when it was created
-            check_room_for(handler.path, grows)
-    handler.write_row(r, row)
-    WriteFailures.check()
-    handler.mark_done(r)
-    handler.flush()
-    WriteFailures.check()
-
-
 def compute(ctx: dict, r: int, progress) -> dict[str, Any]:
     """Row ``r`` of the run: ``ctx["compute_row"](r, progress)``."""
     return ctx["compute_row"](r, progress)
-
-
-class StopFlag:
-    """Signal flag (set by the handler, acted on at safe points).
-
-    ``installed()`` puts the handler on SIGINT and SIGTERM for the whole
-    command.  Inside ``interruptible()`` (a rank's local planning, a
-    realisation being computed: inside ``tilt``, outside the progress
-    callbacks, which talk MPI) no file or message is in flight, so the
-    handler also raises KeyboardInterrupt there: the kernel stops within its
-    interrupt latency, a blocked read of an input returns, and the
-    unfinished work is dropped.  Elsewhere (inside a collective call) the
-    signal is only remembered and acted on at the next safe point.
-    """
-
-    signum: int | None = None
-    computing = False
-
-    @classmethod
-    def handler(cls, signum, frame):
-        """Signal handler: remember the first signal; interrupt the work if it is interruptible."""
-        if cls.signum is None:
-            cls.signum = signum
-        if cls.computing:
-            cls.computing = False
-            raise KeyboardInterrupt
-
-    @classmethod
-    @contextlib.contextmanager
-    def installed(cls):
-        """The handler on SIGINT and SIGTERM (no signal remembered yet); restored on exit."""
-        cls.signum, cls.computing = None, False
-        old = {s: signal.signal(s, cls.handler) for s in (signal.SIGTERM, signal.SIGINT)}
-        try:
-            yield cls
-        finally:
-            for s, h in old.items():
-                signal.signal(s, h)
-
-    @classmethod
-    @contextlib.contextmanager
-    def interruptible(cls):
-        """Within: a signal raises KeyboardInterrupt (local work only, no collective call)."""
-        if cls.signum is not None:  # arrived just before
-            raise KeyboardInterrupt
-        before, cls.computing = cls.computing, True
-        try:
-            yield cls
-        finally:
-            cls.computing = before
-
-
-def tilt_interruptibly(scene, backend: str, progress, **options):
-    """``tilt`` with ``StopFlag.computing`` set except inside the progress callback
-    (``options``: more of ``tilt``'s keywords, such as ``state``)."""
-    from ..driver import run as tilt
-
-    def callback(p):
-        StopFlag.computing = False
-        try:
-            if progress is not None:
-                progress(p)
-        finally:
-            StopFlag.computing = True
-
-    StopFlag.computing = True
-    try:
-        if StopFlag.signum is not None:  # arrived just before
-            raise Interrupted()
-        return tilt(scene, backend=backend, progress=callback, **options)
-    except KeyboardInterrupt:  # also when the kernel caught the signal itself: stop the run
-        if StopFlag.signum is None:
-            StopFlag.signum = signal.SIGINT
-        raise
-    finally:
-        StopFlag.computing = False
 
 
 def format_duration(s: float) -> str:
@@ -563,8 +390,6 @@ def _write_view(write_view, out: str, kind: str) -> None:
 
 def _failed(comm, handler, exc: BaseException, out: str) -> int:
     """One line for an error on this rank, every rank stopped; 1."""
-    from ..io.safeio import os_reason
-
     what = (f"cannot write {out!r}: {os_reason(exc)}" if isinstance(exc, OSError)
             else f"{type(exc).__name__}: {exc}")
     sys.stderr.write(error_line(f"rank {comm.rank}: {what}") + "\n")

@@ -43,7 +43,13 @@ from .scheduler import serve_rows
 from ..io.study_file import (HANDLERS, read_study_header, study_attributes, study_layout,
                             write_view)
 
+from ..analysis.observables import (StatisticsGrids, default_grids, statistic_conventions,
+                                    statistics_layout)
 from ..analysis.study_spec import STUDY_PREFIX, Study, check_points_memory, load_study
+from ..analysis.precursors import burst_periods, sync_profile
+from ..analysis.study_spec import spec_difference
+from ..io.storage import (StorageError, check_room, file_attributes, make_layout,
+                          statistics_row_bytes)
 
 
 # ---------------------------------------------------------------------------
@@ -51,8 +57,6 @@ from ..analysis.study_spec import STUDY_PREFIX, Study, check_points_memory, load
 # ---------------------------------------------------------------------------
 def extra_statistics(result) -> dict[str, np.ndarray]:
     """Burst periods and the synchronisation share of one run (REPRODUCTION.md definitions)."""
-    from ..analysis.reproduction import burst_periods, sync_profile
-
     sc = result.scene
     bp = burst_periods([result], sc.delta_mu, sc.mu_s_mean)
     sy = sync_profile([result])
@@ -67,25 +71,31 @@ def extra_statistics(result) -> dict[str, np.ndarray]:
     }
 
 
-EXTRA_LAYOUT = {STUDY_PREFIX + k: ((), t) for k, t in (
-    ("early_period", np.float64), ("early_pred", np.float64), ("early_n", np.int64),
-    ("late_period", np.float64), ("late_n", np.int64), ("sync_share", np.float64),
-    ("sync_event_share", np.float64))}
+#: the study's own statistics (``extra_statistics``), one number a row: name -> (dtype, units,
+#: meaning)
+STUDY_STATISTICS = {STUDY_PREFIX + k: v for k, v in {
+    "early_period": (np.float64, "rad", "median angle between two lone slips of one slider "
+                                        "below alpha = 0.3"),
+    "early_pred": (np.float64, "rad", "median single-slider period 2 dmu / (1 + mu_s tan alpha) "
+                                      "at those slips"),
+    "early_n": (np.int64, "1", "number of those early periods"),
+    "late_period": (np.float64, "rad", "median angle between two group slips (size >= 3) of one "
+                                       "slider above alpha = 0.35"),
+    "late_n": (np.int64, "1", "number of those late periods"),
+    "sync_share": (np.float64, "1", "share of the displacement in events of two or more groups"),
+    "sync_event_share": (np.float64, "1", "share of the events of two or more groups"),
+}.items()}
+EXTRA_LAYOUT = {k: ((), dtype) for k, (dtype, _, _) in STUDY_STATISTICS.items()}
 
 
 def _point_statistics(scene, grids=None) -> dict:
     """The statistics columns of one point's rows (the ensemble's plus the study's own)."""
-    from ..analysis.observables import default_grids, statistics_layout
-
     stats = dict(statistics_layout(grids or default_grids(scene), scene.n_sliders))
     stats.update(EXTRA_LAYOUT)
     return stats
 
 
 def _point_layout(study: Study, p: int, backend: str):
-    from ..analysis.observables import default_grids
-    from ..io.storage import file_attributes, make_layout
-
     scene = study.scenes[p]
     R = study.realisations
     seeds = realisation_seeds(study.base_seed, 0, R)  # the same at every point
@@ -119,9 +129,6 @@ def build_parser(rank: int = 0) -> CommandParser:
 
 def plan_study(args, study: Study) -> RunPlan:
     """Rank 0, holding the claim: new file or resume against the same study."""
-    from ..analysis.study_spec import spec_difference
-    from ..io.storage import StorageError, check_room, statistics_row_bytes
-
     out = args.out
     backend = args.backend or DEFAULT_BACKEND
     head = resume_header(args, read_study_header)
@@ -169,8 +176,6 @@ def prepare_study(args, inputs, world) -> dict:
 
 def run_study(comm, args, local, plan: RunPlan) -> int:
     """Create or open the file, serve the rows, report (every rank)."""
-    from ..analysis.observables import StatisticsGrids
-
     study, storage = local["study"], local["storage"]
     handler = open_output(comm, args, plan, HANDLERS, storage)
     if handler is None:
@@ -193,7 +198,14 @@ def run_study(comm, args, local, plan: RunPlan) -> int:
                          f"rank(s), storage {storage} -> {args.out}\n")
         sys.stderr.flush()
     return serve_rows(comm, handler, plan.pending, plan.total, ctx, args.out,
-                      lambda: write_view(args.out, study))
+                      lambda: write_view(args.out, study, study_conventions()))
+
+
+def study_conventions() -> dict:
+    """What a study file says of every statistic of its rows (``io.conventions.ensemble_variables``):
+    the ensemble's and the study's own."""
+    return {**statistic_conventions(),
+            **{k: ((), units, meaning) for k, (_, units, meaning) in STUDY_STATISTICS.items()}}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -13,14 +13,26 @@ Pure computation on ``sliders.io.catalogue`` objects: no running, no plotting.
   domain check, the ceiling and the told-mu_d variants;
 * ``domain``: whether a catalogue, read through its measurement, is like the training ones;
 * ``evaluation``: the split, the cuts at leads, the metrics with bootstrap intervals, the alarm.
+
+The names below are imported from their modules when first read (``__getattr__``):
+``registry`` is read by the command line's parser, and every forecaster's module
+imports scikit-learn (two seconds), which ``--help`` does not need.
 """
 
-from .base import LEVELS, Forecast, ForecastError, Forecaster
-from .baselines import Climatology, ConditionedClimatology, LastEventPlusLead, Now
-from .features import Cuts, training_cuts
-from .inverse_rate import LinearInverseRate, PointProcessInverseRate
-from .measurement import Measurement
+import importlib
 
-__all__ = ["LEVELS", "Forecast", "ForecastError", "Forecaster", "Climatology",
-           "ConditionedClimatology", "LastEventPlusLead", "Now", "Cuts", "training_cuts",
-           "LinearInverseRate", "PointProcessInverseRate", "Measurement"]
+#: name -> the module of this package that defines it
+_HOMES = {"LEVELS": "base", "Forecast": "base", "ForecastError": "base", "Forecaster": "base",
+          "Climatology": "baselines", "ConditionedClimatology": "baselines",
+          "LastEventPlusLead": "baselines", "Now": "baselines", "Cuts": "features",
+          "training_cuts": "features", "LinearInverseRate": "inverse_rate",
+          "PointProcessInverseRate": "inverse_rate", "Measurement": "measurement"}
+
+__all__ = list(_HOMES)
+
+
+def __getattr__(name: str):
+    """``name`` of ``__all__``, from the module that defines it."""
+    if name not in _HOMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.utils.metadata_routing import UNUSED
+from .features import Cuts
 
 #: quantile levels of every forecast (uniform, so that twice their mean pinball
 #: loss approximates the CRPS)
@@ -225,8 +226,6 @@ class Forecaster(BaseEstimator):
         ``measurement``: how the catalogue was measured
         (``measurement.Measurement``; default: a perfect record in sliders).
         """
-        from .features import Cuts
-
         q, fb, lv = self.quantiles(Cuts.from_catalogues([catalogue], measurement), levels=True)
         levels = None if np.array_equal(lv[0], LEVELS) else lv[0]
         return Forecast(q[0], float(catalogue.tilt_now), self.name, bool(fb[0]), levels)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...io.catalogue import Catalogue, CatalogueSet
+from .measurement import MEASUREMENT_FEATURES, PERFECT
 
 #: the shortest recent window (radians): about a tenth of a degree
 SHORTEST_WINDOW = 0.002
@@ -67,8 +68,6 @@ class Cuts:
 
     def measurements(self) -> list:
         """Each cut's ``Measurement`` (a perfect record where none was given)."""
-        from .measurement import PERFECT
-
         return [PERFECT] * len(self) if self.measurement is None else list(self.measurement)
 
     def __len__(self) -> int:
@@ -338,8 +337,6 @@ def densest_value(estimates, tol: float = AGREE_TOL) -> tuple[float, int]:
 
 def feature_matrix(cuts: Cuts) -> tuple[np.ndarray, list[str]]:
     """(n, F) features of every cut (``catalogue_features`` and the measurement's) and their names."""
-    from .measurement import MEASUREMENT_FEATURES
-
     meas = cuts.measurements()
     rows = [catalogue_features(c, m.size_unit == "arbitrary") for c, m in zip(cuts.catalogues, meas)]
     names = list(rows[0]) if rows else list(catalogue_features(Catalogue([], [], [], [], [])))

@@ -13,7 +13,7 @@ about a catalogue forecasts it as one of its own kind.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -140,8 +140,6 @@ def degrade_cuts(cuts, rng: np.random.Generator, measurement: Measurement | None
     The truth and the simulation's extras are kept; the measurements are
     recorded with the cuts, as ``predict`` is told them.
     """
-    from dataclasses import replace
-
     if measurement is None:
         meas, scales = draw_measurements(len(cuts), rng)
     else:

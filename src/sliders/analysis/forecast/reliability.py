@@ -16,6 +16,7 @@ import numpy as np
 from .base import LOWER, MEDIAN, UPPER, probability_within
 from .evaluation import cuts_at_leads
 from .features import training_cuts
+from ...io.safeio import publish_bytes
 
 #: bins of the tilt reached and of the events so far (quantile edges of the test cuts)
 OBSERVED_BINS = 4
@@ -96,7 +97,5 @@ def coverage_report(forecaster, cset, rows, leads, path: str | None = None,
             if m.any() else float("nan")
         report["per_lead"][f"{np.degrees(lead):g}"] = entry
     if path is not None:
-        from ...io.safeio import publish_bytes
-
         publish_bytes(path, (json.dumps(report, indent=1) + "\n").encode(), overwrite=True)
     return report

@@ -1,0 +1,179 @@
+"""``python -m sliders.forecast``: evaluate the forecasters of the avalanche angle, or forecast a catalogue.
+
+    python -m sliders.forecast evaluate --data prior.h5 --robust zero=zero.h5 --out results/forecast
+    python -m sliders.forecast evaluate --dev 300 --out /tmp/forecast      # serial development data
+    python -m sliders.forecast predict CATALOGUE.csv [--tilt-now ANGLE] [--json] [--model FILE]
+    python -m sliders.forecast predict CATALOGUE.csv --method all --size-unit arbitrary --verbose
+    python -m sliders.forecast train --prior my.toml --out my_model.skops --np 2
+    python -m sliders.forecast catalogue --data prior.h5 --row 7 --lead 3deg --out row7.csv
+
+The parser and the error boundary.  Each subcommand is the function of the
+same name in the module of the same name (``evaluate``, ``predict``,
+``train``, ``catalogue``), imported when it runs: ``--help`` reads no
+scikit-learn.
+
+Every subcommand runs inside one error boundary (``main``): parse, check the
+options, check the inputs and outputs, compute, publish; every failure is one
+line (status 2 for bad input, 1 for an I/O error or a fault, 128 + signal when
+stopped).  A new subcommand adds its options in ``build_parser``, its module
+and function (the subcommand's name) to ``COMMANDS``, and raises
+``ForecastInputError`` for bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import signal
+import sys
+import traceback
+
+from ...io.filelock import ClaimError
+from ...io.forecast_files import ForecastInputError
+from ...io.safeio import describe_os_error, os_reason
+from ..parallel import error_line, launcher_rank
+from ..signals import stopped_by_sigterm
+from .common import (ALARM_DELTA_DEG, DEFAULT_LEADS_DEG, DEFAULT_TILTS, PREDICT_METHODS,
+                     TRAIN_MAX_ITER)
+
+#: the subcommands: each is the function of its name in the module of its name (this package's)
+COMMANDS = ("evaluate", "predict", "train", "catalogue")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse whose refusal of the command line is one line (``ForecastInputError``)."""
+
+    def error(self, message):
+        """Raise the one-line refusal (exit status 2)."""
+        raise ForecastInputError(f"{message} (see {self.prog} --help)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The subcommands' parsers (``COMMANDS`` names each one's module and function)."""
+    p = _Parser(prog="python -m sliders.forecast", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    add_evaluate_arguments(sub.add_parser(
+        "evaluate", help="fit, test and score every forecaster; table and figures"))
+    add_predict_arguments(sub.add_parser(
+        "predict", help="forecast the avalanche angle of a measured catalogue"))
+    add_train_arguments(sub.add_parser(
+        "train", help="run a prior ensemble and fit the forecasters of a model file"))
+    add_catalogue_arguments(sub.add_parser(
+        "catalogue", help="write a simulated row as a catalogue CSV cut at a tilt or lead"))
+    return p
+
+
+def add_evaluate_arguments(e: argparse.ArgumentParser) -> None:
+    """The options of ``evaluate``."""
+    src = e.add_mutually_exclusive_group(required=True)
+    src.add_argument("--data", metavar="PRIOR.h5", help="prior ensemble split into train/validation/test")
+    src.add_argument("--dev", type=int, metavar="R", help="run R realisations here instead (development)")
+    e.add_argument("--robust", action="append", default=[], metavar="LABEL=FILE.h5",
+                   help="a test-only set with another preparation (repeatable)")
+    e.add_argument("--out", default=os.path.join("results", "forecast"), help="output directory")
+    e.add_argument("--figures", default=None, help="where the figures go (default --out)")
+    e.add_argument("--fractions", type=float, nargs=3, default=(0.5, 0.1, 0.4),
+                   metavar=("TRAIN", "VALID", "TEST"), help="the split by realisation")
+    e.add_argument("--leads-deg", type=float, nargs="+", default=list(DEFAULT_LEADS_DEG),
+                   metavar="DEG", help="leads before the avalanche at which test runs are cut, degrees")
+    e.add_argument("--tilts", type=float, nargs="+", default=list(DEFAULT_TILTS),
+                   help="fixed tilts at which the test runs are cut, radians")
+    e.add_argument("--boot", type=int, default=400, help="bootstrap resamples")
+    e.add_argument("--alarm-rows", type=int, default=1000, help="test realisations for the alarm")
+    e.add_argument("--max-iter", type=int, default=300, help="boosting iterations")
+    e.add_argument("--only", default=None, help="comma-separated forecaster names (and the baselines)")
+    e.add_argument("--seed", type=int, default=0,
+                   help="key of the split and of the forecasters' random draws")
+    e.add_argument("--all-tables", action="store_true", help="print every lead and tilt")
+    e.add_argument("--no-figures", action="store_true", help="publish no figures")
+    e.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
+    """The options of ``predict``."""
+    pr.add_argument("catalogue", metavar="CATALOGUE.csv",
+                    help="the measured events: angle [deg] or angle [rad], size (docs/forecasting.md)")
+    pr.add_argument("--tilt-now", default=None, metavar="ANGLE",
+                    help="tilt reached: 0.48rad, 27.5deg, or a bare number in rad (default: the last "
+                         "event's angle)")
+    pr.add_argument("--within", type=float, default=ALARM_DELTA_DEG, metavar="DEG",
+                    help="the alarm's horizon, degrees")
+    pr.add_argument("--model", default=None, metavar="FILE",
+                    help="model file written by train or evaluate (default: the one shipped "
+                         "inside the package)")
+    pr.add_argument("--method", default="learned", choices=PREDICT_METHODS,
+                    help="the forecaster, one of {" + ", ".join(PREDICT_METHODS)
+                         + "} (all: every one side by side)")
+    pr.add_argument("--angle-resolution", type=float, default=0.0, metavar="DEG",
+                    help="standard deviation of each measured angle's error, degrees")
+    pr.add_argument("--min-size", type=float, default=1.0, metavar="SIZE",
+                    help="smallest event size detected, in the size column's unit")
+    pr.add_argument("--missed-fraction", type=float, default=0.0, metavar="SHARE",
+                    help="share of events missed at random, in [0, 1)")
+    pr.add_argument("--size-unit", default="sliders", choices=("sliders", "arbitrary"),
+                    help="sliders: sizes count sliders; arbitrary: an unknown unit (grains, area, pixels)")
+    pr.add_argument("--sliders", type=int, default=None, metavar="N",
+                    help="the number of sliders of the pile, if known: a pile outside the "
+                         "training piles' is out of the domain")
+    pr.add_argument("--json", action="store_true", help="one JSON object (radians)")
+    pr.add_argument("--verbose", action="store_true", help="print the model's whole provenance")
+
+
+def add_train_arguments(t) -> None:
+    """The options of ``train``."""
+    src = t.add_mutually_exclusive_group(required=True)
+    src.add_argument("--prior", metavar="PRIOR.toml", help="run this prior ensemble, then fit")
+    src.add_argument("--data", nargs="+", metavar="PRIOR.h5",
+                     help="fit on prior files already computed (several: their rows together)")
+    t.add_argument("--out", required=True, metavar="MODEL.skops", help="the model file written")
+    t.add_argument("--np", type=int, default=1, help="MPI ranks of the prior ensemble")
+    t.add_argument("--max-iter", type=int, default=TRAIN_MAX_ITER, help="boosting iterations")
+    t.add_argument("--hold-out", type=float, default=0.0, metavar="SHARE",
+                   help="share of the rows kept out of the fit, to measure the model on "
+                        "(their indices go into the provenance)")
+    t.add_argument("--seed", type=int, default=0, help="key of the fit's random draws")
+    t.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def add_catalogue_arguments(c) -> None:
+    """The options of ``catalogue``."""
+    c.add_argument("--data", required=True, metavar="PRIOR.h5", help="a prior ensemble file")
+    c.add_argument("--row", type=int, required=True, help="the realisation")
+    at = c.add_mutually_exclusive_group(required=True)
+    at.add_argument("--lead", metavar="ANGLE", help="cut this far before the avalanche, e.g. 3deg")
+    at.add_argument("--at", metavar="ANGLE", help="cut at this tilt, e.g. 25deg")
+    c.add_argument("--out", required=True, metavar="FILE.csv", help="the catalogue CSV written")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``python -m sliders.forecast``: every failure is one line on stderr
+    (status 2 for bad input, 1 for an I/O error or a fault, 128 + signal when stopped)."""
+    if launcher_rank() > 0:  # a serial command: under mpirun, rank 0 alone runs it
+        return 0
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        with stopped_by_sigterm():
+            args = build_parser().parse_args(argv)
+            command = importlib.import_module(f"{__package__}.{args.command}")
+            return getattr(command, args.command)(args, argv)
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", signal.SIGINT)
+        return _error(f"interrupted ({signal.Signals(signum).name}); nothing half-written was "
+                      "published", 128 + signum)
+    except (ForecastInputError, ClaimError) as exc:
+        return _error(str(exc), 2)
+    except OSError as exc:
+        return _error(describe_os_error(exc, exc.filename) if exc.filename else os_reason(exc), 1)
+    except MemoryError:
+        return _error("out of memory", 1)
+    except Exception as exc:  # noqa: BLE001 - a fault: one line, the traceback with SLIDERS_DEBUG
+        if os.environ.get("SLIDERS_DEBUG"):
+            traceback.print_exc()
+        return _error(f"{type(exc).__name__}: {' '.join(str(exc).split())} (an internal error; "
+                      "SLIDERS_DEBUG=1 shows where)", 1)
+
+
+def _error(message: str, code: int) -> int:
+    print(f"sliders.forecast: {error_line(message)}", file=sys.stderr, flush=True)
+    return code

@@ -1,0 +1,84 @@
+"""What the forecast subcommands share: the defaults their options show, the progress log, a
+prior file read as a ``CatalogueSet``, the provenance of what they write, JSON values.
+
+Imports nothing of scikit-learn: the parser (``cli``) reads the defaults here.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from importlib.metadata import PackageNotFoundError, version
+
+import numpy as np
+
+from ..._version import __version__
+from ...analysis.forecast.registry import METHODS
+from ...io.catalogue import CatalogueSet
+from ...io.forecast_files import ForecastInputError
+from ...io.prior_file import read_prior_ensemble
+from ...io.safeio import describe_os_error
+from ...io.storage import StorageError
+
+#: leads before the avalanche at which the test runs are cut, degrees
+DEFAULT_LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0)
+#: fixed tilts at which the test runs are cut, radians
+DEFAULT_TILTS = (0.1, 0.2, 0.3, 0.4, 0.5)
+#: the alarm: "the avalanche within DELTA", judged every STEP over the last WINDOW, degrees
+ALARM_DELTA_DEG, ALARM_WINDOW_DEG, ALARM_STEP_DEG = 1.0, 6.0, 0.25
+#: the lead at which the forecasters' targets are stated, degrees
+TARGET_LEAD_DEG = 3.0
+#: boosting iterations of ``train``'s model: each iteration adds 7 trees per learned forecaster
+#: to the model file (150 iterations of 31 leaves made an 8 MB file)
+TRAIN_MAX_ITER = 100
+#: the choices of ``predict --method`` (the registry's): "learned" picks the learned forecaster
+#: for the columns given (every feature, or angles and sizes only)
+PREDICT_METHODS = ("learned", *(m for m in METHODS if m not in ("learned", "learned_blind")), "all")
+
+
+def progress_log(quiet: bool):
+    """``log(*parts)``: a progress line on stderr, or nothing with ``--quiet``."""
+    if quiet:
+        return lambda *a: None
+    return lambda *a: print(*a, file=sys.stderr, flush=True)
+
+
+def load_set(path: str, what: str = "--data") -> CatalogueSet:
+    """A prior ensemble file (``sliders.io.prior_file``) as a ``CatalogueSet``; one line naming
+    ``what`` if it is not one (another kind, damaged, truncated, of a newer format)."""
+    try:
+        return read_prior_ensemble(path)
+    except (StorageError, ValueError) as exc:
+        raise ForecastInputError(f"{what}: {' '.join(str(exc).split())}") from None
+    except OSError as exc:
+        raise ForecastInputError(f"{what}: {describe_os_error(exc, path)}") from None
+
+
+def provenance(argv) -> dict:
+    """Versions and command of a file this command writes (the installed distributions' versions)."""
+
+    def installed(package: str) -> str:
+        try:
+            return version(package)
+        except PackageNotFoundError:
+            return "?"
+
+    return {"sliders": __version__, "python": sys.version.split()[0],
+            **{p: installed(p) for p in ("numpy", "scikit-learn", "skops", "crepes")},
+            "command": "python -m sliders.forecast " + " ".join(argv),
+            "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+
+
+def jsonable(x):
+    """``x`` with NumPy values as JSON ones (a non-finite number as None)."""
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        return float(x) if np.isfinite(x) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    return x
