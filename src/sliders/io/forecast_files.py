@@ -166,7 +166,6 @@ def complete_publication(folder: str) -> int:
 # ---------------------------------------------------------------------------
 # a measured catalogue
 # ---------------------------------------------------------------------------
-ANGLE_UNITS = units.ANGLE_UNITS  # the one table of angle units, kept importable here
 
 
 def _column_name(raw: str) -> tuple[str, str | None]:
@@ -273,9 +272,9 @@ def _header(lines, path: str) -> tuple[list[str], float, str]:
     unit = header[names.index("angle")][1]
     if unit is None:
         raise ForecastInputError(f"{path}: column 'angle' needs its unit: 'angle [deg]' or 'angle [rad]'")
-    if unit not in ANGLE_UNITS:
+    if unit not in units.ANGLE_UNITS:
         raise ForecastInputError(f"{path}: column 'angle': unit {unit!r} not understood (deg or rad)")
-    return [n if n in COLUMNS else "" for n in names], ANGLE_UNITS[unit], unit
+    return [n if n in COLUMNS else "" for n in names], units.ANGLE_UNITS[unit], unit
 
 
 def _value(v: str, k: int, n: str, path: str) -> float:

@@ -42,7 +42,8 @@ from ..analysis.study_spec import StudyError
 from ..io.filelock import OutputClaim, claim_of
 from ..io.safeio import is_special, leftovers_note, os_reason
 from ..io.storage import CollectiveFailure, STORAGES, StorageError, choose_storage
-from ..scene import BACKENDS, SceneError
+from ..parts.checks import SceneError
+from ..scene import BACKENDS
 
 DEFAULT_BACKEND = "fortran"
 MAX_INPUT_BYTES = 1 << 20  # an input TOML larger than this is refused unread
