@@ -14,21 +14,10 @@ import time
 
 import pytest
 
+from test_prior import SMALL
+
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
-PRIOR = """
-[prior]
-realisations = 400
-design = "sobol"
-seed = 3
-[scene]
-mode = "explore"
-[parameters]
-mu_d = { uniform = [0.3, 0.8] }
-mu_s_minus_mu_d = { loguniform = [0.02, 0.12] }
-sigma_mu = { uniform = [0.005, 0.03] }
-xi = { loguniform = [1e-4, 1e-2], zero = 0.5 }
-n_sliders = { choice = [200, 300, 400] }
-"""
+PRIOR = SMALL.format(R=4000, design="sobol")  # rows of 20-40 sliders: minutes in all
 
 
 def _reading(fifo) -> int:
