@@ -237,7 +237,7 @@ def check_forecasters(forecasters: dict, where) -> None:
         check = getattr(f, "check_fitted", None)
         if not isinstance(method, str) or check is None:
             raise ModelFileError(f"{where}: {printable(repr(method))} holds a "
-                                 f"{type(f).__name__}, not a fitted forecaster")
+                                 f"{type(f).__name__}, not the fitted forecasters a model file holds")
         try:
             check()
         except (ValueError, AttributeError, TypeError, KeyError, IndexError) as exc:
