@@ -171,3 +171,10 @@ def test_every_bad_option_is_one_line(tmp_path, predict, rate_rows, option):
     code, out, err = predict(path, *option)
     one_line_refusal(code, out, err)
     assert out == ""
+
+
+def test_a_header_with_control_sequences_is_escaped_in_the_refusal(tmp_path, predict, rate_rows):
+    path = csv(tmp_path, "angle [rad],\x1b[2J\x1b[31msize", [(a, 1) for a in rate_rows])
+    code, out, err = predict(path)
+    one_line_refusal(code, out, err, "missing column 'size'", "\\x1b[2J")
+    assert "\x1b" not in err
