@@ -30,8 +30,8 @@ import numpy as np
 
 from .. import units
 from .catalogue import Catalogue
-from .safeio import (fsync_dir, leftover_temporaries, publish_bytes, resolve_target,
-                     temporary_beside)
+from .safeio import (fsync_dir, leftover_temporaries, printable, publish_bytes,
+                     resolve_target, temporary_beside)
 from .filelock import ClaimError, OutputClaim
 
 
@@ -254,7 +254,7 @@ def _header(lines, path: str) -> tuple[list[str], float, str]:
     raw = _fields(text, k, path)
     header = [_column_name(h) for h in raw]
     names = [h[0] for h in header]
-    shown = ", ".join(raw)
+    shown = printable(", ".join(raw))  # file text, on a terminal: control characters escaped
     for n in COLUMNS:
         where = [j + 1 for j, m in enumerate(names) if m == n]
         if len(where) > 1:

@@ -47,7 +47,7 @@ from dataclasses import replace
 import numpy as np
 
 from .base import LEVELS, Forecaster
-from .baselines import Climatology, conditioned_quantiles
+from .baselines import Climatology, check_climatology, conditioned_quantiles
 from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
@@ -438,9 +438,7 @@ class Learned(Forecaster):
         calibration's edges, bins and residuals."""
         from crepes import ConformalPredictiveSystem
 
-        from .integrity import (check_array, check_boosting, check_choice, check_climatology,
-                                check_domain, require)
-        from .domain import MEASUREMENT_CLASSES
+        from .integrity import check_array, check_boosting, check_choice, require
 
         check_choice(self.inputs, "inputs", INPUTS)
         check_choice(self.interval, "interval", INTERVALS)
@@ -463,7 +461,8 @@ class Learned(Forecaster):
             require((ranges[:, 0] <= ranges[:, 1]).all(), "training measurement ranges reversed")
         check_array(self.remaining_quantiles_, "remaining angles", shape=LEVELS.shape, lo=0.0,
                     hi=np.pi / 2, increasing=True)
-        check_domain(self.domain_, len(MEASUREMENT_CLASSES), "domain check")
+        require(isinstance(self.domain_, DomainCheck), "the domain check is not a DomainCheck")
+        self.domain_.check_fitted()
         edges = check_array(self.calibration_edges_, "calibration tilt edges", finite=False,
                             increasing=True)
         events = check_array(self.calibration_event_edges_, "calibration event edges", ndim=2,

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Forecaster, quantiles_of_sample
-from .baselines import Climatology, conditioned_quantiles
+from .baselines import Climatology, check_climatology, conditioned_quantiles
 from .features import catalogue_features, training_cuts
 
 #: prediction errors above the trend that mark the transition (REPRODUCTION.md: 3)
@@ -195,7 +195,7 @@ class ModelBased(Forecaster):
         """The residual quantiles of each kind of estimate (finite, increasing, within +-90°) and
         the climatology to fall back on."""
         from .base import LEVELS
-        from .integrity import check_array, check_climatology, require
+        from .integrity import check_array, require
 
         check_climatology(self.climatology_, "climatology")
         res = self.residual_quantiles_
