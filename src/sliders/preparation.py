@@ -44,6 +44,8 @@ import numpy as np
 
 from . import keyed_random, status
 from .chain import ChainState, elastic_force
+from .engine.fortran_engine import FortranEngine
+from .engine.reference import NumpyEngine
 from .parts.loading import ALPHA_MAX_LIMIT
 from .scene import Scene
 
@@ -169,12 +171,8 @@ def history_seed(seed: int) -> int:
 
 def _history_engine(scene: Scene):
     try:
-        from .engine.fortran_engine import FortranEngine
-
         return FortranEngine(scene)
     except (ImportError, AttributeError):  # the kernel is not built: the reference, same events
-        from .engine.reference import NumpyEngine
-
         return NumpyEngine(scene)
 
 

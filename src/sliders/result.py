@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .chain import ChainState
+from .io.run_file import read_run_file, run_file_bytes, write_run_file
 from .scene import Scene
 
 
@@ -230,14 +231,10 @@ class Result:
         killed save are removed (with a warning).  A symlink is written
         through: the file it names is replaced, the link stays.
         """
-        from .io.run_file import write_run_file
-
         write_run_file(path, self, overwrite)
 
     def to_bytes(self) -> bytes:
         """The HDF5 file of the run, as bytes."""
-        from .io.run_file import run_file_bytes
-
         return run_file_bytes(self)
 
     @classmethod
@@ -248,8 +245,6 @@ class Result:
         OSError) with one line naming the file and, for a flipped byte, the
         dataset; a file of another kind raises ValueError.
         """
-        from .io.run_file import read_run_file
-
         fields = read_run_file(path)
         if fields["displacement"] is not None:
             fields["displacement"] = EventSparse(*fields["displacement"], fields["scene"].n_sliders)

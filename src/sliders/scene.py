@@ -11,9 +11,12 @@ paper's dimensionless ones: time in tau = sqrt(m/k), length in g tau^2.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import os
 import sys
+import tempfile
+import tomllib
 from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
@@ -498,8 +501,6 @@ def read_toml(path, where: str, error: type[Exception], data: bytes | None = Non
     """The tables of a TOML file (or of ``data``, its bytes as read elsewhere: MPI rank 0);
     a missing, unreadable or invalid file raises ``error`` with one line that starts with
     ``where``."""
-    import tomllib
-
     try:
         if data is not None:
             return tomllib.loads(data.decode("utf-8"))
@@ -541,8 +542,6 @@ def toml_values(path: str | os.PathLike[str], text: bytes | None = None) -> dict
 
 
 def _hint(key: str, known) -> str:
-    import difflib
-
     close = difflib.get_close_matches(key, sorted(known), n=1)
     return f" (did you mean {close[0]!r}?)" if close else ""
 
@@ -596,8 +595,6 @@ def check_writable(name: str, path: str | os.PathLike[str]) -> None:
             with open(p, "ab"):
                 pass
         else:  # probe the folder, never the target: another run may be creating it
-            import tempfile
-
             with tempfile.TemporaryFile(dir=parent):
                 pass
     except OSError as exc:

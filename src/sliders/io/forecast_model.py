@@ -40,9 +40,11 @@ import os
 import pathlib
 import stat
 import zipfile
-from .safeio import publish_bytes
 
-from .safeio import printable
+import numpy as np
+
+from .safeio import printable, publish_bytes
+
 
 MODEL_FORMAT = "sliders-forecaster-3"
 #: the shipped model's file name inside the package's data folder
@@ -161,8 +163,6 @@ def check_archive(blob: bytes, where) -> None:
     """The zip's members bounded before any is inflated: their number, each one's declared
     size and their total (``zipfile`` inflates no more than a member declares); every NumPy
     member's header read, its array numeric and of exactly the size its member declares."""
-    import numpy as np
-
     where = printable(where)
     try:
         archive = zipfile.ZipFile(io.BytesIO(blob))

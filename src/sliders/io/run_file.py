@@ -28,11 +28,17 @@ import json
 import os
 import subprocess
 import sys
+import warnings
 import zlib
 
 import numpy as np
 
 from . import formats, safeio
+from .._version import __version__
+from ..chain import ChainState
+from ..scene import Scene
+from .conventions import describe_tilt_file
+from .filelock import OutputClaim
 
 FORMAT = formats.TILT
 FORMAT_VERSION = 1
@@ -49,9 +55,6 @@ WHOLE_FILE_MAGIC = b"sliders.tilt whole-file crc32 "
 def run_file_bytes(result) -> bytes:
     """The HDF5 file of a ``Result``, as bytes (sealed, described)."""
     import h5py
-
-    from .._version import __version__
-    from .conventions import describe_tilt_file
 
     def dataset(group, name, data):
         data = np.asarray(data)
@@ -95,14 +98,10 @@ def write_run_file(path, result, overwrite: bool = True) -> None:
     """Write a ``Result`` to ``path`` atomically (``safeio.publish_bytes``), holding the
     claim on it (``filelock.OutputClaim``: refused while another run writes it; re-entrant
     for ``tilt --out``, which holds it already); a symlink is written through."""
-    from .filelock import OutputClaim
-
     safeio.check_output_name(path)
     data = run_file_bytes(result)
     with OutputClaim(path) as claim:
         if claim.leftovers:
-            import warnings
-
             warnings.warn(safeio.leftovers_note(claim.leftovers), stacklevel=3)
         safeio.publish_bytes(path, data, overwrite)
 
@@ -130,9 +129,6 @@ def read_run_file(path):
 def read_datasets_checked(path):
     """``read_run_file`` without the whole-file check (per dataset and attribute set only)."""
     import h5py
-
-    from ..chain import ChainState
-    from ..scene import Scene
 
     where = repr(os.fspath(path))
     try:

@@ -16,6 +16,8 @@ from sklearn.base import BaseEstimator
 from sklearn.utils.metadata_routing import UNUSED
 
 from ...io.forecast_files import ForecastInputError
+from .features import Cuts
+from .integrity import IntegrityError
 
 #: quantile levels of every forecast (uniform, so that twice their mean pinball
 #: loss approximates the CRPS)
@@ -316,6 +318,4 @@ class Forecaster(BaseEstimator):
 
         A forecaster that a model file never holds has no such check and refuses.
         """
-        from .integrity import IntegrityError
-
         raise IntegrityError(f"a {type(self).__name__} is not a forecaster a model file holds")

@@ -14,6 +14,7 @@ import numpy as np
 
 from .base import LEVELS, Forecaster, ForecastError, quantiles_of_sample
 from .features import training_cuts
+from .integrity import check_array, require
 
 #: fewest training avalanche angles above the tilt for the conditioned climatology
 MIN_ABOVE = 5
@@ -55,8 +56,6 @@ def check_climatology(clim, what: str) -> None:
     """A fitted ``Climatology``: sorted finite avalanche angles in (0, 90°), more than the
     conditioned climatology's ``MIN_ABOVE``, and their quantiles at ``LEVELS``;
     ``integrity.IntegrityError`` naming ``what`` otherwise."""
-    from .integrity import check_array, require
-
     require(isinstance(clim, Climatology), f"{what} is a {type(clim).__name__}, not a climatology")
     check_array(clim.alpha_c_, f"{what}: avalanche angles", lo=1e-9, hi=np.pi / 2,
                 increasing=True, min_size=MIN_ABOVE + 1)

@@ -33,6 +33,7 @@ from sklearn.base import BaseEstimator
 from sklearn.utils.metadata_routing import UNUSED
 
 from .features import n_sliders_estimate
+from .integrity import check_array, check_novelty_detector, check_number, require
 
 #: events at least this large (sliders) are recorded by every training measurement's
 #: detection threshold (``measurement.MEASUREMENT_RANGES["min_size"]`` goes up to 5)
@@ -236,8 +237,6 @@ class DomainCheck(BaseEstimator):
         """Known features, one detector (or None) per class of measurement, each of the width of
         its features (``integrity.check_novelty_detector``: its neighbour tree rebuilt from the
         checked points), a top tilt in (0, 90°], a range of sliders with 1 <= lo <= hi."""
-        from .integrity import check_array, check_novelty_detector, check_number, require
-
         require(isinstance(self.features, tuple) and len(set(self.features)) == len(self.features)
                 and set(self.features) <= set(WITH_POSITIONS), f"{what}: unknown features")
         require(isinstance(self.detectors_, list)

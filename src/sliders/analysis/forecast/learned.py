@@ -48,10 +48,12 @@ import numpy as np
 
 from .base import LEVELS, Forecaster
 from .baselines import Climatology, check_climatology, conditioned_quantiles
+from ...io.catalogue import Catalogue
 from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
-from .features import SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
+from .features import Cuts, SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
 from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, degrade_cuts
+from .integrity import check_array, check_boosting, check_choice, require
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
@@ -438,8 +440,6 @@ class Learned(Forecaster):
         calibration's edges, bins and residuals."""
         from crepes import ConformalPredictiveSystem
 
-        from .integrity import check_array, check_boosting, check_choice, require
-
         check_choice(self.inputs, "inputs", INPUTS)
         check_choice(self.interval, "interval", INTERVALS)
         check_choice(self.calibration, "calibration", CALIBRATIONS)
@@ -541,9 +541,6 @@ def _outside(feature: str, value: float, lo: float, hi: float) -> str:
 
 def _probe_cuts():
     """One small complete catalogue (displacements, movers): ``design`` names every feature."""
-    from ...io.catalogue import Catalogue
-    from .features import Cuts
-
     k = np.arange(12)
     cat = Catalogue(0.02 * (k + 1), 1 + k % 3, 0.01 * (1 + k % 2), k % 5, k % 5 + k % 3,
                     tilt_now=0.3)
