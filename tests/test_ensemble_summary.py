@@ -7,8 +7,11 @@ import sys
 
 import h5py
 import numpy as np
+import pytest
 from sliders.io.storage import read_realisations
 from sliders.analysis.summary import load_summary
+
+pytestmark = pytest.mark.slow  # ensembles run as commands
 
 ARGS = ["--n-sliders", "25", "--seed", "4", "--mode", "explore", "--realisations", "3", "--quiet"]
 

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # builds a wheel from a clean copy and installs it into a new environment
+
 ROOT = Path(__file__).resolve().parents[1]
 BROKEN_MPI = "libmpi.so.12: cannot open shared object file: No such file or directory"
 

@@ -25,6 +25,8 @@ from sliders import Scene, prepare, status
 from sliders.driver import make_engine
 from sliders.parts.checks import SceneError
 
+pytestmark = pytest.mark.slow  # signals sent to running commands
+
 # An event that never ends (no dynamic friction between walls: nothing
 # dissipates; its sliders stop, redraw and restart) after two ordinary ones,
 # run before the signal's call; and ordinary tilts, interrupted mid-run.

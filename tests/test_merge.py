@@ -14,6 +14,8 @@ from sliders.io.storage import read_realisations
 from sliders.analysis.summary import load_summary
 from test_ensemble import assert_same_file, one_error_line
 
+pytestmark = pytest.mark.slow  # ensembles run and merged as commands
+
 R = 7  # not a multiple of the chunk counts: chunks of unequal sizes
 SCENE_ARGS = ["--n-sliders", "12", "--seed", "11", "--mode", "explore", "--quiet"]
 

@@ -37,6 +37,8 @@ from sliders.io.filelock import OutputClaim
 from test_ensemble import (BACKEND, PY, R, SCENE_OPTS, _env, _Run, assert_same_file,
                            ensemble_args, one_error_line, progress_lines, rank_pids, run)
 
+pytestmark = pytest.mark.slow  # faults injected into running commands
+
 KILL_TRIALS = 4  # kill -9 of a random rank at a random moment
 FLIPS = 120  # random byte flips per file kind (tilt, ensemble)
 TRUNCATIONS = 12  # truncation lengths per file kind

@@ -25,6 +25,8 @@ from sliders import Scene
 from sliders.chain import elastic_energy
 from sliders.keyed_random import realisation_seed
 
+pytestmark = pytest.mark.slow  # slip pulses measured on long runs
+
 PAPER_N100 = Path(__file__).resolve().parents[1] / "mpi_runs" / "scenes" / "paper_n100.toml"
 OLD_CAP = 1e5  # tau: the cap every speed mode had when these runs were capped
 

@@ -23,6 +23,8 @@ import pytest
 from sliders.io.storage import read_realisations
 from test_ensemble import assert_same_file
 
+pytestmark = pytest.mark.slow  # jobs on the session's SLURM cluster
+
 ROOT = Path(__file__).resolve().parents[1]
 JOBS = ROOT / "mpi_runs" / "slurm"
 R = 6

@@ -17,6 +17,8 @@ import pytest
 
 from test_ensemble import _env
 
+pytestmark = pytest.mark.slow  # parameter studies under mpirun
+
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
 TIMEOUT = 180
 IGNORED = {"wall_time", "row_crc32"}  # depend on the run (the checksums cover the wall time)

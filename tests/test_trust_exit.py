@@ -16,6 +16,8 @@ import pytest
 
 from test_prior import SMALL
 
+pytestmark = pytest.mark.slow  # commands interrupted under mpirun
+
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
 PRIOR = SMALL.format(R=4000, design="sobol")  # rows of 20-40 sliders: minutes in all
 

@@ -33,6 +33,8 @@ from sliders.io.forecast_files import ForecastInputError, read_catalogue_csv
 from sliders.runs.forecast import cli as forecast_cli
 from sliders.runs.forecast import evaluate as rf_evaluate
 
+pytestmark = pytest.mark.slow  # attacks on the forecast commands, each a process
+
 PY = sys.executable
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
 TIMEOUT = 300

@@ -17,6 +17,8 @@ import pytest
 import sliders
 from sliders.analysis.summary import load_summary
 
+pytestmark = pytest.mark.slow  # ensembles and studies run as commands, then opened
+
 xr = pytest.importorskip("xarray", reason="xarray not installed (pip install '.[test]')")
 pytest.importorskip("h5netcdf", reason="h5netcdf not installed (pip install '.[test]')")
 
