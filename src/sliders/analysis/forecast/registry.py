@@ -55,10 +55,14 @@ FORECASTERS = (
     # catalogues break the lone-slider pairs it leans on), its features in fine bins (63 bins of
     # the exact lone-slider mu_d are a degree wide); calibrated out of fold in bins of the tilt
     # and the events so far like the other (on a quarter of the rows held out instead, its
-    # coverage 12 degrees before the avalanche fell to 0.67-0.69 on 782 held-out rows)
-    Entry(lambda it, s: Learned(max_iter=it, degrade=False, max_bins=255, random_state=s),
+    # coverage 12 degrees before the avalanche fell to 0.67-0.69 on 782 held-out rows); both
+    # calibrate also in bins of the mean event size (which tracks the pile's number of sliders,
+    # from 8 to 800 in the default prior) and, within those, of the predicted remaining angle
+    Entry(lambda it, s: Learned(max_iter=it, degrade=False, max_bins=255, calibration_size_bins=2,
+                                calibration_remaining_bins=3, random_state=s),
           alarm=True, example=True, method="learned"),
-    Entry(lambda it, s: Learned(inputs="angles_sizes", max_iter=it, random_state=s), alarm=True,
+    Entry(lambda it, s: Learned(inputs="angles_sizes", max_iter=it, calibration_size_bins=2,
+                                calibration_remaining_bins=3, random_state=s), alarm=True,
           example=True, method="learned_blind"),
     Entry(lambda it, s: Ceiling(max_iter=it, degrade=False, random_state=s), alarm=True,
           example=True),
