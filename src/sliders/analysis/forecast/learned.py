@@ -488,8 +488,13 @@ class Learned(Forecaster):
                              finite=False, increasing=True)
         remaining = check_array(self.calibration_remaining_edges_, "calibration remaining edges",
                                 ndim=2, finite=False, increasing=True)
-        require(events.shape[0] == edges.size + 1
-                and remaining.shape[0] == events.shape[0] * (events.shape[1] + 1),
+        outer = events.shape[0] * (events.shape[1] + 1)  # cells of tilt and events
+        if getattr(self, "calibration_size_edges_", None) is not None:  # None: fitted without
+            sizes = check_array(self.calibration_size_edges_, "calibration size edges", ndim=2,
+                                finite=False, increasing=True)
+            require(sizes.shape[0] == outer, "the calibration's nested edges do not match")
+            outer = sizes.shape[0] * (sizes.shape[1] + 1)
+        require(events.shape[0] == edges.size + 1 and remaining.shape[0] == outer,
                 "the calibration's nested edges do not match")
         cells = remaining.shape[0] * (remaining.shape[1] + 1)
         counts = check_array(self.calibration_counts_, "calibration counts", kind="iu", lo=0)
@@ -498,9 +503,11 @@ class Learned(Forecaster):
         require((np.diff(pct) > 0).all() and np.isin(pct, CPS_PERCENTILES).all(),
                 "the percentiles read are not the calibration's")
         cps = self.calibration_
+        # the residuals are normalised before crepes sees them (kept to RESIDUAL_STEP)
         require(type(cps) is ConformalPredictiveSystem and cps.mondrian is True
-                and cps.normalized is True and cps.fitted is True,
-                "the calibration is not a fitted Mondrian normalised predictive system")
+                and cps.normalized is False and cps.fitted is True,
+                "the calibration is not a fitted Mondrian predictive system of normalised "
+                "residuals (a model of an older form: train it again)")
         require(isinstance(cps.binned_alphas, tuple) and len(cps.binned_alphas) == 2,
                 "the calibration's residuals are not binned")
         values, residuals = cps.binned_alphas
