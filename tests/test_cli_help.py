@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import subprocess
+import sys
 
 import pytest
 
@@ -105,3 +107,20 @@ def test_a_bad_angle_is_refused_in_one_line(capsys):
     assert ensemble.main(["--out", "x.h5", "-R", "1", "--alpha-max", "90 grad"]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "alpha_max expects an angle" in lines[0], lines
+
+
+@pytest.mark.parametrize("argv", [["python -m sliders", "sliders", "--bogus"],
+                                  ["python -m sliders tilt", "sliders", "tilt", "--bogus"],
+                                  ["python -m sliders tilt", "sliders", "tilt", "--n-sliders",
+                                   "x", "--out", "a.h5"],
+                                  ["python -m sliders.reproduction", "sliders.reproduction",
+                                   "--bogus"]])
+def test_a_bad_option_is_one_line(argv):
+    """A bad command line is refused in one line naming the command, with exit status 2
+    (argparse alone prints the whole usage, 19 lines for ``tilt``, before its message)."""
+    prog, module, *args = argv
+    res = subprocess.run([sys.executable, "-m", module, *args], capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 2 and res.stdout == "", res
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"{prog}: error: "), res.stderr

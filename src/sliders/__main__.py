@@ -7,7 +7,8 @@ import math
 import sys
 
 from . import status
-from .runs.cli import ProgressLine, add_scene_arguments, check_output, fail, scene_from_args
+from .runs.cli import (OneLineParser, ProgressLine, add_scene_arguments, check_output, fail,
+                       scene_from_args)
 from .runs.signals import Received
 from .io.filelock import ClaimError, OutputClaim
 from .io.safeio import describe_os_error, leftovers_note
@@ -18,12 +19,12 @@ from .driver import run
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``python -m sliders`` (``tilt``)."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="python -m sliders",
         description="Tilt a chain of frictional sliders quasi-statically to the avalanche.",
     )
-    sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("tilt", help="run one scene and write its HDF5 file",
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
+    p = sub.add_parser("tilt", prog="python -m sliders tilt", help="run one scene and write its HDF5 file",
                        description="Run one scene to the avalanche and write an HDF5 file "
                                    "(load it with sliders.TiltResult.load).")
     add_scene_arguments(p)

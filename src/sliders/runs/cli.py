@@ -15,6 +15,15 @@ from .. import scene
 from ..io.safeio import check_output_name, is_special, resolve_target
 from ..units import format_angle, parse_angle
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse whose refusal of a command line is one line, ``PROG: error: MESSAGE (see
+    PROG --help)``, and exit status 2 (argparse alone prints the whole usage first)."""
+
+    def error(self, message):
+        """Print the one-line refusal and exit with status 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 # What each scene option means and its unit (the model's units, ``Scene``: time tau,
 # length g tau^2, force m g, angles in radians; "" for a count or a name).
 SCENE_OPTIONS = {

@@ -27,6 +27,7 @@ from ..analysis import observables as ob
 from ..analysis.reproduction import Evidence, Report, judge, report_markdown
 from ..analysis.summary import load_ensemble_summary
 from ..driver import tilt_realisations
+from .cli import OneLineParser
 from ..scene import Scene
 
 
@@ -56,7 +57,7 @@ def write_report(rep: Report, path, meta: dict) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``python -m sliders.reproduction``."""
-    p = argparse.ArgumentParser(prog="python -m sliders.reproduction",
+    p = OneLineParser(prog="python -m sliders.reproduction",
                                 description="Compare the package with the paper's statements; "
                                             "writes REPRODUCTION.md.")
     p.add_argument("--runs", type=int, default=20,
