@@ -168,7 +168,7 @@ class ForecastModel:
         as ``measurement``, the alarm's horizon ``within`` in radians."""
         from threadpoolctl import threadpool_limits
 
-        from ...analysis.forecast.evaluation import typical_accuracy
+        from ...analysis.forecast.evaluation import typical_accuracy, typical_accuracy_line
         from ...analysis.forecast.features import Cuts
 
         cat, complete = angles_and_sizes(catalogue)
@@ -200,7 +200,8 @@ class ForecastModel:
                 "label": f.label, "fallback_reason": why,
                 "calibrated": bool(in_domain and why is None),
                 "probability_bounds": list(probability_bounds(fc)),
-                "typical_accuracy": typical_accuracy(f, fc) if in_domain else None}
+                "typical_accuracy": typical_accuracy(f, fc) if in_domain else None,
+                "typical_accuracy_line": typical_accuracy_line(f, fc) if in_domain else None}
         warnings = disjoint_intervals(methods)
         report = {"in_domain": in_domain, "domain_reason": reason, "events": len(cat),
                   "notes": list(notes), "warnings": warnings,
@@ -367,8 +368,6 @@ class Prediction:
     def lines(self, verbose: bool = False) -> list[str]:
         """The text output: the tilt, the measurement assumed, the domain, one block per
         method, the warnings, the model (its whole provenance if ``verbose``)."""
-        from ...analysis.forecast.evaluation import typical_accuracy_line
-
         d = self._report
         first = self.forecasts[0][2]
         out = [f"events: {d['events']}, tilt reached: {first.tilt_now:.4f} rad "
@@ -383,7 +382,7 @@ class Prediction:
             why = d["methods"][method]["fallback_reason"]
             if why:
                 out.append(f"  fallback: {why}")
-            elif d["in_domain"] and (acc := typical_accuracy_line(f, fc)):
+            elif acc := d["methods"][method]["typical_accuracy_line"]:
                 out.append(f"  expected accuracy: {acc}")
         out += [f"WARNING: {w}" for w in d["warnings"]]
         prov = d["model"]
