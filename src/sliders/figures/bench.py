@@ -69,6 +69,7 @@ def bench_figure(catalogue, forecast, *, label: str, calibrated: bool, in_domain
     matplotlib.figure.Figure
     """
     from matplotlib.figure import Figure
+    from matplotlib.ticker import FuncFormatter, NullFormatter
 
     from ..analysis.forecast.base import LEVELS
 
@@ -95,6 +96,10 @@ def bench_figure(catalogue, forecast, *, label: str, calibrated: bool, in_domain
         middle.plot(alpha, size, "o", ms=2.5, color="#1f78b4")
         middle.set_yscale("log")
         middle.set_ylim(0.7 * size.min(), 1.5 * size.max())
+        plain = FuncFormatter(lambda v, _: f"{v:g}")
+        middle.yaxis.set_major_formatter(plain)
+        # within a decade the minor ticks (2, 3, 5...) carry the numbers
+        middle.yaxis.set_minor_formatter(plain if size.max() < 10 * size.min() else NullFormatter())
     middle.set_ylabel(f"event size\n({unit})")
     # the forecast: density from the quantiles, the interval, the median
     if dens.size:
@@ -125,7 +130,7 @@ def bench_figure(catalogue, forecast, *, label: str, calibrated: bool, in_domain
     fig.suptitle(f"{label}\navalanche at {point:.2f}° ({interval_name} {lo:.2f}-{hi:.2f}°), "
                  f"P(within the next {math.degrees(within):g}°) {probability}",
                  fontsize=9.5)
-    top.set_title("\n".join(textwrap.wrap(verdict, 110)), fontsize=8.5,
+    top.set_title("\n".join(textwrap.wrap(verdict, 95)), fontsize=8.5,
                   color=IN_COLOUR if in_domain else OUT_COLOUR, loc="left")
     return fig
 
