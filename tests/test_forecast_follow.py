@@ -145,8 +145,13 @@ def test_follow_stops_on_sigterm_with_status_0(tmp_path):
     try:
         first = proc.stdout.readline()
         assert first.startswith("rows 2, tilt "), proc.stderr.read()
+        with open(path, "a") as f:                  # a bad row: one line naming it, as in batch
+            f.write("3,x\n")
+        bad = proc.stderr.readline()
+        assert "row 4, column 'size': 'x' is not a number" in bad, bad
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=30) == 0
+        assert "stopped (SIGTERM)" in proc.stderr.read()
     finally:
         if proc.poll() is None:
             proc.kill()
