@@ -155,3 +155,24 @@ def test_follow_stops_on_sigterm_with_status_0(tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_an_alarm_line_when_the_probability_crosses_the_threshold(model):
+    from types import SimpleNamespace
+
+    from sliders.runs.forecast.follow import report
+
+    alpha, size = accelerating(150, seed=7)
+    pred = model.predict({"angle [deg]": alpha, "size": size}, method="ffm_ls_events")
+    p = pred["probability_within"]
+    said = []
+    args = SimpleNamespace(json=False, plot=None)
+    pred._report["alarm_threshold"] = p / 2           # crossed upwards: ALARM
+    assert report(args, pred, 150, False, lambda line, err=False: said.append(line)) is True
+    assert said[-1].startswith("ALARM: P(avalanche within the next 1°)")
+    said.clear()                                      # still above: no new line
+    assert report(args, pred, 150, True, lambda line, err=False: said.append(line)) is True
+    assert len(said) == 1 and said[0].startswith("rows 150")
+    pred._report["alarm_threshold"] = min(1.0, p * 2 + 0.01)   # fallen below: said once
+    assert report(args, pred, 150, True, lambda line, err=False: said.append(line)) is False
+    assert said[-1].startswith("alarm off")
