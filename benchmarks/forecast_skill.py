@@ -5,12 +5,17 @@
 
 The model's provenance names its prior files and its held-out rows
 (``python -m sliders.forecast train --hold-out``); those rows are the test set.
+A prior file named by its name only (trained outside the repository) is looked
+for beside the model file.
 Measured, for the angles-and-sizes forecaster (``learned_blind``) and, where
 the catalogue has them, the one with displacements and positions (``learned``):
 
 * 3° before the avalanche: median |error| over the conditioned climatology's, 80 % coverage;
 * coverage over random cuts, per bin of tilt reached and of events so far, per
   lead (0.25° to 20°), and the reliability of P(avalanche within 1°);
+* coverage per kind of pile (``KINDS``: bins of the number of sliders, strong
+  coupling), over random cuts and 3° and 1° before the avalanche;
+* the accuracy stored in the model at training time (per bin of the forecast's lead);
 * the domain flag: the share of cuts flagged on the held-out rows (false
   alarms) and on each set drawn outside the prior (true alarms);
 * the degradation curve: angle noise, detection threshold, missed events,
@@ -33,7 +38,7 @@ import numpy as np
 from sliders.analysis.forecast import Cuts, Measurement
 from sliders.analysis.forecast.base import LOWER, MEDIAN, UPPER
 from sliders.analysis.forecast.baselines import conditioned_quantiles
-from sliders.analysis.forecast.evaluation import cuts_at_leads
+from sliders.analysis.forecast.evaluation import coverage_by_kind, cuts_at_leads
 from sliders.analysis.forecast.features import training_cuts
 from sliders.analysis.forecast.measurement import degrade_cuts
 from sliders.analysis.forecast.reliability import coverage_report
@@ -42,6 +47,17 @@ from sliders.runs.forecast.common import load_set
 from sliders.runs.forecast.train import concatenate
 
 LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0)
+#: the leads (deg) of the coverage per kind of pile
+KIND_LEADS_DEG = (3.0, 1.0)
+#: kinds of pile whose coverage is reported apart: label -> mask of (n_sliders, xi)
+KINDS = {
+    "all": lambda n, xi: np.ones(n.shape, bool),
+    "N < 50": lambda n, xi: n < 50,
+    "N 50-199": lambda n, xi: (n >= 50) & (n < 200),
+    "N ≥ 200": lambda n, xi: n >= 200,
+    "ξ < 0.1": lambda n, xi: xi < 0.1,
+    "ξ 0.1-1": lambda n, xi: xi >= 0.1,
+}
 #: the degradations of the curve: label -> (measurement, size scale)
 DEGRADATIONS = {
     "exact": (Measurement(), 1.0),
@@ -108,6 +124,58 @@ def domain_rates(forecaster, test, outside: dict, seed) -> dict:
     return out
 
 
+def small_pile_example(forecaster, lead_deg: float = 0.5) -> dict:
+    """The paper's 10-slider chain (``Scene(n_sliders=10, seed=1)``) forecast from its angles and
+    sizes ``lead_deg`` before its avalanche, with what the model says of its accuracy there."""
+    import sliders
+    from sliders.analysis.forecast.evaluation import typical_accuracy
+    from sliders.io.catalogue import Catalogue
+
+    result = sliders.tilt(sliders.Scene(n_sliders=10, seed=1))
+    full = Catalogue.from_result(result)
+    cat = full.cut(result.alpha_c - math.radians(lead_deg))
+    cat = Catalogue(cat.alpha, cat.size, np.zeros(len(cat)), np.full(len(cat), -1),
+                    np.full(len(cat), -1), cat.tilt_now)
+    f = forecaster.predict(cat)
+    return {"alpha_c_deg": math.degrees(result.alpha_c), "lead_deg": lead_deg,
+            "point_deg": math.degrees(f.point), "interval_deg": [math.degrees(a) for a in f.interval],
+            "in_domain": not f.fallback, "events_seen": len(cat),
+            "typical": typical_accuracy(forecaster, f)}
+
+
+def kinds_of(cset) -> dict:
+    """``KINDS`` as masks over the rows of ``cset``."""
+    n = np.asarray(cset.parameters["n_sliders"], dtype=float)
+    xi = np.asarray(cset.parameters["xi"], dtype=float)
+    return {label: f(n, xi) for label, f in KINDS.items()}
+
+
+def kind_table(per_kind: dict) -> list:
+    """Markdown rows: coverage (cuts) and median |error| per kind of pile."""
+    keys = ["random_cuts"] + [f"{d:g}deg" for d in KIND_LEADS_DEG]
+    heads = ["random cuts"] + [f"{d:g}° before" for d in KIND_LEADS_DEG]
+    lines = ["| kind of pile | " + " | ".join(f"coverage, {h}" for h in heads) + " | "
+             + " | ".join(f"median abs err (deg), {h}" for h in heads[1:]) + " |",
+             "|---|" + "---|" * (2 * len(keys) - 1)]
+    for label, v in per_kind.items():
+        lines.append(f"| {label} | " + " | ".join(f"{v[k]['coverage']:.2f} ({v[k]['n']})" for k in keys)
+                     + " | " + " | ".join(f"{v[k]['median_abs_deg']:.2f}" for k in keys[1:]) + " |")
+    return lines
+
+
+def accuracy_lines(stored: dict) -> list:
+    """Markdown rows: the accuracy a model stores per bin of its forecast's lead."""
+    lines = ["| forecast lead (deg) | " + " | ".join(stored) + " |", "|---|" + "---|" * len(stored)]
+    first = next(iter(stored.values()))
+    edges = first["lead_edges_deg"]
+    for k, lo in enumerate(edges):
+        hi = f"{edges[k + 1]:g}" if k + 1 < len(edges) else ""
+        cells = [f"{t['median_abs_deg'][k]:.2f}°, {t['coverage'][k]:.2f} ({int(t['n'][k])})"
+                 for t in stored.values()]
+        lines.append(f"| {lo:g}-{hi} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def markdown(rep: dict) -> str:
     """The tables of docs/forecasting_results.md."""
     lines = ["| 3° before the avalanche | median abs err (deg) | / cond. clim. | 80 % coverage |"
@@ -126,6 +194,18 @@ def markdown(rep: dict) -> str:
         for b, v in rep["coverage"][kind].items():
             what = "tilt (rad)" if kind == "per_tilt_bin" else "events so far"
             lines.append(f"| {what} {b} | {v['coverage']:.2f} | {v['n']} |")
+    for name, per_kind in rep.get("per_kind", {}).items():
+        lines += ["", f"{name}:", ""] + kind_table(per_kind)
+    if rep.get("expected_accuracy"):
+        lines += ["", "stored in the model (median abs err, coverage (cuts)):", ""]
+        lines += accuracy_lines(rep["expected_accuracy"])
+    ex = rep.get("small_pile_example")
+    if ex:
+        lo, hi = ex["interval_deg"]
+        lines += ["", f"Scene(n_sliders=10, seed=1), avalanche at {ex['alpha_c_deg']:.2f}°, "
+                  f"{ex['lead_deg']:g}° before it ({ex['events_seen']} events): forecast "
+                  f"{ex['point_deg']:.2f}° [{lo:.2f}-{hi:.2f}°], "
+                  f"{'in' if ex['in_domain'] else 'out of'} the domain"]
     lines += ["", "| set | flagged (random cuts) | flagged (3° before) | 3° before, N told |"
               " 3° before: / cond. clim. | coverage |", "|---|---|---|---|---|---|"]
     for label, v in rep["domain"].items():
@@ -159,7 +239,9 @@ def main():
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args()
     models, prov = load_forecasters(args.model)
-    data = concatenate([load_set(f) for f in prov["data_files"]])
+    beside = os.path.dirname(os.path.abspath(args.model))
+    data = concatenate([load_set(f if os.path.exists(f) else os.path.join(beside, os.path.basename(f)))
+                        for f in prov["data_files"]])
     held = np.asarray(prov["held_out_rows"], dtype=int)
     held = held[np.isfinite(data.alpha_c[held])]
     test = data.subset(held)
@@ -169,7 +251,10 @@ def main():
         label, _, path = spec.partition("=")
         outside[label] = load_set(path)
     lead3, _ = cuts_at_leads(test, np.arange(len(test)), [math.radians(3.0)])
-    rep = {"model": os.path.abspath(args.model), "rows_trained": prov["rows"],
+    kinds = kinds_of(test)
+    leads = np.radians(KIND_LEADS_DEG)
+    rep = {"model": os.path.relpath(args.model) if not os.path.relpath(args.model).startswith("..")
+           else os.path.basename(args.model), "rows_trained": prov["rows"],
            "rows_tested": int(len(test)),
            "skill_3deg": {"learned, angles + sizes": skill(models["learned_blind"], blind(lead3), train_ac),
                           "learned, + displacements, positions": skill(models["learned"], lead3, train_ac),
@@ -178,6 +263,16 @@ def main():
                                        np.radians(LEADS_DEG), degrade=blind, seed=args.seed),
            "coverage_all_inputs": coverage_report(models["learned"], test, np.arange(len(test)),
                                                   np.radians(LEADS_DEG), seed=args.seed),
+           "per_kind": {
+               "learned, angles + sizes": coverage_by_kind(models["learned_blind"], test, kinds,
+                                                           leads, seed=args.seed, degrade=blind),
+               "learned, + displacements, positions": coverage_by_kind(models["learned"], test, kinds,
+                                                                       leads, seed=args.seed)},
+           "expected_accuracy": {name: models[m].expected_accuracy_ for name, m in
+                                 (("learned, angles + sizes", "learned_blind"),
+                                  ("learned, + displacements, positions", "learned"))
+                                 if getattr(models[m], "expected_accuracy_", None)},
+           "small_pile_example": small_pile_example(models["learned_blind"]),
            "domain": domain_rates(models["learned_blind"], test, outside, args.seed),
            "degradation": degradation_curve(models["learned_blind"], test, train_ac, args.seed)}
     print(write_report(rep, args.out, "forecast_skill", markdown))

@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from sliders.driver import tilt
+from sliders.driver import run
 from sliders.runs.prior import compute_prior_row
 from sliders.runs.prior_spec import load_prior
 
@@ -33,7 +33,7 @@ def measure(prior, rows, mode):
         row = compute_prior_row(prior, r, "fortran", grid)
         cpu_row.append(time.process_time() - t)
         t = time.process_time()
-        tilt(prior.scene(r))
+        run(prior.scene(r))
         cpu_tilt.append(time.process_time() - t)
         alpha_c.append(row["alpha_c"])
         n.append(int(prior.values()["n_sliders"][r]))

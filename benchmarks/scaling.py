@@ -67,7 +67,7 @@ def child(n: int, xi: float, seed: int, alpha_max: float, cap: float, dt: float)
 
     import sliders
     from sliders import Scene
-    from sliders.scene import ALPHA_MAX_LIMIT
+    from sliders.parts.loading import ALPHA_MAX_LIMIT
 
     scene = Scene(n_sliders=n, xi=xi, seed=seed, dt=dt, record="summary",
                   alpha_max=min(alpha_max, ALPHA_MAX_LIMIT), max_event_duration=cap)

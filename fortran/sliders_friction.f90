@@ -1,5 +1,5 @@
 !> Friction laws: static threshold, kinetic force and the draw at a stop
-!> (src/sliders/engine/friction.py, the specification).
+!> (src/sliders/parts/friction.py, the specification).
 !>
 !> Coulomb friction with a static coefficient redrawn at every stop: a
 !> resting slider withstands |F| <= mu_s N + force_tol, a moving one feels
@@ -19,7 +19,7 @@ module sliders_friction
   public :: coulomb_friction
   public :: unpack_friction, static_threshold, kinetic_force, draw_at_stop
 
-  !> Coulomb friction's parameters (engine/friction.py, Coulomb).
+  !> Coulomb friction's parameters (parts/friction.py, Coulomb).
   type :: coulomb_friction
     real(dp) :: mu_d = 0.0_dp        !< kinetic coefficient
     real(dp) :: mu_s_mean = 0.0_dp   !< mean of the static coefficient's draw

@@ -1,5 +1,5 @@
 !> Loading protocols: how the drive parameter lambda enters the chain
-!> (src/sliders/engine/loading.py, the specification).
+!> (src/sliders/parts/loading.py, the specification).
 !>
 !> * The tilt (lambda = alpha): every slider feels sin(alpha) along the
 !>   incline and presses with cos(alpha) on it; a resting slider of elastic

@@ -44,10 +44,13 @@ import pytest
 
 import sliders
 from sliders import Scene, keyed_random, prepare, status, tilt
-from sliders.engine import fortran_engine, reference
+from sliders.engine import fortran_engine
 from sliders.chain import elastic_energy
 from sliders.engine.fortran_engine import FortranEngine
-from sliders.engine.reference import NumpyEngine, next_instability
+from sliders.engine.contract import EVENT_FIELDS
+from sliders.engine.reference import NumpyEngine
+from sliders.parts import loading
+from sliders.parts.loading import next_instability
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -61,7 +64,7 @@ def assert_same_run(f: sliders.TiltResult, n: sliders.TiltResult) -> None:
     """The Fortran result f reproduces the NumPy result n, event by event."""
     assert (f.status, f.message) == (n.status, n.message)
     assert f.n_events == n.n_events
-    for field in status.EVENT_FIELDS:
+    for field in EVENT_FIELDS:
         assert f.events[field].dtype == n.events[field].dtype, field
     np.testing.assert_allclose(f.alpha, n.alpha, rtol=0, atol=ALPHA_TOL)
     np.testing.assert_array_equal(f.n_moved, n.n_moved)
@@ -148,7 +151,7 @@ def libm_reference(monkeypatch):
         funcs[name] = lambda *a, u=ufunc: np.asarray(u(*a), dtype=np.float64)
 
     for name in ("asin", "atan", "hypot"):
-        monkeypatch.setitem(reference.TRANSCENDENTALS, name, funcs[name])
+        monkeypatch.setitem(loading.TRANSCENDENTALS, name, funcs[name])
     for name in ("log", "cos"):
         monkeypatch.setitem(keyed_random.TRANSCENDENTALS, name, funcs[name])
 
@@ -179,7 +182,7 @@ def test_engine_contract():
     f, n = chunks
     assert f.status == n.status == status.RUNNING
     assert f.n_events == n.n_events == 4
-    for field in status.EVENT_FIELDS:
+    for field in EVENT_FIELDS:
         assert f.events[field].dtype == n.events[field].dtype
     for name in ("sparse_ptr", "sparse_index", "sparse_displacement"):
         assert getattr(f, name).dtype == getattr(n, name).dtype, name
@@ -351,7 +354,7 @@ def test_chunking_is_exact():
         if chunks[-1].status != status.RUNNING:
             break
     assert chunks[-1].status == status.AVALANCHE
-    for field in status.EVENT_FIELDS:
+    for field in EVENT_FIELDS:
         np.testing.assert_array_equal(np.concatenate([c.events[field] for c in chunks]),
                                       whole.events[field])
     np.testing.assert_array_equal(np.concatenate([c.sparse_displacement for c in chunks]),
@@ -377,7 +380,7 @@ def test_full_buffers_resume_exactly(monkeypatch):
     monkeypatch.setattr(fortran_engine, "sparse_capacity", lambda n: n + 5)
     cramped = tilt(scene, "fortran")
     assert status.SPARSE_FULL in seen
-    for field in status.EVENT_FIELDS:
+    for field in EVENT_FIELDS:
         np.testing.assert_array_equal(cramped.events[field], whole.events[field])
     np.testing.assert_array_equal(cramped.displacement.ptr, whole.displacement.ptr)
     np.testing.assert_array_equal(cramped.displacement.index, whole.displacement.index)
@@ -403,7 +406,7 @@ def test_summary_records_no_displacements():
     assert chunk.n_events == 7
     np.testing.assert_array_equal(chunk.sparse_ptr, np.zeros(8, dtype=np.int64))
     assert chunk.sparse_index.size == chunk.sparse_displacement.size == 0
-    for field in status.EVENT_FIELDS:
+    for field in EVENT_FIELDS:
         np.testing.assert_array_equal(chunk.events[field], full.events[field][:7])
 
 

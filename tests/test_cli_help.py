@@ -19,10 +19,10 @@ from sliders.units import DEGREE, format_angle, parse_angle
 
 # destination -> words its help must contain
 UNITS = {
-    "alpha_max": ("rad", "deg"), "tilt": ("rad", "deg"), "tilt_now": ("rad", "deg"),
+    "alpha_max": ("rad", "deg"), "incline": ("rad", "deg"), "tilt_now": ("rad", "deg"),
     "dt": ("[tau]",), "refine_tol": ("[tau]",), "max_event_duration": ("[tau]",),
     "spring_length": ("[g tau^2]",), "drive_max": ("[g tau^2]",), "force_tol": ("[m g]",),
-    "xi": ("units of k",), "drive_stiffness": ("units of k",),
+    "xi": ("units of k",), "driver_stiffness": ("units of k",),
     "progress_interval": ("seconds",), "within": ("deg",), "leads_deg": ("deg",),
 }
 # command -> (module, function building its parser, arguments)
@@ -89,8 +89,8 @@ def test_the_checker_finds_what_it_looks_for():
 def test_scene_angles_are_read_in_rad_or_deg():
     from sliders.runs.ensemble import build_parser
 
-    args = build_parser().parse_args(["--out", "x.h5", "--alpha-max", "30deg", "--tilt", "0.1"])
-    assert args.alpha_max == pytest.approx(math.radians(30)) and args.tilt == 0.1
+    args = build_parser().parse_args(["--out", "x.h5", "--alpha-max", "30deg", "--incline", "0.1"])
+    assert args.alpha_max == pytest.approx(math.radians(30)) and args.incline == 0.1
     help_text = build_parser().format_help()
     assert format_angle(math.pi / 2 - 1e-6) in " ".join(help_text.split())
     assert parse_angle("27.5 deg") == pytest.approx(27.5 * DEGREE)

@@ -133,15 +133,13 @@ LAZY_IMPORTS = {
     "mpi4py": "importing it starts MPI: a serial run never does",
     "scipy": "imported by the one statistic that needs it",
     "sliders._kernel": "the compiled kernel is optional: the NumPy reference runs without it",
-    "sliders.engine.fortran_engine": "tried first, the reference taken if the kernel is missing",
-    "sliders.engine.reference": "the reference, taken when the kernel is missing",
 }
 # Modules whose function-level imports wait for a change that moves the modules they import
 # (the scene's parts, the tilt file): an entry names one, the second test below fails once it
 # holds no function-level import outside LAZY_IMPORTS.
-STILL_LAZY = {"io/tilt_file.py", "scene.py", "result.py"}
+STILL_LAZY: set[str] = set()
 #: the most function-level imports the package holds (all of them allowed); it may only fall
-MAX_FUNCTION_IMPORTS = 76
+MAX_FUNCTION_IMPORTS = 70
 
 
 def function_imports(source: str, package: list[str]) -> list[tuple[int, str]]:

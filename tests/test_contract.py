@@ -13,7 +13,7 @@ import pytest
 from sliders import Scene, status
 from sliders.engine import contract
 from sliders.engine.contract import Chunk, join_chunks
-from sliders.scene import LOADINGS
+from sliders.parts.loading import LOADINGS
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,7 +40,7 @@ def test_fortran_positions_match_the_contract(prefix, counts, groups):
 
 def test_schema_covers_every_event_field():
     assert contract.REAL_FIELDS + contract.INT_FIELDS != ()
-    assert set(contract.REAL_FIELDS) | set(contract.INT_FIELDS) == set(status.EVENT_FIELDS)
+    assert set(contract.REAL_FIELDS) | set(contract.INT_FIELDS) == set(contract.EVENT_FIELDS)
 
 
 def test_pack_parameters_takes_the_scene_values():
@@ -52,7 +52,8 @@ def test_pack_parameters_takes_the_scene_values():
     ints = dict(zip(contract.INT_PARAMETERS, ints))
     assert ints == {"walls": 1, "seed": 2**31 + 3, "record_sparse": 1, "relax_only": 0,
                     "max_events": 7, "loading": contract.LOADING_CODES["tilt"]}
-    pushed = Scene(n_sliders=5, loading="pushed_end", tilt=0.1, drive_stiffness=3.0, drive_max=9.0)
+    pushed = Scene(n_sliders=5, loading="pushed_end", incline=0.1, driver_stiffness=3.0,
+                   drive_max=9.0)
     real, ints = contract.pack_parameters(pushed, 0.5, False, False, 1)
     by_name = dict(zip(contract.REAL_PARAMETERS, real))
     assert (by_name["tilt"], by_name["drive_stiffness"], by_name["drive_max"]) == (0.1, 3.0, 9.0)
@@ -83,7 +84,7 @@ def test_the_fortran_backend_does_not_depend_on_the_reference():
 
 
 def _chunk(alphas, moved):
-    events = {f: np.zeros(len(alphas), dtype=contract.EVENT_DTYPES[f]) for f in status.EVENT_FIELDS}
+    events = {f: np.zeros(len(alphas), dtype=contract.EVENT_DTYPES[f]) for f in contract.EVENT_FIELDS}
     events["alpha"] = np.array(alphas, dtype=float)
     ptr = np.concatenate([[0], np.cumsum([len(m) for m in moved])]).astype(np.int64)
     index = np.array([i for m in moved for i in m], dtype=np.int64)

@@ -22,6 +22,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 
 import sliders
 
@@ -82,6 +83,7 @@ def test_every_public_name_has_a_docstring():
     assert not missing, f"{len(missing)} public names without a docstring: {missing}"
 
 
+@pytest.mark.slow  # the whole site, the tutorial executed
 def test_docs_build_without_warnings_and_run_the_tutorial(tmp_path):
     """sphinx -W: a broken reference, a bad docstring or a failing tutorial cell fails here."""
     out = tmp_path / "html"

@@ -167,6 +167,7 @@ def checkout_folder(path: Path) -> Path:
 # ---- the tests ----------------------------------------------------------------------
 
 
+@pytest.mark.slow  # every command of every page
 @pytest.mark.parametrize("page", pages(), ids=page_id)
 def test_page_commands_run_as_written(page, tmp_path_factory, monkeypatch, request):
     """The page's blocks, in order, in a fresh folder: each exits 0 and prints what it shows."""

@@ -25,10 +25,15 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders.runs import ensemble
+from sliders.io.storage import read_realisations
+from sliders.analysis.summary import load_summary
+from sliders.runs.rows import compute_row
+from sliders.runs.parallel import SerialComm
 from sliders.io import h5tools, storage
 from sliders.keyed_random import realisation_seed
 from sliders.analysis.observables import default_grids, realisation_statistics, statistics_layout
+
+pytestmark = pytest.mark.slow  # MPI ensembles under mpirun, kills and resumes
 
 # The tests pick the backend explicitly (no skipping).  "fortran" is the
 # production kernel; the lead makes sure it is built in the final set-up.
@@ -298,7 +303,7 @@ def test_file_layout_and_attributes(reference):
 
 def test_rows_are_realisation_statistics(reference):
     """Row r holds observables.realisation_statistics of the scene with seed_r."""
-    rows = ensemble.read_realisations(reference)
+    rows = read_realisations(reference)
     grids = default_grids(SCENE)
     for r in (0, R - 1):
         result = sliders.tilt(SCENE.replace(seed=realisation_seed(SCENE.seed, r)), backend=BACKEND)
@@ -311,12 +316,12 @@ def test_rows_are_realisation_statistics(reference):
 
 
 def test_load_summary(reference):
-    summary, grids, scene, info = ensemble.load_summary(reference)
+    summary, grids, scene, info = load_summary(reference)
     assert scene == SCENE
     assert info["n_done"] == R and info["n_realisations"] == R
     assert summary.n_realisations == R
     assert np.array_equal(grids.alpha, default_grids(SCENE).alpha)
-    rows = ensemble.read_realisations(reference)
+    rows = read_realisations(reference)
     assert np.array_equal(summary.alpha_c_values, rows["alpha_c"], equal_nan=True)
     assert sum(info["statuses"].values()) == R
 
@@ -380,7 +385,7 @@ def test_sigterm_then_resume(reference, tmp_path):
     assert code == 128 + signal.SIGTERM, err
     assert "interrupted (SIGTERM on rank" in err and "--resume" in err
     assert "Traceback" not in err
-    rows = ensemble.read_realisations(out)
+    rows = read_realisations(out)
     assert 1 <= rows["done"].sum() < R
     assert_same_file(reference, out, rows=np.flatnonzero(rows["done"]))
 
@@ -398,7 +403,7 @@ def test_stop_hook_on_one_rank_stops_all(reference, tmp_path):
     out = tmp_path / "hook.h5"
     res = run(ensemble_args(out), n=2, env=_env(SLIDERS_ENSEMBLE_STOP_AFTER=3))
     assert res.returncode == 128 + signal.SIGTERM, res.stderr
-    done = ensemble.read_realisations(out)["done"]
+    done = read_realisations(out)["done"]
     assert 3 <= done.sum() < R
     res = run(ensemble_args(out, extra=["--resume"]), n=4)
     assert res.returncode == 0, res.stderr
@@ -418,11 +423,11 @@ def test_kill9_leaves_readable_file(reference, tmp_path, storage_kind, victim):
     os.kill(pids[victim], signal.SIGKILL)
     res = job.finish()
     assert res.returncode != 0, res.stderr
-    rows = ensemble.read_realisations(out)  # readable with h5py
+    rows = read_realisations(out)  # readable with h5py
     done = np.flatnonzero(rows["done"])
     assert 2 <= done.size < R
     assert_same_file(reference, out, rows=done)
-    summary, *_ = ensemble.load_summary(out)
+    summary, *_ = load_summary(out)
     assert summary.n_realisations == done.size
 
     res = run(ensemble_args(out, extra=["--resume"]), n=2)
@@ -436,7 +441,7 @@ def test_unexpected_exception_aborts_without_hang(tmp_path):
     assert res.returncode != 0
     assert "error: rank" in res.stderr and "row 4 fails" in res.stderr
     assert "Traceback" not in res.stderr
-    done = ensemble.read_realisations(out)["done"]
+    done = read_realisations(out)["done"]
     assert not done[4]
 
 
@@ -514,8 +519,8 @@ def test_overwrite(reference, tmp_path):
     res = run(ensemble_args(out, r=2, extra=["--overwrite", "--quiet"]), n=2)
     assert res.returncode == 0, res.stderr
     assert res.stderr == ""
-    rows = ensemble.read_realisations(out)
-    ref = ensemble.read_realisations(reference)
+    rows = read_realisations(out)
+    ref = read_realisations(reference)
     assert np.array_equal(rows["alpha_c"], ref["alpha_c"][:2], equal_nan=True)
 
 
@@ -549,7 +554,10 @@ import math, sys
 import numpy as np
 import pytest
 import sliders
-from sliders.runs import ensemble
+from sliders.io.storage import read_realisations
+from sliders.analysis.summary import load_summary
+from sliders.runs.rows import compute_row
+from sliders.runs.parallel import SerialComm
 from sliders.io import storage
 from sliders.keyed_random import realisation_seed
 from sliders.analysis.observables import default_grids, statistics_layout
@@ -559,13 +567,13 @@ if kind == "mpio":
     from mpi4py import MPI
     comm = MPI.COMM_WORLD  # one process: singleton MPI
 else:
-    comm = ensemble.SerialComm()
+    comm = SerialComm()
 scene = sliders.Scene(n_sliders=10, seed=7)
 grids = default_grids(scene)
 seeds = [realisation_seed(scene.seed, r) for r in range(3)]
 attrs = storage.file_attributes(scene.to_dict(), scene.seed, 3, backend)
 layout = storage.make_layout(3, seeds, grids.to_arrays(), statistics_layout(grids, 10), attrs)
-row = ensemble.compute_row(scene, 1, backend, grids)
+row = compute_row(scene, 1, backend, grids)
 f = storage.HANDLERS[kind].create(path, layout, comm, overwrite=False)
 f.write_row(1, row)
 f.mark_done(1)
@@ -573,17 +581,17 @@ f.flush()
 f.close()
 with pytest.raises(storage.StorageError, match="exists"):
     storage.HANDLERS[kind].create(path, layout, comm, overwrite=False)
-rows = ensemble.read_realisations(path)
+rows = read_realisations(path)
 assert rows["done"].tolist() == [False, True, False]
 assert rows["status"][0] == storage.NOT_RUN and math.isnan(rows["alpha_c"][0])
 assert rows["alpha_c"][1] == row["alpha_c"]
 f = storage.HANDLERS[kind].open_for_resume(path, layout, comm)
-f.write_row(0, ensemble.compute_row(scene, 0, backend, grids))
+f.write_row(0, compute_row(scene, 0, backend, grids))
 f.mark_done(0)
 with pytest.raises(storage.StorageError, match="shape"):
     f.write_row(2, {**row, "alpha_c": np.zeros(2)})
 f.close()
-assert ensemble.read_realisations(path)["done"].tolist() == [True, True, False]
+assert read_realisations(path)["done"].tolist() == [True, True, False]
 print("handler ok")
 """
 

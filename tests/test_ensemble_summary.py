@@ -7,8 +7,11 @@ import sys
 
 import h5py
 import numpy as np
+import pytest
+from sliders.io.storage import read_realisations
+from sliders.analysis.summary import load_summary
 
-from sliders.runs import ensemble
+pytestmark = pytest.mark.slow  # ensembles run as commands
 
 ARGS = ["--n-sliders", "25", "--seed", "4", "--mode", "explore", "--realisations", "3", "--quiet"]
 
@@ -17,7 +20,7 @@ def run(out, *extra):
     res = subprocess.run([sys.executable, "-m", "sliders.ensemble", *ARGS, "--out", str(out), *extra],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
-    return ensemble.read_realisations(out)
+    return read_realisations(out)
 
 
 def test_summary_record_stores_the_summary_only(tmp_path):
@@ -34,7 +37,7 @@ def test_summary_record_stores_the_summary_only(tmp_path):
 
 def test_summary_file_has_no_statistics_to_load(tmp_path):
     run(tmp_path / "s.h5", "--record", "summary")
-    res = subprocess.run([sys.executable, "-c", "from sliders import ensemble; "
-                          f"ensemble.load_summary({str(tmp_path / 's.h5')!r})"],
+    res = subprocess.run([sys.executable, "-c", "from sliders.analysis.summary import load_summary; "
+                          f"load_summary({str(tmp_path / 's.h5')!r})"],
                          capture_output=True, text=True)
     assert res.returncode != 0 and "record='summary'" in res.stderr

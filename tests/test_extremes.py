@@ -25,8 +25,9 @@ from sliders import Scene, SceneError, prepare, status
 from sliders.analysis import model
 from sliders.chain import elastic_force
 from sliders.driver import make_engine
-from sliders.engine.reference import next_instability
-from sliders.scene import ALPHA_MAX_LIMIT, max_time_step
+from sliders.engine.contract import EVENT_FIELDS
+from sliders.parts.loading import ALPHA_MAX_LIMIT, next_instability
+from sliders.scene import max_time_step
 
 _FORK = multiprocessing.get_context("fork")
 
@@ -59,7 +60,7 @@ def stepped(scene: Scene, backend: str = "fortran", max_events: int = 100_000) -
         chunk = engine.advance(state, max_events=1)
         if chunk.n_events:
             ev = chunk.events
-            out["finite"] &= all(bool(np.all(np.isfinite(ev[f]))) for f in status.EVENT_FIELDS)
+            out["finite"] &= all(bool(np.all(np.isfinite(ev[f]))) for f in EVENT_FIELDS)
             out["finite"] &= bool(np.all(np.isfinite(state.displacement)) and np.all(np.isfinite(state.mu_s)))
             e = elastic_force(state, scene.xi, scene.walls)
             force = e + math.sin(state.alpha)
@@ -101,7 +102,7 @@ def assert_facts(run: dict, scene: Scene, expect=("avalanche",)) -> None:
 
 
 def assert_finite_result(result) -> None:
-    for f in status.EVENT_FIELDS:
+    for f in EVENT_FIELDS:
         assert np.all(np.isfinite(result.events[f])), f"non-finite {f}"
     assert np.all(np.isfinite(result.final.displacement))
     assert result.status != "non_finite", result.message

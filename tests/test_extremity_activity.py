@@ -11,6 +11,8 @@ import sliders
 from sliders.analysis import observables as ob
 from sliders.result import EventSparse
 
+pytestmark = pytest.mark.slow  # ensembles run as commands
+
 
 def fake_run(n, events):
     """A run of n sliders whose events are (alpha, {slider (0-based): displacement})."""

@@ -3,6 +3,8 @@ event by event, tests/test_backends.py) and writes PNG + PDF at print size; the 
 
 from __future__ import annotations
 
+import pytest
+
 import os
 import subprocess
 import sys
@@ -23,6 +25,8 @@ from sliders.figures import animation  # noqa: E402
 from sliders import figures as F  # noqa: E402
 from sliders.analysis import observables as ob  # noqa: E402
 from sliders.figures import schematics  # noqa: E402
+
+pytestmark = pytest.mark.slow  # the paper's figures drawn from ensembles
 
 MIN_BYTES = 5_000
 MAX_WIDTH_IN = 3.5  # one column of the paper (3.4 in) and a little rounding

@@ -22,6 +22,8 @@ from sliders.runs.forecast.evaluate import MODEL_NAME
 
 from test_forecast import synthetic_set
 
+pytestmark = pytest.mark.slow  # the forecast commands, each a process loading scikit-learn
+
 
 def write(tmp_path, text, name="cat.csv"):
     p = tmp_path / name

@@ -24,6 +24,8 @@ from sliders.io.forecast_model import (MODEL_FORMAT, ModelFileError, default_mod
 
 from test_forecast import rate_law_catalogue, synthetic_set
 
+pytestmark = pytest.mark.slow  # forecasters trained on prior files
+
 PREDICT = [sys.executable, "-m", "sliders.forecast", "predict"]
 
 

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # builds a wheel from a clean copy and installs it into a new environment
+
 ROOT = Path(__file__).resolve().parents[1]
 BROKEN_MPI = "libmpi.so.12: cannot open shared object file: No such file or directory"
 
@@ -77,7 +79,7 @@ def test_wheel_from_clean_checkout(clean_checkout, tmp_path):
                "e.h5", "--quiet"], cwd=work, env=_pip_env())
     assert res.returncode == 0, res.stderr
     assert "warning" not in res.stderr  # mpi4py absent: serial, nothing to warn about
-    res = run([py, "-c", "from sliders import ensemble; r = ensemble.read_realisations('e.h5'); "
+    res = run([py, "-c", "from sliders.io.storage import read_realisations; r = read_realisations('e.h5'); "
                          "print(int(r['done'].sum()))"], cwd=work, env=_pip_env())
     assert res.stdout.strip() == "3", res.stderr
 

@@ -23,7 +23,9 @@ import pytest
 import sliders
 from sliders import Scene, prepare, status
 from sliders.driver import make_engine
-from sliders.scene import SceneError
+from sliders.parts.checks import SceneError
+
+pytestmark = pytest.mark.slow  # signals sent to running commands
 
 # An event that never ends (no dynamic friction between walls: nothing
 # dissipates; its sliders stop, redraw and restart) after two ordinary ones,

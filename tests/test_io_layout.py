@@ -57,7 +57,7 @@ def test_h5py_is_imported_only_inside_sliders_io():
     outside = {name: lines for name, lines in importing.items() if not name.startswith("io/")}
     assert not outside, f"h5py imported outside sliders/io (module: lines): {outside}"
     # the file modules themselves are found by the scan (it is not looking at nothing)
-    for module in ("io/storage.py", "io/tilt_file.py", "io/study_file.py"):
+    for module in ("io/storage.py", "io/run_file.py", "io/study_file.py"):
         assert module in importing, module
 
 

@@ -1,5 +1,6 @@
-"""The package's layers: each imports only the layers below it, and no module imports itself
-back through a circle (docs/architecture.md draws them).
+"""The package's layers: each imports only the layers below it, no module imports itself
+back through a circle, and neither does a top-level file or folder (docs/architecture.md
+draws them).
 
 The allowed direction is written once, in LAYERS (bottom first).  Every import is counted,
 also those inside functions: a lazy import upwards is still an upward dependency.
@@ -18,8 +19,15 @@ PACKAGE = pathlib.Path(sliders.__file__).parent
 
 # bottom first; a module belongs to the first entry that is it or one of its parents
 LAYERS = [
-    ("core", ["sliders._version", "sliders.scene", "sliders.chain", "sliders.keyed_random",
-              "sliders.status", "sliders.engine", "sliders.units"]),
+    # what everything may use: the chain's arithmetic, the keyed draws, the status codes
+    ("base", ["sliders._version", "sliders.chain", "sliders.keyed_random", "sliders.status",
+              "sliders.units"]),
+    # the friction laws and loadings: their parameters, checks and physics, no scene
+    ("parts", ["sliders.parts"]),
+    # one configured run, composed of its parts
+    ("scene", ["sliders.scene"]),
+    # the steppers that advance a scene's chain (the reference and the kernel)
+    ("engine", ["sliders.engine"]),
     ("io", ["sliders.io"]),
     ("simulation", ["sliders.preparation", "sliders.driver", "sliders.result"]),
     ("analysis", ["sliders.analysis"]),
@@ -91,20 +99,18 @@ def test_layers_import_only_downwards():
     assert not upward, "\n".join(upward)
 
 
-def test_no_import_circles():
-    graph = import_graph()
-    # a package's __init__ imports its own modules (re-exports): that edge is structure, not a circle
-    graph = {m: {t for t in ts if not t.startswith(m + ".")} for m, ts in graph.items()}
+def circles(graph: dict[str, set[str]]) -> list[str]:
+    """Every circle a depth-first walk of ``graph`` meets, as "a -> b -> a"."""
     state: dict[str, int] = {}
     stack: list[str] = []
-    circles = []
+    found: list[str] = []
 
     def visit(m):
         state[m] = 1
         stack.append(m)
         for t in sorted(graph.get(m, ())):
             if state.get(t) == 1:
-                circles.append(" -> ".join(stack[stack.index(t):] + [t]))
+                found.append(" -> ".join(stack[stack.index(t):] + [t]))
             elif t not in state:
                 visit(t)
         stack.pop()
@@ -113,7 +119,50 @@ def test_no_import_circles():
     for m in sorted(graph):
         if m not in state:
             visit(m)
-    assert not circles, "\n".join(circles)
+    return found
+
+
+def test_no_import_circles():
+    graph = import_graph()
+    # a package's __init__ imports its own modules (re-exports): that edge is structure, not a circle
+    graph = {m: {t for t in ts if not t.startswith(m + ".")} for m, ts in graph.items()}
+    found = circles(graph)
+    assert not found, "\n".join(found)
+
+
+def node_of(module: str) -> str:
+    """The top-level file or folder of the package that holds ``module`` (a folder is one node)."""
+    return ".".join(module.split(".")[:2])
+
+
+def node_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """The import graph of the package's top-level files and folders (each folder one node;
+    imports inside a folder are not edges).  The package's own ``__init__`` (the front door,
+    which imports from everywhere) is left out."""
+    nodes: dict[str, set[str]] = {}
+    for m, targets in graph.items():
+        if m == "sliders":
+            continue
+        edges = nodes.setdefault(node_of(m), set())
+        edges.update(node_of(t) for t in targets if t != "sliders" and node_of(t) != node_of(m))
+    return nodes
+
+
+def test_no_circles_between_top_level_files_and_folders():
+    """A folder imported by a file that it imports itself would sit both below and above that
+    file: each top-level file and folder of the package must be one place in the order."""
+    found = circles(node_graph(import_graph()))
+    assert not found, "\n".join(found)
+
+
+def test_the_folder_rule_catches_a_loop_through_a_folder():
+    """The check itself can fail: a folder whose modules import a file that imports another
+    of its modules is a loop between the two nodes, though no module imports itself back."""
+    graph = {"sliders.engine.reference": {"sliders.scene"},
+             "sliders.engine.loading": {"sliders.chain"},
+             "sliders.scene": {"sliders.engine.loading"}, "sliders.chain": set()}
+    assert not circles(graph)
+    assert circles(node_graph(graph)) == ["sliders.engine -> sliders.scene -> sliders.engine"]
 
 
 @pytest.mark.parametrize("bad", ["sliders.analysis.observables", "sliders.runs.ensemble"])

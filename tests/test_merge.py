@@ -9,8 +9,12 @@ import h5py
 import numpy as np
 import pytest
 
-from sliders.runs import ensemble, merge
+from sliders.runs import merge
+from sliders.io.storage import read_realisations
+from sliders.analysis.summary import load_summary
 from test_ensemble import assert_same_file, one_error_line
+
+pytestmark = pytest.mark.slow  # ensembles run and merged as commands
 
 R = 7  # not a multiple of the chunk counts: chunks of unequal sizes
 SCENE_ARGS = ["--n-sliders", "12", "--seed", "11", "--mode", "explore", "--quiet"]
@@ -56,10 +60,10 @@ def test_chunk_ranges_tile_the_ensemble():
 
 
 def test_chunk_files_hold_their_realisations(chunks, one_run):
-    full = ensemble.read_realisations(one_run)
+    full = read_realisations(one_run)
     for i, p in enumerate(chunks):
         first, count = merge.chunk_range((i, 3), R)
-        rows = ensemble.read_realisations(p)
+        rows = read_realisations(p)
         assert rows["done"].all() and rows["seed"].size == count
         assert np.array_equal(rows["seed"], full["seed"][first:first + count])
         assert np.array_equal(rows["alpha_c"], full["alpha_c"][first:first + count])
@@ -76,7 +80,7 @@ def test_merged_chunks_equal_one_run(chunks, one_run, tmp_path):
     with h5py.File(out) as f:  # CF history: each chunk's command, then the merge
         history = f.attrs["history"].splitlines()
     assert [ln.count("--chunk") for ln in history] == [1, 1, 1, 0] and "sliders.merge" in history[-1]
-    summary, _, _, info = ensemble.load_summary(out)
+    summary, _, _, info = load_summary(out)
     assert info["n_done"] == R and np.isfinite(summary.force_pdf).any()
 
 

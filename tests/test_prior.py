@@ -26,6 +26,8 @@ from sliders.runs import prior as prior_run
 from sliders.runs import prior_spec
 from test_ensemble import _env
 
+pytestmark = pytest.mark.slow  # prior ensembles under mpirun
+
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
 PY = sys.executable
 TIMEOUT = 180

@@ -10,7 +10,7 @@ from sliders.chain import elastic_energy, elastic_force
 from sliders.io.prior_file import read_prior_ensemble
 from sliders.preparation import (history_seed, last_stable_state, prepare, rebased, tilt_back,
                                  _history_engine)
-from sliders.scene import SceneError
+from sliders.parts.checks import SceneError
 
 SCENE = sliders.Scene(n_sliders=30, seed=4, mode="explore", xi=1e-3, initial_forces="history")
 

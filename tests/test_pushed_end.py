@@ -14,11 +14,10 @@ import sliders
 from sliders import Scene, prepare, status
 from sliders.chain import elastic_force
 from sliders.driver import make_engine
-from sliders.engine.loading import loading_for
-from sliders.scene import SceneError
+from sliders.parts.checks import SceneError
 from test_backends import assert_bit_for_bit, assert_same_run, libm_reference
 
-PUSHED = Scene(n_sliders=8, seed=5, loading="pushed_end", tilt=0.2, drive_stiffness=2.0,
+PUSHED = Scene(n_sliders=8, seed=5, loading="pushed_end", incline=0.2, driver_stiffness=2.0,
                mode="explore", xi=0.001)
 
 
@@ -39,19 +38,19 @@ def test_forces_balance_stability_and_energy_after_every_event(backend):
     """Sum of F_t = N sin(tilt) + driver force; every slider stable; the work
     of gravity and of the driver's spring = elastic change + dissipation."""
     sc = PUSHED
-    load = loading_for(sc)
+    load = sc.loading
     n_events = 0
     for _, before, after, chunk in pushed_events(sc, backend=backend):
         if chunk.n_events == 0:
             break
         n_events += 1
         drive = after.alpha
-        force = load.tangential(elastic_force(after, sc.xi, sc.walls), math.sin(sc.tilt), drive,
+        force = load.tangential(elastic_force(after, sc.xi, sc.walls), math.sin(sc.incline), drive,
                                 after.displacement)
-        driver = sc.drive_stiffness * (drive - after.displacement[0])
-        assert math.isclose(force.sum(), sc.n_sliders * math.sin(sc.tilt) + driver,
+        driver = sc.driver_stiffness * (drive - after.displacement[0])
+        assert math.isclose(force.sum(), sc.n_sliders * math.sin(sc.incline) + driver,
                             rel_tol=1e-12, abs_tol=1e-11)
-        excess = np.abs(force) - after.mu_s * math.cos(sc.tilt)
+        excess = np.abs(force) - after.mu_s * math.cos(sc.incline)
         assert excess.max() <= sc.force_tol, f"unstable slider after event {n_events}"
         ev = {k: float(v[0]) for k, v in chunk.events.items()}
         assert ev["alpha"] == drive >= before.alpha  # the driver only advances
@@ -71,7 +70,7 @@ def test_driver_work_is_in_the_energy_balance():
     for _, before, after, chunk in pushed_events(PUSHED, max_events=20):
         step = after.displacement - before.displacement
         assert step[0] > 0.0  # every precursor starts at the pushed end
-        gravity_only = math.sin(PUSHED.tilt) * step.sum()
+        gravity_only = math.sin(PUSHED.incline) * step.sum()
         ev = chunk.events
         assert abs(gravity_only - ev["elastic_change"][0] - ev["dissipation"][0]) > 1e-6
         assert engine.loading.name == "pushed_end"
@@ -81,9 +80,9 @@ def test_single_slider_stick_slip_period(backend):
     """N = 1 on the driver's spring K, sigma_mu = 0: released at F = mu_s cos,
     it swings about F = mu_d cos and stops at zero velocity after moving
     2 (mu_s - mu_d) cos / K; the driver then advances by the same amount."""
-    sc = Scene(n_sliders=1, sigma_mu=0.0, loading="pushed_end", tilt=0.3, drive_stiffness=4.0,
+    sc = Scene(n_sliders=1, sigma_mu=0.0, loading="pushed_end", incline=0.3, driver_stiffness=4.0,
                initial_forces="zero")
-    expected = 2.0 * (sc.mu_s_mean - sc.mu_d) * math.cos(sc.tilt) / sc.drive_stiffness
+    expected = 2.0 * (sc.mu_s_mean - sc.mu_d) * math.cos(sc.incline) / sc.driver_stiffness
     slips, drives = [], []
     for _, before, after, chunk in pushed_events(sc, max_events=6, stop_at_sliding=False,
                                                  backend=backend):
@@ -112,21 +111,25 @@ def test_run_ends_at_the_onset_of_sliding_or_the_driver_limit(backend):
 
 
 def test_tilt_scenes_unchanged_by_the_new_keys():
-    assert Scene(n_sliders=10) == Scene(n_sliders=10, loading="tilt", tilt=0.0)
+    assert Scene(n_sliders=10) == Scene(n_sliders=10, loading="tilt", incline=0.0)
     assert "loading" not in repr(Scene(n_sliders=10))
 
 
 @pytest.mark.parametrize("values, message", [
     ({"loading": "pulled"}, "loading='pulled' must be one of"),
-    ({"loading": "pushed_end", "tilt": 0.6}, "tilt=0.6 is out of range"),
-    ({"loading": "pushed_end", "drive_stiffness": 0.0}, "drive_stiffness=0.0 is out of range"),
+    ({"loading": "pushed_end", "incline": 0.6}, "incline=0.6 is out of range"),
+    ({"loading": "pushed_end", "driver_stiffness": 0.0}, "driver_stiffness=0.0 is out of range"),
     ({"loading": "pushed_end", "drive_max": -1.0}, "drive_max=-1.0 is out of range"),
-    ({"tilt": 0.1}, "tilt=0.1 is a parameter of loading='pushed_end'; with loading='tilt' leave it out"),
-    ({"drive_stiffness": 2.0}, "drive_stiffness=2.0 is a parameter of loading='pushed_end'"),
+    ({"incline": 0.1}, "incline=0.1 is a parameter of loading='pushed_end'; with loading='tilt' leave "
+                       "it out"),
+    # tilt names the loading: the incline's old key is refused, naming its key now
+    ({"loading": "pushed_end", "tilt": 0.2}, "tilt=0.2 is not a scene key: the pushed end's fixed "
+                                             "incline is incline="),
+    ({"driver_stiffness": 2.0}, "driver_stiffness=2.0 is a parameter of loading='pushed_end'"),
     ({"loading": "pushed_end", "alpha_max": 1.0}, "alpha_max=1.0 is a parameter of loading='tilt'"),
-    ({"loading": sliders.PushedEnd(incline=0.1), "tilt": 0.2},
-     "tilt=0.2 is a parameter of loading=PushedEnd(incline=0.1): give it there"),
-    ({"loading": "pushed_end", "mu_d": 0.0}, "tilt=0.0 must be below atan(mu_d)=0"),
+    ({"loading": sliders.PushedEnd(incline=0.1), "incline": 0.2},
+     "incline=0.2 is a parameter of loading=PushedEnd(incline=0.1): give it there"),
+    ({"loading": "pushed_end", "mu_d": 0.0}, "incline=0.0 must be below atan(mu_d)=0"),
     ({"loading": "pushed_end", "record": "forces"}, "record='forces' rebuilds the forces of the tilt"),
 ])
 def test_bad_pushed_end_values_give_one_line_errors(values, message):
@@ -138,9 +141,9 @@ def test_bad_pushed_end_values_give_one_line_errors(values, message):
 # ------------------------------------------------ Fortran against NumPy
 @pytest.mark.parametrize("scene", [
     PUSHED.replace(xi=0.0),
-    Scene(n_sliders=12, seed=2, loading="pushed_end", tilt=0.0, drive_stiffness=0.5,
+    Scene(n_sliders=12, seed=2, loading="pushed_end", incline=0.0, driver_stiffness=0.5,
           ends="walls", dt=0.004, max_events=150),
-    Scene(n_sliders=10, seed=7, loading="pushed_end", tilt=0.4, drive_stiffness=0.2,
+    Scene(n_sliders=10, seed=7, loading="pushed_end", incline=0.4, driver_stiffness=0.2,
           dt=0.004),
 ], ids=["free", "walls", "steep_soft_driver"])
 def test_fortran_matches_numpy_bit_for_bit(scene, monkeypatch):
@@ -166,7 +169,7 @@ def test_command_line_runs_the_pushed_end_on_the_kernel(tmp_path, capsys):
     from sliders.__main__ import main
 
     out = tmp_path / "pushed.h5"
-    assert main(["tilt", "--loading", "pushed_end", "--tilt", "0.2", "--n-sliders", "6",
+    assert main(["tilt", "--loading", "pushed_end", "--incline", "0.2", "--n-sliders", "6",
                  "--out", str(out), "--quiet"]) == 0
     result = sliders.TiltResult.load(out)
     assert result.status == "sliding" and result.scene.loading == sliders.PushedEnd(incline=0.2)
@@ -199,17 +202,17 @@ def test_result_forces_include_the_driver(backend):
     force = result.tangential_force
     du = result.displacement_after()
     drive = result.events["alpha"]
-    driver = sc.drive_stiffness * (drive - du[:, 0])
-    np.testing.assert_allclose(force.sum(axis=1), sc.n_sliders * math.sin(sc.tilt) + driver,
+    driver = sc.driver_stiffness * (drive - du[:, 0])
+    np.testing.assert_allclose(force.sum(axis=1), sc.n_sliders * math.sin(sc.incline) + driver,
                                rtol=1e-12, atol=1e-10)
     assert np.abs(force).max() <= sc.mu_s_mean + 5 * sc.sigma_mu  # stable: no force beyond any mu_s
     # just below the next event's drive only slider 1's force has changed, by
     # K dD, and it is up at a static threshold (every mu_s lies above mu_d)
     at_next = result.force_at(drive[1:] - 1e-9)
     np.testing.assert_array_equal(at_next[:, 1:], force[:-1, 1:])
-    np.testing.assert_allclose(at_next[:, 0], force[:-1, 0] + sc.drive_stiffness
+    np.testing.assert_allclose(at_next[:, 0], force[:-1, 0] + sc.driver_stiffness
                                * (drive[1:] - 1e-9 - drive[:-1]), rtol=0, atol=1e-10)
-    assert np.all(at_next[:, 0] > sc.mu_d * math.cos(sc.tilt))
+    assert np.all(at_next[:, 0] > sc.mu_d * math.cos(sc.incline))
 
 
 def test_tilt_animation_refuses_a_pushed_scene_in_one_line(tmp_path, capsys):

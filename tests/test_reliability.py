@@ -30,11 +30,14 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders.runs import ensemble
+from sliders.io.storage import read_realisations
+from sliders.analysis.summary import load_summary
 from sliders.io import storage
 from sliders.io.filelock import OutputClaim
 from test_ensemble import (BACKEND, PY, R, SCENE_OPTS, _env, _Run, assert_same_file,
                            ensemble_args, one_error_line, progress_lines, rank_pids, run)
+
+pytestmark = pytest.mark.slow  # faults injected into running commands
 
 KILL_TRIALS = 4  # kill -9 of a random rank at a random moment
 FLIPS = 120  # random byte flips per file kind (tilt, ensemble)
@@ -163,7 +166,7 @@ def check_then_resume(reference, out, n=2):
     """The file reads, its done rows equal the reference's, --resume completes the rest
     (returns its stderr)."""
     if out.exists():  # (killed before the file was published: nothing was finished)
-        rows = ensemble.read_realisations(out)
+        rows = read_realisations(out)
         assert_same_file(reference, out, rows=np.flatnonzero(rows["done"]))
     res = run(ensemble_args(out, extra=["--resume"]), n=n)
     assert res.returncode == 0, res.stderr
@@ -207,7 +210,7 @@ def test_ensemble_signal_stops_every_rank_quickly(reference, tmp_path, sig):
     assert res.returncode == 128 + sig, res.stderr
     assert elapsed < STOP_WITHIN + 1.0, f"stopped after {elapsed:.2f} s"  # + mpirun teardown
     assert "Traceback" not in res.stderr
-    done = ensemble.read_realisations(out)["done"].sum()
+    done = read_realisations(out)["done"].sum()
     assert 1 <= done < R
     assert f"resuming {R - done} of {R}" in check_then_resume(reference, out)
 
@@ -235,7 +238,7 @@ def test_full_disk_ensemble_keeps_finished_rows(reference, tmpfs):
     out = disk / "e.h5"
     res = run(ensemble_args(out), n=2, env=_env(SLIDERS_ENSEMBLE_STOP_AFTER=3))
     assert res.returncode == 128 + signal.SIGTERM, res.stderr
-    done_before = ensemble.read_realisations(out)["done"].copy()
+    done_before = read_realisations(out)["done"].copy()
     with open(disk / "filler", "wb", buffering=0) as fh:  # fill the disk to the last block
         with pytest.raises(OSError) as full:
             while True:
@@ -249,7 +252,7 @@ def test_full_disk_ensemble_keeps_finished_rows(reference, tmpfs):
     # the rows are allocated with the file: --resume completes it on the full disk
     res = run(ensemble_args(out, extra=["--resume"]), n=2)
     assert res.returncode == 0, res.stderr
-    rows = ensemble.read_realisations(out)
+    rows = read_realisations(out)
     assert rows["done"].all() and done_before.sum() >= 3
     assert_same_file(reference, out)
 
@@ -381,7 +384,8 @@ LOADER = """
 import sys
 import numpy as np
 import sliders
-from sliders.runs import ensemble
+from sliders.io.storage import read_realisations
+from sliders.analysis.summary import load_summary
 
 kind, reference = sys.argv[1], sys.argv[2]
 
@@ -396,8 +400,8 @@ def content(path):
         arrays["attrs"] = np.array([repr((r.scene, r.status, r.alpha_c, r.message, r.backend,
                                           r.relaxation, r.final_event, r.wall_time))])
         return arrays
-    rows = ensemble.read_realisations(path)
-    summary, grids, scene, info = ensemble.load_summary(path)
+    rows = read_realisations(path)
+    summary, grids, scene, info = load_summary(path)
     arrays = {k: v for k, v in rows.items() if k != "statistics"}
     arrays.update({"s/" + k: v for k, v in rows["statistics"].items()})
     info.pop("created", None)
@@ -552,7 +556,7 @@ def test_resume_recomputes_a_damaged_row(tmp_path, reference):
         fh.seek(offset + 2)
         fh.write(bytes([byte[0] ^ 0x01]))
     with pytest.raises(storage.StorageError, match=r"row 3 of dataset /realisations/alpha_c fails"):
-        ensemble.read_realisations(out)
+        read_realisations(out)
     assert storage.damaged_rows(out) == [3]
     res = run(ensemble_args(out, extra=["--resume"]), n=2)
     assert res.returncode == 0, res.stderr

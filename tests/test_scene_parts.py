@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders import Coulomb, PushedEnd, Scene, SceneError, Tilt
+from sliders import Coulomb, PushedEnd, Scene, SceneError, Tilt, keyed_random
 from sliders.chain import elastic_force
 from sliders.engine import contract
-from sliders.engine.loading import TIE_TOL, Loading
-from sliders.engine.parameters import check_real
+from sliders.parts.checks import check_real
+from sliders.parts.friction import Friction
+from sliders.parts.loading import TIE_TOL, Loading
 
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -26,31 +27,38 @@ DATA = Path(__file__).resolve().parent / "data"
 # ------------------------------------------------ parts and flat keys
 def test_flat_keywords_build_the_parts():
     assert Scene(mu_d=0.5, sigma_mu=0.0) == Scene(friction=Coulomb(mu_d=0.5, sigma_mu=0.0))
-    pushed = Scene(loading="pushed_end", tilt=0.2, drive_stiffness=2.0, drive_max=9.0)
+    pushed = Scene(loading="pushed_end", incline=0.2, driver_stiffness=2.0, drive_max=9.0)
     assert pushed == Scene(loading=PushedEnd(incline=0.2, stiffness=2.0, drive_max=9.0))
-    assert PushedEnd(tilt=0.2) == PushedEnd(incline=0.2)  # the flat key is accepted as alias
     assert Scene(alpha_max=1.0) == Scene(loading=Tilt(alpha_max=1.0))
-    assert (pushed.tilt, pushed.incline, pushed.drive_stiffness, pushed.mu_d) == (0.2, 0.2, 2.0, 0.55)
-    assert pushed.loading.scene is pushed and pushed.friction.scene is pushed
+    assert (pushed.incline, pushed.driver_stiffness, pushed.mu_d) == (0.2, 2.0, 0.55)
+    assert not hasattr(pushed, "tilt")  # tilt names the loading, not the incline
+    # a part holds no scene: the same part object serves every scene it is given to
+    assert not hasattr(pushed.loading, "scene") and not hasattr(pushed.friction, "scene")
+    assert pushed.loading is Scene(loading=pushed.loading).loading
 
 
 def test_the_parts_check_their_own_values():
     with pytest.raises(SceneError, match=r"mu_s_mean=0.5 must exceed mu_d=0.5"):
         Coulomb(mu_d=0.5, mu_s_mean=0.5)
-    with pytest.raises(SceneError, match=r"drive_stiffness=0.0 is out of range"):
+    with pytest.raises(SceneError, match=r"driver_stiffness=0.0 is out of range"):
         PushedEnd(stiffness=0.0)
     with pytest.raises(SceneError, match=r"alpha_max=2.0 is out of range"):
         Tilt(alpha_max=2.0)
-    with pytest.raises(SceneError, match=r"tilt=0.1 and incline=0.2 name the same fixed incline"):
-        PushedEnd(0.2, tilt=0.1)
-    # a rule between parts: the incline below the friction's atan(mu_d)
-    with pytest.raises(SceneError, match=r"tilt=0.5 is out of range: allowed \[0, 0.463647609\]"):
+    with pytest.raises(SceneError, match=r"tilt=0.1 is not a scene key: .* incline is incline="):
+        Scene(loading="pushed_end", tilt=0.1)
+    with pytest.raises(SceneError, match=r"tilt=0.1 is not a scene key"):
+        Scene(n_sliders=8).replace(tilt=0.1)
+    with pytest.raises(SceneError, match=r"drive_stiffness=2.0 is not a scene key: .* is "
+                                         r"driver_stiffness= \(drive names the loading's variable\)"):
+        Scene(loading="pushed_end", drive_stiffness=2.0)
+    # a rule between parts: the incline below the friction's max_stable_incline(), atan(mu_d)
+    with pytest.raises(SceneError, match=r"incline=0.5 is out of range: allowed \[0, 0.463647609\]"):
         Scene(friction=Coulomb(mu_d=0.5), loading=PushedEnd(incline=0.5))
 
 
 def test_replace_changes_a_part_by_its_flat_keys_or_whole():
     pushed = Scene(n_sliders=8, loading=PushedEnd(incline=0.2, stiffness=2.0))
-    assert pushed.replace(tilt=0.3).loading == PushedEnd(incline=0.3, stiffness=2.0)
+    assert pushed.replace(incline=0.3).loading == PushedEnd(incline=0.3, stiffness=2.0)
     assert pushed.replace(loading="tilt") == Scene(n_sliders=8)
     assert pushed.replace(loading=Tilt(alpha_max=1.0)).alpha_max == 1.0
     assert pushed.replace(mu_d=0.5).friction == Coulomb(mu_d=0.5)
@@ -59,7 +67,7 @@ def test_replace_changes_a_part_by_its_flat_keys_or_whole():
 
 
 def test_repr_shows_the_parts_that_differ_and_evaluates_back():
-    scene = Scene(n_sliders=8, mu_d=0.5, loading="pushed_end", tilt=0.2)
+    scene = Scene(n_sliders=8, mu_d=0.5, loading="pushed_end", incline=0.2)
     assert repr(scene) == ("Scene(n_sliders=8, friction=Coulomb(mu_d=0.5), "
                            "loading=PushedEnd(incline=0.2))")
     assert eval(repr(scene), vars(sliders)) == scene
@@ -76,7 +84,8 @@ def test_the_kernel_parameters_come_from_the_parts():
 
 
 # ------------------------------------------------ files of the flat layout
-# The scene attribute of a tilt file and of a pushed-end file (the flat keys, in file order).
+# The scene attribute of a tilt file and of a pushed-end file (the flat keys, in file order),
+# as files wrote it while the incline's key was "tilt" and the driver's stiffness "drive_stiffness".
 FLAT_FILES = [
     '{"n_sliders": 400, "xi": 0.001, "spring_length": 10.0, "mu_d": 0.55, "mu_s_mean": 0.6, '
     '"sigma_mu": 0.01, "seed": 1, "ends": "free", "initial_forces": "uniform", "mode": '
@@ -95,8 +104,14 @@ FLAT_FILES = [
 
 @pytest.mark.parametrize("text", FLAT_FILES, ids=["tilt", "pushed_end"])
 def test_flat_scene_attributes_round_trip_byte_for_byte(text):
-    scene = Scene.from_dict(json.loads(text))
-    assert json.dumps(scene.to_dict()) == text
+    """A stored scene with the old keys loads; written again it holds ``incline`` and
+    ``driver_stiffness`` in their places, and that text round-trips byte for byte."""
+    scene = Scene.from_stored(json.loads(text))
+    now = text.replace('"tilt": ', '"incline": ').replace('"drive_stiffness"', '"driver_stiffness"')
+    assert json.dumps(scene.to_dict()) == now
+    assert json.dumps(Scene.from_dict(json.loads(now)).to_dict()) == now
+    with pytest.raises(SceneError, match="tilt=.* is not a scene key"):
+        Scene.from_dict(json.loads(text))  # given (not stored), the old key is refused
 
 
 def test_files_written_with_the_flat_layout_load():
@@ -136,12 +151,12 @@ class UniformPull(Loading):
     def normal(self, drive: float) -> float:
         return 1.0
 
-    def forces(self, state, drives, displacement=None) -> np.ndarray:
+    def forces(self, state, xi, walls, drives, displacement=None) -> np.ndarray:
         du = state.displacement if displacement is None else np.asarray(displacement, dtype=float)
-        elastic = elastic_force(state, self.scene.xi, self.scene.walls, du)
+        elastic = elastic_force(state, xi, walls, du)
         return elastic + np.asarray(drives, dtype=float)[..., None]
 
-    def next_instability(self, elastic, mu, drive, du=None):
+    def next_instability(self, elastic, mu, drive, du, force_tol):
         """Slider n starts forwards at E_n + lambda = mu_n (the pull only grows)."""
         root = np.maximum(mu - elastic, drive)
         pull = float(root.min())
@@ -151,9 +166,9 @@ class UniformPull(Loading):
     def beyond_limit(self, drive: float) -> bool:
         return drive > self.pull_max
 
-    def runaway(self, moving, direction, weight, kinetic) -> bool:
+    def runaway(self, moving, direction, weight, kinetic, walls) -> bool:
         """Every slider of a free chain moving forwards with the pull beating kinetic friction."""
-        return (not self.scene.walls and moving.all() and np.all(direction > 0.0)
+        return (not walls and moving.all() and np.all(direction > 0.0)
                 and weight > kinetic)
 
 
@@ -193,3 +208,64 @@ def test_the_toy_loading_stops_at_its_limit_with_the_chain_at_rest():
 def test_a_loading_without_a_fortran_twin_is_refused_by_the_kernel():
     with pytest.raises(SceneError, match="loading='uniform_pull' has no Fortran twin"):
         sliders.run(Scene(n_sliders=5, loading=UniformPull(pull_max=1.0)), backend="fortran")
+
+
+# ------------------------------------------------ a new friction law costs one class
+@dataclass(frozen=True, repr=False)
+class UniformStatic(Friction):
+    """Coulomb friction whose static coefficient, at every stop, is drawn uniformly in
+    [mu_s_mean - static_width, mu_s_mean + static_width] (keyed by seed, slider, stop)."""
+
+    mu_d: float = 0.55
+    mu_s_mean: float = 0.6
+    static_width: float = 0.02
+
+    name = "uniform_static"
+    flat_keys = {"mu_d": "mu_d", "mu_s_mean": "mu_s_mean", "static_width": "static_width"}
+
+    def check_own(self) -> None:
+        check_real("static_width", self.static_width, 0.0, self.mu_s_mean - self.mu_d)
+
+    def static_threshold(self, mu_s, normal, force_tol):
+        return mu_s * normal + force_tol
+
+    def kinetic_force(self, normal):
+        return self.mu_d * normal
+
+    def draw_at_stop(self, seed, sliders, n_stops):
+        u = keyed_random.uniform(seed, sliders, n_stops, 0)
+        return self.mu_s_mean + self.static_width * (2.0 * u - 1.0)
+
+    def max_stable_incline(self):
+        return math.atan(self.mu_d)
+
+
+def test_a_friction_law_defined_here_runs_on_the_reference():
+    """The toy law is a class of this file alone: the preparation draws its coefficients,
+    the reference engine asks it for thresholds, kinetic force and draws at every stop,
+    and the run ends in the model's avalanche between atan(mu_d) and atan(max mu_s)."""
+    law = UniformStatic(mu_d=0.5, mu_s_mean=0.6, static_width=0.05)
+    scene = Scene(n_sliders=30, seed=7, mode="explore", friction=law)
+    assert scene.friction is law and scene.mu_s_mean == 0.6
+    assert scene.to_dict()["static_width"] == 0.05 and scene.to_dict()["friction"] == "uniform_static"
+    result = sliders.run(scene, backend="numpy")
+    assert result.status == "avalanche" and result.n_events > 10
+    low, high = 0.55, 0.65
+    # the coefficients are the law's: uniform draws, never the Gaussian's tails
+    for mu in (result.initial.mu_s, result.final.mu_s):
+        assert np.all((mu >= low) & (mu <= high))
+    np.testing.assert_array_equal(result.initial.mu_s,
+                                  law.draw_at_stop(7, np.arange(30), np.zeros(30, np.int64)))
+    stopped = np.flatnonzero(result.final.n_stops > 0)
+    assert stopped.size > 0  # sliders redrew at their stops, with the law's key
+    np.testing.assert_array_equal(result.final.mu_s[stopped],
+                                  law.draw_at_stop(7, stopped, result.final.n_stops[stopped]))
+    assert math.atan(0.5) < result.alpha_c <= math.atan(high)
+    # energy: the dissipation is the law's kinetic force times the path
+    scale = np.abs(result.work_gravity).max()
+    assert np.abs(result.energy_residual).max() < 1e-6 * scale
+
+
+def test_a_friction_law_without_a_fortran_twin_is_refused_by_the_kernel():
+    with pytest.raises(SceneError, match="friction='uniform_static' has no Fortran twin"):
+        sliders.run(Scene(n_sliders=5, friction=UniformStatic()), backend="fortran")

@@ -25,6 +25,8 @@ from sliders import Scene
 from sliders.chain import elastic_energy
 from sliders.keyed_random import realisation_seed
 
+pytestmark = pytest.mark.slow  # slip pulses measured on long runs
+
 PAPER_N100 = Path(__file__).resolve().parents[1] / "mpi_runs" / "scenes" / "paper_n100.toml"
 OLD_CAP = 1e5  # tau: the cap every speed mode had when these runs were capped
 
@@ -58,7 +60,7 @@ def test_the_scene_cap_outlasts_the_longest_event_measured():
     """Every scene of mpi_runs caps one event beyond the longest event measured in
     the paper's ensembles: 3.55e6 tau, the avalanche event of the N = 400,
     xi = 0 study's realisation 66 (docs/slip_pulses.md)."""
-    from sliders.runs.study import load_study
+    from sliders.analysis.study_spec import load_study
 
     for path in sorted(PAPER_N100.parent.glob("*.toml")):
         if "[study]" in path.read_text():  # a study file: every point's scene

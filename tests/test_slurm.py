@@ -20,9 +20,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-
-from sliders.runs import ensemble
+from sliders.io.storage import read_realisations
 from test_ensemble import assert_same_file
+
+pytestmark = pytest.mark.slow  # jobs on the session's SLURM cluster
 
 ROOT = Path(__file__).resolve().parents[1]
 JOBS = ROOT / "mpi_runs" / "slurm"
@@ -65,7 +66,7 @@ def test_mpi_ensemble_job(slurm, work):
     sys.stderr.write(f"slurm: MPI job {job} done in {time.monotonic() - t0:.1f} s\n")
     assert "sliders: 2 ranks on 1 node(s)" in text
     assert "on 2 ranks, storage mpio" in text  # both ranks in one MPI world, writing in parallel
-    rows = ensemble.read_realisations(out)
+    rows = read_realisations(out)
     assert rows["done"].all() and rows["done"].size == R
     assert set(rows["status_name"]) <= {"avalanche", "event_duration_cap"}
     assert_same_file(ref, out)  # the rows of a serial run, bit for bit (wall times aside)
@@ -90,6 +91,6 @@ def test_job_array_chunks_merge_to_one_run(slurm, work):
     sys.stderr.write(f"slurm: array of 3 chunks + merge done in {time.monotonic() - t0:.1f} s\n")
     chunk_files = sorted((d / "array.chunks").glob("chunk_*.h5"))
     assert [p.name for p in chunk_files] == [f"chunk_{i:05d}_of_00003.h5" for i in range(3)]
-    assert [ensemble.read_realisations(p)["done"].size for p in chunk_files] == [2, 2, 2]
+    assert [read_realisations(p)["done"].size for p in chunk_files] == [2, 2, 2]
     assert_same_file(ref, out)
-    assert np.isfinite(ensemble.read_realisations(out)["alpha_c"]).all()
+    assert np.isfinite(read_realisations(out)["alpha_c"]).all()

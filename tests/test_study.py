@@ -17,6 +17,8 @@ import pytest
 
 from test_ensemble import _env
 
+pytestmark = pytest.mark.slow  # parameter studies under mpirun
+
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
 TIMEOUT = 180
 IGNORED = {"wall_time", "row_crc32"}  # depend on the run (the checksums cover the wall time)
@@ -153,7 +155,8 @@ def test_xarray_view_has_the_axes_as_dimensions(spec, tmp_path):
 def test_most_expensive_points_are_queued_first(tmp_path):
     from types import SimpleNamespace
 
-    from sliders.runs.study import parse_study, plan_study
+    from sliders.analysis.study_spec import parse_study
+    from sliders.runs.study import plan_study
 
     st = parse_study({"study": {"realisations": 2}, "scene": {"mode": "explore"},
                       "axes": {"n_sliders": [10, 40, 20]}})
@@ -197,7 +200,7 @@ def test_figures_and_table_of_a_study(spec, tmp_path):
 
 
 def test_zipped_axes_vary_together(tmp_path):
-    from sliders.runs.study import StudyError, parse_study
+    from sliders.analysis.study_spec import StudyError, parse_study
 
     data = {"study": {"realisations": 1, "zip": [["mu_d", "sigma_mu"]]}, "scene": {"n_sliders": 12},
             "axes": {"mu_d": [0.5, 0.55], "sigma_mu": [0.01, 0.02], "xi": [0.0, 0.001]}}

@@ -6,8 +6,12 @@ is taken over with a note that must say ``study:``, not ``ensemble:``.
 
 from __future__ import annotations
 
+import pytest
+
 import subprocess
 import sys
+
+pytestmark = pytest.mark.slow  # a parameter study run as a command
 
 STUDY = """
 [study]

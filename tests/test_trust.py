@@ -25,7 +25,8 @@ import sliders
 from sliders.io import safeio, storage, study_file
 from sliders.io.filelock import ClaimError, OutputClaim
 from sliders.runs import ensemble, merge
-from sliders.scene import SceneError, available_memory, check_memory
+from sliders.parts.checks import SceneError
+from sliders.scene import available_memory, check_memory
 from test_ensemble import (PY, SCENE_OPTS, _env, _Run, assert_same_file,
                            ensemble_args, one_error_line, run)
 from test_reliability import tilt_file  # noqa: F401 - a saved run (fixture)
@@ -428,7 +429,7 @@ def test_killed_ensemble_creation_leaves_a_temporary_the_next_run_removes(tmp_pa
 # ---------------------------------------------------------------------------
 def bump_version(path: Path, version: int = 99) -> None:
     """A file written by a future sliders: format_version changed, every checksum valid."""
-    from sliders.io.tilt_file import WHOLE_FILE_MAGIC, seal_whole_file
+    from sliders.io.run_file import WHOLE_FILE_MAGIC, seal_whole_file
 
     with h5py.File(path, "r+") as f:
         f.attrs["format_version"] = version

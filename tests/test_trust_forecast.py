@@ -33,6 +33,8 @@ from sliders.io.forecast_files import ForecastInputError, read_catalogue_csv
 from sliders.runs.forecast import cli as forecast_cli
 from sliders.runs.forecast import evaluate as rf_evaluate
 
+pytestmark = pytest.mark.slow  # attacks on the forecast commands, each a process
+
 PY = sys.executable
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
 TIMEOUT = 300
@@ -442,8 +444,9 @@ def test_too_many_events_are_refused_naming_the_row(tmp_path):
     (b"angle [deg],size,size\n1,1,1\n", "column 'size' appears 2 times"),
     (b"angle [deg],size,angle [rad]\n1,1,0.1\n", "column 'angle' appears 2 times"),
     (b"angle [deg],size\n1,1" + b"0" * 300 + b"\n", "row 2, column 'size'"),
-    (b"angle [deg],size\n1,1e300\n", "row 2, column 'size': '1e300' must be a whole number"),
-    (b"angle [deg],size,first\n1,1,1e19\n", "row 2, column 'first'"),
+    (b"angle [deg],size\n1,1e300\n", "row 2, column 'size': '1e300' must be a positive number"),
+    (b"angle [deg],size,first,last\n1,1,1e19,1\n", "row 2, column 'first'"),
+    (b"angle [deg],size,first\n1,1,1\n", "column 'first' without 'last'"),
     (b"angle [deg],size\n1," + b"1" * 200000 + b"\n", "row 2: longer than"),
     (b"angle [deg],size\n95,1\n", "row 2, column 'angle': '95' is outside"),
     (b"angle [deg],size\n1,1\n\xff\n", "row 3: not UTF-8"),

@@ -30,6 +30,8 @@ from sliders.io.forecast_model import (DIGEST_SUFFIX, MODEL_FORMAT, ModelFileErr
 
 from test_forecast import rate_law_catalogue
 
+pytestmark = pytest.mark.slow  # corrupted model files forecast in processes
+
 PREDICT = [sys.executable, "-m", "sliders.forecast", "predict"]
 #: a crash shows as a negative status, a hang as this timeout
 TIMEOUT = 90

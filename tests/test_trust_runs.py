@@ -31,6 +31,8 @@ from test_ensemble import (PY, RESULTS_IGNORED, _children, _env, _Run, assert_sa
 from test_prior import assert_same_sets
 from test_trust import STUDY_TEXT
 
+pytestmark = pytest.mark.slow  # attacks on the run commands under mpirun
+
 PRIOR = """
 [prior]
 realisations = {R}

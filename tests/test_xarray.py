@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 
 import sliders
-from sliders.runs import ensemble
+from sliders.analysis.summary import load_summary
+
+pytestmark = pytest.mark.slow  # ensembles and studies run as commands, then opened
 
 xr = pytest.importorskip("xarray", reason="xarray not installed (pip install '.[test]')")
 pytest.importorskip("h5netcdf", reason="h5netcdf not installed (pip install '.[test]')")
@@ -110,7 +112,7 @@ def test_ensemble_file(tmp_path, n_ranks):
     assert ds.force_counts.dims == ("realisation", "alpha", "force_bin")
     assert ds.stopped_ratio_counts.dims == ("realisation", "stop_alpha_bin", "ratio_bin")
     assert ds.force_bin.attrs["units"] == "m g"
-    summary, grids, scene, info = ensemble.load_summary(path)
+    summary, grids, scene, info = load_summary(path)
     assert np.array_equal(ds.alpha.values, grids.alpha)
     assert np.allclose(ds.force_bin.values, 0.5 * (grids.force_edges[1:] + grids.force_edges[:-1]))
     # one reduction: A(alpha) averaged over the realisations at rest, as load_summary gives it
@@ -134,7 +136,7 @@ def test_readme_example_gives_the_package_force_pdf(tmp_path, monkeypatch):
     Path("n100.h5").symlink_to(path)
     namespace: dict = {}
     exec(readme_xarray_example(), namespace)  # noqa: S102 - the README's own code
-    summary, grids, _, _ = ensemble.load_summary(path)
+    summary, grids, _, _ = load_summary(path)
     g = int(np.argmin(np.abs(grids.alpha - 0.3)))
     assert np.allclose(namespace["pdf"].values, summary.force_pdf[g], rtol=1e-12, atol=0)
     assert namespace["pdf"].dims == ("force_bin",)
@@ -183,7 +185,7 @@ def every_kind_of_file(d: Path) -> dict[str, Path]:
     for name, scene in (("tilt", sliders.Scene(n_sliders=20, seed=1, mode="explore")),
                         ("tilt_summary", sliders.Scene(n_sliders=20, seed=1, record="summary")),
                         ("pushed_end", sliders.Scene(n_sliders=20, seed=1, loading="pushed_end",
-                                                     tilt=0.2, mode="explore"))):
+                                                     incline=0.2, mode="explore"))):
         files[name] = d / f"{name}.h5"
         sliders.tilt(scene).save(files[name])
     files["ensemble"], files["ensemble_mpio"] = ensemble_file(d, 1), ensemble_file(d, 2)

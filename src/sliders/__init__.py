@@ -7,7 +7,8 @@ public API:
   friction law (``Coulomb``) and its loading (``Tilt``, ``PushedEnd``);
 * ``run(scene, backend="fortran"|"numpy")``: drive the loading to the run's
   end, returns a ``Result`` (save/load in HDF5); ``tilt`` and ``TiltResult``
-  are their names for the paper's tilt (the same function and class);
+  are their aliases here, the paper's names (the same function and class;
+  inside the package they are ``run`` and ``Result``);
 * ``prepare(scene)``: the prepared chain at alpha = 0;
 * ``analysis``, ``figures``, ``runs``: the layers above (docs/architecture.md).
 """
@@ -15,12 +16,17 @@ public API:
 from ._version import __version__
 
 from .chain import ChainState
-from .driver import Interrupted, Progress, run, tilt
-from .engine.friction import Coulomb
-from .engine.loading import PushedEnd, Tilt
+from .driver import Interrupted, Progress, run
+from .parts.checks import SceneError
+from .parts.friction import Coulomb
+from .parts.loading import PushedEnd, Tilt
 from .preparation import prepare
-from .result import EventSparse, Result, TiltResult
-from .scene import Scene, SceneError
+from .result import EventSparse, Result
+from .scene import Scene
+
+# The paper's names (its loading is the tilt; they run and hold any loading alike).
+tilt = run
+TiltResult = Result
 
 __all__ = [
     "ChainState", "Coulomb", "EventSparse", "Interrupted", "Progress", "PushedEnd", "Result",

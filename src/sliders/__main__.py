@@ -11,8 +11,9 @@ from .runs.cli import ProgressLine, add_scene_arguments, check_output, fail, sce
 from .runs.signals import Received
 from .io.filelock import ClaimError, OutputClaim
 from .io.safeio import describe_os_error, leftovers_note
-from .scene import BACKENDS, SceneError, check_memory
-from .driver import tilt
+from .parts.checks import SceneError
+from .scene import BACKENDS, check_memory
+from .driver import run
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -63,11 +64,12 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args, scene) -> int:
     line = None if args.quiet else ProgressLine()
+    drive = "alpha" if scene.loading.drive_is_angle else "drive"
 
     def progress(p):
         if line is not None:
-            line.show(f"tilt N={scene.n_sliders}: alpha={p.alpha:.5f}  events={p.n_events}  "
-                      f"slider-steps={p.slider_steps:.3g}  {p.elapsed:.1f} s")
+            line.show(f"{scene.loading.name} N={scene.n_sliders}: {drive}={p.drive:.5f}  "
+                      f"events={p.n_events}  slider-steps={p.slider_steps:.3g}  {p.elapsed:.1f} s")
 
     # SIGTERM (batch systems, kill) stops the run as Ctrl-C does: finished events are saved;
     # while the result is saved a second signal waits until the file is complete
@@ -75,7 +77,7 @@ def _run(args, scene) -> int:
     with received.waiting():
         with received.stopping():
             try:
-                result = tilt(scene, backend=args.backend, progress=progress, keep_partial=True)
+                result = run(scene, backend=args.backend, progress=progress, keep_partial=True)
             except ImportError as exc:
                 fail(f"backend {args.backend!r} is not available: {exc}")
         if line is not None:

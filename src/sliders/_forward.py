@@ -22,7 +22,13 @@ def forward(name: str, target: str) -> None:
     target : str
         The module that holds the code, e.g. ``"sliders.runs.ensemble"``.
     """
-    module = importlib.import_module(target)
-    if name == "__main__":
-        sys.exit(module.main())
-    sys.modules[name] = module
+    if name != "__main__":
+        sys.modules[name] = importlib.import_module(target)
+        return
+    try:
+        module = importlib.import_module(target)
+    except KeyboardInterrupt:  # Ctrl-C while the command starts: one line, nothing written
+        sys.stderr.write(f"{target.rsplit('.', 1)[-1]}: interrupted (SIGINT) while starting; "
+                         "nothing written\n")
+        sys.exit(130)
+    sys.exit(module.main())

@@ -1,7 +1,7 @@
 """The quasi-static driver: prepare, relax, then drive the loading to the run's end.
 
 ``run`` drives the scene's loading (the tilt to the avalanche, the pushed end
-to the onset of sliding); ``tilt`` is its name for the paper's tilt.
+to the onset of sliding); ``sliders.tilt`` is its alias at the package's top.
 
 Both backends implement the same ``advance(state, max_events, relax_only)``
 method (see ``reference.NumpyEngine``); the driver calls it in chunks so that
@@ -24,7 +24,8 @@ from .keyed_random import realisation_seed
 from .preparation import prepare
 from .engine.reference import NumpyEngine
 from .result import EventSparse, Result
-from .scene import BACKENDS, Scene, SceneError, check_memory
+from .parts.checks import SceneError
+from .scene import BACKENDS, Scene, check_memory
 from .engine.fortran_engine import FortranEngine
 
 CHUNK_EVENTS = {"numpy": 16, "fortran": 512}
@@ -40,18 +41,14 @@ def chunk_events(scene: Scene, backend: str) -> int:
 
 @dataclass
 class Progress:
-    """What a progress callback receives after every chunk (``alpha``: the drive,
-    also readable as ``drive``: the tilt, or the pushed end's driver position)."""
+    """What a progress callback receives after every chunk: ``drive``, the drive
+    reached (the tilt alpha in rad, or the pushed end's driver position D in
+    g tau^2, ``scene.loading.drive_label``), the events, seconds and slider-steps so far."""
 
-    alpha: float
+    drive: float
     n_events: int
     elapsed: float
     slider_steps: int
-
-    @property
-    def drive(self) -> float:
-        """The drive reached: the tilt alpha (rad), or the driver position D (g tau^2)."""
-        return self.alpha
 
 
 class Interrupted(KeyboardInterrupt):
@@ -88,7 +85,7 @@ def run(
 ) -> Result:
     """Drive a prepared chain quasi-statically to the end of its run: the
     tilt to the avalanche, the pushed end to the onset of sliding (or to the
-    loading's limit, ``max_events``, ...).  ``sliders.tilt`` is the same function.
+    loading's limit, ``max_events``, ...).  ``sliders.tilt`` is its alias.
 
     Parameters
     ----------
@@ -173,7 +170,7 @@ def run(
         slider_steps += int(chunk.events["slider_steps"].sum())
         if progress is not None:
             try:
-                progress(Progress(state.alpha, n_events, time.perf_counter() - started,
+                progress(Progress(state.drive, n_events, time.perf_counter() - started,
                                   slider_steps))
             except KeyboardInterrupt:
                 code, message, alpha_c = status.INTERRUPTED, INTERRUPTED_MESSAGE, math.nan
@@ -240,6 +237,3 @@ def tilt_realisations(scene: Scene, runs: int, backend: str = "fortran", first: 
     for r in range(first, first + runs):
         yield r, run(realisation_scene(scene, r), backend=backend)
 
-
-# The paper's name of ``run``: its loading is the tilt (it runs any loading alike).
-tilt = run

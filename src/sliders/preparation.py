@@ -2,8 +2,8 @@
 
 Steps, and the choices made where the paper is silent:
 
-1. Static coefficients mu_{s,n}: keyed Gaussian draws (stop count 0), redrawn
-   until above mu_d.
+1. Static coefficients mu_{s,n}: the friction law's draw at stop count 0
+   (``draw_at_stop``; Coulomb: keyed Gaussian draws, redrawn until above mu_d).
 2. Tangential forces f_n uniform in ]-mu_s_mean, mu_s_mean[.  *Own threshold*:
    a force with abs(f_n) >= mu_{s,n} would be unstable for its own slider, so it is
    redrawn (keyed rejection); the forces stay uniform on
@@ -44,7 +44,10 @@ import numpy as np
 
 from . import keyed_random, status
 from .chain import ChainState, elastic_force
-from .scene import ALPHA_MAX_LIMIT, Scene
+from .engine.fortran_engine import FortranEngine
+from .engine.reference import NumpyEngine
+from .parts.loading import ALPHA_MAX_LIMIT
+from .scene import Scene
 
 MAX_FORCE_ATTEMPTS = 1000
 ZERO_SUM_SWEEPS = 20
@@ -127,9 +130,7 @@ def prepare(scene: Scene) -> ChainState:
         return prepare_with_history(scene)
     n = scene.n_sliders
     sliders = np.arange(n)
-    mu_s = keyed_random.static_coefficient(
-        scene.seed, sliders, 0, scene.mu_s_mean, scene.sigma_mu, scene.mu_d
-    )
+    mu_s = scene.friction.draw_at_stop(scene.seed, sliders, np.zeros(n, dtype=np.int64))
     forces = draw_initial_forces(scene, mu_s)
 
     # Spring k joins slider k-1 and k; F_n = T_{n+1} - T_n with T_0 = 0 (left
@@ -170,12 +171,8 @@ def history_seed(seed: int) -> int:
 
 def _history_engine(scene: Scene):
     try:
-        from .engine.fortran_engine import FortranEngine
-
         return FortranEngine(scene)
     except (ImportError, AttributeError):  # the kernel is not built: the reference, same events
-        from .engine.reference import NumpyEngine
-
         return NumpyEngine(scene)
 
 

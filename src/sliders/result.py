@@ -1,4 +1,4 @@
-"""The record of one run, tilt or pushed end (its HDF5 form: ``sliders.io.tilt_file``)."""
+"""The record of one run, tilt or pushed end (its HDF5 form: ``sliders.io.run_file``)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .chain import ChainState
+from .io.run_file import read_run_file, run_file_bytes, write_run_file
 from .scene import Scene
 
 
@@ -53,8 +54,8 @@ class EventSparse:
 
 @dataclass
 class Result:
-    """Everything a run recorded (``TiltResult`` is the same class, the name of
-    the tilt's result).
+    """Everything a run recorded (``sliders.TiltResult`` is its alias at the
+    package's top, the paper's name).
 
     ``drive`` is the drive of every completed rearrangement (increasing): the
     tilt angle alpha, or for the pushed end the driver position D
@@ -159,9 +160,10 @@ class Result:
         e = self.events
         return e["work_gravity"] - e["elastic_change"] - e["dissipation"]
 
-    def _loading(self):
-        """The scene's loading: the forces are its (tilt or pushed end)."""
-        return self.scene.loading
+    def _forces(self, drives, displacement=None):
+        """The scene's loading's forces (tilt or pushed end) on the initial chain."""
+        sc = self.scene
+        return sc.loading.forces(self.initial, sc.xi, sc.walls, drives, displacement)
 
     def _need_displacements(self, what: str) -> EventSparse:
         if self.displacement is None:
@@ -179,7 +181,7 @@ class Result:
     def tangential_force(self) -> np.ndarray:
         """(K, N) tangential force F_t of every slider just after each event."""
         du = self.displacement_after()
-        return self._loading().forces(self.initial, self.alpha, du)
+        return self._forces(self.alpha, du)
 
     def events_before(self, alphas) -> np.ndarray:
         """For each angle, how many rearrangements happened at or below it."""
@@ -201,7 +203,7 @@ class Result:
         also feels the driver's spring K (D - u_1).
         """
         alphas = np.asarray(alphas, dtype=float)
-        return self._loading().forces(self.initial, alphas, self.displacement_at(alphas))
+        return self._forces(alphas, self.displacement_at(alphas))
 
     def prepared_force(self) -> np.ndarray:
         """The drawn tangential forces at alpha = 0, before the coupling is switched on."""
@@ -210,9 +212,9 @@ class Result:
     def start_force(self) -> np.ndarray:
         """F_t of every slider at alpha = 0 (pushed end: D = 0) when the loading
         starts (after any relaxation)."""
-        return self._loading().forces(self.initial, 0.0)
+        return self._forces(0.0)
 
-    # -- HDF5 (the layout, the writer and the reader: sliders.io.tilt_file) --
+    # -- HDF5 (the layout, the writer and the reader: sliders.io.run_file) --
     def save(self, path: str | os.PathLike[str], overwrite: bool = True) -> None:
         """Write the run to an HDF5 file, atomically.
 
@@ -223,21 +225,17 @@ class Result:
         that ``load`` verifies, and the HDF5 user block (the file's first
         512 bytes, which HDF5 skips) a CRC-32 of the whole rest of the file:
         ``load`` checks it before HDF5 parses anything, so that damaged HDF5
-        metadata cannot crash the process.  The layout: ``sliders.io.tilt_file``.
+        metadata cannot crash the process.  The layout: ``sliders.io.run_file``.
         While writing, the output is claimed (``sliders.io.filelock``): a run
         writing the same file makes this raise; temporary files of an earlier,
         killed save are removed (with a warning).  A symlink is written
         through: the file it names is replaced, the link stays.
         """
-        from .io.tilt_file import write_tilt_file
-
-        write_tilt_file(path, self, overwrite)
+        write_run_file(path, self, overwrite)
 
     def to_bytes(self) -> bytes:
         """The HDF5 file of the run, as bytes."""
-        from .io.tilt_file import tilt_file_bytes
-
-        return tilt_file_bytes(self)
+        return run_file_bytes(self)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> "Result":
@@ -247,13 +245,8 @@ class Result:
         OSError) with one line naming the file and, for a flipped byte, the
         dataset; a file of another kind raises ValueError.
         """
-        from .io.tilt_file import read_tilt_file
-
-        fields = read_tilt_file(path)
+        fields = read_run_file(path)
         if fields["displacement"] is not None:
             fields["displacement"] = EventSparse(*fields["displacement"], fields["scene"].n_sliders)
         return cls(**fields)
 
-
-# The tilt's name of a run's result (the pushed end's runs are the same class).
-TiltResult = Result

@@ -1,7 +1,7 @@
 """A scene: one configured run (chain, friction law, loading, integrator, what to record).
 
 The friction law and the loading are parts of the scene that own their
-parameters and checks (``engine.friction``, ``engine.loading``); scene files
+parameters and checks (``parts.friction``, ``parts.loading``); scene files
 and the command line hold their flat keys (``scene_keys``).  Every value is
 checked on construction; a bad value raises ``SceneError`` whose message
 names the parameter and the allowed range.  Units are the
@@ -11,16 +11,18 @@ paper's dimensionless ones: time in tau = sqrt(m/k), length in g tau^2.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import os
 import sys
+import tempfile
+import tomllib
 from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
-from .engine.friction import FRICTIONS, Coulomb, Friction
-from .engine.loading import ALPHA_MAX_LIMIT, LOADINGS, Loading, PushedEnd, Tilt  # noqa: F401
-from .engine.parameters import (SceneError, check_choice, check_int, check_real,  # noqa: F401
-                                plain_value)
+from .parts.checks import SceneError, check_choice, check_int, check_real, plain_value
+from .parts.friction import FRICTIONS, Coulomb, Friction
+from .parts.loading import LOADINGS, Loading, Tilt
 
 ENDS = ("free", "walls")
 RECORDS = ("summary", "displacements", "forces")
@@ -111,8 +113,8 @@ class Scene:
     can also be given as flat keywords, the keys of scene files and of the
     command line, which build the parts: ``Scene(mu_d=0.5)`` is
     ``Scene(friction=Coulomb(mu_d=0.5))``, ``Scene(loading="pushed_end",
-    tilt=0.2)`` is ``Scene(loading=PushedEnd(incline=0.2))``; the flat values
-    are readable as attributes (``scene.mu_d``, ``scene.tilt``, ...).
+    incline=0.2)`` is ``Scene(loading=PushedEnd(incline=0.2))``; the flat values
+    are readable as attributes (``scene.mu_d``, ``scene.incline``, ...).
 
     Parameters
     ----------
@@ -160,8 +162,8 @@ class Scene:
         ``alpha_max``: the end of the tilt, radians, at most pi/2 - 1e-6);
         or the Burridge-Knopoff loading: the incline fixed and slider 1
         pushed down the chain by a driver on a spring, the drive the
-        driver's position D, g tau^2 (flat keys ``tilt``: the fixed incline
-        in [0, atan(mu_d)); ``drive_stiffness``: K, units of k;
+        driver's position D, g tau^2 (flat keys ``incline``: the fixed incline
+        in [0, atan(mu_d)); ``driver_stiffness``: K, units of k;
         ``drive_max``: the driver's limit).  docs/loadings.md.
     record : {"summary", "displacements", "forces"}
         Per-event scalars only; plus the displacement of every slider that
@@ -174,7 +176,7 @@ class Scene:
     --------
     >>> Scene(n_sliders=400, xi=0.001, seed=1).replace(mode="explore")
     Scene(n_sliders=400, xi=0.001, seed=1, mode='explore')
-    >>> Scene(n_sliders=8, loading="pushed_end", tilt=0.2, drive_stiffness=2.0)
+    >>> Scene(n_sliders=8, loading="pushed_end", incline=0.2, driver_stiffness=2.0)
     Scene(n_sliders=8, loading=PushedEnd(incline=0.2, stiffness=2.0))
     """
 
@@ -205,13 +207,14 @@ class Scene:
                  loading: Loading | str | None = None, record: str = "displacements",
                  output: str | None = None, **flat: Any) -> None:
         given = dict(locals())
+        _refuse_renamed_keys(flat)
         for f in fields(self):
             if f.name not in PARTS:
                 object.__setattr__(self, f.name, plain_value(f.type, given[f.name]))
         for role in PARTS:
             keys = _part_keys(role, given[role])
             own = {k: flat.pop(k) for k in list(flat) if k in keys}
-            object.__setattr__(self, role, build_part(role, given[role], own).bound(self))
+            object.__setattr__(self, role, build_part(role, given[role], own))
         if flat:
             raise TypeError(f"Scene() got an unexpected keyword argument {next(iter(flat))!r}")
         self._fill_from_mode()
@@ -303,11 +306,11 @@ class Scene:
     mu_s_mean = _flat_key("mu_s_mean", "Mean static friction coefficient (``friction.mu_s_mean``).")
     sigma_mu = _flat_key("sigma_mu", "Width of the static coefficients (``friction.sigma_mu``).")
     alpha_max = _flat_key("alpha_max", "End of the tilt, radians (``Tilt.alpha_max``).")
-    incline = _flat_key("tilt", "The fixed incline of the pushed end, radians "
-                                "(``PushedEnd.incline``; 0 under the tilt, whose angle is the drive).")
-    tilt = _flat_key("tilt", "The flat key of ``incline`` (scene files, ``--tilt``).")
-    drive_stiffness = _flat_key("drive_stiffness",
-                                "K of the pushed end's driver spring (``PushedEnd.stiffness``).")
+    incline = _flat_key("incline", "The fixed incline of the pushed end, radians "
+                                   "(``PushedEnd.incline``; 0 under the tilt, whose angle is the "
+                                   "drive).")
+    driver_stiffness = _flat_key("driver_stiffness",
+                                 "K of the pushed end's driver spring (``PushedEnd.stiffness``).")
     drive_max = _flat_key("drive_max", "The pushed end's driver limit (``PushedEnd.drive_max``).")
 
     # -- convenience -------------------------------------------------------
@@ -375,12 +378,20 @@ class Scene:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "Scene":
         """The scene of ``to_dict``'s keys; an unknown key raises SceneError with a close match."""
+        _refuse_renamed_keys(d)
         known = {key.name for key in scene_keys()} | {"output"}
         unknown = sorted(set(d) - known)
         if unknown:
             raise SceneError(f"unknown scene key(s) {unknown}{_hint(unknown[0], known)}; allowed "
                              f"keys are {sorted(known - {'output'})}")
         return cls(**d)
+
+    @classmethod
+    def from_stored(cls, d: dict[str, Any]) -> "Scene":
+        """The scene of a file's stored keys (``to_dict`` when it was written): a key
+        since renamed (``RENAMED_KEYS``) is read under its name now."""
+        return cls.from_dict({RENAMED_KEYS[k][0] if k in RENAMED_KEYS else k: v
+                              for k, v in d.items()})
 
     @classmethod
     def from_toml(cls, path: str | os.PathLike[str]) -> "Scene":
@@ -394,8 +405,26 @@ PARTS = {"friction": (Friction, FRICTIONS, Coulomb), "loading": (Loading, LOADIN
 # The order of the keys in a scene file (keys of parts added later follow, sorted).
 FILE_KEYS = ("n_sliders", "xi", "spring_length", "mu_d", "mu_s_mean", "sigma_mu", "seed", "ends",
              "initial_forces", "mode", "dt", "refine_tol", "max_event_duration", "max_events",
-             "alpha_max", "force_tol", "avalanche", "loading", "tilt", "drive_stiffness",
+             "alpha_max", "force_tol", "avalanche", "loading", "incline", "driver_stiffness",
              "drive_max", "record")
+
+
+# Keys that files written earlier hold: their name now, what it is, and what the
+# old word means instead (``tilt`` names the loading, ``drive`` the loading's
+# variable).  Files written with an old key still load (``Scene.from_stored``); a
+# scene given one now is refused with a line that names the key now.
+RENAMED_KEYS = {
+    "tilt": ("incline", "the pushed end's fixed incline", "tilt names the loading, loading='tilt'"),
+    "drive_stiffness": ("driver_stiffness", "the stiffness of the pushed end's driver spring",
+                        "drive names the loading's variable"),
+}
+
+
+def _refuse_renamed_keys(keys) -> None:
+    """Refuse a renamed key, with one line that names its key now."""
+    for old, (new, what, why) in RENAMED_KEYS.items():
+        if old in keys:
+            raise SceneError(f"{old}={keys[old]!r} is not a scene key: {what} is {new}= ({why})")
 
 
 def _file_order(key: str) -> tuple:
@@ -472,8 +501,6 @@ def read_toml(path, where: str, error: type[Exception], data: bytes | None = Non
     """The tables of a TOML file (or of ``data``, its bytes as read elsewhere: MPI rank 0);
     a missing, unreadable or invalid file raises ``error`` with one line that starts with
     ``where``."""
-    import tomllib
-
     try:
         if data is not None:
             return tomllib.loads(data.decode("utf-8"))
@@ -515,8 +542,6 @@ def toml_values(path: str | os.PathLike[str], text: bytes | None = None) -> dict
 
 
 def _hint(key: str, known) -> str:
-    import difflib
-
     close = difflib.get_close_matches(key, sorted(known), n=1)
     return f" (did you mean {close[0]!r}?)" if close else ""
 
@@ -570,8 +595,6 @@ def check_writable(name: str, path: str | os.PathLike[str]) -> None:
             with open(p, "ab"):
                 pass
         else:  # probe the folder, never the target: another run may be creating it
-            import tempfile
-
             with tempfile.TemporaryFile(dir=parent):
                 pass
     except OSError as exc:

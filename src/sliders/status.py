@@ -32,7 +32,3 @@ NAMES = {
 
 FINAL_OK = {AVALANCHE, ALPHA_MAX, MAX_EVENTS, SLIDING}
 ERRORS = {EVENT_DURATION_CAP, NON_FINITE, RANDOM_FAILURE, REFINE_LIMIT}
-
-# Per-event scalar records, in this order in both backends (declared with
-# their types in contract.EVENT_SCHEMA).
-from .engine.contract import EVENT_FIELDS  # noqa: E402,F401

@@ -15,7 +15,8 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..scene import Scene, SceneError, check_memory, check_tilt_statistics, read_toml, scene_keys
+from ..parts.checks import SceneError
+from ..scene import Scene, check_memory, check_tilt_statistics, read_toml, scene_keys
 from ..analysis.observables import default_grids
 
 STUDY_PREFIX = "study_"  # extra per-realisation statistics (burst periods, synchronisation)

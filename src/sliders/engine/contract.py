@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .loading import LOADINGS
+from ..parts.loading import LOADINGS
 
 # Halvings of a crossing bracket, at most (sliders_crossing.max_halvings): a step
 # of 1 tau closes to 3e-39 within them, so only a refine_tol below what the
@@ -56,6 +56,10 @@ REAL_PARAMETERS = ("xi", "mu_d", "mu_s_mean", "sigma_mu", "dt", "refine_tol",
                    "max_event_duration", "alpha_max", "force_tol", "alpha",
                    "tilt", "drive_stiffness", "drive_max")
 INT_PARAMETERS = ("walls", "seed", "record_sparse", "relax_only", "max_events", "loading")
+# The packed slots whose kernel name is not the flat key that fills them: the
+# kernel's "tilt" slot (par_tilt) holds the pushed end's fixed incline, its
+# "drive_stiffness" slot the driver spring's stiffness.
+KERNEL_SLOTS = {"tilt": "incline", "drive_stiffness": "driver_stiffness"}
 # The loading protocols' codes in the int parameter "loading" (sliders_contract:
 # loading_tilt, loading_pushed_end), declared by each loading (``Loading.code``).
 LOADING_CODES = {name: cls.code for name, cls in LOADINGS.items()}
@@ -67,6 +71,7 @@ def pack_parameters(scene, alpha: float, record_sparse: bool, relax_only: bool,
     calls = {"alpha": alpha, "walls": int(scene.walls), "record_sparse": int(record_sparse),
              "relax_only": int(relax_only), "max_events": max_events,
              **scene.friction.packed(), **scene.loading.packed()}
+    calls.update({slot: calls.pop(key) for slot, key in KERNEL_SLOTS.items() if key in calls})
     real = np.array([float(calls[k]) if k in calls else float(getattr(scene, k))
                      for k in REAL_PARAMETERS], dtype=np.float64)
     ints = np.array([int(calls[k]) if k in calls else int(getattr(scene, k))

@@ -33,8 +33,8 @@ import numpy as np
 from .. import keyed_random, status
 from ..chain import ChainState
 from ..scene import Scene
-from .contract import (INT_FIELDS, INTERRUPTED_MESSAGE, REAL_FIELDS, Chunk, join_chunks,
-                       pack_parameters, refine_limit_message)
+from .contract import (EVENT_FIELDS, INT_FIELDS, INTERRUPTED_MESSAGE, REAL_FIELDS, Chunk,
+                       join_chunks, pack_parameters, refine_limit_message)
 
 EVENT_CAPACITY = 4096  # event buffer of a relax-only call
 MAX_EVENT_CAPACITY = 1 << 16  # events per kernel call, at most (4.7 MB of buffers)
@@ -130,7 +130,7 @@ class FortranEngine:
                 f"cannot hold one event of {n} sliders")
         events = {f: self._event_real[:k, j].copy() for j, f in enumerate(REAL_FIELDS)}
         events.update({f: self._event_int[:k, j].copy() for j, f in enumerate(INT_FIELDS)})
-        events = {f: events[f] for f in status.EVENT_FIELDS}
+        events = {f: events[f] for f in EVENT_FIELDS}
         ptr = self._sparse_ptr[: k + 1].copy()
         m = int(n_sparse)
         return Chunk(

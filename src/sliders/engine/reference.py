@@ -48,9 +48,6 @@ from ..chain import ChainState, elastic_energy, elastic_force
 from ..scene import Scene
 from .contract import (INTERRUPTED_MESSAGE, MAX_HALVINGS, Chunk, events_from_records,
                        refine_limit_message)
-# next_instability, TIE_TOL and TRANSCENDENTALS live with the tilt loading;
-# re-exported here for the callers and tests that import them from the reference.
-from .loading import TIE_TOL, TRANSCENDENTALS, next_instability  # noqa: F401
 
 
 @dataclass
@@ -68,7 +65,7 @@ class NumpyEngine:
 
     def __init__(self, scene: Scene):
         self.scene = scene
-        self.loading = scene.loading  # the scene's parts, bound to it
+        self.loading = scene.loading  # the scene's parts, asked with the scene's values
         self.friction = scene.friction
 
     # -- public -----------------------------------------------------------
@@ -111,7 +108,8 @@ class NumpyEngine:
             return chunk(status.NON_FINITE, message="non-finite force in the resting chain")
         load, law = self.loading, self.friction
         force = load.tangential(elastic, load.weight(state.alpha), state.alpha, state.displacement)
-        unstable = np.abs(force) > law.static_threshold(state.mu_s, load.normal(state.alpha))
+        unstable = np.abs(force) > law.static_threshold(state.mu_s, load.normal(state.alpha),
+                                                        sc.force_tol)
         if unstable.any():  # relaxation (preparation with coupling)
             triggers = np.flatnonzero(unstable)
             directions = np.sign(force[triggers])
@@ -121,7 +119,7 @@ class NumpyEngine:
             if len(records) >= max_events:
                 return chunk(status.RUNNING)
             angle, triggers, directions = load.next_instability(elastic, state.mu_s, state.alpha,
-                                                                state.displacement)
+                                                                state.displacement, sc.force_tol)
             if load.beyond_limit(angle):
                 return chunk(status.ALPHA_MAX)
             state.alpha = angle
@@ -167,7 +165,8 @@ class NumpyEngine:
                     f"rearrangement at alpha={state.alpha:.6f} still moving after "
                     f"{event.t:.1f} tau (max_event_duration={sc.max_event_duration} tau)",
                 )
-            if self.loading.runaway(event.moving, event.direction, event.weight, event.friction):
+            if self.loading.runaway(event.moving, event.direction, event.weight, event.friction,
+                                    sc.walls):
                 state.displacement[:] = event.du
                 return event.unfinished(status.AVALANCHE)
         return event.finished()
@@ -188,7 +187,7 @@ class _Rearrangement:
         n = state.n_sliders
         self.weight, self.normal = load.weight(state.alpha), load.normal(state.alpha)
         self.friction = law.kinetic_force(self.normal)
-        self.threshold = law.static_threshold(state.mu_s, self.normal)
+        self.threshold = law.static_threshold(state.mu_s, self.normal, sc.force_tol)
         self.drive = state.alpha
         self.du_start = state.displacement.copy()
         self.du = self.du_start.copy()
@@ -276,8 +275,9 @@ class _Rearrangement:
             moving[stops] = False
             direction[stops] = 0.0
             state.n_stops[stops] += 1
-            state.mu_s[stops] = self.law.draw_at_stop(stops, state.n_stops[stops])
-            self.threshold[stops] = self.law.static_threshold(state.mu_s[stops], self.normal)
+            state.mu_s[stops] = self.law.draw_at_stop(self.scene.seed, stops, state.n_stops[stops])
+            self.threshold[stops] = self.law.static_threshold(state.mu_s[stops], self.normal,
+                                                              self.scene.force_tol)
         starts = np.flatnonzero(~moving & (np.abs(self.force) > self.threshold))
         moving[starts] = True
         direction[starts] = np.sign(self.force[starts])

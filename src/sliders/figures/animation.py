@@ -19,8 +19,9 @@ from .style import COLUMN_WIDTH, STYLE
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib.animation import PillowWriter  # noqa: E402
 from ..analysis.observables import valid_limit
-from ..driver import tilt
-from ..scene import Scene, SceneError
+from ..driver import run
+from ..parts.checks import SceneError
+from ..scene import Scene
 
 ANIMATION_FRAMES = 72  # frames from alpha = 0 to alpha_c
 FINAL_FRAMES = 10  # frames holding the avalanche
@@ -62,7 +63,7 @@ def animate_tilt(scene, out_dir="figures", name: str | None = None, backend: str
                  frames: int = ANIMATION_FRAMES, fps: int = FRAMES_PER_SECOND,
                  dpi: int = GIF_DPI) -> str:
     """Tilt ``scene`` to its end and write ``<out_dir>/<name>.gif``; returns the path."""
-    result = tilt(scene, backend=backend)
+    result = run(scene, backend=backend)
     sc = result.scene
     n = sc.n_sliders
     end, _ = valid_limit(result)

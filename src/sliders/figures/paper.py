@@ -53,7 +53,7 @@ from ..analysis.summary import load_ensemble_summary  # noqa: E402,F401 - F.load
 from ..io.storage import check_ensemble_file  # noqa: E402
 from .pushed_end import NAME as PUSHED_END, fig_pushed_end, pushed_end_run  # noqa: E402
 from ..analysis import model
-from ..driver import tilt, tilt_realisations
+from ..driver import run, tilt_realisations
 from ..preparation import prepare
 from ..scene import Scene
 
@@ -359,7 +359,7 @@ def single_slider_run(initial_force: float | None = 0.45, backend: str = "fortra
         state.elastic_force0[:] = f
         state.spring_extension0[:] = [0.0, f]
         state.lattice_position0[:] = 0.0
-    return tilt(scene, backend=backend, state=state)
+    return run(scene, backend=backend, state=state)
 
 
 def fig_single_slider(result=None, backend: str = "fortran", out_dir="figures",
@@ -626,7 +626,7 @@ def fig_cumulated_displacement(data, out_dir="figures", name: str = "cumulated",
                                fit_range=CUMUL_FIT, title_extra: str = ""):
     """(a) A(alpha) on a log scale, (b) <dx> per rearrangement vs alpha (paper Fig. cumul).
 
-    ``data``: an ``EnsembleSummary`` or a list of ``TiltResult`` (then (b)
+    ``data``: an ``EnsembleSummary`` or a list of ``Result`` (then (b)
     also shows every event as a grey dot).  Exponential fits on
     ``fit_range`` (dashed), rates in the legends.
     """
@@ -692,8 +692,8 @@ def scene_setups(paper_size: bool = False, backend: str = "fortran") -> dict[str
 
 
 def run_scene(n_sliders: int, xi: float, seed: int, backend: str = "fortran", **kw):
-    """Tilt one scene of N sliders to the avalanche; ``kw`` are further Scene fields.  Returns the TiltResult."""
-    return tilt(Scene(n_sliders=n_sliders, xi=xi, seed=seed, record="displacements", **kw),
+    """Tilt one scene of N sliders to the avalanche; ``kw`` are further Scene fields.  Returns the Result."""
+    return run(Scene(n_sliders=n_sliders, xi=xi, seed=seed, record="displacements", **kw),
                 backend=backend)
 
 

@@ -24,20 +24,20 @@ from .style import COLUMN_WIDTH, ORDER_CMAP, STYLE, panel_label, save_figure
 import matplotlib.pyplot as plt  # noqa: E402  (after figure_style chose the backend)
 from matplotlib import colors as mcolors  # noqa: E402
 
-from ..engine.loading import PushedEnd, loading_for  # noqa: E402
+from ..parts.loading import PushedEnd  # noqa: E402
 from ..scene import Scene  # noqa: E402
-from ..driver import tilt
+from ..driver import run
 
 NAME = "pushed_end"
 # A chain long enough for fronts of many lengths (about 37 500 events to the
 # onset of sliding, 5 s on the kernel; the NumPy reference would take hours).
-FIGURE_SCENE = Scene(n_sliders=100, seed=2, loading="pushed_end", drive_stiffness=1.0,
+FIGURE_SCENE = Scene(n_sliders=100, seed=2, loading="pushed_end", driver_stiffness=1.0,
                      mode="explore")
 
 
 def pushed_end_run(scene: Scene = FIGURE_SCENE, backend: str = "fortran"):
     """The figure's run."""
-    return tilt(scene, backend=backend)
+    return run(scene, backend=backend)
 
 
 def arrest_positions(result) -> np.ndarray:
@@ -51,8 +51,9 @@ def forces_before(result, events: np.ndarray) -> np.ndarray:
     """Tangential force on every slider just before each of ``events`` starts
     (at the drive it starts at), rebuilt from the recorded displacements."""
     before = np.vstack([result.initial.displacement[None, :], result.displacement_after()[:-1]])
-    return loading_for(result.scene).forces(result.initial, result.events["alpha"][events],
-                                            before[events])
+    sc = result.scene
+    return sc.loading.forces(result.initial, sc.xi, sc.walls, result.drive[events],
+                             before[events])
 
 
 def record_fronts(arrest: np.ndarray) -> np.ndarray:
@@ -76,7 +77,7 @@ def fig_pushed_end(result, out_dir="figures", name: str = NAME):
     sc = result.scene
     if not isinstance(sc.loading, PushedEnd):
         raise ValueError(f"fig_pushed_end needs a run of loading='pushed_end', not {sc.loading.name!r}")
-    drive = result.events["alpha"]
+    drive = result.drive
     arrest = arrest_positions(result)
     growing = record_fronts(arrest)
     shown = profile_events(arrest, sc.n_sliders)
@@ -94,7 +95,7 @@ def fig_pushed_end(result, out_dir="figures", name: str = NAME):
         ax_a.set_ylim(0, sc.n_sliders + 1)
         ax_a.legend(loc="upper left", bbox_to_anchor=(0.07, 1.0), fontsize="x-small",
                     frameon=True, framealpha=0.9, edgecolor="none")
-        ax_a.set_title(f"N = {sc.n_sliders}, tilt = {sc.tilt:g}, K = {sc.drive_stiffness:g} k, "
+        ax_a.set_title(f"N = {sc.n_sliders}, incline = {sc.incline:g}, K = {sc.driver_stiffness:g} k, "
                        f"{result.n_events} events")
         panel_label(ax_a, "(a)")
 
@@ -104,15 +105,16 @@ def fig_pushed_end(result, out_dir="figures", name: str = NAME):
         for row, k in enumerate(shown):
             ax_b.plot(position, profiles[row], lw=0.7, color=cmap(norm(drive[k])))
             ax_a.plot(drive[k], arrest[k], "o", ms=3.5, color=cmap(norm(drive[k])), zorder=3)
-        levels = ((sc.mu_s_mean, r"$\bar\mu_s\cos\alpha$"), (sc.mu_d, r"$\mu_d\cos\alpha$"))
+        levels = ((sc.mu_s_mean, r"$\bar\mu_s\cos(\mathrm{incline})$"),
+                  (sc.mu_d, r"$\mu_d\cos(\mathrm{incline})$"))
         for (mu, label), above in zip(levels, (True, False)):  # mean threshold, kinetic
-            level = mu * math.cos(sc.tilt)
+            level = mu * math.cos(sc.incline)
             ax_b.axhline(level, ls="--", lw=0.6, color="0.3")
             ax_b.annotate(label, (0.5, level), xycoords=("axes fraction", "data"),
                           xytext=(0, 2 if above else -2), textcoords="offset points",
                           ha="center", va="bottom" if above else "top", fontsize="x-small",
                           color="0.3", bbox=dict(fc="white", ec="none", pad=0.3, alpha=0.9))
-        ax_b.set_ylim(top=sc.mu_s_mean * math.cos(sc.tilt) + 0.15)
+        ax_b.set_ylim(top=sc.mu_s_mean * math.cos(sc.incline) + 0.15)
         ax_b.set_xlabel("slider $n$ (driver at $n = 1$) [1]")
         ax_b.set_ylabel(r"$F_t$ before the slip [$mg$]")
         fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax_b, label=r"$D$ [$g\tau^2$]")

@@ -2,8 +2,8 @@
 
 No other module of the package touches HDF5 (tests/test_io_layout.py checks it).
 
-* ``tilt_file``: the single-run file (layout, writer, reader, whole-file
-  checksum); ``TiltResult.save``/``load`` call it;
+* ``run_file``: the single-run file (layout, writer, reader, whole-file
+  checksum); ``Result.save``/``load`` call it;
 * ``storage``: the ensemble file (layout, serial / gather / MPI-IO writers,
   readers of its header and rows, the summary of its done rows);
 * ``study_file``: the study file (one ensemble layout per point, its writers,

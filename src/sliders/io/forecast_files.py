@@ -30,8 +30,8 @@ import numpy as np
 
 from .. import units
 from .catalogue import Catalogue
-from .safeio import (fsync_dir, leftover_temporaries, publish_bytes, resolve_target,
-                     temporary_beside)
+from .safeio import (fsync_dir, leftover_temporaries, printable, publish_bytes,
+                     resolve_target, temporary_beside)
 from .filelock import ClaimError, OutputClaim
 
 
@@ -166,7 +166,6 @@ def complete_publication(folder: str) -> int:
 # ---------------------------------------------------------------------------
 # a measured catalogue
 # ---------------------------------------------------------------------------
-ANGLE_UNITS = units.ANGLE_UNITS  # the one table of angle units, kept importable here
 
 
 def _column_name(raw: str) -> tuple[str, str | None]:
@@ -255,7 +254,7 @@ def _header(lines, path: str) -> tuple[list[str], float, str]:
     raw = _fields(text, k, path)
     header = [_column_name(h) for h in raw]
     names = [h[0] for h in header]
-    shown = ", ".join(raw)
+    shown = printable(", ".join(raw))  # file text, on a terminal: control characters escaped
     for n in COLUMNS:
         where = [j + 1 for j, m in enumerate(names) if m == n]
         if len(where) > 1:
@@ -273,9 +272,9 @@ def _header(lines, path: str) -> tuple[list[str], float, str]:
     unit = header[names.index("angle")][1]
     if unit is None:
         raise ForecastInputError(f"{path}: column 'angle' needs its unit: 'angle [deg]' or 'angle [rad]'")
-    if unit not in ANGLE_UNITS:
+    if unit not in units.ANGLE_UNITS:
         raise ForecastInputError(f"{path}: column 'angle': unit {unit!r} not understood (deg or rad)")
-    return [n if n in COLUMNS else "" for n in names], ANGLE_UNITS[unit], unit
+    return [n if n in COLUMNS else "" for n in names], units.ANGLE_UNITS[unit], unit
 
 
 def _value(v: str, k: int, n: str, path: str) -> float:

@@ -40,9 +40,11 @@ import os
 import pathlib
 import stat
 import zipfile
-from .safeio import publish_bytes
 
-from .safeio import printable
+import numpy as np
+
+from .safeio import printable, publish_bytes
+
 
 MODEL_FORMAT = "sliders-forecaster-3"
 #: the shipped model's file name inside the package's data folder
@@ -161,8 +163,6 @@ def check_archive(blob: bytes, where) -> None:
     """The zip's members bounded before any is inflated: their number, each one's declared
     size and their total (``zipfile`` inflates no more than a member declares); every NumPy
     member's header read, its array numeric and of exactly the size its member declares."""
-    import numpy as np
-
     where = printable(where)
     try:
         archive = zipfile.ZipFile(io.BytesIO(blob))
@@ -228,7 +228,7 @@ def printable_tree(value):
     return value
 
 
-def check_forecasters(forecasters: dict, where) -> None:
+def check_forecasters(forecasters: dict, where, version="?") -> None:
     """Every forecaster's ``check_fitted`` (every part a forecast reads), in one line on the
     first that fails."""
     where = printable(where)
@@ -236,12 +236,13 @@ def check_forecasters(forecasters: dict, where) -> None:
         check = getattr(f, "check_fitted", None)
         if not isinstance(method, str) or check is None:
             raise ModelFileError(f"{where}: {printable(repr(method))} holds a "
-                                 f"{type(f).__name__}, not a fitted forecaster")
+                                 f"{type(f).__name__}, not the fitted forecasters a model file holds")
         try:
             check()
         except (ValueError, AttributeError, TypeError, KeyError, IndexError) as exc:
-            what = (f"a part is missing ({exc})" if isinstance(exc, AttributeError)
-                    else " ".join(str(exc).split()))
+            what = (f"a part is missing ({exc}): written by sliders {version}, whose "
+                    "forecasters this version cannot use; train it again"
+                    if isinstance(exc, AttributeError) else " ".join(str(exc).split()))
             raise ModelFileError(f"{where}: forecaster {printable(method)!r}: "
                                  f"{printable(what)}; refused") from None
 
@@ -282,5 +283,5 @@ def load_forecasters(path) -> tuple[dict, dict]:
     forecasters, prov = obj.get("forecasters"), obj.get("provenance")
     if not isinstance(forecasters, dict) or not isinstance(prov, dict):
         raise ModelFileError(f"{where}: not a sliders model file of format {MODEL_FORMAT}")
-    check_forecasters(forecasters, path)
+    check_forecasters(forecasters, path, prov.get("sliders", "?"))
     return forecasters, printable_tree(prov)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
-TILT = "sliders.tilt"          # one run: TiltResult.save (tilt_file)
+TILT = "sliders.tilt"          # one run: Result.save (run_file)
 ENSEMBLE = "sliders.ensemble"  # R realisations of one scene (storage)
 STUDY = "sliders.study"        # R realisations at every point of a sweep (study_file)
 PRIOR = "sliders.prior"        # R realisations drawn from a prior, with catalogues (prior_file)

@@ -712,7 +712,7 @@ def read_done_statistics(path):
         raise ValueError(f"{os.fspath(path)!r} holds only the per-realisation summary (scene "
                          "record='summary'): no statistics; read_realisations gives alpha_c, "
                          "n_events and status per realisation")
-    scene = Scene.from_dict(json.loads(head["attrs"]["scene"]))
+    scene = Scene.from_stored(json.loads(head["attrs"]["scene"]))
     done = rows["done"]
     stats = {k: v[done] for k, v in rows["statistics"].items()}
     info = dict(head["attrs"])

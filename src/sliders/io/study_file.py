@@ -20,7 +20,7 @@ reads; its view becomes virtual when it is resumed.
 
 The writers are the ensemble's (``storage.MpioFile``, ``storage.GatherFile``)
 with one group per point: row t of the run is realisation ``t % R`` of point
-``t // R``.  The functions here take the study (``sliders.study.Study``) as
+``t // R``.  The functions here take the study (``sliders.analysis.study_spec.Study``) as
 given; what a point computes is the study module's business.
 """
 
@@ -242,7 +242,7 @@ VIEW_UNITS = {"alpha_c": ("rad", "avalanche angle (NaN if the run ended otherwis
               "n_events": ("1", "number of rearrangements before the avalanche"),
               "status": ("1", "how the run ended (sliders.status code; -1: not run)"),
               "done": ("1", "1 when the realisation is complete")}
-AXIS_UNITS = {"alpha_max": "rad", "tilt": "rad", "dt": "tau", "spring_length": "g tau^2",
+AXIS_UNITS = {"alpha_max": "rad", "incline": "rad", "dt": "tau", "spring_length": "g tau^2",
               "drive_max": "g tau^2"}
 
 

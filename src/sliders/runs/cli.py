@@ -9,8 +9,8 @@ import time
 import typing
 import socket
 
-from ..scene import (DEFAULT_MODE, SPEED_MODES, Scene, SceneError, check_writable, scene_keys,
-                     toml_values)
+from ..parts.checks import SceneError
+from ..scene import DEFAULT_MODE, SPEED_MODES, Scene, check_writable, scene_keys, toml_values
 from .. import scene
 from ..io.safeio import check_output_name, is_special, resolve_target
 from ..units import format_angle, parse_angle
@@ -36,8 +36,8 @@ SCENE_OPTIONS = {
     "force_tol": ("tolerance of the stability test of a resting slider", "m g"),
     "avalanche": ("avalanche criterion", ""),
     "loading": ("tilt the incline, or push the first slider at a fixed incline", ""),
-    "tilt": ("pushed_end only: the fixed incline", "angle"),
-    "drive_stiffness": ("pushed_end only: stiffness K of the driver's spring", "units of k"),
+    "incline": ("pushed_end only: the fixed incline", "angle"),
+    "driver_stiffness": ("pushed_end only: stiffness K of the driver's spring", "units of k"),
     "drive_max": ("pushed_end only: the driver's limit", "g tau^2"),
     "record": ("what each event keeps", ""),
 }

@@ -30,19 +30,22 @@ import argparse
 import os
 import signal
 import sys
+import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
 
-from .parallel import MPIUnavailable, abort, error_line, get_comm, launcher_rank
+from .parallel import (ABORT_GRACE, MPIUnavailable, abort, error_line, get_comm,
+                       launcher_rank)
 from .signals import StopFlag
 from .cli import check_output, ranks_on_this_node
 from ..analysis.study_spec import StudyError
 from ..io.filelock import OutputClaim, claim_of
 from ..io.safeio import is_special, leftovers_note, os_reason
 from ..io.storage import CollectiveFailure, STORAGES, StorageError, choose_storage
-from ..scene import BACKENDS, SceneError
+from ..parts.checks import SceneError
+from ..scene import BACKENDS
 
 DEFAULT_BACKEND = "fortran"
 MAX_INPUT_BYTES = 1 << 20  # an input TOML larger than this is refused unread
@@ -367,10 +370,6 @@ def stopped_job_status(comm, code: int) -> int:
         except (OSError, ValueError):
             pass
     if comm.rank == 0:
-        import time
-
-        from .parallel import ABORT_GRACE
-
         time.sleep(ABORT_GRACE)  # the launcher forwards the line before the abort
         try:
             null = os.open(os.devnull, os.O_WRONLY)

@@ -21,7 +21,7 @@ point (between chunks of events): runs in progress are dropped, rows already
 written stay, the file is closed, rank 0 prints one line and every rank exits
 with 128 + signal number.  ``--resume`` then computes the missing rows only.
 
-Ensemble statistics are not stored: ``load_summary(path)`` derives them with
+Ensemble statistics are not stored: ``analysis.summary.load_summary(path)`` derives them with
 ``observables.combine`` from the rows marked done.
 """
 
@@ -36,14 +36,12 @@ from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, Usage
                       add_output_options, add_storage_option, check_new_or_resume,
                       check_run_options, open_output, run_planned)
 from .merge import chunk_range, parse_chunk
-from .parallel import SerialComm  # noqa: F401 - the readers and the row, kept importable here
-from .rows import compute_row  # noqa: F401
+from .rows import compute_row
 from .scheduler import serve_rows
 from ..analysis.observables import (StatisticsGrids, default_grids, statistic_conventions,
                                     statistics_layout)
-from ..analysis.summary import load_summary  # noqa: F401
-from ..io.storage import read_realisations  # noqa: F401
-from ..scene import Scene, SceneError, check_memory, check_tilt_statistics
+from ..parts.checks import SceneError
+from ..scene import Scene, check_memory, check_tilt_statistics
 from .cli import add_scene_arguments, disagreements, given_scene_values, scene_from_args
 from ..driver import make_engine
 from ..io.conventions import describe_ensemble_file
@@ -132,7 +130,7 @@ def _resumed_scene(args, attrs: dict, scene_text) -> Scene:
     """The scene of the file to resume, checked against the scene options given."""
     out = args.out
     try:
-        file_scene = Scene.from_dict(json.loads(attrs["scene"]))
+        file_scene = Scene.from_stored(json.loads(attrs["scene"]))
     except (SceneError, ValueError, KeyError) as exc:
         raise UsageError(f"--resume: {out!r} holds an unreadable scene ({exc})") from None
     try:

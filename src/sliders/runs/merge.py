@@ -171,7 +171,7 @@ def _merged_layout(heads: list[tuple[str, dict]]):
     h0 = heads[0][1]
     last = heads[-1][1]["attrs"]
     n_total = int(last.get("first_realisation", 0)) + int(last["realisations"])
-    scene = Scene.from_dict(json.loads(h0["attrs"]["scene"]))
+    scene = Scene.from_stored(json.loads(h0["attrs"]["scene"]))
     grids = StatisticsGrids.from_arrays(h0["grids"])
     seeds = realisation_seeds(scene.seed, 0, n_total)
     attrs = file_attributes(scene.to_dict(), scene.seed, n_total, str(h0["attrs"]["backend"]))

@@ -37,7 +37,7 @@ from .prior_spec import Prior, check_plan_memory, load_prior
 from .rows import status_code
 from .scheduler import serve_rows
 from .signals import tilt_interruptibly
-from ..driver import tilt as plain
+from ..driver import run as plain
 from ..io.catalogue import Catalogue
 from ..io.prior_file import (HANDLERS, PARAMETERS, catalogue_events, prior_attributes,
                              prior_layout, read_prior_header, write_view)
@@ -65,7 +65,7 @@ def run_with_ceiling(scene, grid: np.ndarray, k: int, backend: str = "fortran", 
     |F_n|`` at each grid angle (NaN at and past the end of the run) and the
     ``TiltResult`` of every piece (the last one has the run's status and
     alpha_c).  ``tilt(scene, backend, progress, state=...)`` runs a piece
-    (default: ``sliders.driver.tilt``).
+    (default: ``sliders.driver.run``).
     """
     if tilt is None:
         def tilt(sc, be, pr, state=None):

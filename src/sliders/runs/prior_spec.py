@@ -49,7 +49,8 @@ import numpy as np
 from .command import UsageError
 from .rows import realisation_seeds
 from ..keyed_random import realisation_seed
-from ..scene import Scene, SceneError, available_memory, read_toml
+from ..parts.checks import SceneError
+from ..scene import Scene, available_memory, read_toml
 
 DESIGNS = ("sobol", "latin", "random")
 DISTRIBUTIONS = ("uniform", "loguniform", "choice")

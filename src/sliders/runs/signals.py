@@ -15,7 +15,7 @@ from __future__ import annotations
 import contextlib
 import signal
 
-from ..driver import tilt
+from ..driver import run
 
 #: the signals that stop a command
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT)
@@ -98,7 +98,7 @@ def tilt_interruptibly(scene, backend: str, progress, **options):
     try:
         if StopFlag.signum is not None:  # arrived just before
             raise Interrupted()
-        return tilt(scene, backend=backend, progress=callback, **options)
+        return run(scene, backend=backend, progress=callback, **options)
     except KeyboardInterrupt:  # also when the kernel caught the signal itself: stop the run
         if StopFlag.signum is None:
             StopFlag.signum = signal.SIGINT

@@ -45,8 +45,7 @@ from ..io.study_file import (HANDLERS, read_study_header, study_attributes, stud
 
 from ..analysis.observables import (StatisticsGrids, default_grids, statistic_conventions,
                                     statistics_layout)
-from ..analysis.study_spec import (NOT_AXES, STUDY_PREFIX, Study, StudyError,  # noqa: F401 - kept importable here
-                                      check_points_memory, load_study, parse_study)
+from ..analysis.study_spec import STUDY_PREFIX, Study, check_points_memory, load_study
 from ..analysis.precursors import burst_periods, sync_profile
 from ..analysis.study_spec import spec_difference
 from ..io.storage import (StorageError, check_room, file_attributes, make_layout,

@@ -17,7 +17,7 @@ from sklearn.utils.metadata_routing import UNUSED
 
 from ...io.forecast_files import ForecastInputError
 from .features import Cuts
-from .measurement import PERFECT, check_catalogue
+from .integrity import IntegrityError
 
 #: quantile levels of every forecast (uniform, so that twice their mean pinball
 #: loss approximates the CRPS)
@@ -102,6 +102,45 @@ class Forecast:
                 "tilt_now": self.tilt_now, "within": delta,
                 "probability_within": self.probability_within(delta),
                 "fallback": self.fallback, "clipped": self.clipped}
+
+
+def check_catalogue(catalogue, measurement=None) -> None:
+    """The catalogue as ``measurement`` (a ``measurement.Measurement``; None: a perfect record
+    in sliders) says it was recorded, or ``ForecastError`` in one line naming the first event
+    that cannot be.
+
+    Every size is positive; in sliders a whole number, at least ``min_size``,
+    and at most the sliders from the first to the last mover (``last - first
+    + 1``) where those are known; the first and last movers are known together
+    and the first is not after the last.  In an arbitrary unit only the
+    detection threshold binds the sizes (no size below ``min_size``).
+    """
+    size, first, last = catalogue.size.astype(float), catalogue.first, catalogue.last
+    min_size = 1.0 if measurement is None else measurement.min_size
+    unit = "sliders" if measurement is None else measurement.size_unit
+
+    def refuse(bad, what):
+        k = int(np.flatnonzero(bad)[0])
+        raise ForecastError(f"event {k + 1} (the {k + 1}th in the catalogue): {what(k)}")
+
+    if (bad := ~(np.isfinite(size) & (size > 0))).any():
+        refuse(bad, lambda k: f"size {size[k]:g} is not a positive number")
+    if (bad := size < min_size * (1 - 1e-9)).any():
+        refuse(bad, lambda k: f"size {size[k]:g} is below the smallest size detected "
+                              f"({min_size:g}): the catalogue and its measurement "
+                              "disagree")
+    if (bad := (first < 0) != (last < 0)).any():
+        refuse(bad, lambda k: "one of its first and last movers is unknown, not both")
+    if (bad := first > last).any():
+        refuse(bad, lambda k: f"its first mover ({first[k]}) lies after its last ({last[k]})")
+    if unit != "sliders":
+        return
+    if (bad := size != np.round(size)).any():
+        refuse(bad, lambda k: f"size {size[k]:g} is not a whole number of sliders (sizes in "
+                              "another unit: --size-unit arbitrary)")
+    if (bad := (first >= 0) & (size > last - first + 1)).any():
+        refuse(bad, lambda k: f"{size[k]:g} sliders moved between slider {first[k]} and slider "
+                              f"{last[k]}, which hold {last[k] - first[k] + 1}")
 
 
 def probability_within(quantiles: np.ndarray, tilt_now: np.ndarray, delta: float,
@@ -251,22 +290,20 @@ class Forecaster(BaseEstimator):
     def _fallback_quantiles(self, tilt_now: np.ndarray) -> np.ndarray:
         """(n, len(LEVELS)) the conditioned climatology of the training avalanche angles above
         each tilt: where a method gives no finite answer of its own."""
-        from .baselines import conditioned_quantiles
-
         clim = getattr(self, "climatology_", None)
         if clim is None:
             raise ForecastError(f"forecaster {self.name!r} gave no finite forecast and has no "
                                 "climatology to fall back on")
-        return conditioned_quantiles(clim.alpha_c_, tilt_now)[0]
+        return clim.conditioned(tilt_now)
 
     def predict(self, catalogue, measurement=None) -> Forecast:
         """The forecast for one ``Catalogue`` (its ``tilt_now`` is the tilt reached).
 
         ``measurement``: how the catalogue was measured
         (``measurement.Measurement``; default: a perfect record in sliders);
-        the catalogue must agree with it (``measurement.check_catalogue``).
+        the catalogue must agree with it (``check_catalogue``).
         """
-        check_catalogue(catalogue, PERFECT if measurement is None else measurement)
+        check_catalogue(catalogue, measurement)
 
         q, fb, lv = self.quantiles(Cuts.from_catalogues([catalogue], measurement), levels=True)
         levels = None if np.array_equal(lv[0], LEVELS) else lv[0]
@@ -281,6 +318,4 @@ class Forecaster(BaseEstimator):
 
         A forecaster that a model file never holds has no such check and refuses.
         """
-        from .integrity import IntegrityError
-
         raise IntegrityError(f"a {type(self).__name__} is not a forecaster a model file holds")

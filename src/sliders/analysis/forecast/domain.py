@@ -33,6 +33,7 @@ from sklearn.base import BaseEstimator
 from sklearn.utils.metadata_routing import UNUSED
 
 from .features import n_sliders_estimate
+from .integrity import check_array, check_novelty_detector, check_number, require
 
 #: events at least this large (sliders) are recorded by every training measurement's
 #: detection threshold (``measurement.MEASUREMENT_RANGES["min_size"]`` goes up to 5)
@@ -231,3 +232,22 @@ class DomainCheck(BaseEstimator):
                            "are unlike every training catalogue's (local outlier factor)")
             reasons.append("; ".join(why))
         return ~(high | novel | other), reasons
+
+    def check_fitted(self, what: str = "domain check") -> None:
+        """Known features, one detector (or None) per class of measurement, each of the width of
+        its features (``integrity.check_novelty_detector``: its neighbour tree rebuilt from the
+        checked points), a top tilt in (0, 90°], a range of sliders with 1 <= lo <= hi."""
+        require(isinstance(self.features, tuple) and len(set(self.features)) == len(self.features)
+                and set(self.features) <= set(WITH_POSITIONS), f"{what}: unknown features")
+        require(isinstance(self.detectors_, list)
+                and len(self.detectors_) == len(MEASUREMENT_CLASSES),
+                f"{what}: not one detector per class of measurement")
+        for label, det in zip(MEASUREMENT_CLASSES, self.detectors_):
+            if det is not None:
+                check_novelty_detector(det, len(self._columns(label)), f"{what}, {label} detector")
+        check_number(self.top_tilt_, f"{what}: top tilt", 1e-9, np.pi / 2)
+        check_number(self.tilt_quantile, f"{what}: tilt quantile", 0.0, 1.0)
+        if self.n_sliders_range_ is not None:
+            span = check_array(self.n_sliders_range_, f"{what}: range of sliders", shape=(2,),
+                               lo=1.0)
+            require(span[0] <= span[1], f"{what}: range of sliders is reversed")

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .base import LEVELS, LOWER, MEDIAN, UPPER, pinball_crps, probability_within
-from .features import Cuts
+from .features import Cuts, training_cuts
 
 
 @dataclass(frozen=True)
@@ -344,8 +344,6 @@ def coverage_by_kind(forecaster, cset, kinds: dict, leads, draws_per_row: int = 
     ``median_abs_deg`` and ``n`` (cuts).  ``degrade(cuts) -> cuts``: the cuts as
     an experiment measures them.
     """
-    from .features import training_cuts
-
     rows = np.flatnonzero(np.isfinite(np.asarray(cset.alpha_c, dtype=float)))
     sub = cset.subset(rows)
     leads = np.asarray(leads, dtype=float)

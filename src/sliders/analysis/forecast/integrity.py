@@ -12,6 +12,8 @@ that is not of the form the forecaster writes.
 What passes is a model of the right form, not the right model: a tree whose
 leaves were changed to other finite values forecasts other finite angles
 (the shipped model is also checked by its digest, ``io.forecast_model``).
+This module imports nothing of the forecasters: each one's ``check_fitted``
+(and ``baselines.check_climatology``, ``DomainCheck.check_fitted``) builds on it.
 """
 
 from __future__ import annotations
@@ -20,7 +22,6 @@ import math
 
 import numpy as np
 
-from .base import LEVELS
 
 #: bounds of a fitted model's parts (the shipped model: 700 trees of at most 29 nodes)
 MAX_NODES = 1 << 16
@@ -163,18 +164,6 @@ def check_boosting(model, n_features: int, what: str) -> None:
                     kind="u")
 
 
-def check_climatology(clim, what: str) -> None:
-    """A ``baselines.Climatology``: sorted finite avalanche angles in (0, 90°), more than the
-    conditioned climatology's ``MIN_ABOVE``, and their quantiles at ``LEVELS``."""
-    from .baselines import MIN_ABOVE, Climatology
-
-    require(isinstance(clim, Climatology), f"{what} is a {type(clim).__name__}, not a climatology")
-    check_array(clim.alpha_c_, f"{what}: avalanche angles", lo=1e-9, hi=math.pi / 2,
-                increasing=True, min_size=MIN_ABOVE + 1)
-    check_array(clim.quantiles_, f"{what}: quantiles", shape=LEVELS.shape, lo=0.0,
-                hi=math.pi / 2, increasing=True)
-
-
 def check_novelty_detector(pipe, n_features: int, what: str) -> None:
     """A domain check's detector (imputer, standard scaler, local outlier factor on
     ``n_features``): every array finite and of its shape; the neighbour tree is rebuilt
@@ -210,24 +199,3 @@ def check_novelty_detector(pipe, n_features: int, what: str) -> None:
             f"{what}: local outlier factor of another form")
     leaf = check_int(lof.leaf_size, f"{what}: leaf size", 1, 10_000)
     lof._tree = KDTree(x, leaf_size=leaf)
-
-
-def check_domain(dom, n_classes: int, what: str) -> None:
-    """A ``domain.DomainCheck``: known features, one detector (or None) per class of
-    measurement, a top tilt in (0, 90°), a range of sliders of 1 <= lo <= hi."""
-    from .domain import IN_SLIDERS, MEASUREMENT_CLASSES, WITH_POSITIONS, DomainCheck
-
-    require(type(dom) is DomainCheck, f"{what} is a {type(dom).__name__}, not a domain check")
-    require(isinstance(dom.features, tuple) and len(set(dom.features)) == len(dom.features)
-            and set(dom.features) <= set(WITH_POSITIONS), f"{what}: unknown features")
-    require(isinstance(dom.detectors_, list) and len(dom.detectors_) == n_classes
-            == len(MEASUREMENT_CLASSES), f"{what}: not one detector per class of measurement")
-    for label, det in zip(MEASUREMENT_CLASSES, dom.detectors_):
-        if det is not None:
-            width = sum(label != "arbitrary" or f not in IN_SLIDERS for f in dom.features)
-            check_novelty_detector(det, width, f"{what}, {label} detector")
-    check_number(dom.top_tilt_, f"{what}: top tilt", 1e-9, math.pi / 2)
-    check_number(dom.tilt_quantile, f"{what}: tilt quantile", 0.0, 1.0)
-    if dom.n_sliders_range_ is not None:
-        span = check_array(dom.n_sliders_range_, f"{what}: range of sliders", shape=(2,), lo=1.0)
-        require(span[0] <= span[1], f"{what}: range of sliders is reversed")

@@ -25,7 +25,8 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Forecaster, quantiles_of_grid
-from .baselines import Climatology, conditioned_quantiles
+from .baselines import Climatology, check_climatology, conditioned_quantiles
+from .integrity import check_choice, check_int, check_number
 
 #: remaining angle alpha_c - tilt_now (radians) over which the fits are profiled
 REMAINING_GRID = np.geomspace(1e-4, 1.0, 161)
@@ -143,8 +144,6 @@ class _InverseRate(Forecaster):
 
     def check_fitted(self) -> None:
         """The parameters (rate, exponent, window, block) and the climatology to fall back on."""
-        from .integrity import check_choice, check_climatology, check_int, check_number
-
         check_choice(self.rate, "rate", ("events", "displacement"))
         check_choice(self.exponent, "exponent", (1, None))
         check_number(self.fraction, "fraction", 1e-6, 1.0)

@@ -47,11 +47,13 @@ from dataclasses import replace
 import numpy as np
 
 from .base import LEVELS, Forecaster
-from .baselines import Climatology, conditioned_quantiles
+from .baselines import Climatology, check_climatology, conditioned_quantiles
+from ...io.catalogue import Catalogue
 from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
-from .features import SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
+from .features import Cuts, SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
 from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, degrade_cuts
+from .integrity import check_array, check_boosting, check_choice, require
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
@@ -82,6 +84,9 @@ LOW_SHARES = np.arange(1.0, 10.5)
 #: the calibrated distribution's percentiles read for every cut (the levels are interpolated;
 #: those below 100 / (cuts of the smallest Mondrian bin + 1) are left out)
 CPS_PERCENTILES = np.r_[0.5, np.arange(1.0, 100.0), 99.5]
+#: the calibration's normalised residuals are kept to this binary step (2^-12 of the predicted
+#: spread: nothing a percentile would show, and the model file's residuals then compress well)
+RESIDUAL_STEP = 2.0 ** -12
 #: fewest calibration cuts per Mondrian bin (the 0.5 % and 99.5 % percentiles read need 200)
 MIN_PER_BIN = 200
 #: share of the training rows held out for the calibration (``calibration="held_out"``)
@@ -138,10 +143,12 @@ class Learned(Forecaster):
     degrade : bool
         Degrade every training cut by a measurement drawn from
         ``measurement.MEASUREMENT_RANGES``.
-    calibration_bins, calibration_event_bins, calibration_remaining_bins : int
-        Mondrian bins of the tilt reached, in each of the events so far, and
-        in each of those of the predicted remaining angle, in the conformal
-        calibration (fewer when the calibration cuts are few).
+    calibration_bins, calibration_event_bins, calibration_size_bins, calibration_remaining_bins : int
+        Mondrian bins of the tilt reached, in each of the events so far, in
+        each of those of the mean event size so far (which tracks the pile's
+        number of sliders, unknown to an experiment), and in each of those of
+        the predicted remaining angle, in the conformal calibration (fewer
+        when the calibration cuts are few).
     interval : {"shortest", "central"}
         The 80 % interval (the quantiles at 10 % and 90 %): the shortest one
         in degrees of the calibrated distribution, between its
@@ -162,7 +169,8 @@ class Learned(Forecaster):
                  learning_rate: float = 0.08, max_leaf_nodes: int = 15, min_samples_leaf: int = 40,
                  max_bins: int = MAX_BINS,
                  degrade: bool = True, calibration_bins: int = 4, calibration_event_bins: int = 4,
-                 calibration_remaining_bins: int = 1, interval: str = "shortest",
+                 calibration_size_bins: int = 1, calibration_remaining_bins: int = 1,
+                 interval: str = "shortest",
                  calibration: str = "out_of_fold", domain_contamination: float = 0.03,
                  random_state: int = 0):
         self.inputs = inputs
@@ -175,6 +183,7 @@ class Learned(Forecaster):
         self.degrade = degrade
         self.calibration_bins = calibration_bins
         self.calibration_event_bins = calibration_event_bins
+        self.calibration_size_bins = calibration_size_bins
         self.calibration_remaining_bins = calibration_remaining_bins
         self.interval = interval
         self.calibration = calibration
@@ -325,7 +334,8 @@ class Learned(Forecaster):
         angle (edges at the calibration cuts' quantiles within their cell; as
         many bins as ``MIN_PER_BIN`` cuts per cell allow, up to
         ``calibration_bins``, ``calibration_event_bins`` and
-        ``calibration_remaining_bins``).
+        ``calibration_remaining_bins``), and the same with the mean event size so far
+        (``calibration_size_bins``) nested between the events and the remaining angle.
         """
         from crepes import ConformalPredictiveSystem
 
@@ -334,29 +344,40 @@ class Learned(Forecaster):
         cells = len(vcuts) // MIN_PER_BIN
         tilt_bins = int(np.clip(cells, 1, self.calibration_bins))
         event_bins = int(np.clip(cells // tilt_bins, 1, self.calibration_event_bins))
-        remaining_bins = int(np.clip(cells // (tilt_bins * event_bins), 1,
+        size_bins = int(np.clip(cells // (tilt_bins * event_bins), 1, self.calibration_size_bins))
+        remaining_bins = int(np.clip(cells // (tilt_bins * event_bins * size_bins), 1,
                                      self.calibration_remaining_bins))
         self.calibration_edges_ = _quantile_edges(vcuts.tilt_now, tilt_bins)
         tilt_bin = np.searchsorted(self.calibration_edges_, vcuts.tilt_now)
         events = _log_events(vcuts)
         self.calibration_event_edges_ = _nested_edges(events, tilt_bin, tilt_bins, event_bins)
         cell = tilt_bin * event_bins + _nested_bin(self.calibration_event_edges_, tilt_bin, events)
-        self.calibration_remaining_edges_ = _nested_edges(centre, cell, tilt_bins * event_bins,
+        sizes = _log_mean_size(vcuts)
+        self.calibration_size_edges_ = _nested_edges(sizes, cell, tilt_bins * event_bins, size_bins)
+        cell = cell * size_bins + _nested_bin(self.calibration_size_edges_, cell, sizes)
+        self.calibration_remaining_edges_ = _nested_edges(centre, cell,
+                                                          tilt_bins * event_bins * size_bins,
                                                           remaining_bins)
         bins = self._calibration_bin(vcuts, centre)
         self.calibration_counts_ = np.bincount(bins)
         # the percentiles every bin holds a residual below (crepes' lower index >= 0)
         fewest = self.calibration_counts_[self.calibration_counts_ > 0].min()
         self.percentiles_ = CPS_PERCENTILES[CPS_PERCENTILES >= 100.0 / (fewest + 1)]
-        self.calibration_ = ConformalPredictiveSystem().fit(truth - centre, sigmas=spread, bins=bins)
+        # normalised here (not by crepes' sigmas) so that they can be kept to RESIDUAL_STEP
+        alphas = np.round((truth - centre) / spread / RESIDUAL_STEP) * RESIDUAL_STEP
+        self.calibration_ = ConformalPredictiveSystem().fit(alphas, bins=bins)
 
     def _calibration_bin(self, cuts, centre):
         """Each cut's Mondrian category: its bin of tilt reached, of events so far within it,
-        and of predicted remaining angle (``centre``, log) within that."""
+        of mean event size within that, and of predicted remaining angle (``centre``, log)."""
         tilt_bin = np.searchsorted(self.calibration_edges_, cuts.tilt_now)
         event_bins = self.calibration_event_edges_.shape[1] + 1
         cell = tilt_bin * event_bins + _nested_bin(self.calibration_event_edges_, tilt_bin,
                                                    _log_events(cuts))
+        size_edges = getattr(self, "calibration_size_edges_", None)  # None: fitted without
+        if size_edges is not None:
+            cell = cell * (size_edges.shape[1] + 1) + _nested_bin(size_edges, cell,
+                                                                  _log_mean_size(cuts))
         remaining_bins = self.calibration_remaining_edges_.shape[1] + 1
         return cell * remaining_bins + _nested_bin(self.calibration_remaining_edges_, cell, centre)
 
@@ -438,10 +459,6 @@ class Learned(Forecaster):
         calibration's edges, bins and residuals."""
         from crepes import ConformalPredictiveSystem
 
-        from .integrity import (check_array, check_boosting, check_choice, check_climatology,
-                                check_domain, require)
-        from .domain import MEASUREMENT_CLASSES
-
         check_choice(self.inputs, "inputs", INPUTS)
         check_choice(self.interval, "interval", INTERVALS)
         check_choice(self.calibration, "calibration", CALIBRATIONS)
@@ -463,15 +480,21 @@ class Learned(Forecaster):
             require((ranges[:, 0] <= ranges[:, 1]).all(), "training measurement ranges reversed")
         check_array(self.remaining_quantiles_, "remaining angles", shape=LEVELS.shape, lo=0.0,
                     hi=np.pi / 2, increasing=True)
-        check_domain(self.domain_, len(MEASUREMENT_CLASSES), "domain check")
+        require(isinstance(self.domain_, DomainCheck), "the domain check is not a DomainCheck")
+        self.domain_.check_fitted()
         edges = check_array(self.calibration_edges_, "calibration tilt edges", finite=False,
                             increasing=True)
         events = check_array(self.calibration_event_edges_, "calibration event edges", ndim=2,
                              finite=False, increasing=True)
         remaining = check_array(self.calibration_remaining_edges_, "calibration remaining edges",
                                 ndim=2, finite=False, increasing=True)
-        require(events.shape[0] == edges.size + 1
-                and remaining.shape[0] == events.shape[0] * (events.shape[1] + 1),
+        outer = events.shape[0] * (events.shape[1] + 1)  # cells of tilt and events
+        if getattr(self, "calibration_size_edges_", None) is not None:  # None: fitted without
+            sizes = check_array(self.calibration_size_edges_, "calibration size edges", ndim=2,
+                                finite=False, increasing=True)
+            require(sizes.shape[0] == outer, "the calibration's nested edges do not match")
+            outer = sizes.shape[0] * (sizes.shape[1] + 1)
+        require(events.shape[0] == edges.size + 1 and remaining.shape[0] == outer,
                 "the calibration's nested edges do not match")
         cells = remaining.shape[0] * (remaining.shape[1] + 1)
         counts = check_array(self.calibration_counts_, "calibration counts", kind="iu", lo=0)
@@ -480,9 +503,11 @@ class Learned(Forecaster):
         require((np.diff(pct) > 0).all() and np.isin(pct, CPS_PERCENTILES).all(),
                 "the percentiles read are not the calibration's")
         cps = self.calibration_
+        # the residuals are normalised before crepes sees them (kept to RESIDUAL_STEP)
         require(type(cps) is ConformalPredictiveSystem and cps.mondrian is True
-                and cps.normalized is True and cps.fitted is True,
-                "the calibration is not a fitted Mondrian normalised predictive system")
+                and cps.normalized is False and cps.fitted is True,
+                "the calibration is not a fitted Mondrian predictive system of normalised "
+                "residuals (a model of an older form: train it again)")
         require(isinstance(cps.binned_alphas, tuple) and len(cps.binned_alphas) == 2,
                 "the calibration's residuals are not binned")
         values, residuals = cps.binned_alphas
@@ -500,10 +525,16 @@ class Learned(Forecaster):
         x, _ = self.design(cuts)
         z = self._raw_log_remaining(cuts, x)
         centre, spread = self._centre_spread(z)
-        grid = self.calibration_.predict(centre, sigmas=spread,
-                                         bins=self._calibration_bin(cuts, centre),
-                                         lower_percentiles=self.percentiles_)
-        grid = np.asarray(grid, dtype=float).reshape(len(cuts), self.percentiles_.size)
+        bins = self._calibration_bin(cuts, centre)
+        if self.calibration_.normalized:  # a file whose calibration holds the spreads itself
+            grid = self.calibration_.predict(centre, sigmas=spread, bins=bins,
+                                             lower_percentiles=self.percentiles_)
+            grid = np.asarray(grid, dtype=float).reshape(len(cuts), self.percentiles_.size)
+        else:  # the normalised residuals' percentiles, scaled by each cut's spread
+            unit = self.calibration_.predict(np.zeros(len(cuts)), bins=bins,
+                                             lower_percentiles=self.percentiles_)
+            unit = np.asarray(unit, dtype=float).reshape(len(cuts), self.percentiles_.size)
+            grid = centre[:, None] + spread[:, None] * unit
         grid = np.sort(np.clip(grid, -20.0, 2.0), axis=1)
         percent = self._percentiles(grid)
         zc = np.array([np.interp(lv, self.percentiles_, g) for lv, g in
@@ -542,9 +573,6 @@ def _outside(feature: str, value: float, lo: float, hi: float) -> str:
 
 def _probe_cuts():
     """One small complete catalogue (displacements, movers): ``design`` names every feature."""
-    from ...io.catalogue import Catalogue
-    from .features import Cuts
-
     k = np.arange(12)
     cat = Catalogue(0.02 * (k + 1), 1 + k % 3, 0.01 * (1 + k % 2), k % 5, k % 5 + k % 3,
                     tilt_now=0.3)
@@ -580,6 +608,12 @@ def _nested_bin(edges, cell, values) -> np.ndarray:
 def _log_events(cuts) -> np.ndarray:
     """(n,) log(1 + the number of events so far) of each cut."""
     return np.log1p(np.array([len(c) for c in cuts.catalogues], dtype=float))
+
+
+def _log_mean_size(cuts) -> np.ndarray:
+    """(n,) log of the mean event size so far of each cut (0 without events), in the
+    catalogue's own unit: it grows with the pile's number of sliders."""
+    return np.log(np.array([float(np.mean(c.size)) if len(c) else 1.0 for c in cuts.catalogues]))
 
 
 class Ceiling(Learned):

@@ -89,44 +89,6 @@ class Measurement:
 PERFECT = Measurement()
 
 
-def check_catalogue(catalogue: Catalogue, measurement: Measurement) -> None:
-    """The catalogue as ``measurement`` says it was recorded, or ``base.ForecastError`` in one
-    line naming the first event that cannot be.
-
-    Every size is positive; in sliders a whole number, at least ``min_size``,
-    and at most the sliders from the first to the last mover (``last - first
-    + 1``) where those are known; the first and last movers are known together
-    and the first is not after the last.  In an arbitrary unit only the
-    detection threshold binds the sizes (no size below ``min_size``).
-    """
-    from .base import ForecastError
-
-    size, first, last = catalogue.size.astype(float), catalogue.first, catalogue.last
-
-    def refuse(bad, what):
-        k = int(np.flatnonzero(bad)[0])
-        raise ForecastError(f"event {k + 1} (the {k + 1}th in the catalogue): {what(k)}")
-
-    if (bad := ~(np.isfinite(size) & (size > 0))).any():
-        refuse(bad, lambda k: f"size {size[k]:g} is not a positive number")
-    if (bad := size < measurement.min_size * (1 - 1e-9)).any():
-        refuse(bad, lambda k: f"size {size[k]:g} is below the smallest size detected "
-                              f"({measurement.min_size:g}): the catalogue and its measurement "
-                              "disagree")
-    if (bad := (first < 0) != (last < 0)).any():
-        refuse(bad, lambda k: "one of its first and last movers is unknown, not both")
-    if (bad := first > last).any():
-        refuse(bad, lambda k: f"its first mover ({first[k]}) lies after its last ({last[k]})")
-    if measurement.size_unit != "sliders":
-        return
-    if (bad := size != np.round(size)).any():
-        refuse(bad, lambda k: f"size {size[k]:g} is not a whole number of sliders (sizes in "
-                              "another unit: --size-unit arbitrary)")
-    if (bad := (first >= 0) & (size > last - first + 1)).any():
-        refuse(bad, lambda k: f"{size[k]:g} sliders moved between slider {first[k]} and slider "
-                              f"{last[k]}, which hold {last[k] - first[k] + 1}")
-
-
 def degrade(catalogue: Catalogue, measurement: Measurement, rng: np.random.Generator,
             size_scale: float = 1.0) -> Catalogue:
     """``catalogue`` as an experiment of ``measurement`` records it (a new catalogue).

@@ -25,9 +25,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Forecaster, quantiles_of_sample
-from .baselines import Climatology, conditioned_quantiles
+from .base import LEVELS, Forecaster, quantiles_of_sample
+from .baselines import Climatology, check_climatology, conditioned_quantiles
 from .features import catalogue_features, training_cuts
+from .integrity import check_array, require
 
 #: prediction errors above the trend that mark the transition (REPRODUCTION.md: 3)
 DEPARTURE_SIGMAS = 3.0
@@ -194,9 +195,6 @@ class ModelBased(Forecaster):
     def check_fitted(self) -> None:
         """The residual quantiles of each kind of estimate (finite, increasing, within +-90°) and
         the climatology to fall back on."""
-        from .base import LEVELS
-        from .integrity import check_array, check_climatology, require
-
         check_climatology(self.climatology_, "climatology")
         res = self.residual_quantiles_
         require(isinstance(res, dict) and set(res) <= {"0", "1", "2"},

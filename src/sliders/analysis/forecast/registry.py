@@ -108,12 +108,17 @@ FORECASTERS = (
     # catalogues break the lone-slider pairs it leans on), its features in fine bins (63 bins of
     # the exact lone-slider mu_d are a degree wide); calibrated out of fold in bins of the tilt
     # and the events so far like the other (on a quarter of the rows held out instead, its
-    # coverage 12 degrees before the avalanche fell to 0.67-0.69 on 782 held-out rows)
-    Entry("learned.Learned", {"degrade": False, "max_bins": 255}, boosted=True, seeded=True,
-          alarm=True, example=True, band=True, method="learned", fallback=_LEARNED_FALLBACK,
-          colour="#d95f02"),
-    Entry("learned.Learned", {"inputs": "angles_sizes"}, boosted=True, seeded=True, alarm=True,
-          example=True, method="learned_blind", fallback=_LEARNED_FALLBACK, colour="#fdae61"),
+    # coverage 12 degrees before the avalanche fell to 0.67-0.69 on 782 held-out rows); both
+    # calibrate also in bins of the mean event size (which tracks the pile's number of sliders,
+    # from 8 to 800 in the default prior) and, within those, of the predicted remaining angle
+    Entry("learned.Learned", {"degrade": False, "max_bins": 255, "calibration_size_bins": 2,
+                              "calibration_remaining_bins": 3},
+          boosted=True, seeded=True, alarm=True, example=True, band=True, method="learned",
+          fallback=_LEARNED_FALLBACK, colour="#d95f02"),
+    Entry("learned.Learned", {"inputs": "angles_sizes", "calibration_size_bins": 2,
+                              "calibration_remaining_bins": 3},
+          boosted=True, seeded=True, alarm=True, example=True, method="learned_blind",
+          fallback=_LEARNED_FALLBACK, colour="#fdae61"),
     Entry("learned.Ceiling", {"degrade": False}, boosted=True, seeded=True, alarm=True,
           example=True, band=True, colour="#1f78b4"),
     Entry("learned.ToldMuD", {"degrade": False}, boosted=True, seeded=True, alarm=True,

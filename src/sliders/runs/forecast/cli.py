@@ -32,7 +32,7 @@ import traceback
 from ...io.filelock import ClaimError
 from ...io.forecast_files import ForecastInputError
 from ...io.safeio import describe_os_error, os_reason
-from ..parallel import error_line, launcher_rank
+from ..parallel import error_line, launcher_rank, under_mpi_launcher
 from ..signals import stopped_by_sigterm
 from .common import (ALARM_DELTA_DEG, DEFAULT_LEADS_DEG, DEFAULT_TILTS, PREDICT_METHODS,
                      TRAIN_MAX_ITER)
@@ -179,8 +179,14 @@ def main(argv: list[str] | None = None) -> int:
             return getattr(command, args.command)(args, argv)
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", signal.SIGINT)
-        return _error(f"interrupted ({signal.Signals(signum).name}); nothing half-written was "
+        code = _error(f"interrupted ({signal.Signals(signum).name}); nothing half-written was "
                       "published", 128 + signum)
+        if under_mpi_launcher():  # these ranks start no MPI: the launcher reads the signal itself
+            sys.stdout.flush()
+            sys.stderr.flush()
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+        return code
     except (ForecastInputError, ClaimError) as exc:
         return _error(str(exc), 2)
     except OSError as exc:

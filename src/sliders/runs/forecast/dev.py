@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...driver import tilt
+from ...driver import run
 from ...io.catalogue import Catalogue, CatalogueSet
 from ...scene import Scene
 
@@ -65,7 +65,7 @@ def dev_catalogue_set(n: int, seed: int = 0, initial_forces: str = "uniform", mo
                       mu_s_mean=mu_d + float(par["mu_s_minus_mu_d"][r]),
                       sigma_mu=float(par["sigma_mu"][r]), seed=(seed * 100003 + r) % 2**32,
                       initial_forces=initial_forces, mode=mode, record="displacements")
-        res = tilt(scene)
+        res = run(scene)
         cats.append(Catalogue.from_result(res))
         status.append(res.status)
         alpha_c.append(res.alpha_c if res.status == "avalanche" else np.nan)

@@ -1,6 +1,6 @@
-"""The single-run file (``TiltResult.save`` / ``TiltResult.load``): layout, writer, reader.
+"""The single-run file (``Result.save`` / ``Result.load``): layout, writer, reader.
 
-One file holds one ``TiltResult``::
+One file holds one ``Result`` (of any loading; the format keeps its name ``sliders.tilt``)::
 
     (user block)           the first 512 bytes, which HDF5 skips: "sliders.tilt
                            whole-file crc32 XXXXXXXX" over the rest of the file
@@ -28,11 +28,17 @@ import json
 import os
 import subprocess
 import sys
+import warnings
 import zlib
 
 import numpy as np
 
 from . import formats, safeio
+from .._version import __version__
+from ..chain import ChainState
+from ..scene import Scene
+from .conventions import describe_tilt_file
+from .filelock import OutputClaim
 
 FORMAT = formats.TILT
 FORMAT_VERSION = 1
@@ -46,12 +52,9 @@ WHOLE_FILE_MAGIC = b"sliders.tilt whole-file crc32 "
 # ---------------------------------------------------------------------------
 # writing
 # ---------------------------------------------------------------------------
-def tilt_file_bytes(result) -> bytes:
-    """The HDF5 file of a ``TiltResult``, as bytes (sealed, described)."""
+def run_file_bytes(result) -> bytes:
+    """The HDF5 file of a ``Result``, as bytes (sealed, described)."""
     import h5py
-
-    from .._version import __version__
-    from .conventions import describe_tilt_file
 
     def dataset(group, name, data):
         data = np.asarray(data)
@@ -91,18 +94,14 @@ def tilt_file_bytes(result) -> bytes:
     return seal_whole_file(buffer.getvalue())
 
 
-def write_tilt_file(path, result, overwrite: bool = True) -> None:
-    """Write a ``TiltResult`` to ``path`` atomically (``safeio.publish_bytes``), holding the
+def write_run_file(path, result, overwrite: bool = True) -> None:
+    """Write a ``Result`` to ``path`` atomically (``safeio.publish_bytes``), holding the
     claim on it (``filelock.OutputClaim``: refused while another run writes it; re-entrant
     for ``tilt --out``, which holds it already); a symlink is written through."""
-    from .filelock import OutputClaim
-
     safeio.check_output_name(path)
-    data = tilt_file_bytes(result)
+    data = run_file_bytes(result)
     with OutputClaim(path) as claim:
         if claim.leftovers:
-            import warnings
-
             warnings.warn(safeio.leftovers_note(claim.leftovers), stacklevel=3)
         safeio.publish_bytes(path, data, overwrite)
 
@@ -110,11 +109,11 @@ def write_tilt_file(path, result, overwrite: bool = True) -> None:
 # ---------------------------------------------------------------------------
 # reading
 # ---------------------------------------------------------------------------
-def read_tilt_file(path):
-    """The fields of the ``TiltResult`` saved in ``path`` (a dict of its constructor's
+def read_run_file(path):
+    """The fields of the ``Result`` saved in ``path`` (a dict of its constructor's
     arguments, the displacements as ``(ptr, index, value)``); every checksum is verified.
 
-    ``TiltResult.load`` builds the result from them: this module knows the
+    ``Result.load`` builds the result from them: this module knows the
     layout, not the result class (no import of ``sliders.result``).
 
     A damaged or truncated file raises ``safeio.IntegrityError`` (an OSError)
@@ -128,11 +127,8 @@ def read_tilt_file(path):
 
 
 def read_datasets_checked(path):
-    """``read_tilt_file`` without the whole-file check (per dataset and attribute set only)."""
+    """``read_run_file`` without the whole-file check (per dataset and attribute set only)."""
     import h5py
-
-    from ..chain import ChainState
-    from ..scene import Scene
 
     where = repr(os.fspath(path))
     try:
@@ -144,7 +140,7 @@ def read_datasets_checked(path):
     try:
         with f:
             safeio.check_header(f, FORMAT, where, ValueError, versions=KNOWN_VERSIONS)
-            scene = Scene.from_dict(json.loads(f.attrs["scene"]))
+            scene = Scene.from_stored(json.loads(f.attrs["scene"]))
             events = {name: safeio.read_checked(ds, where) for name, ds in f["events"].items()}
             disp = None
             if "displacement" in f:
@@ -207,7 +203,7 @@ def whole_file_problem(path) -> str | None:
         return None
     # Damaged: say where if HDF5 can tell, in a child process (damaged metadata
     # can crash HDF5 1.10 itself).
-    probe = ("import sys\nfrom sliders.io.tilt_file import read_datasets_checked\ntry:\n"
+    probe = ("import sys\nfrom sliders.io.run_file import read_datasets_checked\ntry:\n"
              "    read_datasets_checked(sys.argv[1])\nexcept Exception as exc:\n"
              "    print(' '.join(str(exc).split()))\n")
     try:

@@ -1,9 +1,11 @@
 """Loadings: how the drive parameter lambda enters the chain.
 
 A loading is a part of the scene (``Scene(loading=Tilt(...))`` or
-``PushedEnd(...)``, ``engine.parameters.Part``): it owns its parameters,
+``PushedEnd(...)``, ``parts.part.Part``): it owns its parameters,
 their checks, their packing for the kernel, what it allows, and everything
-the event integrator must know about the drive:
+the event integrator must know about the drive (what else it needs, the
+chain's ``xi`` and ``walls`` or the scene's ``force_tol``, comes in as
+arguments):
 
 * the tangential force it adds to every slider's elastic force (``weight``)
   and the normal load that scales friction (``normal``), both functions of
@@ -27,7 +29,8 @@ import numpy as np
 from dataclasses import dataclass
 
 from ..chain import elastic_force, tangential_force
-from .parameters import Part, SceneError, check_real
+from .checks import SceneError, check_real
+from .part import Part
 
 # Between walls the rearrangement angles pile up towards pi/2 (Delta alpha is
 # proportional to cos alpha: infinitely many events before pi/2), and the
@@ -101,12 +104,14 @@ class Loading(Part):
         """Normal load that scales friction."""
         raise NotImplementedError
 
-    def forces(self, state, drives, displacement=None) -> np.ndarray:
+    def forces(self, state, xi: float, walls: bool, drives, displacement=None) -> np.ndarray:
         """F_t of every slider at rest at each drive (``tangential`` in the same
-        order); broadcasts over drives and (G, N) displacements, for analysis."""
+        order) for a chain of cantilever stiffness ``xi``, between walls or not;
+        broadcasts over drives and (G, N) displacements, for analysis."""
         raise NotImplementedError
 
-    def next_instability(self, elastic: np.ndarray, mu: np.ndarray, drive: float, du: np.ndarray):
+    def next_instability(self, elastic: np.ndarray, mu: np.ndarray, drive: float, du: np.ndarray,
+                         force_tol: float):
         """The next critical drive >= ``drive``: (drive, trigger indices, directions)."""
         raise NotImplementedError
 
@@ -123,7 +128,7 @@ class Loading(Part):
         return False
 
     def runaway(self, moving: np.ndarray, direction: np.ndarray, weight: float,
-                kinetic: float) -> bool:
+                kinetic: float, walls: bool) -> bool:
         """Whether the event has become a runaway that ends the run (the avalanche)."""
         return False
 
@@ -161,13 +166,15 @@ class Tilt(Loading):
         """Normal load that scales friction (cos alpha)."""
         return math.cos(alpha)
 
-    def forces(self, state, drives, displacement=None) -> np.ndarray:
+    def forces(self, state, xi: float, walls: bool, drives, displacement=None) -> np.ndarray:
         """F_t of every slider at rest at each drive (the paper's E + sin alpha);
         broadcasts over drives and (G, N) displacements, for analysis."""
-        return tangential_force(state, self.scene.xi, self.scene.walls, drives, displacement)
+        return tangential_force(state, xi, walls, drives, displacement)
 
-    def next_instability(self, elastic: np.ndarray, mu: np.ndarray, alpha: float, du=None):
-        """The next critical tilt in closed form (module function ``next_instability``)."""
+    def next_instability(self, elastic: np.ndarray, mu: np.ndarray, alpha: float, du=None,
+                         force_tol: float = 0.0):
+        """The next critical tilt in closed form (module function ``next_instability``;
+        the closed form is exact, ``force_tol`` does not enter it)."""
         return next_instability(elastic, mu, alpha)
 
     def beyond_limit(self, alpha: float) -> bool:
@@ -175,20 +182,20 @@ class Tilt(Loading):
         return alpha > self.alpha_max
 
     def runaway(self, moving: np.ndarray, direction: np.ndarray, weight: float,
-                kinetic: float) -> bool:
+                kinetic: float, walls: bool) -> bool:
         """The paper's avalanche: a free chain all sliding down with the weight
         beating kinetic friction, so that the centre of mass accelerates."""
-        return (not self.scene.walls and moving.all() and np.all(direction > 0.0)
+        return (not walls and moving.all() and np.all(direction > 0.0)
                 and weight > kinetic)
 
 
-@dataclass(frozen=True, repr=False, init=False)
+@dataclass(frozen=True, repr=False)
 class PushedEnd(Loading):
     """The Burridge-Knopoff loading: lambda = D, the position of a driver tied
     by a spring of stiffness K (``stiffness``, units of k) to slider 1.
 
     The incline is fixed at ``incline`` (radians, below atan(mu_d) so that
-    every slip stops; ``tilt=`` is accepted for it): every slider feels
+    every slip stops): every slider feels
     sin(incline) and presses with cos(incline).  Slider 1 (index 0) also
     feels K (D - du_1), which changes during an event as it moves (the
     driver stands still).  Only slider 1's force depends on D, so the next
@@ -196,7 +203,7 @@ class PushedEnd(Loading):
     D = du_1 + (mu_1 cos(incline) - E_1 - sin(incline)) / K.
     The run ends after the first event in which every slider moved (the
     system-spanning slip, the onset of sliding) or beyond ``drive_max``
-    (g tau^2).  Flat scene keys: ``tilt``, ``drive_stiffness``, ``drive_max``.
+    (g tau^2).  Flat scene keys: ``incline``, ``driver_stiffness``, ``drive_max``.
     """
 
     incline: float = 0.0
@@ -205,36 +212,25 @@ class PushedEnd(Loading):
 
     name = "pushed_end"
     code = 1  # sliders_contract: loading_pushed_end
-    flat_keys = {"tilt": "incline", "drive_stiffness": "stiffness", "drive_max": "drive_max"}
+    flat_keys = {"incline": "incline", "driver_stiffness": "stiffness", "drive_max": "drive_max"}
     drive_label = "driver position D"
     drive_unit = "g tau^2"
-
-    def __init__(self, incline: float = 0.0, stiffness: float = 1.0, drive_max: float = 1e9, *,
-                 tilt: float | None = None):
-        if tilt is not None:
-            if incline != 0.0:
-                raise SceneError(f"tilt={tilt!r} and incline={incline!r} name the same fixed "
-                                 "incline: give one")
-            incline = tilt
-        object.__setattr__(self, "incline", incline)
-        object.__setattr__(self, "stiffness", stiffness)
-        object.__setattr__(self, "drive_max", drive_max)
-        self.__post_init__()
 
     def check_own(self) -> None:
         """incline >= 0 (its upper bound, atan(mu_d), is the friction's: ``check``),
         stiffness > 0, drive_max > 0."""
-        check_real("tilt", self.incline, 0.0, None)
-        check_real("drive_stiffness", self.stiffness, 0.0, None, open_low=True)
+        check_real("incline", self.incline, 0.0, None)
+        check_real("driver_stiffness", self.stiffness, 0.0, None, open_low=True)
         check_real("drive_max", self.drive_max, 0.0, None, open_low=True)
 
     def check(self, scene) -> None:
-        """The incline below atan(mu_d) (every slip stops), and no record='forces'."""
-        bound = math.atan(scene.friction.mu_d)
-        check_real("tilt", self.incline, 0.0, bound,
+        """The incline below the friction's ``max_stable_incline()`` (atan(mu_d) for
+        Coulomb: every slip stops), and no record='forces'."""
+        bound = scene.friction.max_stable_incline()
+        check_real("incline", self.incline, 0.0, bound,
                    why="below atan(mu_d), so that every slip of the pushed chain stops")
         if self.incline == bound:
-            raise SceneError(f"tilt={self.incline!r} must be below atan(mu_d)={bound:.10g}"
+            raise SceneError(f"incline={self.incline!r} must be below atan(mu_d)={bound:.10g}"
                              " (at it the pushed chain never stops sliding)")
         if scene.record == "forces":
             raise SceneError("record='forces' rebuilds the forces of the tilt; with "
@@ -254,13 +250,12 @@ class PushedEnd(Loading):
         """Normal load at the fixed incline."""
         return math.cos(self.incline)
 
-    def forces(self, state, drives, displacement=None) -> np.ndarray:
+    def forces(self, state, xi: float, walls: bool, drives, displacement=None) -> np.ndarray:
         """F_t of every slider at rest at each driver position (``tangential``
         in the same order); broadcasts over drives and (G, N) displacements."""
-        sc = self.scene
         drives = np.asarray(drives, dtype=float)
         du = state.displacement if displacement is None else np.asarray(displacement, dtype=float)
-        force = elastic_force(state, sc.xi, sc.walls, du) + math.sin(self.incline)
+        force = elastic_force(state, xi, walls, du) + math.sin(self.incline)
         force = np.array(np.broadcast_to(force, np.broadcast_shapes(force.shape,
                                                                     drives.shape + (1,))))
         force[..., 0] += self.stiffness * (drives - du[..., 0])
@@ -270,11 +265,12 @@ class PushedEnd(Loading):
         """Force of the driver's spring on slider 1."""
         return self.stiffness * (drive - du[0])
 
-    def next_instability(self, elastic: np.ndarray, mu: np.ndarray, drive: float, du: np.ndarray):
+    def next_instability(self, elastic: np.ndarray, mu: np.ndarray, drive: float, du: np.ndarray,
+                         force_tol: float):
         """The drive at which slider 1 starts downwards (every other slider is
         stable and does not feel D): its force E_1 + sin + K (D - du_1)
         reaches mu_1 cos + force_tol."""
-        threshold = mu[0] * math.cos(self.incline) + self.scene.force_tol
+        threshold = mu[0] * math.cos(self.incline) + force_tol
         critical = du[0] + (threshold - elastic[0] - math.sin(self.incline)) / self.stiffness
         return max(critical, drive), np.array([0]), np.array([1.0])
 
@@ -296,8 +292,3 @@ class PushedEnd(Loading):
 
 # The loadings a scene file can name (``loading = "..."``), by name.
 LOADINGS = {cls.name: cls for cls in (Tilt, PushedEnd)}
-
-
-def loading_for(scene):
-    """The loading of a scene (bound to it)."""
-    return scene.loading

@@ -1,7 +1,7 @@
 """The vocabulary of parameter checks shared by the scene and its parts.
 
-The scene (``sliders.scene``), its friction law (``engine.friction``) and its
-loading (``engine.loading``) each check their own values on construction
+The scene (``sliders.scene``), its friction law (``parts.friction``) and its
+loading (``parts.loading``) each check their own values on construction
 with these helpers: a bad value raises ``SceneError`` whose one-line message
 names the parameter (by the flat key a scene file and the command line use)
 and its allowed range.
@@ -9,8 +9,6 @@ and its allowed range.
 
 from __future__ import annotations
 
-import copy
-import dataclasses
 import math
 
 import numpy as np
@@ -77,66 +75,3 @@ def range_text(low, high, open_low) -> str:
     lo = "-inf" if low is None else f"{low:.10g}"
     hi = "+inf" if high is None else f"{high:.10g}"
     return f"{'(' if open_low or low is None else '['}{lo}, {hi}{')' if high is None else ']'}"
-
-
-class Part:
-    """A part of a scene (its friction law, its loading): a frozen dataclass of
-    its own parameters, with their checks, their flat keys and their physics.
-
-    * ``name``: the part's name in a scene file (``loading = "pushed_end"``);
-    * ``flat_keys``: the flat scene key of each parameter (scene files and the
-      command line hold the flat keys; ``Scene(tilt=0.2, ...)`` builds the part);
-    * ``check_own``: the checks of its values alone, on construction;
-      ``check(scene)``: the checks against the rest of the scene;
-    * ``packed()``: its values in the kernel's packed parameters (by name).
-
-    A part in a scene is bound to it (``scene.loading.scene is scene``): its
-    physics reads the chain's springs, the tolerance and the seed there.
-    """
-
-    name: str = ""
-    flat_keys: dict[str, str] = {}
-
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            object.__setattr__(self, f.name, plain_value(str(f.type), getattr(self, f.name)))
-        self.check_own()
-
-    def __repr__(self) -> str:
-        """Only the parameters that differ from their defaults (``eval(repr(part)) == part``)."""
-        changed = [f"{f.name}={getattr(self, f.name)!r}" for f in dataclasses.fields(self)
-                   if getattr(self, f.name) != f.default]
-        return f"{type(self).__name__}({', '.join(changed)})"
-
-    def check_own(self) -> None:
-        """Refuse a bad value of the part's own parameters (``SceneError``)."""
-
-    def check(self, scene) -> None:
-        """Refuse a value that does not go with the rest of ``scene`` (``SceneError``)."""
-
-    def flat(self) -> dict:
-        """The part's parameters under their flat scene keys."""
-        return {key: getattr(self, attr) for key, attr in self.flat_keys.items()}
-
-    @classmethod
-    def flat_defaults(cls) -> dict:
-        """The flat keys of the part with their default values."""
-        defaults = {f.name: f.default for f in dataclasses.fields(cls)}
-        return {key: defaults[attr] for key, attr in cls.flat_keys.items()}
-
-    @classmethod
-    def from_flat(cls, values: dict, base: "Part | None" = None):
-        """The part of the flat keys in ``values`` (others taken from ``base``, else defaults)."""
-        own = {f.name: getattr(base, f.name) for f in dataclasses.fields(cls)} if base else {}
-        own.update({attr: values[key] for key, attr in cls.flat_keys.items() if key in values})
-        return cls(**own)
-
-    def packed(self) -> dict:
-        """The part's values in the kernel's packed parameters, by name."""
-        return self.flat()
-
-    def bound(self, scene) -> "Part":
-        """A copy of the part that knows ``scene`` (the scene does this on construction)."""
-        part = copy.copy(self)
-        object.__setattr__(part, "scene", scene)
-        return part
