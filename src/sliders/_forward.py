@@ -1,7 +1,7 @@
 """The commands users already type, kept working after the code moved into its layer.
 
-``sliders/ensemble.py``, ``study.py``, ``merge.py``, ``reproduction.py`` and
-``forecast.py`` are two lines each: ``python -m sliders.ensemble`` runs the
+``sliders/ensemble.py``, ``study.py``, ``merge.py`` and ``reproduction.py`` are two
+lines each: ``python -m sliders.ensemble`` runs the
 layer's ``main()``; ``import sliders.ensemble`` gives the layer's module itself
 (the same object, so that attributes and monkeypatches reach the real code).
 """

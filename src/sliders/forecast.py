@@ -1,5 +1,52 @@
-"""``python -m sliders.forecast``, the command users type: the code is ``sliders.runs.forecast.cli``."""
+"""Forecast the avalanche angle of a measured pile, from Python or from the command line::
 
-from ._forward import forward
+    import sliders.forecast as sf
+    model = sf.load()                       # the shipped forecaster, loaded once
+    pred = model.predict("pile.csv", tilt_now="27.5deg", angle_resolution="0.1deg")
+    pred.to_dict()                          # what ``predict --json`` prints
+    print(pred)                             # the text output
+    pred.plot("pile.png")                   # the bench picture
 
-forward(__name__, "sliders.runs.forecast.cli")
+``python -m sliders.forecast`` runs the commands (``sliders.runs.forecast.cli``); ``predict``
+is this API (``sliders.runs.forecast.predict``): one code path.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from .runs.forecast.predict import ForecastModel, Prediction, load_model
+
+__all__ = ["load", "main", "ForecastModel", "Prediction"]
+
+
+def load(path=None) -> ForecastModel:
+    """The forecasters of a model file, loaded once (default: the one shipped in the package).
+
+    Parameters
+    ----------
+    path : str or os.PathLike, optional
+        A model file written by ``python -m sliders.forecast train`` (or ``evaluate``).
+
+    Returns
+    -------
+    ForecastModel
+        ``predict(catalogue, tilt_now=..., **measurement)`` gives a ``Prediction``.
+
+    Raises
+    ------
+    sliders.io.forecast_files.ForecastInputError
+        The file is not a model file this version reads (one line naming it).
+    """
+    return load_model(path)
+
+
+def main(argv=None) -> int:
+    """``python -m sliders.forecast``: the forecast commands (``sliders.runs.forecast.cli``)."""
+    from .runs.forecast.cli import main as cli_main
+
+    return cli_main(argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

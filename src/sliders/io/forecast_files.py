@@ -347,24 +347,39 @@ def read_catalogue_csv(path: str, tilt_now_text: str | None = None) -> Catalogue
         The tilt reached, with its unit (``"27.5deg"``, ``"0.48rad"``); a bare
         number takes the angle column's unit.
     """
+    cat, scale, unit = read_catalogue_file(path)
+    tilt_now = None
+    if tilt_now_text is not None:
+        tilt_now = tilt_in_range(parse_angle(tilt_now_text, scale), f"--tilt-now {tilt_now_text}")
+        if tilt_now < cat.alpha[-1]:
+            raise ForecastInputError(f"--tilt-now {tilt_now_text}: below the last event's angle "
+                                     f"({cat.alpha[-1] / scale:g} {unit})")
+        cat.tilt_now = tilt_now
+    return cat
+
+
+def read_catalogue_file(path: str) -> tuple[Catalogue, float, str]:
+    """The catalogue of the CSV file ``path`` (``-``: standard input), the radians per unit of its
+    angle column and that unit's name (``read_catalogue_stream``), within the reader's bounds."""
     with _open_catalogue(path) as fh:
-        lines = _numbered_lines(fh, path)
-        names, scale, unit = _header(lines, path)
-        cols = _events(lines, names, scale, path)
+        return read_catalogue_stream(fh, path)
+
+
+def read_catalogue_stream(fh, where: str) -> tuple[Catalogue, float, str]:
+    """The catalogue of the CSV bytes of ``fh`` (a binary file, read to its end), the radians per
+    unit of its angle column and that unit's name; its ``tilt_now`` is its last event's angle.
+    Refusals as ``read_catalogue_csv``'s, naming ``where``."""
+    lines = _numbered_lines(fh, where)
+    names, scale, unit = _header(lines, where)
+    cols = _events(lines, names, scale, where)
     k = len(cols["angle"])
     alpha = np.frombuffer(cols["angle"], dtype=np.float64) * scale
 
     def column(n, fill, dtype):
         return np.frombuffer(cols[n], dtype=np.float64).astype(dtype) if n in cols else np.full(k, fill, dtype)
 
-    tilt_now = None
-    if tilt_now_text is not None:
-        tilt_now = tilt_in_range(parse_angle(tilt_now_text, scale), f"--tilt-now {tilt_now_text}")
-        if tilt_now < alpha[-1]:
-            raise ForecastInputError(f"--tilt-now {tilt_now_text}: below the last event's angle "
-                                     f"({alpha[-1] / scale:g} {unit})")
     return Catalogue(alpha, column("size", 1, np.float64), column("displacement", np.nan, np.float64),
-                     column("first", -1, np.int64), column("last", -1, np.int64), tilt_now=tilt_now)
+                     column("first", -1, np.int64), column("last", -1, np.int64)), scale, unit
 
 
 def tilt_in_range(angle: float, what: str) -> float:

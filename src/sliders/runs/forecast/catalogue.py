@@ -17,6 +17,7 @@ tilt or a lead before its avalanche: the documentation's examples are made so.
 
 from __future__ import annotations
 
+import io
 import math
 import os
 
@@ -24,29 +25,73 @@ import numpy as np
 
 from ...analysis.forecast.measurement import Measurement
 from ...io.catalogue import Catalogue
-from ...io.forecast_files import ForecastInputError, parse_angle, read_catalogue_csv
+from ...io.forecast_files import (ForecastInputError, parse_angle, read_catalogue_file,
+                                  read_catalogue_stream)
 from ...io.safeio import publish_bytes
-from .common import load_set
+from .common import angle_option, load_set
 
 
-def read_measured(path: str, tilt_now: str | None) -> tuple[Catalogue, bool]:
-    """The measured catalogue of ``path`` cut at ``tilt_now`` (text, as given), and whether it is
-    complete (displacements and movers); an incomplete one holds angles and sizes only."""
-    cat = read_catalogue_csv(path, tilt_now_text=tilt_now)
+def read_source(source, where: str = "catalogue") -> tuple[Catalogue, float, str]:
+    """The events of ``source``, the radians per unit of its angles and that unit's name.
+
+    ``source``: a CSV file's path (``-``: standard input); the CSV's bytes (``where`` names
+    them in a refusal); a mapping or a pandas-like DataFrame whose keys are the CSV header's
+    names (``"angle [deg]"`` or ``"angle [rad]"``, ``"size"``, ...), each a column of values;
+    or a ``Catalogue`` (radians).  Every form is read by the CSV reader, with its checks and
+    its one-line refusals naming the row and the column.
+    """
+    if isinstance(source, Catalogue):
+        return source, 1.0, "rad"
+    if isinstance(source, (bytes, bytearray)):
+        return read_catalogue_stream(io.BytesIO(bytes(source)), where)
+    if isinstance(source, (str, os.PathLike)):
+        return read_catalogue_file(os.fspath(source))
+    if hasattr(source, "keys") and hasattr(source, "__getitem__"):
+        return read_catalogue_stream(io.BytesIO(mapping_csv(source).encode()), where)
+    raise ForecastInputError(f"catalogue: a {type(source).__name__}; give a CSV file's path, or "
+                             "a mapping or DataFrame of the CSV's columns")
+
+
+def mapping_csv(columns) -> str:
+    """A mapping (or DataFrame) of columns as the CSV text its keys head."""
+    names = [str(k) for k in columns.keys()]
+    values = [np.asarray(columns[k], dtype=object).ravel() for k in columns.keys()]
+    if len({len(v) for v in values}) > 1:
+        raise ForecastInputError("catalogue: its columns differ in length ("
+                                 + ", ".join(f"{n}: {len(v)}" for n, v in zip(names, values)) + ")")
+
+    def field(v):
+        return v if isinstance(v, str) else repr(float(v))
+
+    rows = (",".join(field(v) for v in row) for row in zip(*values))
+    return ",".join(names) + "\n" + "".join(r + "\n" for r in rows)
+
+
+def angles_and_sizes(cat: Catalogue) -> tuple[Catalogue, bool]:
+    """``cat`` and whether it is complete (displacements and movers); an incomplete one is kept
+    to its angles and sizes (no displacement, no movers)."""
     complete = not np.isnan(cat.displacement).any() and bool((cat.first >= 0).all())
-    if not complete:  # angles and sizes only: no displacement, no movers
+    if not complete:
         cat = Catalogue(cat.alpha, cat.size, np.zeros(len(cat)), np.full(len(cat), -1),
                         np.full(len(cat), -1), cat.tilt_now)
     return cat, complete
 
 
+def measurement_from(angle_resolution, min_size=1.0, missed_fraction=0.0, size_unit="sliders",
+                     sliders=None) -> Measurement:
+    """The ``Measurement`` of the ``predict`` flags' values (one line naming a bad flag);
+    ``angle_resolution``: ``"0.3deg"``, ``"0.005rad"`` or a bare number of degrees."""
+    res = angle_option(angle_resolution, "--angle-resolution")
+    try:
+        return Measurement(res, float(min_size), float(missed_fraction), size_unit, sliders)
+    except (TypeError, ValueError) as exc:
+        raise ForecastInputError(f"measurement flags: {exc}") from None
+
+
 def measurement_of(args):
     """The ``Measurement`` the flags of ``predict`` describe (one line naming a bad flag)."""
-    try:
-        return Measurement(math.radians(args.angle_resolution), args.min_size,
-                           args.missed_fraction, args.size_unit, args.sliders)
-    except ValueError as exc:
-        raise ForecastInputError(f"measurement flags: {exc}") from None
+    return measurement_from(args.angle_resolution, args.min_size, args.missed_fraction,
+                            args.size_unit, args.sliders)
 
 
 def measurement_as_json(measurement) -> dict:

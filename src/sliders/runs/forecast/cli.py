@@ -95,20 +95,25 @@ def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
     pr.add_argument("catalogue", metavar="CATALOGUE.csv",
                     help="the measured events: angle [deg] or angle [rad], size (docs/forecasting.md)")
     pr.add_argument("--tilt-now", default=None, metavar="ANGLE",
-                    help="tilt reached: 0.48rad, 27.5deg, or a bare number in rad (default: the last "
-                         "event's angle)")
-    pr.add_argument("--within", type=float, default=ALARM_DELTA_DEG, metavar="DEG",
-                    help="the alarm's horizon, degrees")
+                    help="tilt reached: 27.5deg, 0.48rad, or a bare number in the catalogue's "
+                         "angle unit (its header's [deg] or [rad]); default: the last event's "
+                         "angle.  Below it by less than 3 angle resolutions, the last event's "
+                         "angle is taken (and said)")
+    pr.add_argument("--within", default=ALARM_DELTA_DEG, metavar="ANGLE",
+                    help="the alarm's horizon: 1deg, 0.02rad, or a bare number of degrees")
     pr.add_argument("--model", default=None, metavar="FILE",
                     help="model file written by train or evaluate (default: the one shipped "
                          "inside the package)")
     pr.add_argument("--method", default="learned", choices=PREDICT_METHODS,
                     help="the forecaster, one of {" + ", ".join(PREDICT_METHODS)
                          + "} (all: every one side by side)")
-    pr.add_argument("--angle-resolution", type=float, default=0.0, metavar="DEG",
-                    help="standard deviation of each measured angle's error, degrees")
+    pr.add_argument("--angle-resolution", default="0", metavar="ANGLE",
+                    help="standard deviation of each measured angle's error: 0.3deg, 0.005rad, "
+                         "or a bare number of degrees")
     pr.add_argument("--min-size", type=float, default=1.0, metavar="SIZE",
-                    help="smallest event size detected, in the size column's unit")
+                    help="smallest event size detected, in the size column's unit: sliders, or "
+                         "with --size-unit arbitrary the unit of your sizes (grains, pixels, "
+                         "mm²), read against the catalogue's median size")
     pr.add_argument("--missed-fraction", type=float, default=0.0, metavar="SHARE",
                     help="share of events missed at random, in [0, 1)")
     pr.add_argument("--size-unit", default="sliders", choices=("sliders", "arbitrary"),
@@ -116,7 +121,22 @@ def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
     pr.add_argument("--sliders", type=int, default=None, metavar="N",
                     help="the number of sliders of the pile, if known: a pile outside the "
                          "training piles' is out of the domain")
-    pr.add_argument("--json", action="store_true", help="one JSON object (radians)")
+    pr.add_argument("--json", action="store_true",
+                    help="one JSON object (radians); with --follow one per update (JSON Lines)")
+    pr.add_argument("--plot", default=None, metavar="FILE.png",
+                    help="draw the catalogue against tilt and the forecast into FILE.png "
+                         "(replaced whole, at each update with --follow)")
+    pr.add_argument("--follow", action="store_true",
+                    help="keep following the file as the acquisition appends to it, and "
+                         "forecast again when rows arrive or the tilt advances; stops on "
+                         "Ctrl-C, SIGTERM, --until or a '# avalanche' line")
+    pr.add_argument("--tilt-rate", default=None, metavar="RATE",
+                    help="with --follow: the tilt advances at RATE (0.1deg/s, 0.002rad/s, or "
+                         "a bare number of degrees per second) from --tilt-now or the last "
+                         "'# tilt-now ANGLE' line of the file")
+    pr.add_argument("--until", default=None, metavar="ANGLE",
+                    help="with --follow: stop once the tilt reaches ANGLE (27deg, 0.47rad, or "
+                         "a bare number of degrees)")
     pr.add_argument("--verbose", action="store_true", help="print the model's whole provenance")
 
 

@@ -6,6 +6,7 @@ Imports nothing of scikit-learn: the parser (``cli``) reads the defaults here.
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from importlib.metadata import PackageNotFoundError, version
@@ -34,6 +35,23 @@ TRAIN_MAX_ITER = 100
 #: the choices of ``predict --method`` (the registry's): "learned" picks the learned forecaster
 #: for the columns given (every feature, or angles and sizes only)
 PREDICT_METHODS = ("learned", *(m for m in METHODS if m not in ("learned", "learned_blind")), "all")
+
+
+def angle_option(value, option: str, default_scale: float = math.pi / 180.0) -> float:
+    """The angle (radians) of an angle option's value: ``"0.3deg"``, ``"0.005rad"``, or a bare
+    number in ``default_scale`` radians a unit (degrees unless said); one line naming the option
+    if it is not a finite angle of at least 0."""
+    from ...io.forecast_files import parse_angle
+
+    text = value if isinstance(value, str) else repr(value)
+    try:
+        x = parse_angle(text, default_scale) if isinstance(value, str) else float(value) * default_scale
+    except (ForecastInputError, TypeError, ValueError):
+        raise ForecastInputError(f"{option} {text}: not an angle (e.g. 0.3deg, 0.005rad, or a "
+                                 "bare number of degrees)") from None
+    if not (math.isfinite(x) and x >= 0):
+        raise ForecastInputError(f"{option} {text}: an angle of at least 0 is expected")
+    return x
 
 
 def progress_log(quiet: bool):

@@ -1,0 +1,96 @@
+"""Cost of a cold ``predict``: a fresh interpreter forecasting a 150-event catalogue, against a
+fresh interpreter importing scikit-learn's ensembles.
+
+    .venv/bin/python benchmarks/forecast_cold_call.py --runs 7
+
+A bench forecast is typed, or called by an acquisition script, in a fresh
+process: its cost is mostly imports and the model's load.  The reference is
+``python -c "import sklearn.ensemble"`` (the learned forecasters are
+gradient-boosted trees: no forecast can cost less than that import), run
+interleaved with the forecast (reference, forecast, reference, forecast...) so
+that both meet the same load of the machine; the medians of the wall clock and
+of the CPU time (user + system of the child) are compared.  The target: the
+forecast at most ``TARGET_RATIO`` times the import.  The catalogue is 150
+events of a simulated pile (200 sliders, ``EXAMPLE`` below: deterministic, no
+simulation needed).  Prints one JSON line and writes it to
+benchmarks/results/forecast_cold_call.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+TARGET_RATIO = 1.5
+
+
+def example_csv(path: str, n: int = 150, seed: int = 7) -> float:
+    """A catalogue of ``n`` events accelerating towards an avalanche near 31°, as the CSV
+    ``predict`` reads; returns the tilt reached (degrees)."""
+    rng = np.random.default_rng(seed)
+    # an event rate growing as 1 / (31° - alpha): angles from its inverse distribution function
+    u = np.sort(rng.random(n))
+    alpha = 31.0 - 31.0 * np.exp(-3.0 * u)
+    size = np.maximum(1, np.round(rng.pareto(1.5, n) + 1)).astype(int)
+    with open(path, "w") as fh:
+        fh.write("angle [deg],size\n")
+        fh.writelines(f"{a:.4f},{s}\n" for a, s in zip(alpha, size))
+    return float(alpha[-1]) + 0.05
+
+
+def timed(cmd, env) -> tuple[float, float]:
+    """Wall and CPU seconds (user + system) of one run of ``cmd``."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t = time.perf_counter()
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, env=env)
+    wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=7, help="runs of each, interleaved")
+    ap.add_argument("--out", default=os.path.join(HERE, "results", "forecast_cold_call.json"))
+    args = ap.parse_args(argv)
+    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="0")
+    with tempfile.TemporaryDirectory() as tmp:
+        cat = os.path.join(tmp, "c150.csv")
+        tilt = example_csv(cat)
+        forecast = [sys.executable, "-m", "sliders.forecast", "predict", cat,
+                    "--tilt-now", f"{tilt:.4f}deg", "--json"]
+        reference = [sys.executable, "-c", "import sklearn.ensemble"]
+        timed(forecast, env), timed(reference, env)  # warm the disk cache and the .pyc files
+        times = {"forecast": [], "import_sklearn_ensemble": []}
+        for _ in range(args.runs):
+            times["import_sklearn_ensemble"].append(timed(reference, env))
+            times["forecast"].append(timed(forecast, env))
+    med = {k: {"wall_s": statistics.median(w for w, _ in v),
+               "cpu_s": statistics.median(c for _, c in v)} for k, v in times.items()}
+    ratio = {k: med["forecast"][k] / med["import_sklearn_ensemble"][k] for k in ("wall_s", "cpu_s")}
+    out = {"benchmark": "forecast_cold_call", "events": 150, "runs": args.runs,
+           "median": med, "ratio": ratio, "target_ratio": TARGET_RATIO,
+           "within_target": bool(ratio["wall_s"] <= TARGET_RATIO),
+           "load_average": os.getloadavg()[0], "cpus": os.cpu_count(),
+           "raw": {k: [[round(w, 4), round(c, 4)] for w, c in v] for k, v in times.items()},
+           "python": sys.version.split()[0], "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    line = json.dumps(out)
+    print(line)
+    os.makedirs(os.path.dirname(args.out), exist_ok=True)
+    with open(args.out, "w") as fh:
+        fh.write(line + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
