@@ -29,7 +29,7 @@ def model(reduced, tmp_path_factory):  # noqa: F811
 @pytest.fixture
 def predict(capsys, model):
     """``predict CSV ARGS --model MODEL`` in this process: (status, stdout, stderr)."""
-    from sliders.runs.forecast import main
+    from sliders.runs.forecast.cli import main
 
     def run(path, *args):
         code = main(["predict", str(path), "--model", model, *map(str, args)])

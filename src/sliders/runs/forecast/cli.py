@@ -175,8 +175,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with stopped_by_sigterm():
             args = build_parser().parse_args(argv)
-            command = importlib.import_module(f"{__package__}.{args.command}")
-            return getattr(command, args.command)(args, argv)
+            module, function = ((("follow", "follow_command") if getattr(args, "follow", False)
+                                 else (args.command, args.command)))
+            command = importlib.import_module(f"{__package__}.{module}")
+            return getattr(command, function)(args, argv)
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", signal.SIGINT)
         code = _error(f"interrupted ({signal.Signals(signum).name}); nothing half-written was "

@@ -16,7 +16,7 @@ import numpy as np
 from ..._version import __version__
 from ...analysis.forecast.registry import METHODS
 from ...io.catalogue import CatalogueSet
-from ...io.forecast_files import ForecastInputError
+from ...io.forecast_files import ForecastInputError, parse_angle
 from ...io.prior_file import read_prior_ensemble
 from ...io.safeio import describe_os_error
 from ...io.storage import StorageError
@@ -41,8 +41,6 @@ def angle_option(value, option: str, default_scale: float = math.pi / 180.0) -> 
     """The angle (radians) of an angle option's value: ``"0.3deg"``, ``"0.005rad"``, or a bare
     number in ``default_scale`` radians a unit (degrees unless said); one line naming the option
     if it is not a finite angle of at least 0."""
-    from ...io.forecast_files import parse_angle
-
     text = value if isinstance(value, str) else repr(value)
     try:
         x = parse_angle(text, default_scale) if isinstance(value, str) else float(value) * default_scale

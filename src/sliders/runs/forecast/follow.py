@@ -32,7 +32,8 @@ from ...io.forecast_files import ForecastInputError, parse_angle
 from ..signals import handled
 from .catalogue import measurement_of, read_source
 from .common import angle_option
-from .predict import at_tilt, within_option
+from .predict import (at_tilt, check_predict_options, load_model, probability_text,
+                      within_option)
 
 #: the file is polled this often, seconds (idle: a stat and an empty read each time)
 POLL_SECONDS = 0.15
@@ -135,10 +136,14 @@ def rate_option(text) -> float:
     return angle_option(body, "--tilt-rate")
 
 
+def follow_command(args, argv=None) -> int:
+    """``predict --follow``: the model loaded once, then ``follow``."""
+    check_predict_options(args)
+    return follow(args, load_model(args.model))
+
+
 def status_line(pred, rows: int) -> str:
     """One line of an update: the rows, the tilt, the first method's forecast."""
-    from .predict import probability_text
-
     d = pred.to_dict()
     first = next(iter(d["methods"]))
     m = d["methods"][first]

@@ -14,11 +14,16 @@ catalogue and returns a ``Prediction``, whose ``to_dict()`` is what
 from __future__ import annotations
 
 import copy
+import io
 import json
 import math
 
+import numpy as np
+
+from ...io.catalogue import Catalogue
 from ...io.forecast_files import ForecastInputError, parse_angle, tilt_in_range
 from ...io.forecast_model import ModelFileError, default_model_path, load_forecasters
+from ...io.safeio import publish_bytes
 from .catalogue import angles_and_sizes, measurement_as_json, measurement_from, read_source
 from .common import ALARM_DELTA_DEG, PREDICT_METHODS, angle_option, jsonable
 
@@ -34,13 +39,9 @@ DEFAULT_ALARM_THRESHOLD = 0.5
 
 
 def predict(args, argv=None) -> int:
-    """Forecast a measured catalogue: every method asked, the domain, the model's provenance;
-    ``--follow``: again each time the file grows or the tilt advances (``follow``)."""
+    """Forecast a measured catalogue: every method asked, the domain, the model's provenance
+    (``--follow`` runs ``follow.follow_command`` instead)."""
     check_predict_options(args)
-    if getattr(args, "follow", False):
-        from .follow import follow
-
-        return follow(args, load_model(args.model))
     model = load_model(args.model)
     pred = model.predict(args.catalogue, tilt_now=args.tilt_now, within=args.within,
                          **measurement_options(args), method=args.method)
@@ -226,8 +227,6 @@ def at_tilt(cat, tilt_now, scale: float, unit: str, resolution: float, notes: li
     """``cat`` at the tilt reached ``tilt_now`` (text or a bare number in ``unit``, ``scale``
     radians each); a tilt below the last event's angle by less than
     ``TILT_TOLERANCE_RESOLUTIONS`` angle resolutions is raised to it (a note in ``notes``)."""
-    from ...io.catalogue import Catalogue
-
     if tilt_now is None:
         return cat
     text = tilt_now if isinstance(tilt_now, str) else repr(tilt_now)
@@ -255,8 +254,6 @@ def probability_bounds(forecast) -> tuple[float, float]:
     """The least and the greatest probability the forecast's distribution resolves: its lowest
     and highest quantile levels (below and above them the tails are extrapolated, not
     calibrated)."""
-    import numpy as np
-
     from ...analysis.forecast.base import LEVELS
 
     lv = LEVELS if forecast.levels is None else np.asarray(forecast.levels)
@@ -415,10 +412,7 @@ class Prediction:
     def plot(self, path) -> None:
         """Write the bench picture to ``path`` (PNG), whole or not at all (a temporary file
         beside it, then renamed over it)."""
-        import io
-
         from ...figures.bench import save_png
-        from ...io.safeio import publish_bytes
 
         buf = io.BytesIO()
         save_png(self.figure(), buf)
