@@ -254,7 +254,7 @@ def accuracy_table(q: np.ndarray, tilt_now: np.ndarray, truth: np.ndarray, rows:
     ``q``: its quantiles at ``LEVELS`` on held-out cuts at ``tilt_now``, whose
     avalanche came at ``truth`` (radians); ``rows``: the realisations they cut.
     Returns ``lead_edges_deg`` (lower edges, the last bin open), and per bin
-    ``median_abs_deg`` (median |point - truth|), ``coverage`` (of the 80 %
+    ``median_abs_deg`` (the median of ``abs(point - truth)``), ``coverage`` (of the 80 %
     interval) and ``n`` (cuts); a bin of fewer than ``ACCURACY_MIN_CUTS``
     cuts holds the overall numbers (its ``n`` still its own).  ``overall``:
     the same over every cut.
@@ -335,7 +335,7 @@ def typical_accuracy_line(forecaster, forecast) -> str | None:
 
 def coverage_by_kind(forecaster, cset, kinds: dict, leads, draws_per_row: int = 10,
                      seed: int = 0, degrade=None) -> dict:
-    """The 80 % coverage and median |error| of ``forecaster`` per kind of pile of ``cset``.
+    """The 80 % coverage and median absolute error of ``forecaster`` per kind of pile of ``cset``.
 
     ``kinds``: ``{label: boolean mask over cset's rows}`` (e.g. bins of the number
     of sliders, of the coupling); ``leads``: radians before the avalanche.  For each
