@@ -43,7 +43,7 @@ GOOD = "angle [deg],size,displacement\n1.0,1,0.01\n2.5,3,0.05\n4.0,2,0.02\n"
     ("angle [grad],size\n1,1\n", "unit 'grad' not understood"),
     ("angle [deg],size\n2,1\n1,1\n", "row 3, column 'angle': '1' is below the previous row"),
     ("angle [deg],size\n1,1\n2,x\n", "row 3, column 'size': 'x' is not a number"),
-    ("angle [deg],size\n1,1\n2,0\n", "row 3, column 'size': '0' must be a whole number"),
+    ("angle [deg],size\n1,1\n2,0\n", "row 3, column 'size': '0' must be a positive number"),
     ("angle [deg],size\n1,1,3\n", "row 2: 3 fields"),
     ("angle [deg],size\n", "no events"),
     ("# a comment line\nangle [deg],size\n\n1,1\n2,y\n", "row 5, column 'size'"),
