@@ -93,6 +93,7 @@ def test_now_and_conditioned_climatology_respect_the_tilt():
     assert np.all(ql >= cuts.tilt_now[:, None])
 
 
+@pytest.mark.slow  # fits the learned forecaster (tens of seconds)
 def test_learned_forecaster_is_deterministic_with_a_fixed_seed():
     train = synthetic_set(30, seed=1)
     test = synthetic_set(5, seed=2)
@@ -170,6 +171,7 @@ def test_paper_rule_and_model_based_on_simulated_runs():
         assert q.shape == (4, LEVELS.size) and np.all(q >= cuts.tilt_now[:, None])
 
 
+@pytest.mark.slow  # fits the learned forecaster (tens of seconds)
 def test_learned_forecaster_widens_its_interval_outside_its_training_domain():
     """A tilt above every training avalanche angle is out of the domain: the interval is widened
     to hold the conditioned climatology's, marked, with the reason; a training-like cut is not."""
@@ -226,6 +228,7 @@ def test_calibration_bin_edges_keep_their_least_count_between_tied_values():
     assert counts[:3].min() >= MIN_PER_BIN and counts[3] == 0 and counts.sum() == values.size
 
 
+@pytest.mark.slow  # fits the learned forecaster (tens of seconds)
 def test_shortest_interval_is_no_longer_than_the_central_one_and_keeps_the_median():
     train, test = synthetic_set(60, seed=1), synthetic_set(20, seed=2)
     cuts = training_cuts(test, 5, np.random.default_rng(3))
