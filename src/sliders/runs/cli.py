@@ -15,6 +15,7 @@ from .. import scene
 from ..io.safeio import check_output_name, is_special, resolve_target
 from ..units import format_angle, parse_angle
 
+
 class OneLineParser(argparse.ArgumentParser):
     """argparse whose refusal of a command line is one line, ``PROG: error: MESSAGE (see
     PROG --help)``, and exit status 2 (argparse alone prints the whole usage first)."""
