@@ -78,9 +78,8 @@ def main():
                                where, env)
         tail = suite.stdout.strip().splitlines()[-1:] or ["(no output)"]
         slow, n_tests = slowest_tests(junit, args.slowest) if junit.exists() else ([], 0)
-    finally:
-        if args.fresh_clone:
-            shutil.rmtree(scratch / "sliders", ignore_errors=True)
+    finally:  # the clone, the cold wheel cache and the JUnit report
+        shutil.rmtree(scratch, ignore_errors=True)
     report = {
         "checkout": "fresh clone of HEAD" if args.fresh_clone else str(ROOT),
         "wheel_cache": "empty" if args.cold_wheels else "as on this machine",
