@@ -26,8 +26,9 @@ APT_PACKAGES=(gfortran mpich libmpich-dev libhdf5-mpich-dev pkg-config)
 # documentation with warnings as errors; sybil: tests/test_docs_commands.py runs every page's commands
 PY_DEPS=(meson-python meson ninja numpy scipy pytest matplotlib xarray h5netcdf sphinx numpydoc myst-nb ipykernel
          scikit-learn skops crepes  # the learned forecasters: scikit-learn, skops (their model
-         sybil pytest-xdist)        # files, read as data), crepes (their conformal calibration);
-                                    # pytest-xdist: the suite on every core
+         sybil pytest-xdist         # files, read as data), crepes (their conformal calibration);
+         pytest-timeout)            # pytest-xdist: the suite on every core; pytest-timeout: a
+                                    # hung test fails with its stack instead of stalling the suite
 H5PY_BUILD_DEPS=(cython pkgconfig "setuptools>=77")
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)

@@ -117,8 +117,18 @@ def _kill_live() -> None:
     _LIVE.clear()
 
 
-if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:  # SIGTERM ends pytest like Ctrl-C
+@pytest.fixture(autouse=True, scope="module")
+def _sigterm_ends_the_tests_like_ctrl_c():
+    """While these tests run, SIGTERM ends pytest like Ctrl-C (so that the runs are killed);
+    the handler is this module's only, not a side effect of collecting it."""
+    if signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
+        yield
+        return
     signal.signal(signal.SIGTERM, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 class _Run:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import multiprocessing
+import signal
 import time
 
 import numpy as np
@@ -32,14 +33,42 @@ from sliders.scene import max_time_step
 _FORK = multiprocessing.get_context("fork")
 
 
+def _child(conn, fn, args) -> None:
+    """Run fn(*args) and send back ("ok", value) or ("raised", exception)."""
+    for s in (signal.SIGINT, signal.SIGTERM):  # whatever the test process installed
+        signal.signal(s, signal.SIG_DFL)
+    try:
+        conn.send(("ok", fn(*args)))
+    except BaseException as exc:  # noqa: BLE001 - handed to the parent, raised there
+        conn.send(("raised", exc))
+
+
 def isolated(fn, *args, timeout: float = 60.0):
-    """fn(*args) in a forked child; fail (and kill it) if it runs past ``timeout`` seconds."""
-    with _FORK.Pool(1) as pool:
-        pending = pool.apply_async(fn, args)
-        try:
-            return pending.get(timeout)
-        except multiprocessing.TimeoutError:
+    """fn(*args) in a forked child; fail (and SIGKILL it) if it runs past ``timeout`` seconds.
+
+    SIGKILL, not SIGTERM: a child stuck in the kernel cannot run a Python handler, and a
+    handler inherited from the test process must not keep it alive."""
+    receive, send = _FORK.Pipe(duplex=False)
+    child = _FORK.Process(target=_child, args=(send, fn, args), daemon=True)
+    child.start()
+    send.close()
+    try:
+        if not receive.poll(timeout):
             pytest.fail(f"{getattr(fn, '__name__', fn)}{args!r} still running after {timeout} s (hang)")
+        try:
+            kind, value = receive.recv()
+        except EOFError:
+            child.join(5)
+            pytest.fail(f"{getattr(fn, '__name__', fn)}{args!r}: the child died "
+                        f"(exit status {child.exitcode})")
+    finally:
+        receive.close()
+        if child.is_alive():
+            child.kill()
+        child.join()
+    if kind == "raised":
+        raise value
+    return value
 
 
 def tilt(scene: Scene, backend: str = "fortran"):
