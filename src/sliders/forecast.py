@@ -6,6 +6,8 @@
     pred.to_dict()                          # what ``predict --json`` prints
     print(pred)                             # the text output
     pred.plot("pile.png")                   # the bench picture
+    post = model.infer("pile.csv")          # the posterior of the pile's material
+    post.to_dict()                          # what ``infer --json`` prints
 
 ``python -m sliders.forecast`` runs the commands (``sliders.runs.forecast.cli``); ``predict``
 is this API (``sliders.runs.forecast.predict``): one code path.
@@ -15,30 +17,35 @@ from __future__ import annotations
 
 import sys
 
-from .runs.forecast.predict import ForecastModel, Prediction, load_model
+from .runs.forecast.infer import Inference, InferenceModel, load_inference_model
+from .runs.forecast.predict import ForecastModel, Prediction
 
-__all__ = ["load", "main", "ForecastModel", "Prediction"]
+__all__ = ["load", "main", "ForecastModel", "Prediction", "Inference"]
 
 
-def load(path=None) -> ForecastModel:
+def load(path=None, posterior=None) -> InferenceModel:
     """The forecasters of a model file, loaded once (default: the one shipped in the package).
 
     Parameters
     ----------
     path : str or os.PathLike, optional
         A model file written by ``python -m sliders.forecast train`` (or ``evaluate``).
+    posterior : str or os.PathLike, optional
+        A posterior file written by ``train --fit posterior`` (default: the shipped one),
+        read at the first ``infer``.
 
     Returns
     -------
-    ForecastModel
-        ``predict(catalogue, tilt_now=..., **measurement)`` gives a ``Prediction``.
+    InferenceModel
+        A ``ForecastModel``: ``predict(catalogue, tilt_now=..., **measurement)`` gives a
+        ``Prediction``, ``infer(catalogue, ...)`` an ``Inference``.
 
     Raises
     ------
     sliders.io.forecast_files.ForecastInputError
         The file is not a model file this version reads (one line naming it).
     """
-    return load_model(path)
+    return load_inference_model(path, posterior)
 
 
 def main(argv=None) -> int:

@@ -49,6 +49,8 @@ from .safeio import printable, publish_bytes
 MODEL_FORMAT = "sliders-forecaster-3"
 #: the shipped model's file name inside the package's data folder
 DEFAULT_MODEL_NAME = "default_forecaster.skops"
+#: the shipped posterior of the pile's parameters (``infer``), a model file of one entry
+DEFAULT_POSTERIOR_NAME = "default_posterior.skops"
 #: the bounds of a model file (the shipped one: 5.3 MB, 5112 members, 14 MB inflated)
 MAX_MODEL_BYTES = 64 * 2**20
 MAX_MEMBERS = 100_000
@@ -77,24 +79,32 @@ ALLOWED_TYPES = frozenset({
     "sliders.analysis.forecast.inverse_rate.PointProcessInverseRate",
     "sliders.analysis.forecast.learned.Learned",
     "sliders.analysis.forecast.physics.ModelBased",
+    "sliders.analysis.forecast.posterior.ParameterPosterior",
 })
+
+
+def skops_io():
+    """``skops.io``, imported when a model file is first read or written (not at ``--help``)."""
+    import skops.io
+
+    return skops.io
 
 
 class ModelFileError(ValueError):
     """A model file that cannot be used: one line naming the file."""
 
 
-def default_model_path() -> pathlib.Path:
+def default_model_path(name: str = DEFAULT_MODEL_NAME) -> pathlib.Path:
     """The shipped default model: a ``pathlib.Path`` inside the installed package.
 
     Found with ``importlib.resources``; meson-python's editable install answers
     with a traversable of its own rather than a path, and there the file is
     the one beside this module's package (``sliders/data/``), the same place.
     """
-    found = importlib.resources.files("sliders").joinpath("data", DEFAULT_MODEL_NAME)
+    found = importlib.resources.files("sliders").joinpath("data", name)
     if isinstance(found, pathlib.Path):
         return found
-    return pathlib.Path(__file__).resolve().parent.parent / "data" / DEFAULT_MODEL_NAME
+    return pathlib.Path(__file__).resolve().parent.parent / "data" / name
 
 
 def forecasters_bytes(forecasters: dict, provenance: dict, where: str = "model") -> bytes:
@@ -103,8 +113,7 @@ def forecasters_bytes(forecasters: dict, provenance: dict, where: str = "model")
     Checked as ``load_forecasters`` reads it, so that a model naming a type
     off the allow-list is never written.
     """
-    import skops.io as sio
-
+    sio = skops_io()
     blob = sio.dumps({"format": MODEL_FORMAT, "forecasters": dict(forecasters),
                       "provenance": dict(provenance)}, compression=zipfile.ZIP_DEFLATED,
                      compresslevel=9)
@@ -120,8 +129,7 @@ def save_forecasters(path: str, forecasters: dict, provenance: dict) -> int:
 
 
 def _check_types(blob: bytes, where) -> None:
-    import skops.io as sio
-
+    sio = skops_io()
     try:
         named = sio.get_untrusted_types(data=blob)
     except zipfile.BadZipFile as exc:  # a member's CRC-32 or its header does not match
@@ -256,11 +264,11 @@ def load_forecasters(path) -> tuple[dict, dict]:
     forecaster's parts (``check_forecasters``).  The shipped model is also
     checked by its digest.
     """
-    import skops.io as sio
-
+    sio = skops_io()
     blob = read_model_bytes(path)
     where = printable(path)
-    if pathlib.Path(path).resolve() == default_model_path().resolve():
+    if pathlib.Path(path).resolve() in (default_model_path().resolve(),
+                                        default_model_path(DEFAULT_POSTERIOR_NAME).resolve()):
         check_digest(path, blob)
     if not zipfile.is_zipfile(io.BytesIO(blob)):
         raise ModelFileError(f"{where}: refused: not a sliders model file (a skops archive; "

@@ -5,11 +5,13 @@
     python -m sliders.forecast predict CATALOGUE.csv [--tilt-now ANGLE] [--json] [--model FILE]
     python -m sliders.forecast predict CATALOGUE.csv --method all --size-unit arbitrary --verbose
     python -m sliders.forecast train --prior my.toml --out my_model.skops --np 2
+    python -m sliders.forecast infer CATALOGUE.csv [--tilt-now ANGLE] [--json] [--plot FILE.png]
+    python -m sliders.forecast train --data prior.h5 --fit posterior --out my_posterior.skops
     python -m sliders.forecast catalogue --data prior.h5 --row 7 --lead 3deg --out row7.csv
 
 The parser and the error boundary.  Each subcommand is the function of the
 same name in the module of the same name (``evaluate``, ``predict``,
-``train``, ``catalogue``), imported when it runs: ``--help`` reads no
+``train``, ``catalogue``, ``infer``), imported when it runs: ``--help`` reads no
 scikit-learn.
 
 Every subcommand runs inside one error boundary (``main``): parse, check the
@@ -34,11 +36,11 @@ from ...io.forecast_files import ForecastInputError
 from ...io.safeio import describe_os_error, os_reason
 from ..parallel import error_line, launcher_rank, under_mpi_launcher
 from ..signals import stopped_by_sigterm
-from .common import (ALARM_DELTA_DEG, DEFAULT_LEADS_DEG, DEFAULT_TILTS, PREDICT_METHODS,
-                     TRAIN_MAX_ITER)
+from .common import (ALARM_DELTA_DEG, CHECK_DRAWS, DEFAULT_LEADS_DEG, DEFAULT_TILTS,
+                     POSTERIOR_MAX_ITER, PREDICT_METHODS, TRAIN_MAX_ITER)
 
 #: the subcommands: each is the function of its name in the module of its name (this package's)
-COMMANDS = ("evaluate", "predict", "train", "catalogue")
+COMMANDS = ("evaluate", "predict", "train", "catalogue", "infer")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -61,6 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
         "train", help="run a prior ensemble and fit the forecasters of a model file"))
     add_catalogue_arguments(sub.add_parser(
         "catalogue", help="write a simulated row as a catalogue CSV cut at a tilt or lead"))
+    add_infer_arguments(sub.add_parser(
+        "infer", help="the posterior of the pile's material parameters from a measured catalogue"))
     return p
 
 
@@ -92,13 +96,7 @@ def add_evaluate_arguments(e: argparse.ArgumentParser) -> None:
 
 def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
     """The options of ``predict``."""
-    pr.add_argument("catalogue", metavar="CATALOGUE.csv",
-                    help="the measured events: angle [deg] or angle [rad], size (docs/forecasting.md)")
-    pr.add_argument("--tilt-now", default=None, metavar="ANGLE",
-                    help="tilt reached: 27.5deg, 0.48rad, or a bare number in the catalogue's "
-                         "angle unit (its header's [deg] or [rad]); default: the last event's "
-                         "angle.  Below it by less than 3 angle resolutions, the last event's "
-                         "angle is taken (and said)")
+    add_measured_catalogue_arguments(pr)
     pr.add_argument("--within", default=ALARM_DELTA_DEG, metavar="ANGLE",
                     help="the alarm's horizon: 1deg, 0.02rad, or a bare number of degrees")
     pr.add_argument("--model", default=None, metavar="FILE",
@@ -107,20 +105,6 @@ def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
     pr.add_argument("--method", default="learned", choices=PREDICT_METHODS,
                     help="the forecaster, one of {" + ", ".join(PREDICT_METHODS)
                          + "} (all: every one side by side)")
-    pr.add_argument("--angle-resolution", default="0", metavar="ANGLE",
-                    help="standard deviation of each measured angle's error: 0.3deg, 0.005rad, "
-                         "or a bare number of degrees")
-    pr.add_argument("--min-size", type=float, default=1.0, metavar="SIZE",
-                    help="smallest event size detected, in the size column's unit: sliders, or "
-                         "with --size-unit arbitrary the unit of your sizes (grains, pixels, "
-                         "mm²), read against the catalogue's median size")
-    pr.add_argument("--missed-fraction", type=float, default=0.0, metavar="SHARE",
-                    help="share of events missed at random, in [0, 1)")
-    pr.add_argument("--size-unit", default="sliders", choices=("sliders", "arbitrary"),
-                    help="sliders: sizes count sliders; arbitrary: an unknown unit (grains, area, pixels)")
-    pr.add_argument("--sliders", type=int, default=None, metavar="N",
-                    help="the number of sliders of the pile, if known: a pile outside the "
-                         "training piles' is out of the domain")
     pr.add_argument("--json", action="store_true",
                     help="one JSON object (radians); with --follow one per update (JSON Lines)")
     pr.add_argument("--plot", default=None, metavar="FILE.png",
@@ -140,6 +124,51 @@ def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
     pr.add_argument("--verbose", action="store_true", help="print the model's whole provenance")
 
 
+def add_measured_catalogue_arguments(pr: argparse.ArgumentParser) -> None:
+    """The catalogue and how it was measured: the options ``predict`` and ``infer`` share."""
+    pr.add_argument("catalogue", metavar="CATALOGUE.csv",
+                    help="the measured events: angle [deg] or angle [rad], size (docs/forecasting.md)")
+    pr.add_argument("--tilt-now", default=None, metavar="ANGLE",
+                    help="tilt reached: 27.5deg, 0.48rad, or a bare number in the catalogue's "
+                         "angle unit (its header's [deg] or [rad]); default: the last event's "
+                         "angle.  Below it by less than 3 angle resolutions, the last event's "
+                         "angle is taken (and said)")
+    pr.add_argument("--angle-resolution", default="0", metavar="ANGLE",
+                    help="standard deviation of each measured angle's error: 0.3deg, 0.005rad, "
+                         "or a bare number of degrees")
+    pr.add_argument("--min-size", type=float, default=1.0, metavar="SIZE",
+                    help="smallest event size detected, in the size column's unit: sliders, or "
+                         "with --size-unit arbitrary the unit of your sizes (grains, pixels, "
+                         "mm²), read against the catalogue's median size")
+    pr.add_argument("--missed-fraction", type=float, default=0.0, metavar="SHARE",
+                    help="share of events missed at random, in [0, 1)")
+    pr.add_argument("--size-unit", default="sliders", choices=("sliders", "arbitrary"),
+                    help="sliders: sizes count sliders; arbitrary: an unknown unit (grains, area, pixels)")
+    pr.add_argument("--sliders", type=int, default=None, metavar="N",
+                    help="the number of sliders of the pile, if known: a pile outside the "
+                         "training piles' is out of the domain")
+
+
+def add_infer_arguments(inf: argparse.ArgumentParser) -> None:
+    """The options of ``infer``."""
+    add_measured_catalogue_arguments(inf)
+    inf.add_argument("--posterior", default=None, metavar="FILE",
+                     help="posterior file written by train --fit posterior (default: the one "
+                          "shipped inside the package)")
+    inf.add_argument("--json", action="store_true",
+                     help="one JSON object: each parameter's median and 80 and 95 %% intervals, "
+                          "the contraction, the domain, the predictive check")
+    inf.add_argument("--plot", default=None, metavar="FILE.png",
+                     help="draw the marginals and pairs of the posterior (a corner plot, the "
+                          "prior's range shaded) into FILE.png")
+    inf.add_argument("--no-check", action="store_true",
+                     help="skip the predictive check (the piles simulated at posterior draws)")
+    inf.add_argument("--check-draws", type=int, default=CHECK_DRAWS, metavar="R",
+                     help="piles simulated at posterior draws for the predictive check")
+    inf.add_argument("--seed", type=int, default=0,
+                     help="key of the posterior draws and of the check's simulations")
+
+
 def add_train_arguments(t) -> None:
     """The options of ``train``."""
     src = t.add_mutually_exclusive_group(required=True)
@@ -148,7 +177,12 @@ def add_train_arguments(t) -> None:
                      help="fit on prior files already computed (several: their rows together)")
     t.add_argument("--out", required=True, metavar="MODEL.skops", help="the model file written")
     t.add_argument("--np", type=int, default=1, help="MPI ranks of the prior ensemble")
-    t.add_argument("--max-iter", type=int, default=TRAIN_MAX_ITER, help="boosting iterations")
+    t.add_argument("--fit", default="forecasters", choices=("forecasters", "posterior"),
+                   help="what --out holds: forecasters (the forecasters of predict) or "
+                        "posterior (the posterior of the pile's parameters, read by infer)")
+    t.add_argument("--max-iter", type=int, default=None,
+                   help=f"boosting iterations (default {TRAIN_MAX_ITER}; "
+                        f"{POSTERIOR_MAX_ITER} with --fit posterior)")
     t.add_argument("--hold-out", type=float, default=0.0, metavar="SHARE",
                    help="share of the rows kept out of the fit, to measure the model on "
                         "(their indices go into the provenance)")

@@ -32,6 +32,10 @@ TARGET_LEAD_DEG = 3.0
 #: boosting iterations of ``train``'s model: each iteration adds 7 trees per learned forecaster
 #: to the model file (150 iterations of 31 leaves made an 8 MB file)
 TRAIN_MAX_ITER = 100
+#: boosting iterations of the posterior (``train --fit posterior``): 35 regressors of 45 trees (4.5 MB)
+POSTERIOR_MAX_ITER = 45
+#: piles simulated at posterior draws by ``infer``'s predictive check
+CHECK_DRAWS = 24
 #: the choices of ``predict --method`` (the registry's): "learned" picks the learned forecaster
 #: for the columns given (every feature, or angles and sizes only)
 PREDICT_METHODS = ("learned", *(m for m in METHODS if m not in ("learned", "learned_blind")), "all")

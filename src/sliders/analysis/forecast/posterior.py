@@ -1,0 +1,434 @@
+"""The posterior of a pile's material parameters from its catalogue (amortized inference).
+
+A prior ensemble (``python -m sliders.prior``) holds, for every row, the
+material drawn (mu_d, mu_s - mu_d, sigma_mu, xi, the number of sliders) and
+the catalogue it made.  Cut at random tilts and measured as an experiment
+would (``features.training_cuts``, ``measurement.degrade_cuts``, and half of
+the cuts kept to their angles and sizes), those catalogues are samples of the
+joint law of parameters and catalogues; ``ParameterPosterior`` learns, for
+each parameter, the quantiles of its conditional law given the catalogue's
+features (``features.feature_matrix``): one gradient-boosted quantile
+regressor per parameter and level of ``POSTERIOR_LEVELS``.  Nothing is
+simulated at inference: one catalogue's posterior is one pass through the
+trees.
+
+Each parameter is learned on the scale where its prior is flat: mu_d as it
+is, the others as log10; ``xi``, which is exactly 0 for a share of the prior,
+has its zero coded ``XI_ZERO_GAP`` decades below its smallest positive value,
+so that its conditional quantiles hold the atom (P(xi = 0) is the
+conditional CDF at the gap) and the quantiles given xi > 0 are read above it.
+The number of sliders takes the prior's values: the CDF between their
+midpoints gives each value's probability.
+
+The calibration is conformal (split by realisation): rows held out of the fit
+(``calibration_share``) are cut the same way, and every quantile is shifted
+by the level's quantile of their residuals, in units of the predicted 10-90 %
+spread, per class of catalogue (complete, or angles and sizes only).  Each
+calibrated quantile then holds its level over the prior, the property
+simulation-based calibration tests (``probability_integral``).  Between the
+levels the CDF is linear, and below the lowest and above the highest it
+reaches the prior's range.
+
+The predictive check compares a catalogue with piles simulated at posterior
+draws (``posterior_check``; the simulations are the command's,
+``sliders.runs.forecast.infer``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+from scipy.special import ndtr, ndtri
+from sklearn.base import BaseEstimator
+from sklearn.ensemble import HistGradientBoostingRegressor
+from threadpoolctl import threadpool_limits
+
+from ...io.catalogue import Catalogue
+from .domain import DOMAIN_FEATURES, DomainCheck
+from .features import Cuts, feature_matrix, training_cuts
+from .integrity import IntegrityError, check_array, check_boosting, check_number, require
+from .measurement import degrade_cuts
+
+#: the material parameters inferred, in order
+POSTERIOR_PARAMETERS = ("mu_d", "mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders")
+#: those learned as log10 (their priors are log-uniform, or a choice spread over decades)
+LOG_PARAMETERS = ("mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders")
+#: the levels of the conditional quantiles learned: the median and the 50, 80 and 95 % intervals
+POSTERIOR_LEVELS = np.array([0.025, 0.1, 0.25, 0.5, 0.75, 0.9, 0.975])
+#: decades below the smallest positive xi of the prior at which xi = 0 is coded
+XI_ZERO_GAP = 0.5
+#: the classes of catalogue with their own conformal shifts: complete, or angles and sizes only
+CATALOGUE_CLASSES = ("complete", "angles_sizes")
+#: the points of the posterior's CDF its variance is computed on
+VARIANCE_POINTS = 400
+
+
+def learned_scale(name: str, values, xi_zero_code: float = math.nan) -> np.ndarray:
+    """``values`` of parameter ``name`` on the scale the regressors learn (xi = 0 coded)."""
+    v = np.asarray(values, dtype=float)
+    if name not in LOG_PARAMETERS:
+        return v
+    with np.errstate(divide="ignore"):
+        out = np.log10(v)
+    return np.where(v > 0, out, xi_zero_code) if name == "xi" else out
+
+
+def angles_sizes_only(cat: Catalogue) -> Catalogue:
+    """``cat`` as a record of angles and sizes only: no displacement, no movers (as the command
+    reads a catalogue without those columns)."""
+    n = len(cat)
+    return Catalogue(cat.alpha, cat.size, np.zeros(n), np.full(n, -1), np.full(n, -1), cat.tilt_now)
+
+
+def is_complete(cat: Catalogue) -> bool:
+    """The catalogue has displacements and movers (an empty one counts as complete)."""
+    return bool((cat.first >= 0).all()) and not np.isnan(cat.displacement).any()
+
+
+def design(cuts: Cuts) -> np.ndarray:
+    """(n, F) what the regressors see: the catalogue's and the measurement's features
+    (``features.feature_matrix``) and whether the catalogue is complete."""
+    x, _ = feature_matrix(cuts)
+    complete = np.array([is_complete(c) for c in cuts.catalogues], dtype=float)
+    return np.hstack([x, complete[:, None]])
+
+
+def design_names() -> list[str]:
+    """The names of ``design``'s columns."""
+    one = Catalogue([0.1], [1], [0.0], [0], [0], 0.1)
+    return feature_matrix(Cuts.from_catalogues([one]))[1] + ["complete"]
+
+
+class ParameterPosterior(BaseEstimator):
+    """Conditional quantiles of the material parameters given a catalogue, conformally calibrated.
+
+    Parameters
+    ----------
+    draws_per_row : int
+        Random cuts per training realisation (``features.training_cuts``).
+    max_iter, learning_rate, max_leaf_nodes, min_samples_leaf, max_bins : int or float
+        Of each ``HistGradientBoostingRegressor`` (quantile loss).
+    degrade : bool
+        Degrade every cut by a measurement drawn from ``measurement.MEASUREMENT_RANGES``.
+    angles_sizes_share : float
+        Share of the cuts kept to their angles and sizes.
+    calibration_share : float
+        Share of the realisations held out of the fit to calibrate (split by realisation).
+    random_state : int
+        Seeds the split, the cuts, the degradations and the regressors.
+
+    Attributes
+    ----------
+    parameters_ : tuple of str
+        The parameters inferred (those of ``POSTERIOR_PARAMETERS`` the prior draws).
+    models_ : list of list
+        ``models_[p][l]``: the regressor of parameter p at ``POSTERIOR_LEVELS[l]``.
+    low_, high_ : numpy.ndarray
+        (P,) the prior's range of each parameter, on the learned scale.
+    prior_variance_ : numpy.ndarray
+        (P,) the prior's variance on the learned scale (the contraction's reference).
+    shifts_ : numpy.ndarray
+        (classes, P, L) the conformal shifts, in units of the predicted 10-90 % spread.
+    copula_ : numpy.ndarray
+        (P, P) the correlation of the parameters' normal scores about their posterior.
+    xi_zero_code_ : float
+        Where xi = 0 sits on the learned scale (NaN if xi is not inferred).
+    n_sliders_values_ : numpy.ndarray
+        The prior's numbers of sliders.
+    domain_ : DomainCheck
+        Whether a catalogue is like the training cuts.
+    prior_ : str
+        The prior's specification (JSON): the predictive check simulates its scene.
+    """
+
+    def __init__(self, draws_per_row: int = 4, max_iter: int = 50, learning_rate: float = 0.1,
+                 max_leaf_nodes: int = 15, min_samples_leaf: int = 40, max_bins: int = 63,
+                 degrade: bool = True, angles_sizes_share: float = 0.5,
+                 calibration_share: float = 0.2, random_state: int = 0):
+        self.draws_per_row = draws_per_row
+        self.max_iter = max_iter
+        self.learning_rate = learning_rate
+        self.max_leaf_nodes = max_leaf_nodes
+        self.min_samples_leaf = min_samples_leaf
+        self.max_bins = max_bins
+        self.degrade = degrade
+        self.angles_sizes_share = angles_sizes_share
+        self.calibration_share = calibration_share
+        self.random_state = random_state
+
+    # -- fit ------------------------------------------------------------------------------
+    def cuts_of(self, cset, rng) -> Cuts:
+        """Random cuts of ``cset``, degraded if ``degrade``, a share kept to angles and sizes."""
+        cuts = training_cuts(cset, self.draws_per_row, rng)
+        if self.degrade:
+            cuts = degrade_cuts(cuts, rng)
+        strip = rng.random(len(cuts)) < self.angles_sizes_share
+        cuts.catalogues = [angles_sizes_only(c) if s else c for c, s in zip(cuts.catalogues, strip)]
+        return cuts
+
+    def targets(self, cset, rows) -> np.ndarray:
+        """(n, P) the parameters of ``cset``'s rows ``rows`` on the learned scale."""
+        return np.column_stack([learned_scale(p, np.asarray(cset.parameters[p])[rows],
+                                              self.xi_zero_code_) for p in self.parameters_])
+
+    def fit(self, train, y=None):
+        """Fit the regressors on ``train`` (a ``CatalogueSet`` with its parameters), calibrate on
+        its held-out realisations, and fit the domain check."""
+        # the trees' OpenMP threads on a shared machine wait for each other (20 s a fit, not 0.3)
+        with threadpool_limits(limits=1, user_api="openmp"):
+            return self._fit(train)
+
+    def _fit(self, train):
+        rng = np.random.default_rng(self.random_state)
+        self.parameters_ = tuple(p for p in POSTERIOR_PARAMETERS if p in train.parameters)
+        require(self.parameters_, "the prior file holds none of the material parameters")
+        xi = np.asarray(train.parameters.get("xi", []), dtype=float)
+        self.xi_zero_code_ = (float(np.log10(xi[xi > 0].min()) - XI_ZERO_GAP)
+                              if (xi > 0).any() else math.nan)
+        self.n_sliders_values_ = np.unique(np.asarray(train.parameters.get("n_sliders", [1]),
+                                                      dtype=float))
+        every = self.targets(train, np.arange(len(train)))
+        self.low_, self.high_ = every.min(axis=0), every.max(axis=0)
+        self.prior_variance_ = np.maximum(every.var(axis=0), 1e-12)
+        held = rng.random(len(train)) < self.calibration_share
+        fit_set, cal_set = train.subset(np.flatnonzero(~held)), train.subset(np.flatnonzero(held))
+        cuts = self.cuts_of(fit_set, rng)
+        x, y_fit = design(cuts), self.targets(fit_set, cuts.row)
+        self.n_features_in_ = x.shape[1]
+        self.models_ = [[self._regressor(level).fit(x, y_fit[:, p]) for level in POSTERIOR_LEVELS]
+                        for p in range(len(self.parameters_))]
+        cal = self.cuts_of(cal_set, rng)
+        self._calibrate(cal, self.targets(cal_set, cal.row))
+        self._fit_copula(cal, {p: np.asarray(cal_set.parameters[p])[cal.row]
+                               for p in self.parameters_}, rng)
+        self.domain_ = DomainCheck(DOMAIN_FEATURES, random_state=self.random_state).fit(
+            cuts, fit_set.alpha_c, order=rng.permutation(len(cuts)),
+            n_sliders=fit_set.parameters.get("n_sliders"))
+        self.prior_ = str(train.attrs.get("prior", "{}"))
+        self.n_training_cuts_, self.n_calibration_cuts_ = len(cuts), len(cal)
+        return self
+
+    def _regressor(self, level: float) -> HistGradientBoostingRegressor:
+        return HistGradientBoostingRegressor(
+            loss="quantile", quantile=float(level), max_iter=self.max_iter,
+            learning_rate=self.learning_rate, max_leaf_nodes=self.max_leaf_nodes,
+            min_samples_leaf=self.min_samples_leaf, max_bins=self.max_bins,
+            early_stopping=False, random_state=self.random_state)
+
+    def _calibrate(self, cuts: Cuts, truth: np.ndarray) -> None:
+        """The conformal shifts: per class of catalogue, parameter and level, the level's
+        quantile of the held-out residuals over the predicted spread."""
+        q = self._raw_quantiles(design(cuts))
+        spread = self._spread(q)
+        residual = (truth[:, :, None] - q) / spread[:, :, None]
+        kind = self._class_of(cuts)
+        self.shifts_ = np.zeros((len(CATALOGUE_CLASSES), len(self.parameters_),
+                                 POSTERIOR_LEVELS.size))
+        for k in range(len(CATALOGUE_CLASSES)):
+            r = residual[kind == k]
+            if len(r):
+                n = len(r)
+                # the finite-sample conformal level, moved away from the median
+                lv = np.clip(np.where(POSTERIOR_LEVELS < 0.5,
+                                      np.floor(POSTERIOR_LEVELS * (n + 1)) / n,
+                                      np.ceil(POSTERIOR_LEVELS * (n + 1)) / n), 0.0, 1.0)
+                self.shifts_[k] = np.stack([np.quantile(r[:, :, j], lv[j], axis=0)
+                                            for j in range(lv.size)], axis=1)
+
+    def _fit_copula(self, cuts: Cuts, truth: dict, rng) -> None:
+        """How the parameters vary together about their posterior: the correlation of the
+        normal scores of the held-out truths' posterior CDFs (a Gaussian copula, the same for
+        every catalogue: the quantiles are learned one parameter at a time)."""
+        u = np.clip(self.probability_integral(cuts, truth, rng), 1e-4, 1 - 1e-4)
+        c = np.corrcoef(ndtri(u), rowvar=False) if len(cuts) > 2 else np.eye(u.shape[1])
+        c = np.nan_to_num(np.atleast_2d(c), nan=0.0)
+        np.fill_diagonal(c, 1.0)
+        # kept positive definite: shrunk towards independence until its Cholesky factor exists
+        for shrink in np.linspace(0.0, 1.0, 11):
+            try:
+                np.linalg.cholesky((1 - shrink) * c + shrink * np.eye(len(c)))
+                break
+            except np.linalg.LinAlgError:
+                continue
+        self.copula_ = (1 - shrink) * c + shrink * np.eye(len(c))
+
+    # -- predict -----------------------------------------------------------------------------
+    def _raw_quantiles(self, x) -> np.ndarray:
+        with threadpool_limits(limits=1, user_api="openmp"):
+            q = np.stack([np.column_stack([m.predict(x) for m in models])
+                          for models in self.models_], axis=1)
+        return np.sort(q, axis=2)
+
+    def _spread(self, q) -> np.ndarray:
+        lo, hi = np.searchsorted(POSTERIOR_LEVELS, [0.1, 0.9])
+        width = (self.high_ - self.low_)[None, :]
+        return np.maximum(q[:, :, hi] - q[:, :, lo], 1e-3 * width)
+
+    @staticmethod
+    def _class_of(cuts: Cuts) -> np.ndarray:
+        return np.array([0 if is_complete(c) else 1 for c in cuts.catalogues])
+
+    def quantiles(self, cuts: Cuts) -> np.ndarray:
+        """(n, P, L) the calibrated quantiles of every parameter at ``POSTERIOR_LEVELS``,
+        on the learned scale, within the prior's range."""
+        q = self._raw_quantiles(design(cuts))
+        q = q + self.shifts_[self._class_of(cuts)] * self._spread(q)[:, :, None]
+        return np.sort(np.clip(q, self.low_[None, :, None], self.high_[None, :, None]), axis=2)
+
+    def knots(self, q_row: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
+        """The CDF of parameter ``p`` for one cut: (values, probabilities), increasing, from
+        the prior's low end (0) through the calibrated quantiles to its high end (1)."""
+        x = np.concatenate([[self.low_[p]], q_row[p], [self.high_[p]]])
+        x = np.maximum.accumulate(x)
+        x = x + np.arange(x.size) * 1e-12 * max(1.0, float(np.abs(x).max()))
+        return x, np.concatenate([[0.0], POSTERIOR_LEVELS, [1.0]])
+
+    def cdf(self, q_row, p: int, value) -> np.ndarray:
+        """P(parameter ``p`` <= ``value``) for one cut (learned scale)."""
+        x, u = self.knots(q_row, p)
+        return np.interp(value, x, u)
+
+    def ppf(self, q_row, p: int, u) -> np.ndarray:
+        """The inverse CDF of parameter ``p`` for one cut at probabilities ``u``."""
+        x, lv = self.knots(q_row, p)
+        return np.interp(u, lv, x)
+
+    def xi_zero_edge(self) -> float:
+        """On the learned scale, between xi = 0 and the smallest positive xi of the prior."""
+        return self.xi_zero_code_ + XI_ZERO_GAP / 2
+
+    def n_sliders_edges(self) -> np.ndarray:
+        """log10 of the midpoints between the prior's numbers of sliders, with the range's ends."""
+        v = np.log10(self.n_sliders_values_)
+        return np.concatenate([[-np.inf], (v[1:] + v[:-1]) / 2, [np.inf]])
+
+    def probability_integral(self, cuts: Cuts, truth: dict, rng) -> np.ndarray:
+        """(n, P) each true parameter's posterior CDF (the rank of simulation-based
+        calibration): uniform on [0, 1] when the posterior is calibrated.  The atoms (xi = 0,
+        each number of sliders) are spread uniformly over their probability."""
+        q = self.quantiles(cuts)
+        out = np.zeros((len(cuts), len(self.parameters_)))
+        for p, name in enumerate(self.parameters_):
+            y = learned_scale(name, truth[name], self.xi_zero_code_)
+            for i in range(len(cuts)):
+                lo = hi = float(self.cdf(q[i], p, y[i]))
+                if name == "xi" and y[i] <= self.xi_zero_edge():
+                    lo, hi = 0.0, float(self.cdf(q[i], p, self.xi_zero_edge()))
+                elif name == "n_sliders":
+                    e = self.n_sliders_edges()
+                    k = int(np.searchsorted(e, y[i])) - 1
+                    lo, hi = (float(v) for v in self.cdf(q[i], p, np.clip(e[k:k + 2], -1e9, 1e9)))
+                out[i, p] = rng.uniform(lo, hi) if hi > lo else lo
+        return out
+
+    def sample(self, q_row, n: int, rng) -> dict:
+        """``n`` draws of every parameter for one cut, in the parameters' own units (xi = 0
+        and the prior's numbers of sliders as they are drawn): each parameter's inverse CDF
+        at uniform draws joined by the Gaussian copula ``copula_``."""
+        z = rng.standard_normal((n, len(self.parameters_))) @ np.linalg.cholesky(self.copula_).T
+        u = ndtr(z)
+        return {name: self.physical(name, self.ppf(q_row, p, u[:, p]))
+                for p, name in enumerate(self.parameters_)}
+
+    def physical(self, name: str, y) -> np.ndarray:
+        """Values of the learned scale in the parameter's own units."""
+        y = np.asarray(y, dtype=float)
+        if name == "mu_d":
+            return y
+        if name == "xi":  # the gap below the smallest positive xi belongs to it
+            return np.where(y <= self.xi_zero_edge(), 0.0,
+                            10.0 ** np.maximum(y, self.xi_zero_code_ + XI_ZERO_GAP))
+        if name == "n_sliders":
+            v = self.n_sliders_values_
+            return v[np.argmin(np.abs(np.log10(v)[None, :] - y.reshape(-1, 1)), axis=1)].reshape(
+                y.shape)
+        return 10.0 ** y
+
+    def summary(self, q_row) -> dict:
+        """Every parameter's posterior for one cut: median, 80 % and 95 % intervals in its own
+        units (mu_d also as atan(mu_d) in degrees; xi: P(xi = 0) and its quantiles given
+        xi > 0; the number of sliders: each prior value's probability)."""
+        out = {}
+        for p, name in enumerate(self.parameters_):
+            levels = np.array([0.5, 0.1, 0.9, 0.025, 0.975])
+            d = {}
+            if name == "xi" and math.isfinite(self.xi_zero_code_):
+                p0 = float(self.cdf(q_row, p, self.xi_zero_edge()))
+                d["p_zero"] = p0
+                levels = p0 + (1.0 - p0) * levels if p0 < 1.0 - 1e-6 else None
+            if levels is None:
+                d.update(median=None, interval_80=None, interval_95=None)
+            else:
+                v = self.physical(name, self.ppf(q_row, p, levels))
+                d.update(median=float(v[0]), interval_80=[float(v[1]), float(v[2])],
+                         interval_95=[float(v[3]), float(v[4])])
+            if name == "mu_d":
+                deg = np.degrees(np.arctan(v))
+                d["atan_deg"] = {"median": float(deg[0]), "interval_80": [float(deg[1]),
+                                 float(deg[2])], "interval_95": [float(deg[3]), float(deg[4])]}
+            if name == "n_sliders":
+                c = self.cdf(q_row, p, np.clip(self.n_sliders_edges(), -1e9, 1e9))
+                d["probabilities"] = {str(int(v)): float(pr) for v, pr in
+                                      zip(self.n_sliders_values_, np.diff(c))}
+            out[name] = d
+        return out
+
+    def contraction(self, q_row) -> dict:
+        """1 - posterior variance / prior variance of every parameter (learned scale)."""
+        u = (np.arange(VARIANCE_POINTS) + 0.5) / VARIANCE_POINTS
+        return {name: float(1.0 - np.var(self.ppf(q_row, p, u)) / self.prior_variance_[p])
+                for p, name in enumerate(self.parameters_)}
+
+    def prior_range(self) -> dict:
+        """Each parameter's prior range in its own units (xi: its positive range)."""
+        out = {}
+        for p, name in enumerate(self.parameters_):
+            lo = self.low_[p] if name != "xi" else self.xi_zero_code_ + XI_ZERO_GAP
+            out[name] = [float(v) for v in self.physical(name, np.array([lo, self.high_[p]]))]
+        return out
+
+    def domain(self, cuts: Cuts):
+        """Whether each cut lies in the training domain, and if not why (``DomainCheck``)."""
+        return self.domain_.check(cuts)
+
+    def prior_spec(self) -> dict:
+        """The prior's specification (the tables of its TOML)."""
+        return json.loads(self.prior_)
+
+    # -- the file's checks ----------------------------------------------------------------
+    def check_fitted(self) -> None:
+        """Every part an inference reads, of the form ``fit`` writes (``integrity``)."""
+        require(isinstance(self.parameters_, tuple) and 1 <= len(self.parameters_)
+                and set(self.parameters_) <= set(POSTERIOR_PARAMETERS),
+                "posterior: unknown parameters")
+        n_p, n_l = len(self.parameters_), POSTERIOR_LEVELS.size
+        n_f = len(design_names())
+        require(self.n_features_in_ == n_f, f"posterior: {self.n_features_in_} features, not {n_f}")
+        require(isinstance(self.models_, list) and len(self.models_) == n_p
+                and all(isinstance(m, list) and len(m) == n_l for m in self.models_),
+                "posterior: not one regressor per parameter and level")
+        for name, models in zip(self.parameters_, self.models_):
+            for level, m in zip(POSTERIOR_LEVELS, models):
+                check_boosting(m, n_f, f"posterior of {name} at {level:g}")
+        check_array(self.low_, "posterior: prior low ends", shape=(n_p,))
+        check_array(self.high_, "posterior: prior high ends", shape=(n_p,))
+        require((self.low_ <= self.high_).all(), "posterior: a prior range is reversed")
+        check_array(self.prior_variance_, "posterior: prior variances", shape=(n_p,), lo=1e-300)
+        check_array(self.shifts_, "posterior: conformal shifts",
+                    shape=(len(CATALOGUE_CLASSES), n_p, n_l), lo=-1e3, hi=1e3)
+        check_array(self.n_sliders_values_, "posterior: numbers of sliders", lo=1.0,
+                    increasing=True, min_size=1)
+        if "xi" in self.parameters_:
+            check_number(self.xi_zero_code_, "posterior: xi's zero", -300.0, 300.0)
+        require(isinstance(self.prior_, str), "posterior: the prior is not a text")
+        c = check_array(self.copula_, "posterior: copula", shape=(n_p, n_p), lo=-1.0, hi=1.0)
+        require(np.allclose(c, c.T) and np.allclose(np.diag(c), 1.0),
+                "posterior: the copula is not a correlation matrix")
+        try:
+            np.linalg.cholesky(c)
+        except np.linalg.LinAlgError:
+            raise IntegrityError("posterior: the copula is not positive definite") from None
+        self.domain_.check_fitted("posterior's domain check")
+

@@ -1,0 +1,84 @@
+"""The posterior predictive check: does the model, at the material the posterior gives, make
+catalogues like the one measured?
+
+``infer`` simulates piles at posterior draws up to the catalogue's tilt reached
+(``sliders.runs.forecast.infer``), measures them as the catalogue was, and
+compares summary statistics (``CHECK_STATISTICS``): each statistic's two-sided
+p-value against the simulated ones, and the share of simulated piles that
+had not avalanched by the tilt the measured one reached.  The catalogue is
+reproduced when no p-value falls below ``CHECK_ALPHA`` divided by the number
+of p-values (Bonferroni).  No scikit-learn here: the command's module imports
+this one at its top.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...io.catalogue import Catalogue
+
+#: the summary statistics compared; those counting sliders are left out for sizes in an
+#: arbitrary unit
+CHECK_STATISTICS = ("log_events", "onset", "centre", "log_mean_size", "log_max_size",
+                    "share_one", "size_ratio_max")
+#: the statistics that count sliders
+CHECK_IN_SLIDERS = ("log_mean_size", "log_max_size", "share_one")
+#: the family-wise level under which a catalogue is "not reproduced"
+CHECK_ALPHA = 0.01
+
+
+def check_statistics(cat: Catalogue, arbitrary_size: bool = False) -> dict:
+    """The summary statistics of a catalogue the predictive check compares (``CHECK_STATISTICS``):
+    the number of events (log), the first event's tilt and the events' mean tilt over the tilt
+    reached, the mean and largest size (log), the share of lone slips, the largest size over
+    the mean.  NaN where undefined (and for those counting sliders with ``arbitrary_size``)."""
+    n = len(cat)
+    t = max(float(cat.tilt_now), 1e-9)
+    size = cat.size.astype(float)
+    s = {"log_events": math.log1p(n),
+         "onset": float(cat.alpha[0]) / t if n else 1.0,
+         "centre": float(cat.alpha.mean()) / t if n else 1.0,
+         "log_mean_size": math.log(size.mean()) if n else math.nan,
+         "log_max_size": math.log(size.max()) if n else math.nan,
+         "share_one": float(np.mean(size == 1)) if n else math.nan,
+         "size_ratio_max": math.log(size.max() / size.mean()) if n else math.nan}
+    if arbitrary_size:
+        for k in CHECK_IN_SLIDERS:
+            s[k] = math.nan
+    return s
+
+
+def predictive_p_values(observed: dict, simulated: list[dict]) -> dict:
+    """Each statistic's two-sided posterior predictive p-value: the observed value against the
+    simulated ones' mean and spread (normal tails, the spread at least a tenth of the
+    simulated range's scale and of the statistic's resolution), None where undefined."""
+    out = {}
+    for k in CHECK_STATISTICS:
+        sims = np.array([s[k] for s in simulated], dtype=float)
+        sims = sims[np.isfinite(sims)]
+        obs = observed[k]
+        if sims.size < 3 or not math.isfinite(obs):
+            out[k] = None
+            continue
+        floor = 0.02 + 0.02 * abs(float(np.median(sims)))
+        sd = max(float(np.std(sims, ddof=1)), floor)
+        z = abs(obs - float(np.mean(sims))) / sd
+        out[k] = math.erfc(z / math.sqrt(2.0))
+    return out
+
+
+def survival_p_value(avalanched) -> float:
+    """The share of simulated piles (with one added for the measured pile, which has not
+    avalanched) that had not avalanched by the measured pile's tilt reached."""
+    a = np.asarray(avalanched, dtype=bool)
+    return float((np.sum(~a) + 1) / (a.size + 1))
+
+
+def reproduced(p_values: dict, alpha: float = CHECK_ALPHA) -> bool:
+    """No p-value below ``alpha`` over their number (the undefined ones left out)."""
+    p = [v for v in p_values.values() if v is not None]
+    return not p or min(p) >= alpha / len(p)
+
+
