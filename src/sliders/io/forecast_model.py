@@ -27,7 +27,8 @@ back with every string made printable (``safeio.printable``).
 
 The default model ships inside the package (``sliders/data/``, found with
 ``importlib.resources``), never looked up in the current folder, and is also
-checked by its SHA-256 (``DEFAULT_MODEL_NAME + ".sha256"`` beside it).
+checked by its SHA-256 (``DEFAULT_MODEL_NAME + ".sha256"`` beside it); so is the
+shipped posterior of ``infer`` (``DEFAULT_POSTERIOR_NAME``), a model file of one entry.
 """
 
 from __future__ import annotations
@@ -94,13 +95,23 @@ class ModelFileError(ValueError):
     """A model file that cannot be used: one line naming the file."""
 
 
-def default_model_path(name: str = DEFAULT_MODEL_NAME) -> pathlib.Path:
+def default_model_path() -> pathlib.Path:
     """The shipped default model: a ``pathlib.Path`` inside the installed package.
 
     Found with ``importlib.resources``; meson-python's editable install answers
     with a traversable of its own rather than a path, and there the file is
     the one beside this module's package (``sliders/data/``), the same place.
     """
+    return shipped_path(DEFAULT_MODEL_NAME)
+
+
+def default_posterior_path() -> pathlib.Path:
+    """The shipped posterior of the pile's parameters (``infer``), beside the default model."""
+    return shipped_path(DEFAULT_POSTERIOR_NAME)
+
+
+def shipped_path(name: str) -> pathlib.Path:
+    """The file ``name`` of the package's data folder (``default_model_path``)."""
     found = importlib.resources.files("sliders").joinpath("data", name)
     if isinstance(found, pathlib.Path):
         return found
@@ -268,7 +279,7 @@ def load_forecasters(path) -> tuple[dict, dict]:
     blob = read_model_bytes(path)
     where = printable(path)
     if pathlib.Path(path).resolve() in (default_model_path().resolve(),
-                                        default_model_path(DEFAULT_POSTERIOR_NAME).resolve()):
+                                        default_posterior_path().resolve()):
         check_digest(path, blob)
     if not zipfile.is_zipfile(io.BytesIO(blob)):
         raise ModelFileError(f"{where}: refused: not a sliders model file (a skops archive; "

@@ -33,12 +33,11 @@ import numpy as np
 from ...driver import run as tilt_to
 from ...io.catalogue import Catalogue
 from ...io.forecast_files import ForecastInputError, parse_angle, tilt_in_range
-from ...io.forecast_model import (DEFAULT_POSTERIOR_NAME, ModelFileError, default_model_path,
-                                  load_forecasters)
+from ...io.forecast_model import ModelFileError, default_posterior_path, load_forecasters
 from ...io.safeio import publish_bytes
 from ...analysis.forecast.features import Cuts
 from ...analysis.forecast.measurement import Measurement, degrade
-from ...analysis.forecast.posterior_check import (CHECK_ALPHA, check_statistics,
+from ...analysis.forecast.posterior_check import (CHECK_ALPHA, SURVIVAL, check_statistics,
                                                   predictive_p_values, reproduced,
                                                   survival_p_value)
 from ..command import DEFAULT_BACKEND
@@ -78,11 +77,6 @@ def check_infer_options(args) -> None:
                                  f"[3, {MAX_CHECK_DRAWS}]")
     if not 0 <= args.seed < 2**32:
         raise ForecastInputError(f"--seed {args.seed}: must lie in [0, 2^32)")
-
-
-def default_posterior_path():
-    """The posterior shipped inside the package."""
-    return default_model_path(DEFAULT_POSTERIOR_NAME)
 
 
 def load_posterior(path=None) -> "PosteriorModel":
@@ -186,14 +180,15 @@ class PosteriorModel:
         """``draws`` piles simulated at posterior draws up to the catalogue's tilt reached,
         measured as it was, against it: each statistic's p-value, whether it is reproduced."""
         material = self.posterior.sample(q_row, draws, rng)
-        simulated, avalanched = simulate_piles(self.prior_scene(), material, cat.tilt_now,
+        simulated, avalanche_angles = simulate_piles(self.prior_scene(), material, cat.tilt_now,
                                                measurement, rng)
         arbitrary = measurement.size_unit == "arbitrary"
         p = predictive_p_values(check_statistics(cat, arbitrary),
                                 [check_statistics(c, arbitrary) for c in simulated])
-        p["not_avalanched"] = survival_p_value(avalanched)
+        p[SURVIVAL] = survival_p_value(avalanche_angles, cat.tilt_now)
         return {"reproduced": reproduced(p), "p_values": p, "simulated": draws,
-                "avalanched_before": int(np.sum(avalanched)), "alpha": CHECK_ALPHA}
+                "avalanched_before": int(np.sum(np.isfinite(avalanche_angles))),
+                "alpha": CHECK_ALPHA}
 
     def prior_scene(self):
         """The base scene of the prior the posterior was fitted on."""
@@ -202,7 +197,7 @@ class PosteriorModel:
 
 def simulate_piles(base_scene, material: dict, tilt: float, measurement: Measurement, rng):
     """The catalogues of piles of ``material`` (one per draw) tilted up to ``tilt``, measured as
-    ``measurement`` says (sizes in sliders), and whether each avalanched before."""
+    ``measurement`` says (sizes in sliders), and each one's avalanche angle (NaN: it stood)."""
     seeds = rng.integers(1, 2**31 - 1, len(material["mu_d"]))
     measured = Measurement(measurement.angle_resolution, 1.0 if measurement.size_unit ==
                            "arbitrary" else measurement.min_size, measurement.missed_fraction)
@@ -222,8 +217,8 @@ def simulate_piles(base_scene, material: dict, tilt: float, measurement: Measure
         sim = Catalogue(sim.alpha, sim.size, sim.displacement, sim.first, sim.last,
                         tilt_now=max(float(tilt), float(sim.tilt_now)))
         cats.append(degrade(sim, measured, rng))
-        avalanched.append(result.status == "avalanche")
-    return cats, np.array(avalanched, dtype=bool)
+        avalanched.append(result.alpha_c if result.status == "avalanche" else math.nan)
+    return cats, np.array(avalanched, dtype=float)
 
 
 class Inference:

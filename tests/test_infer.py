@@ -1,0 +1,187 @@
+"""``python -m sliders.forecast infer``: the posterior of a pile's material from its catalogue.
+
+The shipped posterior is read once (module fixture); the piles are simulated
+here: rows of the shipped posterior's own prior that its fit held out (their
+indices are in its provenance), of at most ``SMALL_PILE`` sliders so that
+they run in seconds, each cut at a random tilt before its avalanche.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import zipfile
+
+import numpy as np
+import pytest
+from sklearn.base import clone
+
+from sliders.analysis.forecast.features import Cuts
+from sliders.analysis.forecast.measurement import PERFECT
+from sliders.analysis.forecast.posterior import POSTERIOR_PARAMETERS, ParameterPosterior
+from sliders.driver import run
+from sliders.io.catalogue import Catalogue
+from sliders.io.forecast_files import ForecastInputError
+from sliders.io.forecast_model import default_posterior_path
+from sliders.runs.forecast import cli
+from sliders.runs.forecast.infer import load_posterior
+from sliders.runs.forecast.catalogue import catalogue_csv_text
+from sliders.runs.prior_spec import parse_prior
+
+SMALL_PILE = 50  # sliders: the held-out rows simulated here
+N_PILES = 60
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_posterior()
+
+
+@pytest.fixture(scope="module")
+def held_out(model):
+    """(catalogues cut at random tilts, their true parameters) of held-out prior rows."""
+    post = model.posterior
+    prior = parse_prior(post.prior_spec())
+    values = prior.values()
+    rows = [r for r in model.provenance["held_out_rows"] if values["n_sliders"][r] <= SMALL_PILE]
+    rng = np.random.default_rng(5)
+    cats, truth = [], {p: [] for p in post.parameters_}
+    for r in rows[:N_PILES]:
+        result = run(prior.scene(r), "fortran")
+        whole = Catalogue.from_result(result)
+        cats.append(whole.cut(rng.uniform(0.0, result.alpha_c)))
+        for p in post.parameters_:
+            truth[p].append(values[p][r])
+    return cats, {p: np.array(v, dtype=float) for p, v in truth.items()}
+
+
+def _csv(tmp_path, cat, name="pile.csv"):
+    path = tmp_path / name
+    path.write_text(catalogue_csv_text(cat))
+    return str(path)
+
+
+def test_json_has_every_parameter_with_nested_intervals(tmp_path, held_out, capsys):
+    cats, _ = held_out
+    cat = max(cats, key=len)
+    code = cli.main(["infer", _csv(tmp_path, cat), "--json", "--no-check"])
+    assert code == 0
+    d = json.loads(capsys.readouterr().out)
+    assert set(d) >= {"parameters", "contraction", "in_domain", "check"}
+    assert d["check"] is None
+    assert list(d["parameters"]) == list(POSTERIOR_PARAMETERS)
+    for name, p in d["parameters"].items():
+        lo95, hi95 = p["interval_95"]
+        lo80, hi80 = p["interval_80"]
+        assert lo95 <= lo80 <= p["median"] <= hi80 <= hi95, name
+        assert -1.0 <= d["contraction"][name] <= 1.0
+    assert 0.0 <= d["parameters"]["xi"]["p_zero"] <= 1.0
+    probs = d["parameters"]["n_sliders"]["probabilities"]
+    assert math.isclose(sum(probs.values()), 1.0, abs_tol=1e-9)
+    mu = d["parameters"]["mu_d"]
+    assert math.isclose(math.degrees(math.atan(mu["median"])), mu["atan_deg"]["median"])
+
+
+def test_intervals_lie_within_the_prior_range(model, held_out):
+    cats, _ = held_out
+    post = model.posterior
+    q = post.quantiles(Cuts.from_catalogues(cats[:20], PERFECT))
+    span = post.prior_range()
+    for row in q:
+        for name, p in post.summary(row).items():
+            lo, hi = span[name]
+            for v in (p["interval_95"] or []):
+                assert lo * (1 - 1e-9) <= v <= hi * (1 + 1e-9), (name, v, span[name])
+
+
+def test_true_parameters_of_held_out_piles_are_covered_at_about_the_nominal_rate(model, held_out):
+    cats, truth = held_out
+    post = model.posterior
+    q = post.quantiles(Cuts.from_catalogues(cats, PERFECT))
+    inside = {p: [] for p in post.parameters_}
+    for i, row in enumerate(q):
+        s = post.summary(row)
+        for p in ("mu_d", "mu_s_minus_mu_d", "sigma_mu"):
+            lo, hi = s[p]["interval_80"]
+            inside[p].append(lo <= truth[p][i] <= hi)
+    rates = {p: float(np.mean(v)) for p, v in inside.items() if v}
+    # 60 piles: the 80 % interval's binomial spread is +-0.05; the small piles are a slice
+    assert all(0.6 <= r <= 0.97 for r in rates.values()), rates
+    assert 0.7 <= np.mean(list(rates.values())) <= 0.92, rates
+
+
+def test_the_text_names_every_parameter_and_the_skipped_check(model, held_out):
+    cats, _ = held_out
+    text = str(model.infer_catalogue(cats[0], PERFECT, check=False))
+    for word in ("mu_d", "atan(mu_d)", "mu_s - mu_d", "sigma_mu", "P(xi = 0)", "N (sliders)",
+                 "skipped"):
+        assert word in text
+
+
+def test_the_check_reproduces_a_held_out_pile(model, held_out):
+    cats, _ = held_out
+    cat = next(c for c in cats if len(c) >= 20)
+    d = model.infer_catalogue(cat, PERFECT, check=True, check_draws=12, seed=1).to_dict()
+    assert d["check"]["simulated"] == 12
+    assert d["check"]["reproduced"] is True, d["check"]
+
+
+def test_the_check_flags_a_pile_of_a_material_outside_the_prior(model):
+    # mu_d = 1.4 is above the prior's 0.2-1.1: its pile stands to atan(1.4) = 54°, where
+    # every pile of the prior has avalanched
+    scene = parse_prior(model.posterior.prior_spec()).base_scene.replace(
+        mu_d=1.4, mu_s_mean=1.45, sigma_mu=0.01, xi=0.0, n_sliders=50, seed=7)
+    result = run(scene, "fortran")
+    cat = Catalogue.from_result(result).cut(result.alpha_c - math.radians(0.5))
+    inference = model.infer_catalogue(cat, PERFECT, check=True, seed=1)
+    assert inference["check"]["reproduced"] is False
+    assert "the model does not reproduce this catalogue" in str(inference)
+
+
+def test_bad_input_is_one_line_and_status_2(tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("angle [deg],size\n2,1\n1,1\n")
+    assert cli.main(["infer", str(bad), "--no-check"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "below the previous row" in err
+    assert cli.main(["infer", str(bad), "--check-draws", "1"]) == 2
+    assert "--check-draws 1" in capsys.readouterr().err
+
+
+def test_a_corrupted_posterior_file_is_refused_in_one_line(tmp_path, held_out, capsys):
+    cats, _ = held_out
+    copy = tmp_path / "posterior.skops"
+    shutil.copyfile(default_posterior_path(), copy)
+    with zipfile.ZipFile(copy) as z:  # an array member of the copy, rewritten as other bytes
+        member = next(i for i in z.infolist() if i.filename.endswith(".npy")
+                      and i.file_size > 1000)
+        members = {i.filename: z.read(i.filename) for i in z.infolist()}
+    members[member.filename] = members[member.filename][:-8]
+    with zipfile.ZipFile(copy, "w") as z:
+        for name, data in members.items():
+            z.writestr(name, data)
+    assert cli.main(["infer", _csv(tmp_path, cats[0]), "--posterior", str(copy)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(copy) in err
+
+
+def test_a_forecaster_file_is_not_a_posterior(tmp_path):
+    from sliders.io.forecast_model import default_model_path
+
+    with pytest.raises(ForecastInputError, match="not a posterior file"):
+        load_posterior(default_model_path())
+
+
+def test_the_estimator_follows_the_scikit_learn_rules():
+    est = ParameterPosterior(max_iter=7, random_state=3)
+    twin = clone(est)
+    assert twin.get_params() == est.get_params()
+    assert not any(k.endswith("_") for k in vars(twin))
+
+
+def test_the_corner_plot_is_a_png(tmp_path, model, held_out):
+    cats, _ = held_out
+    out = tmp_path / "posterior.png"
+    model.infer_catalogue(cats[0], PERFECT, check=False).plot(out)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
