@@ -49,7 +49,7 @@ from ...io.catalogue import Catalogue
 from .domain import DOMAIN_FEATURES, DomainCheck
 from .features import Cuts, feature_matrix, training_cuts
 from .integrity import IntegrityError, check_array, check_boosting, check_number, require
-from .measurement import degrade_cuts
+from .measurement import PERFECT, degrade_cuts
 
 #: the material parameters inferred, in order
 POSTERIOR_PARAMETERS = ("mu_d", "mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders")
@@ -61,6 +61,9 @@ POSTERIOR_LEVELS = np.array([0.025, 0.1, 0.25, 0.5, 0.75, 0.9, 0.975])
 XI_ZERO_GAP = 0.5
 #: the classes of catalogue with their own conformal shifts: complete, or angles and sizes only
 CATALOGUE_CLASSES = ("complete", "angles_sizes")
+#: lone-slider pairs that must agree (``features.single_slider_mu_d``) for mu_d to be learned
+#: about their estimate, in a complete catalogue of exact angles
+REFERENCE_AGREE = 2
 #: the points of the posterior's CDF its variance is computed on
 VARIANCE_POINTS = 400
 
@@ -89,16 +92,27 @@ def is_complete(cat: Catalogue) -> bool:
 
 def design(cuts: Cuts) -> np.ndarray:
     """(n, F) what the regressors see: the catalogue's and the measurement's features
-    (``features.feature_matrix``) and whether the catalogue is complete."""
-    x, _ = feature_matrix(cuts)
+    (``features.feature_matrix``), whether the catalogue is complete, and whether its
+    lone-slider pairs give mu_d (``lone_slider_mu_d``)."""
+    x, names = feature_matrix(cuts)
     complete = np.array([is_complete(c) for c in cuts.catalogues], dtype=float)
-    return np.hstack([x, complete[:, None]])
+    exact = np.isfinite(lone_slider_mu_d(x, names)).astype(float)
+    return np.hstack([x, complete[:, None], exact[:, None]])
+
+
+def lone_slider_mu_d(x, names) -> np.ndarray:
+    """(n,) mu_d from the lone-slider pairs where ``REFERENCE_AGREE`` of them agree in a
+    catalogue of exact angles (exact when xi = 0), NaN elsewhere."""
+    a = x[:, names.index("atan_mu_d_single")]
+    exact = (np.isfinite(a) & (x[:, names.index("single_slider_agree")] >= REFERENCE_AGREE)
+             & (x[:, names.index("angle_resolution")] == 0))
+    return np.where(exact, np.tan(np.where(exact, a, 0.0)), np.nan)
 
 
 def design_names() -> list[str]:
     """The names of ``design``'s columns."""
     one = Catalogue([0.1], [1], [0.0], [0], [0], 0.1)
-    return feature_matrix(Cuts.from_catalogues([one]))[1] + ["complete"]
+    return feature_matrix(Cuts.from_catalogues([one]))[1] + ["complete", "lone_slider_mu_d"]
 
 
 class ParameterPosterior(BaseEstimator):
@@ -111,7 +125,11 @@ class ParameterPosterior(BaseEstimator):
     max_iter, learning_rate, max_leaf_nodes, min_samples_leaf, max_bins : int or float
         Of each ``HistGradientBoostingRegressor`` (quantile loss).
     degrade : bool
-        Degrade every cut by a measurement drawn from ``measurement.MEASUREMENT_RANGES``.
+        Degrade the cuts by measurements drawn from ``measurement.MEASUREMENT_RANGES``.
+    exact_share : float
+        Share of the cuts kept as recorded (exact angles, every event), beside the
+        measurements' own exact ones: the measurement is a feature, so its law in training
+        changes no posterior, and the lone-slider pairs that give mu_d need exact angles.
     angles_sizes_share : float
         Share of the cuts kept to their angles and sizes.
     calibration_share : float
@@ -143,9 +161,9 @@ class ParameterPosterior(BaseEstimator):
         The prior's specification (JSON): the predictive check simulates its scene.
     """
 
-    def __init__(self, draws_per_row: int = 4, max_iter: int = 50, learning_rate: float = 0.1,
+    def __init__(self, draws_per_row: int = 6, max_iter: int = 50, learning_rate: float = 0.1,
                  max_leaf_nodes: int = 15, min_samples_leaf: int = 40, max_bins: int = 63,
-                 degrade: bool = True, angles_sizes_share: float = 0.5,
+                 degrade: bool = True, exact_share: float = 0.5, angles_sizes_share: float = 0.3,
                  calibration_share: float = 0.2, random_state: int = 0):
         self.draws_per_row = draws_per_row
         self.max_iter = max_iter
@@ -154,6 +172,7 @@ class ParameterPosterior(BaseEstimator):
         self.min_samples_leaf = min_samples_leaf
         self.max_bins = max_bins
         self.degrade = degrade
+        self.exact_share = exact_share
         self.angles_sizes_share = angles_sizes_share
         self.calibration_share = calibration_share
         self.random_state = random_state
@@ -163,7 +182,11 @@ class ParameterPosterior(BaseEstimator):
         """Random cuts of ``cset``, degraded if ``degrade``, a share kept to angles and sizes."""
         cuts = training_cuts(cset, self.draws_per_row, rng)
         if self.degrade:
+            kept = cuts.catalogues
+            exact = rng.random(len(cuts)) < self.exact_share
             cuts = degrade_cuts(cuts, rng)
+            cuts.catalogues = [k if e else c for k, c, e in zip(kept, cuts.catalogues, exact)]
+            cuts.measurement = [PERFECT if e else m for m, e in zip(cuts.measurement, exact)]
         strip = rng.random(len(cuts)) < self.angles_sizes_share
         cuts.catalogues = [angles_sizes_only(c) if s else c for c, s in zip(cuts.catalogues, strip)]
         return cuts
@@ -195,7 +218,9 @@ class ParameterPosterior(BaseEstimator):
         held = rng.random(len(train)) < self.calibration_share
         fit_set, cal_set = train.subset(np.flatnonzero(~held)), train.subset(np.flatnonzero(held))
         cuts = self.cuts_of(fit_set, rng)
-        x, y_fit = design(cuts), self.targets(fit_set, cuts.row)
+        x = design(cuts)
+        self.mu_d_reference_ = float(np.median(np.asarray(train.parameters.get("mu_d", [0.0]))))
+        y_fit = self.targets(fit_set, cuts.row) - self._offsets(x)
         self.n_features_in_ = x.shape[1]
         self.models_ = [[self._regressor(level).fit(x, y_fit[:, p]) for level in POSTERIOR_LEVELS]
                         for p in range(len(self.parameters_))]
@@ -255,11 +280,23 @@ class ParameterPosterior(BaseEstimator):
         self.copula_ = (1 - shrink) * c + shrink * np.eye(len(c))
 
     # -- predict -----------------------------------------------------------------------------
+    def _offsets(self, x) -> np.ndarray:
+        """(n, P) what each parameter is learned about: mu_d about the lone-slider pairs'
+        estimate where ``REFERENCE_AGREE`` of them agree in a complete catalogue of exact
+        angles (there it is exact when xi = 0: the regressors learn the small remainder), else
+        about the prior's median; the others about 0."""
+        off = np.zeros((len(x), len(self.parameters_)))
+        if "mu_d" in self.parameters_:
+            mu_d = lone_slider_mu_d(x, design_names())
+            off[:, self.parameters_.index("mu_d")] = np.where(np.isfinite(mu_d), mu_d,
+                                                              self.mu_d_reference_)
+        return off
+
     def _raw_quantiles(self, x) -> np.ndarray:
         with threadpool_limits(limits=1, user_api="openmp"):
             q = np.stack([np.column_stack([m.predict(x) for m in models])
                           for models in self.models_], axis=1)
-        return np.sort(q, axis=2)
+        return np.sort(q + self._offsets(x)[:, :, None], axis=2)
 
     def _spread(self, q) -> np.ndarray:
         lo, hi = np.searchsorted(POSTERIOR_LEVELS, [0.1, 0.9])
@@ -420,6 +457,7 @@ class ParameterPosterior(BaseEstimator):
                     shape=(len(CATALOGUE_CLASSES), n_p, n_l), lo=-1e3, hi=1e3)
         check_array(self.n_sliders_values_, "posterior: numbers of sliders", lo=1.0,
                     increasing=True, min_size=1)
+        check_number(self.mu_d_reference_, "posterior: mu_d's reference", -1e3, 1e3)
         if "xi" in self.parameters_:
             check_number(self.xi_zero_code_, "posterior: xi's zero", -300.0, 300.0)
         require(isinstance(self.prior_, str), "posterior: the prior is not a text")

@@ -1,0 +1,244 @@
+"""Is the shipped posterior of the pile's material calibrated, how much does it learn, does its
+predictive check tell a pile outside the prior, and what does ``infer`` cost?
+
+    nice -n 10 .venv/bin/python benchmarks/inference_calibration.py \\
+        --data /work/data/prior/default_forecaster.skops.prior.h5 --outside /work/data/prior
+
+On the rows of the prior file that the shipped posterior's fit held out (their
+indices are in its provenance):
+
+* simulation-based calibration: ``--pairs`` (row, cut) pairs, each row cut at a
+  tilt drawn uniformly below its avalanche angle, complete catalogues and the
+  same kept to angles and sizes: each true parameter's posterior CDF (its
+  rank, the atoms spread uniformly), the Kolmogorov-Smirnov p-value of their
+  uniformity, and the coverage of the central 50, 80 and 95 % intervals
+  (target: within 0.03 of nominal);
+* the contraction (1 - posterior variance / prior variance, learned scale) at a
+  third and two thirds of the avalanche angle and 3° before it;
+* atan(mu_d)'s median absolute error 3° before the avalanche, complete
+  catalogues (target: 2e-3 rad);
+* the predictive check, cut 1° before the avalanche: the share of the piles
+  of each ``outside_*.h5`` set (materials, couplings, preparations, piles
+  outside the prior) flagged "not reproduced" (target: 90 %), and of
+  ``--check-rows`` held-out rows (target: at most 5 %);
+* ``infer``'s wall clock in a fresh process on a 150-event catalogue, with and
+  without the check, against a fresh ``predict`` of the same catalogue.
+
+Prints its figures and writes benchmarks/results/inference_calibration.json and
+inference_calibration.png (rank histograms and coverage).
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import math
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+from scipy.stats import kstest
+
+from sliders.analysis.forecast.features import Cuts
+from sliders.analysis.forecast.measurement import PERFECT
+from sliders.analysis.forecast.posterior import angles_sizes_only
+from sliders.io.prior_file import read_prior_ensemble
+from sliders.runs.forecast.catalogue import catalogue_csv_text
+from sliders.runs.forecast.infer import load_posterior
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+COVERAGES = (0.5, 0.8, 0.95)
+LEAD_ERROR = math.radians(3.0)  # the lead of atan(mu_d)'s error
+LEAD_CHECK = math.radians(1.0)  # the lead of the predictive check's cut
+TARGETS = {"coverage_tolerance": 0.03, "atan_mu_d_error_rad": 2e-3, "outside_flagged": 0.9,
+           "in_prior_flagged": 0.05, "infer_seconds": 5.0}
+
+
+def sbc(post, cset, rows, rng, kind: str) -> dict:
+    """Ranks (posterior CDFs of the truths) of ``rows`` cut at random tilts, their KS p-value
+    and the central intervals' coverage, per parameter."""
+    cats = [cset.catalogue(int(r)).cut(rng.uniform(0.0, cset.alpha_c[r])) for r in rows]
+    if kind == "angles_sizes":
+        cats = [angles_sizes_only(c) for c in cats]
+    truth = {p: np.asarray(cset.parameters[p])[rows] for p in post.parameters_}
+    ranks = post.probability_integral(Cuts.from_catalogues(cats, PERFECT), truth, rng)
+    out = {}
+    for j, p in enumerate(post.parameters_):
+        u = ranks[:, j]
+        out[p] = {"ks_p_value": float(kstest(u, "uniform").pvalue),
+                  "coverage": {f"{c:g}": float(np.mean(np.abs(u - 0.5) <= c / 2))
+                               for c in COVERAGES},
+                  "ranks": u.tolist()}
+    return out
+
+
+def contraction_at(post, cset, rows, stage) -> dict:
+    """Mean contraction of every parameter over ``rows`` cut at ``stage(alpha_c)``."""
+    cats = [cset.catalogue(int(r)).cut(max(stage(cset.alpha_c[r]), 0.0)) for r in rows]
+    q = post.quantiles(Cuts.from_catalogues(cats, PERFECT))
+    c = [post.contraction(row) for row in q]
+    return {p: float(np.mean([d[p] for d in c])) for p in post.parameters_}
+
+
+def atan_mu_d_error(post, cset, rows) -> float:
+    """Median |atan(median mu_d) - atan(mu_d)| (rad), complete catalogues 3° before the
+    avalanche."""
+    rows = [r for r in rows if cset.alpha_c[r] > LEAD_ERROR]
+    cats = [cset.catalogue(int(r)).cut(cset.alpha_c[r] - LEAD_ERROR) for r in rows]
+    q = post.quantiles(Cuts.from_catalogues(cats, PERFECT))
+    p = post.parameters_.index("mu_d")
+    med = np.array([post.ppf(row, p, 0.5) for row in q])
+    true = np.asarray(cset.parameters["mu_d"])[rows]
+    return float(np.median(np.abs(np.arctan(med) - np.arctan(true))))
+
+
+def flagged_share(model, cset, rows, draws: int, log) -> dict:
+    """The share of ``rows`` (cut ``LEAD_CHECK`` before their avalanche) the check flags."""
+    flags, seconds = [], []
+    for i, r in enumerate(rows):
+        cat = cset.catalogue(int(r))
+        cat = cat.cut(max(cset.alpha_c[r] - LEAD_CHECK, 0.0))
+        t = time.perf_counter()
+        d = model.infer_catalogue(cat, PERFECT, check=True, check_draws=draws, seed=i).to_dict()
+        seconds.append(time.perf_counter() - t)
+        flags.append(not d["check"]["reproduced"])
+    log(f"  {np.mean(flags):.2f} flagged of {len(rows)} ({np.median(seconds):.1f} s each)")
+    return {"flagged": float(np.mean(flags)), "rows": len(rows),
+            "median_seconds": float(np.median(seconds))}
+
+
+def fresh_process_seconds(cmd, runs: int) -> float:
+    """Median wall clock of ``cmd`` in a fresh process."""
+    out = []
+    for _ in range(runs):
+        t = time.perf_counter()
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+        out.append(time.perf_counter() - t)
+    return statistics.median(out)
+
+
+def timings(cset, rows, runs: int) -> dict:
+    """``infer`` with and without the check and a cold ``predict``, fresh processes, on the
+    first held-out row with 150 events cut at its 150th."""
+    r = next(int(r) for r in rows if len(cset.catalogue(int(r))) > 150)
+    whole = cset.catalogue(r)
+    cat = whole.cut(float(whole.alpha[149]))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "c150.csv")
+        with open(path, "w") as fh:
+            fh.write(catalogue_csv_text(cat))
+        base = [sys.executable, "-m", "sliders.forecast"]
+        fresh_process_seconds(base + ["infer", path, "--no-check"], 1)  # warm the caches
+        out = {"row": r, "n_sliders": int(np.asarray(cset.parameters["n_sliders"])[r]),
+               "events": len(cat),
+               "infer_check_s": fresh_process_seconds(base + ["infer", path], runs),
+               "infer_no_check_s": fresh_process_seconds(base + ["infer", path, "--no-check"], runs),
+               "predict_s": fresh_process_seconds(base + ["predict", path], runs)}
+    return out
+
+
+def figure(results: dict, path: str) -> None:
+    """Rank histograms (both kinds of catalogue) and the coverage of every parameter."""
+    from matplotlib.figure import Figure
+
+    kinds = list(results["sbc"])
+    names = list(results["sbc"][kinds[0]])
+    fig = Figure(figsize=(2.4 * len(names), 2.2 * (len(kinds) + 1)))
+    axes = fig.subplots(len(kinds) + 1, len(names), squeeze=False)
+    for i, kind in enumerate(kinds):
+        for j, p in enumerate(names):
+            d = results["sbc"][kind][p]
+            ax = axes[i, j]
+            n = len(d["ranks"])
+            ax.hist(d["ranks"], bins=20, range=(0, 1), color="C0")
+            ax.axhline(n / 20, color="k", lw=0.8)
+            ax.fill_between([0, 1], n / 20 - 2 * math.sqrt(n / 20), n / 20 + 2 * math.sqrt(n / 20),
+                            color="0.85", zorder=0)
+            ax.set_title(f"{p}, {kind}\nKS p = {d['ks_p_value']:.2g}", fontsize=8)
+            ax.set_yticks([])
+            ax.tick_params(labelsize=7)
+    for j, p in enumerate(names):
+        ax = axes[-1, j]
+        for k, kind in enumerate(kinds):
+            cov = results["sbc"][kind][p]["coverage"]
+            ax.plot(COVERAGES, [cov[f"{c:g}"] for c in COVERAGES], "o-", label=kind, ms=4)
+        ax.plot([0.4, 1], [0.4, 1], "k:", lw=0.8)
+        ax.set_xlabel("nominal coverage", fontsize=8)
+        ax.set_ylabel("observed" if j == 0 else "", fontsize=8)
+        ax.tick_params(labelsize=7)
+        if j == 0:
+            ax.legend(fontsize=7)
+    fig.suptitle("simulation-based calibration of the shipped posterior (held-out rows): rank "
+                 "histograms (grey: +-2 sd of a uniform) and coverage", fontsize=9)
+    fig.tight_layout(rect=(0, 0, 1, 0.96))
+    fig.savefig(path, dpi=110)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", required=True, help="the prior file the shipped posterior was fit on")
+    ap.add_argument("--outside", default=None, help="folder of the outside_*.h5 sets")
+    ap.add_argument("--pairs", type=int, default=600, help="(row, cut) pairs of the calibration")
+    ap.add_argument("--outside-rows", type=int, default=40, help="rows of each outside set")
+    ap.add_argument("--check-rows", type=int, default=40, help="held-out rows checked")
+    ap.add_argument("--check-draws", type=int, default=24, help="piles simulated per check")
+    ap.add_argument("--runs", type=int, default=3, help="fresh processes per timing")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", default=os.path.join(HERE, "results", "inference_calibration.json"))
+    args = ap.parse_args(argv)
+
+    def log(*a):
+        print(*a, flush=True)
+
+    model = load_posterior()
+    post = model.posterior
+    cset = read_prior_ensemble(args.data)
+    held = np.array(model.provenance["held_out_rows"], dtype=int)
+    rng = np.random.default_rng(args.seed)
+    rows = rng.permutation(held)[:args.pairs]
+    results = {"posterior": str(model.path), "held_out_rows": int(held.size),
+               "pairs": int(rows.size), "targets": TARGETS, "sbc": {}}
+    for kind in ("complete", "angles_sizes"):
+        results["sbc"][kind] = sbc(post, cset, rows, rng, kind)
+        for p, d in results["sbc"][kind].items():
+            log(f"SBC {kind:12s} {p:16s} KS p {d['ks_p_value']:.3f}  coverage "
+                + "  ".join(f"{c}: {v:.3f}" for c, v in d["coverage"].items()))
+    stages = {"third": lambda a: a / 3, "two_thirds": lambda a: 2 * a / 3,
+              "3deg_before": lambda a: a - LEAD_ERROR}
+    results["contraction"] = {s: contraction_at(post, cset, rows, f) for s, f in stages.items()}
+    for s, d in results["contraction"].items():
+        log(f"contraction at {s:12s} " + "  ".join(f"{p} {v:.2f}" for p, v in d.items()))
+    results["atan_mu_d_median_abs_error_rad"] = atan_mu_d_error(post, cset, rows)
+    log(f"atan(mu_d) median |error| 3° before the avalanche, complete catalogues: "
+        f"{results['atan_mu_d_median_abs_error_rad']:.2e} rad")
+    results["check"] = {}
+    if args.outside:
+        for path in sorted(glob.glob(os.path.join(args.outside, "outside_*.h5"))):
+            name = os.path.basename(path)[:-3]
+            log(f"check {name}:")
+            out = read_prior_ensemble(path)
+            ok = np.flatnonzero(np.isfinite(out.alpha_c))[:args.outside_rows]
+            results["check"][name] = flagged_share(model, out, ok, args.check_draws, log)
+    log("check held-out rows of the prior:")
+    results["check"]["in_prior"] = flagged_share(model, cset, rows[:args.check_rows],
+                                                 args.check_draws, log)
+    results["timing"] = timings(cset, rows, args.runs)
+    log("timing (fresh processes, median): " + json.dumps(results["timing"]))
+    os.makedirs(os.path.dirname(args.out), exist_ok=True)
+    figure(results, args.out[:-5] + ".png")
+    for kind in results["sbc"].values():  # the ranks are in the figure, not the JSON
+        for d in kind.values():
+            d.pop("ranks")
+    with open(args.out, "w") as fh:
+        json.dump(results, fh, indent=1)
+    log(f"wrote {args.out} and {args.out[:-5]}.png")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
