@@ -179,6 +179,24 @@ def figure(results: dict, path: str) -> None:
     fig.savefig(path, dpi=110)
 
 
+def corner_of_row(model, cset, row: int, path: str) -> dict:
+    """The corner plot of held-out row ``row``, its complete catalogue cut 3° before its
+    avalanche, with its true parameters marked; returns the inference (``to_dict``)."""
+    from sliders.figures.posterior import corner_figure
+
+    cat = cset.catalogue(row).cut(cset.alpha_c[row] - LEAD_ERROR)
+    inference = model.infer_catalogue(cat, PERFECT, check=True)
+    truth = {p: float(np.asarray(cset.parameters[p])[row]) for p in model.posterior.parameters_}
+    fig = corner_figure(inference.draws, inference.prior_range, inference["parameters"], truth,
+                        title=f"row {row} of the prior file (held out), {len(cat)} events, 3° "
+                              "before its avalanche: posterior (shaded: the prior's range; red: "
+                              "the true values)")
+    fig.savefig(path, dpi=90)
+    print(str(inference))
+    print("true:", json.dumps(truth))
+    return inference.to_dict()
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", required=True, help="the prior file the shipped posterior was fit on")
@@ -189,6 +207,9 @@ def main(argv=None) -> int:
     ap.add_argument("--check-draws", type=int, default=24, help="piles simulated per check")
     ap.add_argument("--runs", type=int, default=3, help="fresh processes per timing")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--corner", type=int, default=None, metavar="ROW",
+                    help="only draw the corner plot of held-out row ROW (with its true values) "
+                         "into results/inference_corner.png")
     ap.add_argument("--out", default=os.path.join(HERE, "results", "inference_calibration.json"))
     args = ap.parse_args(argv)
 
@@ -199,6 +220,12 @@ def main(argv=None) -> int:
     post = model.posterior
     cset = read_prior_ensemble(args.data)
     held = np.array(model.provenance["held_out_rows"], dtype=int)
+    if args.corner is not None:
+        if args.corner not in held:
+            ap.error(f"--corner {args.corner}: not a held-out row of the posterior's fit")
+        corner_of_row(model, cset, args.corner, os.path.join(os.path.dirname(args.out),
+                                                             "inference_corner.png"))
+        return 0
     rng = np.random.default_rng(args.seed)
     rows = rng.permutation(held)[:args.pairs]
     results = {"posterior": str(model.path), "held_out_rows": int(held.size),

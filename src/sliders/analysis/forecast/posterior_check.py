@@ -23,7 +23,7 @@ from ...io.catalogue import Catalogue
 #: the summary statistics compared; those counting sliders are left out for sizes in an
 #: arbitrary unit
 CHECK_STATISTICS = ("log_events", "onset", "centre", "log_mean_size", "log_max_size",
-                    "share_one", "size_ratio_max")
+                    "share_one", "size_ratio_max", "log_slip", "log_lone_slip")
 #: the statistics that count sliders
 CHECK_IN_SLIDERS = ("log_mean_size", "log_max_size", "share_one")
 #: the family-wise level under which a catalogue is "not reproduced"
@@ -34,11 +34,13 @@ SURVIVAL = "stands_to_tilt"
 SURVIVAL_SPREAD = math.radians(0.25)
 
 
-def check_statistics(cat: Catalogue, arbitrary_size: bool = False) -> dict:
+def check_statistics(cat: Catalogue, arbitrary_size: bool = False, complete: bool = True) -> dict:
     """The summary statistics of a catalogue the predictive check compares (``CHECK_STATISTICS``):
     the number of events (log), the first event's tilt and the events' mean tilt over the tilt
     reached, the mean and largest size (log), the share of lone slips, the largest size over
-    the mean.  NaN where undefined (and for those counting sliders with ``arbitrary_size``)."""
+    the mean; with displacements (``complete``), the mean displacement of an event and of a
+    lone slip (log, g tau^2: a lone slider moves by (mu_s,n - mu_d) cos(alpha)).  NaN where
+    undefined (and for those counting sliders with ``arbitrary_size``)."""
     n = len(cat)
     t = max(float(cat.tilt_now), 1e-9)
     size = cat.size.astype(float)
@@ -49,6 +51,11 @@ def check_statistics(cat: Catalogue, arbitrary_size: bool = False) -> dict:
          "log_max_size": math.log(size.max()) if n else math.nan,
          "share_one": float(np.mean(size == 1)) if n else math.nan,
          "size_ratio_max": math.log(size.max() / size.mean()) if n else math.nan}
+    disp = cat.displacement
+    lone = (size == 1) & (disp > 0)
+    s["log_slip"] = math.log(disp.mean()) if complete and n and disp.mean() > 0 else math.nan
+    s["log_lone_slip"] = (math.log(disp[lone].mean()) if complete and not arbitrary_size
+                          and lone.any() else math.nan)
     if arbitrary_size:
         for k in CHECK_IN_SLIDERS:
             s[k] = math.nan

@@ -170,21 +170,22 @@ class PosteriorModel:
                   "complete": complete, "notes": list(notes),
                   "prior_range": post.prior_range(),
                   "measurement": measurement_as_json(measurement),
-                  "check": (self.predictive_check(q, cat, measurement, check_draws, rng)
-                            if check else None),
+                  "check": (self.predictive_check(q, cat, measurement, check_draws, rng,
+                                                  complete) if check else None),
                   "posterior": {"path": str(self.path), **self.provenance}}
         return Inference(jsonable(report), post.sample(q, 4000, rng), post.prior_range())
 
     def predictive_check(self, q_row, cat: Catalogue, measurement: Measurement, draws: int,
-                         rng) -> dict:
+                         rng, complete: bool = True) -> dict:
         """``draws`` piles simulated at posterior draws up to the catalogue's tilt reached,
-        measured as it was, against it: each statistic's p-value, whether it is reproduced."""
+        measured as it was, against it (their displacements too if ``complete``): each
+        statistic's p-value, whether it is reproduced."""
         material = self.posterior.sample(q_row, draws, rng)
         simulated, avalanche_angles = simulate_piles(self.prior_scene(), material, cat.tilt_now,
                                                measurement, rng)
         arbitrary = measurement.size_unit == "arbitrary"
-        p = predictive_p_values(check_statistics(cat, arbitrary),
-                                [check_statistics(c, arbitrary) for c in simulated])
+        p = predictive_p_values(check_statistics(cat, arbitrary, complete),
+                                [check_statistics(c, arbitrary, complete) for c in simulated])
         p[SURVIVAL] = survival_p_value(avalanche_angles, cat.tilt_now)
         return {"reproduced": reproduced(p), "p_values": p, "simulated": draws,
                 "avalanched_before": int(np.sum(np.isfinite(avalanche_angles))),
