@@ -46,14 +46,21 @@ def held_out(model):
     values = prior.values()
     rows = [r for r in model.provenance["held_out_rows"] if values["n_sliders"][r] <= SMALL_PILE]
     rng = np.random.default_rng(5)
-    cats, truth = [], {p: [] for p in post.parameters_}
+    cats, truth, whole_set = [], {p: [] for p in post.parameters_}, []
     for r in rows[:N_PILES]:
         result = run(prior.scene(r), "fortran")
         whole = Catalogue.from_result(result)
+        whole_set.append((whole, result.alpha_c))
         cats.append(whole.cut(rng.uniform(0.0, result.alpha_c)))
         for p in post.parameters_:
             truth[p].append(values[p][r])
-    return cats, {p: np.array(v, dtype=float) for p, v in truth.items()}
+    truth = {p: np.array(v, dtype=float) for p, v in truth.items()}
+    HELD_OUT_PILES[:] = whole_set
+    return cats, truth
+
+
+#: the held-out piles' whole catalogues and avalanche angles (filled by ``held_out``)
+HELD_OUT_PILES: list = []
 
 
 def _csv(tmp_path, cat, name="pile.csv"):
@@ -185,3 +192,33 @@ def test_the_corner_plot_is_a_png(tmp_path, model, held_out):
     out = tmp_path / "posterior.png"
     model.infer_catalogue(cats[0], PERFECT, check=False).plot(out)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_a_posterior_fitted_on_a_few_piles_round_trips_through_its_file(tmp_path, held_out,
+                                                                         model):
+    from sliders.io.catalogue import CatalogueSet
+    from sliders.io.forecast_model import save_forecasters
+
+    cats, truth = held_out
+    whole = [c for c, _ in HELD_OUT_PILES]
+    train = CatalogueSet.from_catalogues(
+        whole, truth, [a for _, a in HELD_OUT_PILES], ["avalanche"] * len(whole),
+        attrs={"prior": model.posterior.prior_}).subset(np.arange(len(whole)))
+    post = ParameterPosterior(max_iter=5, draws_per_row=3, random_state=1).fit(train)
+    post.check_fitted()
+    path = tmp_path / "tiny.skops"
+    save_forecasters(str(path), {"posterior": post}, {"command": "test"})
+    d = load_posterior(path).infer_catalogue(cats[0], PERFECT, check=False).to_dict()
+    assert set(d["parameters"]) == set(post.parameters_)
+    assert d["parameters"]["n_sliders"]["median"] in post.n_sliders_values_
+
+
+@pytest.mark.slow
+def test_the_python_api_infers_with_the_forecast_model(tmp_path, held_out):
+    import sliders.forecast as sf
+
+    cats, _ = held_out
+    inference = sf.load().infer(_csv(tmp_path, cats[0]), check=False)
+    assert isinstance(inference, sf.Inference)
+    assert inference.to_dict()["check"] is None and "mu_d" in str(inference)
