@@ -15,7 +15,14 @@ from __future__ import annotations
 
 import sys
 
-from .runs.forecast.predict import ForecastModel, Prediction, load_model
+from ._forward import interrupted_while_starting
+
+try:
+    from .runs.forecast.predict import ForecastModel, Prediction, load_model
+except KeyboardInterrupt:
+    if __name__ != "__main__":
+        raise
+    interrupted_while_starting("sliders.forecast")
 
 __all__ = ["load", "main", "ForecastModel", "Prediction"]
 
