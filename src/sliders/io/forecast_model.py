@@ -33,6 +33,7 @@ checked as any file's.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import math
 import importlib.resources
@@ -40,6 +41,7 @@ import io
 import os
 import pathlib
 import stat
+import sys
 import zipfile
 
 import numpy as np
@@ -104,11 +106,12 @@ def forecasters_bytes(forecasters: dict, provenance: dict, where: str = "model")
     Checked as ``load_forecasters`` reads it, so that a model naming a type
     off the allow-list is never written.
     """
-    import skops.io as sio
+    with no_imports_from_the_current_folder():
+        import skops.io as sio
 
-    blob = sio.dumps({"format": MODEL_FORMAT, "forecasters": dict(forecasters),
-                      "provenance": dict(provenance)}, compression=zipfile.ZIP_DEFLATED,
-                     compresslevel=9)
+        blob = sio.dumps({"format": MODEL_FORMAT, "forecasters": dict(forecasters),
+                          "provenance": dict(provenance)}, compression=zipfile.ZIP_DEFLATED,
+                         compresslevel=9)
     _loads(blob, where)
     return blob
 
@@ -123,6 +126,11 @@ def save_forecasters(path: str, forecasters: dict, provenance: dict) -> int:
 def _loads(blob: bytes, where):
     """The object of a skops archive, built only if every type it names is trusted by skops or
     on ``ALLOWED_TYPES`` (skops audits the whole tree before it builds anything)."""
+    with no_imports_from_the_current_folder():
+        return _loads_here(blob, where)
+
+
+def _loads_here(blob: bytes, where):
     import skops.io as sio
 
     try:
@@ -140,6 +148,26 @@ def _loads(blob: bytes, where):
             from None
     except Exception as exc:  # noqa: BLE001 (whatever the archive holds: it is not a model file)
         raise ModelFileError(f"{where}: damaged model file ({type(exc).__name__})") from None
+
+
+@contextlib.contextmanager
+def no_imports_from_the_current_folder():
+    """Within: no module is imported from the current folder or the running script's.
+
+    skops names a type by looking it up in every loaded module, and a module may answer a
+    lookup by importing a module of that name (``Cython.Shadow`` does, and scipy loads it
+    wherever Cython is installed): ``./exp2.py`` or ``./gamma.py`` (scipy.special's names)
+    would then run while a model file is read.  The folders leave ``sys.path`` for that time.
+    """
+    mine = {os.getcwd()}
+    if sys.argv and sys.argv[0] not in ("", "-c", "-m"):
+        mine.add(os.path.dirname(os.path.abspath(sys.argv[0])))
+    saved = list(sys.path)
+    sys.path[:] = [p for p in saved if os.path.abspath(p or os.curdir) not in mine]
+    try:
+        yield
+    finally:
+        sys.path[:] = saved
 
 
 def read_model_bytes(path) -> bytes:
