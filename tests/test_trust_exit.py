@@ -133,3 +133,17 @@ def test_a_stopped_forecast_command_under_mpirun_exits_with_128_plus_the_signal(
     assert f"interrupted ({signal.Signals(sig).name})" in text
     assert "Traceback" not in text and "MPI_Abort" not in text
     assert text.count("interrupted") == 1, text  # one line, from rank 0
+
+
+@pytest.mark.parametrize("args, code", [(["predict", "--help"], 0), (["--help"], 0),
+                                         (["predict", "--no-such-option"], 2),
+                                         (["predict", "missing.csv"], 2)])
+def test_a_forecast_command_under_mpirun_ends_on_every_rank(tmp_path, args, code):
+    """Help, a bad option, a missing file: rank 0 ends the command, and the waiting rank
+    ends with it (no hang), with rank 0's status and one copy of its output."""
+    assert MPIRUN, "mpirun not found (install Debian mpich: scripts/setup.sh)"
+    res = subprocess.run([MPIRUN, "-n", "2", sys.executable, "-m", "sliders.forecast", *args],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert res.returncode == code, res.stderr
+    assert res.stdout.count("usage:") == (1 if "--help" in args else 0)
+    assert len(res.stderr.splitlines()) == (0 if code == 0 else 1), res.stderr

@@ -180,15 +180,20 @@ def main(argv: list[str] | None = None) -> int:
         return _command(argv)
     try:
         comm, _ = get_comm()
-    except MPIUnavailable:  # no MPI to wait with: rank 0 alone runs it, the others leave
-        return 0 if launcher_rank() > 0 else _command(argv, resignal=True)
-    if comm.size < 2:
-        return _command(argv, resignal=True)
+    except MPIUnavailable:
+        comm = None
+    if comm is None or comm.size < 2:  # no MPI to wait with (or srun's tasks without it):
+        return 0 if launcher_rank() > 0 else _command(argv, resignal=True)  # rank 0 alone
     if comm.rank > 0:
         return _wait_for_rank_0(comm)
-    code = _command(argv)
-    for rank in range(1, comm.size):
-        comm.send(code, dest=rank, tag=_STATUS_TAG)
+    code = 1  # what the others hear if an exception escapes the error boundary
+    try:
+        code = _command(argv)
+    except SystemExit as exc:  # --help (argparse's exit): the others must still hear of it
+        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+    finally:
+        for rank in range(1, comm.size):
+            comm.send(code, dest=rank, tag=_STATUS_TAG)
     return stopped_job_status(comm, code)
 
 
