@@ -62,7 +62,7 @@ def fingerprint(result: sliders.TiltResult) -> str:
     for state in (result.initial, result.final):
         for array in (state.displacement, state.mu_s, state.n_stops):
             digest.update(np.ascontiguousarray(array).tobytes())
-        digest.update(repr(state.alpha).encode())
+        digest.update(repr(state.drive).encode())
     return digest.hexdigest()
 
 

@@ -83,7 +83,7 @@ def child(n: int, xi: float, seed: int, alpha_max: float, cap: float, dt: float)
     relax = result.relaxation
     return {
         "n": n, "xi": xi, "seed": seed, "dt": dt, "alpha_max": alpha_max, "max_event_duration": cap,
-        "status": result.status, "alpha_c": result.alpha_c, "alpha_end": result.final.alpha,
+        "status": result.status, "alpha_c": result.alpha_c, "alpha_end": result.final.drive,
         "cpu_s": cpu, "wall_s": wall, "events": result.n_events,
         "steps": int(result.n_steps.sum()) + int(result.final_event.get("n_steps", 0)),
         "slider_steps": result.total_slider_steps,

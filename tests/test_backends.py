@@ -97,7 +97,7 @@ def assert_same_run(f: sliders.TiltResult, n: sliders.TiltResult) -> None:
         # the draws agree to the last bit or two (NumPy's log/cos vs glibc's)
         np.testing.assert_allclose(a.mu_s, b.mu_s, rtol=1e-15, atol=0)
         np.testing.assert_allclose(a.displacement, b.displacement, rtol=0, atol=DISPLACEMENT_TOL)
-        assert a.alpha == pytest.approx(b.alpha, abs=ALPHA_TOL)
+        assert a.drive == pytest.approx(b.drive, abs=ALPHA_TOL)
     assert f.relaxation == n.relaxation
     if n.status == "avalanche":
         assert f.alpha_c == pytest.approx(n.alpha_c, abs=ALPHA_TOL)
@@ -190,7 +190,7 @@ def test_engine_contract():
     np.testing.assert_array_equal(f.sparse_ptr, n.sparse_ptr)
     np.testing.assert_array_equal(f.sparse_index, n.sparse_index)
     np.testing.assert_allclose(f.sparse_displacement, n.sparse_displacement, atol=1e-12)
-    assert states[0].alpha == pytest.approx(states[1].alpha, abs=1e-13)
+    assert states[0].drive == pytest.approx(states[1].drive, abs=1e-13)
     assert math.isnan(f.alpha_c) and f.message == ""
 
 

@@ -92,12 +92,12 @@ def stepped(scene: Scene, backend: str = "fortran", max_events: int = 100_000) -
             out["finite"] &= all(bool(np.all(np.isfinite(ev[f]))) for f in EVENT_FIELDS)
             out["finite"] &= bool(np.all(np.isfinite(state.displacement)) and np.all(np.isfinite(state.mu_s)))
             e = elastic_force(state, scene.xi, scene.walls)
-            force = e + math.sin(state.alpha)
-            excess = np.abs(force) - state.mu_s * math.cos(state.alpha)
+            force = e + math.sin(state.drive)
+            excess = np.abs(force) - state.mu_s * math.cos(state.drive)
             out["max_excess"] = max(out["max_excess"], float(excess.max()))
             if not scene.walls:
                 out["max_force_sum_error"] = max(out["max_force_sum_error"],
-                                                 abs(float(force.sum()) - scene.n_sliders * math.sin(state.alpha)))
+                                                 abs(float(force.sum()) - scene.n_sliders * math.sin(state.drive)))
             residual = ev["work_gravity"][0] - ev["elastic_change"][0] - ev["dissipation"][0]
             # relative to the energies moved, plus rounding (with mu_d = 0 an event can end
             # where it started: work and elastic change both ~1e-15)
@@ -110,7 +110,7 @@ def stepped(scene: Scene, backend: str = "fortran", max_events: int = 100_000) -
             break
     out.update(status=status.NAMES[chunk.status], message=chunk.message, alpha_c=chunk.alpha_c,
                n_events=len(out["alpha"]), last_rest_mu_mean=float(before.mu_s.mean()),
-               final_alpha=state.alpha)
+               final_alpha=state.drive)
     return out
 
 
@@ -201,9 +201,9 @@ def test_hundred_thousand_sliders_early_regime():
     assert result.status == "alpha_max"
     assert 10_000 < result.n_events < 100_000
     final = result.final
-    force = elastic_force(final, 0.0, False) + math.sin(final.alpha)
-    assert np.all(np.abs(force) - final.mu_s * math.cos(final.alpha) <= scene.force_tol)
-    assert abs(force.sum() - scene.n_sliders * math.sin(final.alpha)) < 1e-7
+    force = elastic_force(final, 0.0, False) + math.sin(final.drive)
+    assert np.all(np.abs(force) - final.mu_s * math.cos(final.drive) <= scene.force_tol)
+    assert abs(force.sum() - scene.n_sliders * math.sin(final.drive)) < 1e-7
 
 
 def test_slow_avalanche_hits_the_duration_cap_with_a_clear_status():
@@ -219,9 +219,9 @@ def test_slow_avalanche_hits_the_duration_cap_with_a_clear_status():
     capped = isolated(tilt, scene)
     assert capped.status == "event_duration_cap" and math.isnan(capped.alpha_c)
     assert "still moving after 5000.0 tau" in capped.message
-    assert 0 < math.tan(capped.final.alpha) - scene.mu_d < 1e-3
+    assert 0 < math.tan(capped.final.drive) - scene.mu_d < 1e-3
     longer = isolated(tilt, scene.replace(max_event_duration=2e4))
-    assert longer.status == "avalanche" and longer.alpha_c == capped.final.alpha
+    assert longer.status == "avalanche" and longer.alpha_c == capped.final.drive
 
 
 # --------------------------------------------------------------------------- stiffness

@@ -222,3 +222,10 @@ def test_the_python_api_infers_with_the_forecast_model(tmp_path, held_out):
     inference = sf.load().infer(_csv(tmp_path, cats[0]), check=False)
     assert isinstance(inference, sf.Inference)
     assert inference.to_dict()["check"] is None and "mu_d" in str(inference)
+
+
+def test_the_shipped_posterior_passes_the_archive_check_its_digest_stands_for():
+    from sliders.io.forecast_model import check_archive, read_model_bytes
+
+    path = default_posterior_path()
+    check_archive(read_model_bytes(path), path)  # raises ModelFileError if not

@@ -52,7 +52,7 @@ print("ready", flush=True)
 chunk = engine.advance(state, max_events=10**6)
 print(json.dumps({"status": chunk.status, "message": chunk.message,
                   "n_events": chunk.n_events, "final_event": chunk.final_event,
-                  "alpha": state.alpha.hex(),
+                  "alpha": state.drive.hex(),
                   "state": [a.tobytes().hex() for a in (state.displacement, state.mu_s,
                                                          state.n_stops)]}), flush=True)
 """
@@ -94,7 +94,7 @@ def test_sigint_returns_the_completed_events_and_undoes_the_current_one(backend,
     engine, state = relaxed(scene, backend)
     chunk = engine.advance(state, max_events=before + k)
     assert chunk.n_events == before + k and chunk.status == status.RUNNING
-    assert float.fromhex(report["alpha"]) == state.alpha
+    assert float.fromhex(report["alpha"]) == state.drive
     expected = [a.tobytes().hex() for a in (state.displacement, state.mu_s, state.n_stops)]
     for name, got, want in zip(("displacement", "mu_s", "n_stops"), report["state"], expected):
         assert got == want, name

@@ -38,8 +38,8 @@ def test_every_slider_is_stable_after_every_event(scene, backend):
             assert chunk.status == status.AVALANCHE
             break
         n_events += 1
-        force = elastic_force(after, scene.xi, scene.walls) + math.sin(after.alpha)
-        excess = np.abs(force) - after.mu_s * math.cos(after.alpha)
+        force = elastic_force(after, scene.xi, scene.walls) + math.sin(after.drive)
+        excess = np.abs(force) - after.mu_s * math.cos(after.drive)
         assert excess.max() <= scene.force_tol, f"unstable slider after event {n_events}"
     assert n_events > 5
 

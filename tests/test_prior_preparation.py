@@ -20,7 +20,7 @@ def test_last_stable_state_is_the_last_event_before_the_avalanche():
     run = sliders.tilt(past)
     assert run.status == "avalanche"
     state = last_stable_state(past)
-    assert state.alpha == run.alpha[-1]
+    assert state.drive == run.alpha[-1]
     stopped = sliders.tilt(past.replace(max_events=run.n_events))  # the same run, stopped there
     assert stopped.status == "max_events"
     assert np.array_equal(state.displacement, stopped.final.displacement)
@@ -32,9 +32,9 @@ def test_history_state_is_at_rest_at_zero_and_rebased():
     past = SCENE.replace(seed=history_seed(SCENE.seed), initial_forces="uniform")
     engine = _history_engine(past)
     back = tilt_back(last_stable_state(past, engine), past, engine)
-    assert back.alpha == 0.0
+    assert back.drive == 0.0
     state = rebased(back, past)
-    assert np.all(state.displacement == 0) and state.alpha == 0.0
+    assert np.all(state.displacement == 0) and state.drive == 0.0
     assert np.allclose(elastic_force(state, past.xi, False), elastic_force(back, past.xi, False),
                        rtol=0, atol=1e-12)
     assert elastic_energy(state, past.xi, False) == pytest.approx(

@@ -44,7 +44,7 @@ def test_forces_balance_stability_and_energy_after_every_event(backend):
         if chunk.n_events == 0:
             break
         n_events += 1
-        drive = after.alpha
+        drive = after.drive
         force = load.tangential(elastic_force(after, sc.xi, sc.walls), math.sin(sc.incline), drive,
                                 after.displacement)
         driver = sc.driver_stiffness * (drive - after.displacement[0])
@@ -53,7 +53,7 @@ def test_forces_balance_stability_and_energy_after_every_event(backend):
         excess = np.abs(force) - after.mu_s * math.cos(sc.incline)
         assert excess.max() <= sc.force_tol, f"unstable slider after event {n_events}"
         ev = {k: float(v[0]) for k, v in chunk.events.items()}
-        assert ev["alpha"] == drive >= before.alpha  # the driver only advances
+        assert ev["alpha"] == drive >= before.drive  # the driver only advances
         residual = ev["work_gravity"] - ev["elastic_change"] - ev["dissipation"]
         assert abs(residual) < 1e-7 * (ev["work_gravity"] + ev["dissipation"])
         if chunk.status == status.SLIDING:
@@ -88,7 +88,7 @@ def test_single_slider_stick_slip_period(backend):
                                                  backend=backend):
         assert chunk.status == status.SLIDING  # one slider: every slip spans the system
         slips.append(after.displacement[0] - before.displacement[0])
-        drives.append(after.alpha)
+        drives.append(after.drive)
     assert len(slips) == 6
     np.testing.assert_allclose(slips, expected, rtol=1e-6)
     np.testing.assert_allclose(np.diff(drives), expected, rtol=1e-6)

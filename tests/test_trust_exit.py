@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -44,22 +45,35 @@ def test_a_stopped_prior_under_mpirun_exits_with_128_plus_the_signal(tmp_path, s
         os.mkfifo(prior)
     else:
         prior.write_text(PRIOR)
+
+    def ready(job, err_path):
+        if phase == "plans":
+            return _reading(prior)
+        deadline = time.monotonic() + 120
+        while "starting" not in err_path.read_text() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert "starting" in err_path.read_text(), err_path.read_text()
+        return None
+
+    code, text = _stopped(tmp_path, ["sliders.prior", str(prior), "--out", str(tmp_path / "out.h5")],
+                          ready, sig)
+    assert code == 128 + sig, (code, text)
+    assert f"interrupted ({signal.Signals(sig).name}" in text
+    assert "Traceback" not in text and "MPI_Abort" not in text
+
+
+def _stopped(tmp_path, module_args: list[str], ready, sig) -> tuple[int, str]:
+    """``mpirun -n 2 python -m MODULE ARGS``, sent ``sig`` as a terminal does (to the whole
+    group) one second after ``ready(job, err_path)`` returned (a fifo's write end to keep
+    open, or None): its exit status and stderr."""
     err_path = tmp_path / "err.txt"
     writer = None
     with open(err_path, "w") as err:
-        job = subprocess.Popen([MPIRUN, "-n", "2", sys.executable, "-m", "sliders.prior",
-                                str(prior), "--out", str(tmp_path / "out.h5")],
+        job = subprocess.Popen([MPIRUN, "-n", "2", sys.executable, "-m", *module_args],
                                stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
         try:
-            if phase == "plans":
-                writer = _reading(prior)
-                time.sleep(1.0)
-            else:
-                deadline = time.monotonic() + 120
-                while "starting" not in err_path.read_text() and time.monotonic() < deadline:
-                    time.sleep(0.2)
-                assert "starting" in err_path.read_text(), err_path.read_text()
-                time.sleep(1.0)
+            writer = ready(job, err_path)
+            time.sleep(1.0)
             os.killpg(job.pid, sig)  # the terminal's Ctrl-C reaches the whole group
             code = job.wait(timeout=60)
         finally:
@@ -68,7 +82,68 @@ def test_a_stopped_prior_under_mpirun_exits_with_128_plus_the_signal(tmp_path, s
             if job.poll() is None:
                 os.killpg(job.pid, signal.SIGKILL)
                 job.wait()
-    text = err_path.read_text()
+    return code, err_path.read_text()
+
+
+def _cpu_seconds(pid: int) -> float:
+    """CPU time used by ``pid`` and its descendants that are still running."""
+    total, todo = 0.0, [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            fields = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()
+            children = Path(f"/proc/{p}/task/{p}/children").read_text().split()
+        except OSError:
+            continue
+        total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        todo += [int(c) for c in children]
+    return total
+
+
+def _computing(pid: int, seconds: float = 3.0) -> None:
+    """Wait until the job has used ``seconds`` of CPU: past its imports (half a second each)."""
+    deadline = time.monotonic() + 120
+    while _cpu_seconds(pid) < seconds and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert _cpu_seconds(pid) >= seconds, "the job never started computing"
+
+
+@pytest.mark.parametrize("phase", ["reads", "computes"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_stopped_forecast_command_under_mpirun_exits_with_128_plus_the_signal(tmp_path, sig,
+                                                                               phase):
+    """A serial command under ``mpirun -n 2``: stopped while rank 0 reads its catalogue (a
+    fifo, ``predict``) or while it computes (``evaluate`` on development data)."""
+    assert MPIRUN, "mpirun not found (install Debian mpich: scripts/setup.sh)"
+    if phase == "reads":
+        catalogue = tmp_path / "pile.csv"
+        os.mkfifo(catalogue)
+        args = ["predict", str(catalogue)]
+    else:
+        args = ["evaluate", "--dev", "400", "--out", str(tmp_path / "out")]
+
+    def ready(job, err_path):
+        if phase == "reads":
+            return _reading(catalogue)
+        _computing(job.pid)
+        return None
+
+    code, text = _stopped(tmp_path, ["sliders.forecast", *args], ready, sig)
     assert code == 128 + sig, (code, text)
-    assert f"interrupted ({signal.Signals(sig).name}" in text
+    assert f"interrupted ({signal.Signals(sig).name})" in text
     assert "Traceback" not in text and "MPI_Abort" not in text
+    assert text.count("interrupted") == 1, text  # one line, from rank 0
+
+
+@pytest.mark.parametrize("args, code", [(["predict", "--help"], 0), (["--help"], 0),
+                                         (["predict", "--no-such-option"], 2),
+                                         (["predict", "missing.csv"], 2)])
+def test_a_forecast_command_under_mpirun_ends_on_every_rank(tmp_path, args, code):
+    """Help, a bad option, a missing file: rank 0 ends the command, and the waiting rank
+    ends with it (no hang), with rank 0's status and one copy of its output."""
+    assert MPIRUN, "mpirun not found (install Debian mpich: scripts/setup.sh)"
+    res = subprocess.run([MPIRUN, "-n", "2", sys.executable, "-m", "sliders.forecast", *args],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert res.returncode == code, res.stderr
+    assert res.stdout.count("usage:") == (1 if "--help" in args else 0)
+    assert len(res.stderr.splitlines()) == (0 if code == 0 else 1), res.stderr

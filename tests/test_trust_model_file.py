@@ -26,7 +26,8 @@ import numpy as np
 import pytest
 
 from sliders.io.forecast_model import (DIGEST_SUFFIX, MODEL_FORMAT, ModelFileError,
-                                       check_forecasters, default_model_path, load_forecasters)
+                                       check_archive, check_forecasters, default_model_path,
+                                       load_forecasters, read_model_bytes)
 
 from test_forecast import rate_law_catalogue
 
@@ -236,6 +237,17 @@ def test_the_shipped_model_matches_its_recorded_digest():
     path = default_model_path()
     recorded = open(str(path) + DIGEST_SUFFIX).read().split()[0]
     assert hashlib.sha256(path.read_bytes()).hexdigest() == recorded
+
+
+def test_the_shipped_archive_passes_the_check_its_digest_stands_for(tmp_path):
+    """Loaded from the package, the shipped model is checked by its digest instead of member
+    by member: these bytes pass the member-by-member check, and so does a copy loaded from
+    elsewhere, in full."""
+    check_archive(read_model_bytes(default_model_path()), "the shipped model")
+    copy_path = tmp_path / "copy.skops"
+    shutil.copyfile(default_model_path(), copy_path)
+    models, _ = load_forecasters(copy_path)
+    assert set(models) == set(load_forecasters(default_model_path())[0])
 
 
 def test_a_changed_shipped_model_is_refused_by_its_digest(tmp_path, monkeypatch):

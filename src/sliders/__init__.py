@@ -13,16 +13,24 @@ public API:
 * ``analysis``, ``figures``, ``runs``: the layers above (docs/architecture.md).
 """
 
+import sys
+
+from ._forward import interrupted_while_starting
 from ._version import __version__
 
-from .chain import ChainState
-from .driver import Interrupted, Progress, run
-from .parts.checks import SceneError
-from .parts.friction import Coulomb
-from .parts.loading import PushedEnd, Tilt
-from .preparation import prepare
-from .result import EventSparse, Result
-from .scene import Scene
+try:
+    from .chain import ChainState
+    from .driver import Interrupted, Progress, run
+    from .parts.checks import SceneError
+    from .parts.friction import Coulomb
+    from .parts.loading import PushedEnd, Tilt
+    from .preparation import prepare
+    from .result import EventSparse, Result
+    from .scene import Scene
+except KeyboardInterrupt:
+    if sys.argv[:1] != ["-m"]:  # an import in a program: its Ctrl-C, as always
+        raise
+    interrupted_while_starting("sliders")  # `python -m sliders...` (argv[0] is "-m" until found)
 
 # The paper's names (its loading is the tilt; they run and hold any loading alike).
 tilt = run

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib
 import sys
+from typing import NoReturn
 
 
 def forward(name: str, target: str) -> None:
@@ -27,8 +28,12 @@ def forward(name: str, target: str) -> None:
         return
     try:
         module = importlib.import_module(target)
-    except KeyboardInterrupt:  # Ctrl-C while the command starts: one line, nothing written
-        sys.stderr.write(f"{target.rsplit('.', 1)[-1]}: interrupted (SIGINT) while starting; "
-                         "nothing written\n")
-        sys.exit(130)
+    except KeyboardInterrupt:
+        interrupted_while_starting(target.rsplit('.', 1)[-1])
     sys.exit(module.main())
+
+
+def interrupted_while_starting(command: str) -> NoReturn:
+    """Ctrl-C while a command imports its modules: one line, nothing written, status 130."""
+    sys.stderr.write(f"{command}: interrupted (SIGINT) while starting; nothing written\n")
+    raise SystemExit(130)

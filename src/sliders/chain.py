@@ -41,7 +41,7 @@ class ChainState:
     mu_s: np.ndarray
     displacement: np.ndarray = field(default=None)  # du, since preparation
     n_stops: np.ndarray = field(default=None)  # stops so far (key of the next draw)
-    alpha: float = 0.0  # the drive: the tilt, or the pushed end's driver position (``drive``)
+    drive: float = 0.0  # the loading's variable: the tilt alpha (rad), or the driver position D
 
     def __post_init__(self) -> None:
         n = self.mu_s.size
@@ -55,18 +55,12 @@ class ChainState:
         """Number of sliders N."""
         return self.mu_s.size
 
-    @property
-    def drive(self) -> float:
-        """The drive the chain rests at: the tilt alpha (rad), or the pushed end's
-        driver position D (g tau^2); stored as ``alpha``."""
-        return self.alpha
-
     def copy(self) -> "ChainState":
         """An independent copy (every array copied)."""
         return ChainState(
             self.elastic_force0.copy(), self.spring_extension0.copy(),
             self.cantilever_stretch0.copy(), self.lattice_position0.copy(),
-            self.mu_s.copy(), self.displacement.copy(), self.n_stops.copy(), self.alpha,
+            self.mu_s.copy(), self.displacement.copy(), self.n_stops.copy(), self.drive,
         )
 
     def positions(self, displacement: np.ndarray | None = None) -> np.ndarray:

@@ -17,8 +17,15 @@ from __future__ import annotations
 
 import sys
 
-from .runs.forecast.infer import Inference, InferenceModel, load_inference_model
-from .runs.forecast.predict import ForecastModel, Prediction
+from ._forward import interrupted_while_starting
+
+try:
+    from .runs.forecast.infer import Inference, InferenceModel, load_inference_model
+    from .runs.forecast.predict import ForecastModel, Prediction
+except KeyboardInterrupt:
+    if __name__ != "__main__":
+        raise
+    interrupted_while_starting("sliders.forecast")
 
 __all__ = ["load", "main", "ForecastModel", "Prediction", "Inference"]
 

@@ -212,8 +212,8 @@ def last_stable_state(scene: Scene, engine=None) -> ChainState:
 def tilt_back(state: ChainState, scene: Scene, engine=None, step: float = UNLOAD_STEP) -> ChainState:
     """``state`` tilted back to alpha = 0 in steps of ``step`` rad, relaxed at every step (in place)."""
     engine = engine or _history_engine(scene)
-    for alpha in np.arange(state.alpha, 0.0, -step)[1:].tolist() + [0.0]:
-        state.alpha = float(alpha)
+    for alpha in np.arange(state.drive, 0.0, -step)[1:].tolist() + [0.0]:
+        state.drive = float(alpha)
         _relaxed(engine, state, scene, f"at alpha = {alpha:.4f} on the way back")
     return state
 

@@ -202,7 +202,7 @@ def valid_limit(result) -> tuple[float, bool]:
         return float(result.scene.alpha_max), True
     if result.status == "max_events":
         return (float(result.alpha[-1]) if result.n_events else 0.0), True
-    return float(result.final.alpha), False
+    return float(result.final.drive), False
 
 
 def valid_alphas(result, alphas) -> np.ndarray:

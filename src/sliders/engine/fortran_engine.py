@@ -2,7 +2,7 @@
 
 ``FortranEngine.advance`` has the contract of ``reference.NumpyEngine.advance``
 (the specification): it mutates ``state.displacement``, ``state.mu_s``,
-``state.n_stops`` and ``state.alpha`` in place and returns a ``Chunk`` with the
+``state.n_stops`` and ``state.drive`` in place and returns a ``Chunk`` with the
 same event fields and dtypes and the same sparse (CSR) layout.  The kernel is
 ``fortran/sliders_events.f90``; it reproduces the reference event by event.
 
@@ -105,7 +105,7 @@ class FortranEngine:
         if t0.size != n + 1 or e0.size != n or w0.size != n or stops.size != n or du.size != n:
             raise ValueError("inconsistent ChainState array sizes")
 
-        real_params, int_params = pack_parameters(sc, float(state.alpha), self._record_sparse,
+        real_params, int_params = pack_parameters(sc, float(state.drive), self._record_sparse,
                                                   relax_only, max_events)
         chain0 = np.concatenate([e0, w0, t0]).astype(np.float64)  # the kernel's packed layout
         (alpha, n_events, n_sparse, code, alpha_c, event_time, final_steps, final_slider_steps,
@@ -121,7 +121,7 @@ class FortranEngine:
         state.mu_s[:] = mu
         state.n_stops[:] = stops
         state.displacement[:] = du
-        state.alpha = float(alpha)
+        state.drive = float(alpha)
 
         k = int(n_events)
         if code == status.SPARSE_FULL and k == 0:
@@ -137,7 +137,7 @@ class FortranEngine:
             int(code), events, ptr,
             self._sparse_index[:m].copy(), self._sparse_value[:m].copy(),
             float(alpha_c) if code == status.AVALANCHE else math.nan,
-            _message(sc, int(code), int(detail), state.alpha, float(event_time)),
+            _message(sc, int(code), int(detail), state.drive, float(event_time)),
             _final_event(float(event_time), int(final_steps), int(final_slider_steps)),
         )
 

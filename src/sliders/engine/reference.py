@@ -86,14 +86,14 @@ class NumpyEngine:
 
         while True:
             # everything one iteration may change, to undo it on Ctrl-C
-            undo = (state.alpha, state.displacement.copy(), state.mu_s.copy(),
+            undo = (state.drive, state.displacement.copy(), state.mu_s.copy(),
                     state.n_stops.copy(), len(records), len(ptr), len(index))
             try:
                 done = self._one_event(state, max_events, relax_only, records, ptr, index,
                                        disp, chunk)
             except KeyboardInterrupt:
                 alpha, du, mu, stops, n_records, n_ptr, n_index = undo
-                state.alpha = alpha
+                state.drive = alpha
                 state.displacement[:], state.mu_s[:], state.n_stops[:] = du, mu, stops
                 del records[n_records:], ptr[n_ptr:], index[n_index:], disp[n_index:]
                 return chunk(status.INTERRUPTED, message=INTERRUPTED_MESSAGE)
@@ -107,8 +107,8 @@ class NumpyEngine:
         if not np.all(np.isfinite(elastic)):
             return chunk(status.NON_FINITE, message="non-finite force in the resting chain")
         load, law = self.loading, self.friction
-        force = load.tangential(elastic, load.weight(state.alpha), state.alpha, state.displacement)
-        unstable = np.abs(force) > law.static_threshold(state.mu_s, load.normal(state.alpha),
+        force = load.tangential(elastic, load.weight(state.drive), state.drive, state.displacement)
+        unstable = np.abs(force) > law.static_threshold(state.mu_s, load.normal(state.drive),
                                                         sc.force_tol)
         if unstable.any():  # relaxation (preparation with coupling)
             triggers = np.flatnonzero(unstable)
@@ -118,16 +118,16 @@ class NumpyEngine:
         else:
             if len(records) >= max_events:
                 return chunk(status.RUNNING)
-            angle, triggers, directions = load.next_instability(elastic, state.mu_s, state.alpha,
+            angle, triggers, directions = load.next_instability(elastic, state.mu_s, state.drive,
                                                                 state.displacement, sc.force_tol)
             if load.beyond_limit(angle):
                 return chunk(status.ALPHA_MAX)
-            state.alpha = angle
+            state.drive = angle
         outcome = self._event(state, triggers, directions)
         if outcome.status != status.RUNNING:
             work = {k: outcome.record[k] for k in ("duration", "n_steps", "slider_steps")}
             if outcome.status == status.AVALANCHE:
-                return chunk(status.AVALANCHE, alpha_c=state.alpha, final_event=work)
+                return chunk(status.AVALANCHE, alpha_c=state.drive, final_event=work)
             return chunk(outcome.status, message=outcome.record.get("message", ""),
                          final_event=work)
         records.append(outcome.record)
@@ -150,10 +150,10 @@ class NumpyEngine:
         while event.moving.any():
             trial = event.refined_step()
             if trial is None:  # refine_tol below the step's resolution
-                return event.unfinished(status.REFINE_LIMIT, refine_limit_message(sc, state.alpha))
+                return event.unfinished(status.REFINE_LIMIT, refine_limit_message(sc, state.drive))
             if not (np.all(np.isfinite(trial[0])) and np.all(np.isfinite(trial[1]))):
                 event.count_step(trial)
-                return event.unfinished(status.NON_FINITE, f"non-finite state at alpha={state.alpha}")
+                return event.unfinished(status.NON_FINITE, f"non-finite state at alpha={state.drive}")
             event.accept(trial)
             try:
                 event.stop_and_start()
@@ -162,7 +162,7 @@ class NumpyEngine:
             if event.t > sc.max_event_duration:
                 return event.unfinished(
                     status.EVENT_DURATION_CAP,
-                    f"rearrangement at alpha={state.alpha:.6f} still moving after "
+                    f"rearrangement at alpha={state.drive:.6f} still moving after "
                     f"{event.t:.1f} tau (max_event_duration={sc.max_event_duration} tau)",
                 )
             if self.loading.runaway(event.moving, event.direction, event.weight, event.friction,
@@ -185,10 +185,10 @@ class _Rearrangement:
         sc, load, law = engine.scene, engine.loading, engine.friction
         self.scene, self.state, self.loading, self.law = sc, state, load, law
         n = state.n_sliders
-        self.weight, self.normal = load.weight(state.alpha), load.normal(state.alpha)
+        self.weight, self.normal = load.weight(state.drive), load.normal(state.drive)
         self.friction = law.kinetic_force(self.normal)
         self.threshold = law.static_threshold(state.mu_s, self.normal, sc.force_tol)
-        self.drive = state.alpha
+        self.drive = state.drive
         self.du_start = state.displacement.copy()
         self.du = self.du_start.copy()
         self.v = np.zeros(n)
@@ -299,7 +299,7 @@ class _Rearrangement:
         sc, state, du = self.scene, self.state, self.du
         step = du - self.du_start
         record = {
-            "alpha": state.alpha,
+            "alpha": state.drive,
             "n_moved": int(self.moved.sum()),
             "n_stops": self.n_stops,
             "n_steps": self.n_steps,

@@ -16,10 +16,14 @@ import textwrap
 
 import numpy as np
 
-if os.environ.get("MPLBACKEND") is None:
-    import matplotlib
+import matplotlib
 
+if os.environ.get("MPLBACKEND") is None:
     matplotlib.use("Agg")
+from matplotlib.figure import Figure  # noqa: E402  (after the backend)
+from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
+
+from ..analysis.forecast.base import LEVELS  # noqa: E402
 
 #: the picture's size (inches) and resolution: read on a screen beside the bench
 BENCH_SIZE = (7.0, 5.6)
@@ -68,11 +72,6 @@ def bench_figure(catalogue, forecast, *, label: str, calibrated: bool, in_domain
     -------
     matplotlib.figure.Figure
     """
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import FuncFormatter, NullFormatter
-
-    from ..analysis.forecast.base import LEVELS
-
     fig = Figure(figsize=BENCH_SIZE, dpi=BENCH_DPI, layout="constrained")
     top, middle, bottom = fig.subplots(3, 1, sharex=True, height_ratios=(3, 1.4, 2.2))
     deg = np.degrees

@@ -20,6 +20,7 @@ import numpy as np
 from ..analysis.forecast.base import LOWER, MEDIAN, UPPER
 from ..analysis.forecast.registry import by_name
 from .style import COLUMN_WIDTH, STYLE, panel_label, save_figure
+import matplotlib.pyplot as plt  # noqa: E402  (after style chose the backend)
 
 
 def _style(name):
@@ -45,7 +46,6 @@ def _lead_scores(results, set_name="test"):
 
 def figure_error(results, out_dir, name="forecast_error"):
     """Median absolute error (and its 90 % band) against the lead, one line per forecaster, log-log."""
-    import matplotlib.pyplot as plt
 
     leads = np.asarray(results["leads_deg"], dtype=float)
     deg = 180.0 / math.pi
@@ -80,7 +80,6 @@ def figure_error(results, out_dir, name="forecast_error"):
 
 def figure_coverage(results, out_dir, name="forecast_coverage"):
     """Measured coverage of the 80 % intervals against the lead (test set, and robustness sets)."""
-    import matplotlib.pyplot as plt
 
     leads = np.asarray(results["leads_deg"], dtype=float)
     with plt.rc_context(STYLE):
@@ -112,7 +111,6 @@ def figure_coverage(results, out_dir, name="forecast_coverage"):
 
 def figure_convergence(example, out_dir, name="forecast_convergence"):
     """One realisation: the forecasts (median, 80 % band) as the tilt grows; the truth and the events."""
-    import matplotlib.pyplot as plt
 
     t = np.degrees(example["tilts"])
     a_c = math.degrees(example["alpha_c"])
@@ -140,7 +138,6 @@ def figure_convergence(example, out_dir, name="forecast_convergence"):
 
 def figure_roc(results, out_dir, name="forecast_roc"):
     """ROC of the alarm "the avalanche within delta", one curve per forecaster, AUC in the legend."""
-    import matplotlib.pyplot as plt
 
     a = results["alarm"]
     with plt.rc_context(STYLE):
@@ -176,7 +173,6 @@ def draw_all(results: dict, example: dict, out_dir) -> list[str]:
 # ---------------------------------------------------------------------------
 def figure_lead_coverage(report, out_dir, name="forecast_lead_coverage"):
     """Coverage of the 80 % interval against the lead (stress test), and the reliability diagram."""
-    import matplotlib.pyplot as plt
 
     with plt.rc_context(STYLE):
         fig, axes = plt.subplots(1, 2, figsize=(2 * COLUMN_WIDTH, 1.05 * COLUMN_WIDTH),
@@ -219,7 +215,6 @@ def figure_lead_coverage(report, out_dir, name="forecast_lead_coverage"):
 
 def figure_degradation(report, out_dir, name="forecast_degradation"):
     """Skill at 3° (error over the conditioned climatology's) and coverage, per measurement."""
-    import matplotlib.pyplot as plt
 
     labels = list(report["degradation"])
     ratio = [report["degradation"][k]["vs_conditioned"] for k in labels]

@@ -51,7 +51,10 @@ from matplotlib.ticker import NullFormatter  # noqa: E402
 from ..analysis import observables as ob  # noqa: E402
 from ..analysis.summary import load_ensemble_summary  # noqa: E402,F401 - F.load_ensemble_summary
 from ..io.storage import check_ensemble_file  # noqa: E402
+from . import schematics  # noqa: E402
+from .animation import animate_tilt, animation_scene  # noqa: E402
 from .pushed_end import NAME as PUSHED_END, fig_pushed_end, pushed_end_run  # noqa: E402
+from .study import check_study_file, draw_study  # noqa: E402
 from ..analysis import model
 from ..driver import run, tilt_realisations
 from ..preparation import prepare
@@ -807,8 +810,6 @@ def _check_args(args) -> None:
 
 def _schematic(name):
     def draw(backend):
-        from . import schematics
-
         return getattr(schematics, name)(out_dir=None)
     return draw
 
@@ -892,16 +893,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         _check_args(args)
         if args.animate and not args.gallery:
-            from .animation import animate_tilt, animation_scene
-
             out = args.out or "figures"
             path = animate_tilt(animation_scene(args.scene), out_dir=out, backend=args.backend)
             print(f"animation -> {path} ({os.path.getsize(path) / 1e3:.0f} kB, "
                   f"{time.perf_counter() - t_all:.1f} s)", flush=True)
             return 0
         if args.study:
-            from .study import check_study_file, draw_study
-
             check_study_file(args.study)
             for path in draw_study(args.study, args.out or "figures", dpi=args.dpi):
                 print(path, flush=True)
@@ -913,8 +910,6 @@ def main(argv: list[str] | None = None) -> int:
             args.paper_size = True
             out = args.out or GALLERY_DIR
             draw_figures(names, out, args, formats=("png",), palette_png=True)
-            from .animation import animate_tilt, animation_scene
-
             path = animate_tilt(animation_scene(None), out_dir=out, backend=args.backend)
             print(f"animation -> {path} ({os.path.getsize(path) / 1e3:.0f} kB)", flush=True)
         else:

@@ -15,6 +15,8 @@ import os
 import numpy as np
 
 from .style import COLUMN_WIDTH, ORDER_CMAP, PNG_DPI, STYLE, save_figure
+import matplotlib.pyplot as plt  # noqa: E402  (after style chose the backend)
+from matplotlib.ticker import NullFormatter, NullLocator  # noqa: E402
 from ..analysis.study_analysis import load_study_file, paired_difference, point_summary
 from ..io import formats
 
@@ -64,7 +66,6 @@ def _xscale(ax, study, xs) -> None:
                     max(xs) * 1.5)  # autoscaling pads in linear units: half the plot empty
     else:
         return
-    from matplotlib.ticker import NullFormatter, NullLocator
 
     ax.xaxis.set_minor_locator(NullLocator())  # one labelled tick per point, nothing between
     ax.xaxis.set_minor_formatter(NullFormatter())
@@ -101,7 +102,6 @@ class StudyPlot:
 
 
 def _fig_ax(h=2.8):
-    import matplotlib.pyplot as plt
 
     return plt.subplots(figsize=(COLUMN_WIDTH, h))
 
@@ -125,7 +125,6 @@ def fig_alpha_c(sp: StudyPlot):
 
 def fig_event_sizes(sp: StudyPlot):
     """The distribution of event sizes, one line per point."""
-    import matplotlib.pyplot as plt
 
     fig, ax = _fig_ax(3.2)
     cmap = plt.get_cmap(ORDER_CMAP)
@@ -231,11 +230,6 @@ STUDY_FIGURES = {"alpha_c": fig_alpha_c, "event_sizes": fig_event_sizes,
 def draw_study(path, out_dir, formats=("png", "pdf"), dpi: int = PNG_DPI,
                palette_png: bool = False, prefix: str | None = None) -> list[str]:
     """Draw every study figure of ``path`` into ``out_dir``; returns the files written."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     sp = StudyPlot(path)
     prefix = prefix or "study_" + os.path.splitext(os.path.basename(os.fspath(path)))[0] \
         .removeprefix("study_")

@@ -85,7 +85,7 @@ def run_file_bytes(result) -> bytes:
             g = f.create_group(label)
             for name in STATE_FIELDS:
                 dataset(g, name, getattr(state, name))
-            g.attrs["alpha"] = state.alpha
+            g.attrs["alpha"] = state.drive  # the format's name of the drive
             safeio.seal_attrs(g)
         safeio.seal_attrs(f)
         # named dimensions, units, provenance: added after the seals, which
@@ -153,7 +153,7 @@ def read_datasets_checked(path):
                 g = f[label]
                 safeio.check_attrs(g, where)
                 states[label] = ChainState(**{k: safeio.read_checked(g[k], where) for k in g},
-                                           alpha=float(g.attrs["alpha"]))
+                                           drive=float(g.attrs["alpha"]))
             return dict(
                 scene=scene, backend=str(f.attrs["backend"]), status=str(f.attrs["status"]),
                 message=str(f.attrs["message"]), alpha_c=float(f.attrs["alpha_c"]),

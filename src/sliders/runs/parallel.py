@@ -103,6 +103,35 @@ def launcher_rank(environ=None) -> int:
     return 0
 
 
+def stopped_job_status(comm, code: int) -> int:
+    """The exit status of every rank, made the job's own when a signal stopped it.
+
+    A job stopped by SIGINT or SIGTERM (``code`` = 128 + the signal) on
+    several ranks ends by ``MPI_Abort(code)`` from rank 0, after the one line
+    is out: MPICH's ``mpiexec`` then returns ``code``.  Ranks that merely exit
+    with it lose it when the terminal's Ctrl-C also reaches the launcher's
+    proxy (``mpiexec`` returned 0 there).  MPICH's own "application called
+    MPI_Abort" line is not printed: the command has said why it stopped.
+    Serially (or for any other code) the code is returned as it is.
+    """
+    if code <= 128 or comm.size < 2:
+        return code
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    if comm.rank == 0:
+        time.sleep(ABORT_GRACE)  # the launcher forwards the line before the abort
+        try:
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, 2)
+        except OSError:
+            pass
+        comm.Abort(code)
+    return code
+
+
 def get_comm():
     """``(COMM_WORLD, True)`` with a working mpi4py, else ``(SerialComm(), False)``.
 

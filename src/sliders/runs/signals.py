@@ -135,15 +135,28 @@ class Received(list):
 class Stopped(KeyboardInterrupt):
     """SIGTERM (or SIGINT) received: the command stops, nothing half-written is published."""
 
+    #: the SIGTERM received within ``stopped_by_sigterm``: its exception may be caught and
+    #: replaced on the way up (a tilt it stops raises ``sliders.Interrupted``)
+    received: int | None = None
+
     def __init__(self, signum: int):
         super().__init__(signum)
         self.signum = signum
 
 
 def _raise_stopped(signum, frame):
+    Stopped.received = signum
     raise Stopped(signum)
 
 
+@contextlib.contextmanager
 def stopped_by_sigterm():
     """Within: SIGTERM raises ``Stopped`` (Ctrl-C raises KeyboardInterrupt as always)."""
-    return handled(_raise_stopped, (signal.SIGTERM,))
+    Stopped.received = None
+    with handled(_raise_stopped, (signal.SIGTERM,)):
+        yield
+
+
+def stop_signal(exc: KeyboardInterrupt) -> int:
+    """The signal behind a KeyboardInterrupt raised within ``stopped_by_sigterm``."""
+    return getattr(exc, "signum", None) or Stopped.received or signal.SIGINT

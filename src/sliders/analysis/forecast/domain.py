@@ -189,15 +189,13 @@ class DomainCheck(BaseEstimator):
         return [i for i, f in enumerate(self.features) if label != "arbitrary" or f not in IN_SLIDERS]
 
     def _detector(self):
-        from sklearn.impute import SimpleImputer
-        from sklearn.neighbors import LocalOutlierFactor
-        from sklearn.pipeline import make_pipeline
-        from sklearn.preprocessing import StandardScaler
+        from sklearn import impute, neighbors, pipeline, preprocessing
 
-        return make_pipeline(
-            SimpleImputer(strategy="median", keep_empty_features=True), StandardScaler(),
-            LocalOutlierFactor(n_neighbors=self.n_neighbors, novelty=True,
-                               contamination=self.contamination))
+        return pipeline.make_pipeline(
+            impute.SimpleImputer(strategy="median", keep_empty_features=True),
+            preprocessing.StandardScaler(),
+            neighbors.LocalOutlierFactor(n_neighbors=self.n_neighbors, novelty=True,
+                                         contamination=self.contamination))
 
     def novel(self, cuts) -> np.ndarray:
         """(n,) True where a cut is unlike every training cut of its measurement class."""

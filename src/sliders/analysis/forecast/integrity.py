@@ -168,14 +168,12 @@ def check_novelty_detector(pipe, n_features: int, what: str) -> None:
     """A domain check's detector (imputer, standard scaler, local outlier factor on
     ``n_features``): every array finite and of its shape; the neighbour tree is rebuilt
     from the checked training points (the file's own tree is never searched)."""
-    from sklearn.impute import SimpleImputer
-    from sklearn.neighbors import KDTree, LocalOutlierFactor
-    from sklearn.pipeline import Pipeline
-    from sklearn.preprocessing import StandardScaler
+    from sklearn import impute, neighbors, pipeline, preprocessing
 
-    require(type(pipe) is Pipeline and len(pipe.steps) == 3
-            and [type(s) for _, s in pipe.steps] == [SimpleImputer, StandardScaler,
-                                                       LocalOutlierFactor],
+    require(type(pipe) is pipeline.Pipeline and len(pipe.steps) == 3
+            and [type(s) for _, s in pipe.steps] == [impute.SimpleImputer,
+                                                       preprocessing.StandardScaler,
+                                                       neighbors.LocalOutlierFactor],
             f"{what} is not an imputer, a scaler and a local outlier factor")
     imputer, scaler, lof = (s for _, s in pipe.steps)
     check_array(imputer.statistics_, f"{what}: imputer", shape=(n_features,))
@@ -198,4 +196,4 @@ def check_novelty_detector(pipe, n_features: int, what: str) -> None:
             and lof.effective_metric_ == "euclidean" and lof._fit_method == "kd_tree",
             f"{what}: local outlier factor of another form")
     leaf = check_int(lof.leaf_size, f"{what}: leaf size", 1, 10_000)
-    lof._tree = KDTree(x, leaf_size=leaf)
+    lof._tree = neighbors.KDTree(x, leaf_size=leaf)

@@ -29,13 +29,15 @@ import importlib
 import os
 import signal
 import sys
+import time
 import traceback
 
 from ...io.filelock import ClaimError
 from ...io.forecast_files import ForecastInputError
 from ...io.safeio import describe_os_error, os_reason
-from ..parallel import error_line, launcher_rank, under_mpi_launcher
-from ..signals import stopped_by_sigterm
+from ..parallel import (MPIUnavailable, error_line, get_comm, launcher_rank, stopped_job_status,
+                        under_mpi_launcher)
+from ..signals import STOP_SIGNALS, stop_signal, stopped_by_sigterm
 from .common import (ALARM_DELTA_DEG, CHECK_DRAWS, DEFAULT_LEADS_DEG, DEFAULT_TILTS,
                      POSTERIOR_MAX_ITER, PREDICT_METHODS, TRAIN_MAX_ITER)
 
@@ -202,10 +204,52 @@ def add_catalogue_arguments(c) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``python -m sliders.forecast``: every failure is one line on stderr
-    (status 2 for bad input, 1 for an I/O error or a fault, 128 + signal when stopped)."""
-    if launcher_rank() > 0:  # a serial command: under mpirun, rank 0 alone runs it
-        return 0
+    (status 2 for bad input, 1 for an I/O error or a fault, 128 + signal when stopped).
+
+    Under ``mpirun -n K`` (K > 1) rank 0 runs the command and the other ranks wait for its
+    status: a job stopped by SIGINT or SIGTERM then ends by ``MPI_Abort(128 + signal)``, the
+    one way MPICH's ``mpiexec`` returns it when the terminal's Ctrl-C reaches it too."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    if not under_mpi_launcher():
+        return _command(argv)
+    try:
+        comm, _ = get_comm()
+    except MPIUnavailable:
+        comm = None
+    if comm is None or comm.size < 2:  # no MPI to wait with (or srun's tasks without it):
+        return 0 if launcher_rank() > 0 else _command(argv, resignal=True)  # rank 0 alone
+    if comm.rank > 0:
+        return _wait_for_rank_0(comm)
+    code = 1  # what the others hear if an exception escapes the error boundary
+    try:
+        code = _command(argv)
+    except SystemExit as exc:  # --help (argparse's exit): the others must still hear of it
+        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+    finally:
+        for rank in range(1, comm.size):
+            comm.send(code, dest=rank, tag=_STATUS_TAG)
+    return stopped_job_status(comm, code)
+
+
+_STATUS_TAG = 17  # rank 0's exit status, to the ranks that wait for it
+
+
+def _wait_for_rank_0(comm) -> int:
+    """Rank 0's exit status, polled (no core kept busy); a stop signal here is rank 0's to act
+    on (the terminal's Ctrl-C reaches every rank), so it is ignored."""
+    for s in STOP_SIGNALS:
+        signal.signal(s, signal.SIG_IGN)
+    pending = comm.irecv(source=0, tag=_STATUS_TAG)
+    while True:
+        done, code = pending.test()
+        if done:
+            return code
+        time.sleep(0.05)
+
+
+def _command(argv: list[str], resignal: bool = False) -> int:
+    """Parse and run one subcommand inside the error boundary; ``resignal``: a stopped command
+    ends by its signal (a lone rank under a launcher, which reads the signal itself)."""
     try:
         with stopped_by_sigterm():
             args = build_parser().parse_args(argv)
@@ -214,10 +258,10 @@ def main(argv: list[str] | None = None) -> int:
             command = importlib.import_module(f"{__package__}.{module}")
             return getattr(command, function)(args, argv)
     except KeyboardInterrupt as exc:
-        signum = getattr(exc, "signum", signal.SIGINT)
+        signum = stop_signal(exc)
         code = _error(f"interrupted ({signal.Signals(signum).name}); nothing half-written was "
                       "published", 128 + signum)
-        if under_mpi_launcher():  # these ranks start no MPI: the launcher reads the signal itself
+        if resignal:
             sys.stdout.flush()
             sys.stderr.flush()
             signal.signal(signum, signal.SIG_DFL)

@@ -20,6 +20,8 @@ import math
 
 import numpy as np
 
+from ...analysis.forecast.features import Cuts
+from ...analysis.forecast.registry import fallback_of
 from ...io.catalogue import Catalogue
 from ...io.forecast_files import ForecastInputError, parse_angle, tilt_in_range
 from ...io.forecast_model import ModelFileError, default_model_path, load_forecasters
@@ -88,8 +90,6 @@ def load_model(path=None) -> "ForecastModel":
 def fallback_reason(method: str, forecast, complete: bool = True) -> str | None:
     """Why ``forecast`` is a fallback (None if it is the method's own); ``complete``: the
     catalogue has displacements and movers."""
-    from ...analysis.forecast.registry import fallback_of
-
     if not forecast.fallback:
         return None
     if not complete and method.endswith("_disp"):
@@ -170,7 +170,6 @@ class ForecastModel:
         from threadpoolctl import threadpool_limits
 
         from ...analysis.forecast.evaluation import typical_accuracy, typical_accuracy_line
-        from ...analysis.forecast.features import Cuts
 
         cat, complete = angles_and_sizes(catalogue)
         models, prov, path = self.models, self.provenance, self.path
