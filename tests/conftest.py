@@ -51,6 +51,9 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "two_cores: the test keeps both cores busy (mpirun -n 2, "
                                        "SLURM, a second process); under xdist it runs alone")
     config.addinivalue_line("markers", "slow: left out of the fast loop (pytest -m 'not slow')")
+    # pytest-xdist's own, named here too for a run without it (-p no:xdist)
+    config.addinivalue_line("markers", "xdist_group(name): under --dist loadgroup, the tests of "
+                                       "one group run on one worker")
 
 
 # words of a command line that start ranks or jobs: a test running one needs both cores
