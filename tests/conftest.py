@@ -18,8 +18,9 @@ it.  It skips only when SLURM cannot be started, saying why.
 from __future__ import annotations
 
 import fcntl
-import functools
+import hashlib
 import os
+import pickle
 import re
 import shutil
 import subprocess
@@ -28,9 +29,16 @@ import tempfile
 import time
 from pathlib import Path
 
-import pytest
+# One thread per library pool in every test process: a test holds one core (CoreSlots), and
+# OpenMP threads of scikit-learn's trees that outnumber the free cores only wait for each other
+# (on the busy two-core machine one fit of the learned forecaster took 128 s with them, 2.6 s
+# without).  Set before NumPy, SciPy or scikit-learn load their thread pools.
+for _pool in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_pool, "1")
 
-import sliders
+import pytest  # noqa: E402
+
+import sliders  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SLURM_LOCAL = ROOT / "scripts" / "slurm_local.sh"
@@ -43,6 +51,9 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "two_cores: the test keeps both cores busy (mpirun -n 2, "
                                        "SLURM, a second process); under xdist it runs alone")
     config.addinivalue_line("markers", "slow: left out of the fast loop (pytest -m 'not slow')")
+    # pytest-xdist's own, named here too for a run without it (-p no:xdist)
+    config.addinivalue_line("markers", "xdist_group(name): under --dist loadgroup, the tests of "
+                                       "one group run on one worker")
 
 
 # words of a command line that start ranks or jobs: a test running one needs both cores
@@ -108,12 +119,30 @@ def pytest_sessionstart(session):
 CORE_SLOTS = pytest.StashKey[CoreSlots]()
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """The tests of the SLURM cluster go to one worker, which starts the session's one cluster."""
     for item in items:
         page = getattr(item, "callspec", None) and item.callspec.params.get("page")
         if "slurm" in item.fixturenames or (page and "sbatch" in Path(page).read_text()):
             item.add_marker(pytest.mark.xdist_group("slurm"))
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_finish(session):
+    """``--dist loadgroup`` sends the tests of one ``xdist_group`` to one worker, which knows
+    them by the suffix ``@group`` of their node ids.  pytest-xdist 3.8 writes that suffix into
+    an attribute pytest 9's items no longer read (their ids are structured), so the groups would
+    be lost and every test dealt out alone; it is written here into the id itself."""
+    if not getattr(session.config.option, "loadgroup", False):
+        return
+    from _pytest.nodeid import NodeId
+
+    for item in session.items:
+        groups = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default"))
+                         for m in item.iter_markers("xdist_group")})
+        if groups and "@" not in item.nodeid:
+            item._id = NodeId.parse(f"{item.nodeid}@{'_'.join(groups)}")
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -129,10 +158,49 @@ def pytest_runtest_protocol(item, nextitem):
         slots.release()
 
 
-@functools.lru_cache(maxsize=None)
+# where run() keeps its results: a folder of the test session that its xdist workers share
+SCENE_CACHE: Path | None = None
+
+
+@pytest.fixture(scope="session", autouse=True)
+def scene_cache(request, tmp_path_factory) -> Path:
+    """The session's folder of tilted scenes, one for all xdist workers (their base
+    temporary folders are subfolders of the session's)."""
+    global SCENE_CACHE
+    base = tmp_path_factory.getbasetemp()
+    if hasattr(request.config, "workerinput"):
+        base = base.parent
+    SCENE_CACHE = base / "scenes"
+    SCENE_CACHE.mkdir(exist_ok=True)
+    return SCENE_CACHE
+
+
+def session_cached(what: str, compute, *args):
+    """``compute(*args)`` once per test session, for every xdist worker: the first to ask
+    computes it and stores it (under a lock, renamed into place); the others wait and read it.
+    Each call returns its own copy, which a test may change freely.  Keyed by ``what`` and the
+    arguments' repr (frozen scenes and strings)."""
+    if SCENE_CACHE is None:  # imported outside a test session
+        return compute(*args)
+    key = hashlib.sha256(repr((what, args, sliders.__version__)).encode()).hexdigest()[:24]
+    path = SCENE_CACHE / f"{key}.pickle"
+    with open(SCENE_CACHE / f"{key}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if path.exists():
+            return pickle.loads(path.read_bytes())
+        value = compute(*args)
+        partial = path.with_suffix(f".{os.getpid()}.part")
+        partial.write_bytes(pickle.dumps(value))
+        partial.rename(path)
+    return value
+
+
 def run(scene: sliders.Scene, backend: str) -> sliders.TiltResult:
-    """Tilt a scene once per test session (Scene is frozen and hashable)."""
-    return sliders.tilt(scene, backend=backend)
+    """Tilt a scene once per test session (``session_cached``).  Tests that patch the engines
+    or the transcendentals call ``sliders.tilt`` themselves."""
+    result = session_cached("tilt", sliders.tilt, scene, backend)
+    assert result.scene == scene and result.backend == backend
+    return result
 
 
 @pytest.fixture(params=BACKENDS)

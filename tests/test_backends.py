@@ -43,6 +43,7 @@ import numpy as np
 import pytest
 
 import sliders
+from conftest import run
 from sliders import Scene, keyed_random, prepare, status, tilt
 from sliders.engine import fortran_engine
 from sliders.chain import elastic_energy
@@ -245,12 +246,16 @@ def test_chain_between_walls(scene):
 
 
 # -------------------------------------------------------------- N = 10 chains
-# seed 0 at the default dt; the others at a coarser one, to save time
+# seed 0 at the default dt; the others at a coarser one, to save time.  The fast loop compares
+# two of them (one per xi); the full suite all six.
 N10 = [Scene(n_sliders=10, xi=xi, seed=seed, dt=1e-3 if seed == 0 else 4e-3)
        for xi in (0.0, 0.001) for seed in (0, 1, 2)]
+N10_FAST = [N10[1], N10[5]]
 
 
-@pytest.mark.parametrize("scene", N10, ids=[f"xi{s.xi}-seed{s.seed}-dt{s.dt}" for s in N10])
+@pytest.mark.parametrize("scene", [
+    pytest.param(s, id=f"xi{s.xi}-seed{s.seed}-dt{s.dt}",
+                 marks=() if s in N10_FAST else pytest.mark.slow) for s in N10])
 def test_n10_to_the_avalanche(scene):
     f, n = tilt(scene, "fortran"), tilt(scene, "numpy")
     assert f.status == "avalanche" and f.n_events > 10
@@ -262,6 +267,7 @@ N100 = [Scene(n_sliders=100, xi=0.0, seed=0, dt=0.01),
         Scene(n_sliders=100, xi=0.001, seed=1, dt=0.01)]
 
 
+@pytest.mark.slow  # N = 100 in the fast loop: its first hundred events below; bit for bit: N = 20
 @pytest.mark.parametrize("scene", N100, ids=[f"xi{s.xi}-seed{s.seed}" for s in N100])
 def test_n100_to_the_first_big_event(scene, monkeypatch):
     """Against the reference with glibc's transcendentals (see the module
@@ -288,24 +294,28 @@ def test_n100_first_hundred_events():
 
 
 # --------------------------------------------------------- statuses, chunks
+CAPPED = Scene(n_sliders=10, seed=2, dt=0.001, max_event_duration=0.5)
+
+
+@pytest.mark.xdist_group("capped-n10")  # one worker tilts CAPPED for both tests
 def test_event_duration_cap():
-    scene = Scene(n_sliders=10, seed=2, dt=0.001, max_event_duration=0.5)
-    f, n = tilt(scene, "fortran"), tilt(scene, "numpy")
+    f, n = run(CAPPED, "fortran"), run(CAPPED, "numpy")
     assert f.status == "event_duration_cap"
     assert "max_event_duration=0.5 tau" in f.message
     assert_same_run(f, n)
 
 
+@pytest.mark.xdist_group("capped-n10")
 def test_final_event_work_is_reported():
     """The work of the event that ends the run counts: the capped event's
     steps are exact, the avalanche event ends on a step where all N move."""
-    capped = Scene(n_sliders=10, seed=2, dt=0.001, max_event_duration=0.5)
     for backend in ("fortran", "numpy"):
-        run = tilt(capped, backend)
-        assert 500 <= run.final_event["n_steps"] <= 501
-        assert 0.5 < run.final_event["duration"] <= 0.5 + capped.dt
-        assert run.final_event["slider_steps"] >= run.final_event["n_steps"]
-        assert run.total_slider_steps == run.final_event["slider_steps"] + run.relaxation["slider_steps"]
+        capped = run(CAPPED, backend)
+        assert 500 <= capped.final_event["n_steps"] <= 501
+        assert 0.5 < capped.final_event["duration"] <= 0.5 + CAPPED.dt
+        assert capped.final_event["slider_steps"] >= capped.final_event["n_steps"]
+        assert capped.total_slider_steps == (capped.final_event["slider_steps"]
+                                             + capped.relaxation["slider_steps"])
     avalanche = tilt(Scene(n_sliders=30, seed=3, dt=0.01))
     work = avalanche.final_event
     assert avalanche.status == "avalanche" and work["duration"] > 1.0
@@ -314,7 +324,8 @@ def test_final_event_work_is_reported():
     assert between.status == "alpha_max" and between.final_event == {}
 
 
-@pytest.mark.parametrize("backend", ["fortran", "numpy"])
+# the reference's runs: seconds; the kernel's on the same scene stays in the fast loop
+@pytest.mark.parametrize("backend", ["fortran", pytest.param("numpy", marks=pytest.mark.slow)])
 def test_a_capped_run_leaves_the_state_before_the_event(backend):
     """The capped event is undone entirely (positions, draws, stop counts), so
     a run continued from it with a larger cap is the uncapped run."""
@@ -414,7 +425,9 @@ BIT_EXACT = [Scene(n_sliders=20, seed=2, dt=0.02),
              Scene(n_sliders=10, ends="walls", seed=1, dt=0.01, alpha_max=1.3)]
 
 
-@pytest.mark.parametrize("scene", BIT_EXACT, ids=["free-N20", "walls-N10"])
+@pytest.mark.parametrize("scene", [  # walls (to 1.3, 80 events of the reference): full suite
+    pytest.param(BIT_EXACT[0], id="free-N20"),
+    pytest.param(BIT_EXACT[1], id="walls-N10", marks=pytest.mark.slow)])
 def test_bit_for_bit_with_glibc_transcendentals(scene, monkeypatch):
     """xi = 0: with glibc's asin/atan/hypot/log/cos in the reference too, the
     kernel reproduces it to the last bit, event after event (no drift at all,

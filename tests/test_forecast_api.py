@@ -22,6 +22,9 @@ from sliders.io.forecast_files import ForecastInputError
 from sliders.runs.forecast.cli import build_parser
 from sliders.runs.forecast.predict import disjoint_intervals, probability_text
 
+# one xdist worker loads the shipped forecasters (the module's fixture) for all these tests
+pytestmark = pytest.mark.xdist_group("forecast-api")
+
 SMALL = "# three events\nangle [deg],size\n1.21,1\n2.03,1\n2.87,3\n"
 
 
@@ -52,6 +55,7 @@ def ramp(tmp_path):
     return p
 
 
+@pytest.mark.slow  # the command as a process; in this process: test_forecast_cli
 def test_the_command_prints_what_the_api_returns(model, ramp):
     out = subprocess.run([sys.executable, "-m", "sliders.forecast", "predict", str(ramp),
                           "--tilt-now", "29.5deg", "--json", "--within", "0.5deg",

@@ -78,6 +78,7 @@ def model():
     return sf.load()
 
 
+@pytest.mark.slow  # a replay at lab pace through two processes; batch's rows: test_forecast_cli
 def test_follow_forecasts_what_batch_forecasts(tmp_path, model):
     alpha, size = accelerating(180, seed=5)
     rows = [f"{a},{s}\n" for a, s in zip(alpha, size)]
@@ -136,6 +137,7 @@ def test_follow_forecasts_what_batch_forecasts(tmp_path, model):
     assert not [f for f in os.listdir(tmp_path) if f.endswith(".tmp")]
 
 
+@pytest.mark.slow  # a process stopped by a signal; batch's bad-row line: test_forecast_cli
 def test_follow_stops_on_sigterm_with_status_0(tmp_path):
     path = tmp_path / "c.csv"
     path.write_text("angle [deg],size\n1,1\n2,1\n")

@@ -7,14 +7,30 @@ import math
 import numpy as np
 import pytest
 
-from conftest import run
+from conftest import BACKENDS, run, session_cached
 from sliders import Scene, prepare, status
 from sliders.analysis import model
 from sliders.chain import elastic_force
 from sliders.driver import make_engine
 
 CHAINS = [Scene(n_sliders=10, seed=s, xi=xi) for s in (1, 2) for xi in (0.0, 0.001)]
-CHAIN_IDS = [f"N10-seed{s.seed}-xi{s.xi}" for s in CHAINS]
+# The fast loop checks the kernel on every chain and the NumPy reference on one, run event by
+# event (seconds where the kernel takes milliseconds); the reference's other runs are the full
+# suite's.  A reference that broke an invariant elsewhere would also part from the kernel, which
+# tests/test_backends.py compares with it event by event, energies included.
+FAST_REFERENCE = CHAINS[1]
+
+
+def cases(fast_reference: bool):
+    """(scene, backend) of every chain on both backends; the reference's are slow but for
+    FAST_REFERENCE if ``fast_reference``.  The tests of one reference chain go to one xdist
+    worker, which runs it once for them all."""
+    return [pytest.param(scene, backend, id=f"{backend}-N10-seed{scene.seed}-xi{scene.xi}",
+                         marks=() if backend == "fortran" else
+                         [pytest.mark.xdist_group(f"reference-N10-seed{scene.seed}-xi{scene.xi}")]
+                         + ([] if fast_reference and scene == FAST_REFERENCE
+                            else [pytest.mark.slow]))
+            for backend in BACKENDS for scene in CHAINS]
 
 
 def step_events(scene, backend, max_events=10_000):
@@ -30,31 +46,43 @@ def step_events(scene, backend, max_events=10_000):
             return
 
 
-@pytest.mark.parametrize("scene", CHAINS, ids=CHAIN_IDS)
-def test_every_slider_is_stable_after_every_event(scene, backend):
-    n_events = 0
-    for _, after, chunk in step_events(scene, backend):
-        if chunk.status != status.RUNNING:
-            assert chunk.status == status.AVALANCHE
-            break
-        n_events += 1
+def stepped_run(scene, backend):
+    """Run one event at a time, keeping what the tests below check: the status of every call,
+    the largest excess of a tangential force over its static threshold after every event,
+    the last resting state's mean static coefficient and the alpha_c of the last call."""
+    statuses, excess = [], []
+    for before, after, chunk in step_events(scene, backend):
+        statuses.append(chunk.status)
         force = elastic_force(after, scene.xi, scene.walls) + math.sin(after.drive)
-        excess = np.abs(force) - after.mu_s * math.cos(after.drive)
-        assert excess.max() <= scene.force_tol, f"unstable slider after event {n_events}"
-    assert n_events > 5
+        excess.append(float((np.abs(force) - after.mu_s * math.cos(after.drive)).max()))
+    return {"status": statuses, "excess": excess, "mean_mu_s": float(before.mu_s.mean()),
+            "alpha_c": chunk.alpha_c}
 
 
-@pytest.mark.parametrize("scene", CHAINS, ids=CHAIN_IDS)
+def stepped(scene, backend):
+    """``stepped_run`` once per test session (shared by the two tests that read it)."""
+    return session_cached("stepped", stepped_run, scene, backend)
+
+
+@pytest.mark.parametrize("scene, backend", cases(fast_reference=True))
+def test_every_slider_is_stable_after_every_event(scene, backend):
+    steps = stepped(scene, backend)
+    *running, last = steps["status"]
+    assert all(s == status.RUNNING for s in running) and last == status.AVALANCHE
+    for n_events, excess in enumerate(steps["excess"][:-1], start=1):
+        assert excess <= scene.force_tol, f"unstable slider after event {n_events}"
+    assert len(running) > 5
+
+
+@pytest.mark.parametrize("scene, backend", cases(fast_reference=True))
 def test_alpha_c_within_the_bounds_of_the_resting_state(scene, backend):
     """tan(alpha_c) <= mean mu_s of the last resting state, and tan(alpha_c) > mu_d."""
-    for before, after, chunk in step_events(scene, backend):
-        if chunk.status != status.RUNNING:
-            break
-    assert chunk.status == status.AVALANCHE
-    assert math.atan(scene.mu_d) < chunk.alpha_c <= math.atan(before.mu_s.mean()) + 1e-12
+    steps = stepped(scene, backend)
+    assert steps["status"][-1] == status.AVALANCHE
+    assert math.atan(scene.mu_d) < steps["alpha_c"] <= math.atan(steps["mean_mu_s"]) + 1e-12
 
 
-@pytest.mark.parametrize("scene", CHAINS, ids=CHAIN_IDS)
+@pytest.mark.parametrize("scene, backend", cases(fast_reference=False))
 def test_forces_sum_to_n_sin_alpha(scene, backend):
     result = run(scene.replace(record="forces"), backend)
     force = result.tangential_force
@@ -62,7 +90,7 @@ def test_forces_sum_to_n_sin_alpha(scene, backend):
     np.testing.assert_allclose(result.start_force().sum(), 0.0, atol=1e-12)
 
 
-@pytest.mark.parametrize("scene", CHAINS, ids=CHAIN_IDS)
+@pytest.mark.parametrize("scene, backend", cases(fast_reference=False))
 def test_energy_balance_per_event(scene, backend):
     """Work of gravity = elastic energy change + mu_d cos(alpha) x path length."""
     result = run(scene.replace(record="forces"), backend)

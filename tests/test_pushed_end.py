@@ -15,10 +15,17 @@ from sliders import Scene, prepare, status
 from sliders.chain import elastic_force
 from sliders.driver import make_engine
 from sliders.parts.checks import SceneError
+from conftest import run
 from test_backends import assert_bit_for_bit, assert_same_run, libm_reference
 
 PUSHED = Scene(n_sliders=8, seed=5, loading="pushed_end", incline=0.2, driver_stiffness=2.0,
                mode="explore", xi=0.001)
+# The reference takes seconds on PUSHED (400 events) where the kernel takes milliseconds: the
+# fast loop checks the facts below on the kernel and compares the kernel with the reference
+# event by event (test_fortran_matches_numpy_*); the reference's own checks run in the full suite.
+REFERENCE_SLOW = pytest.param("numpy", marks=pytest.mark.slow)
+# PUSHED on the reference, tilted once for the tests that read it (one worker)
+PUSHED_REFERENCE = pytest.mark.xdist_group("pushed-reference")
 
 
 def pushed_events(scene, max_events=5_000, stop_at_sliding=True, backend="numpy"):
@@ -34,6 +41,7 @@ def pushed_events(scene, max_events=5_000, stop_at_sliding=True, backend="numpy"
             return
 
 
+@pytest.mark.parametrize("backend", ["fortran", REFERENCE_SLOW])
 def test_forces_balance_stability_and_energy_after_every_event(backend):
     """Sum of F_t = N sin(tilt) + driver force; every slider stable; the work
     of gravity and of the driver's spring = elastic change + dissipation."""
@@ -94,8 +102,9 @@ def test_single_slider_stick_slip_period(backend):
     np.testing.assert_allclose(np.diff(drives), expected, rtol=1e-6)
 
 
+@pytest.mark.parametrize("backend", ["fortran", pytest.param("numpy", marks=PUSHED_REFERENCE)])
 def test_run_ends_at_the_onset_of_sliding_or_the_driver_limit(backend):
-    result = sliders.tilt(PUSHED, backend=backend)
+    result = run(PUSHED, backend)
     assert result.status == "sliding"
     assert f"driver position D={result.events['alpha'][-1]:.4f}" in repr(result)
     assert result.events["n_moved"][-1] == PUSHED.n_sliders
@@ -139,10 +148,14 @@ def test_bad_pushed_end_values_give_one_line_errors(values, message):
 
 
 # ------------------------------------------------ Fortran against NumPy
+# free and walls (seconds each with glibc's functions in the reference): the full suite; the fast
+# loop keeps a free chain bit for bit (steep_soft_driver), PUSHED compared with cantilevers
+# below, and walls compared on the tilt (test_backends)
 @pytest.mark.parametrize("scene", [
-    PUSHED.replace(xi=0.0),
-    Scene(n_sliders=12, seed=2, loading="pushed_end", incline=0.0, driver_stiffness=0.5,
-          ends="walls", dt=0.004, max_events=150),
+    pytest.param(PUSHED.replace(xi=0.0), marks=pytest.mark.slow),
+    pytest.param(Scene(n_sliders=12, seed=2, loading="pushed_end", incline=0.0,
+                       driver_stiffness=0.5, ends="walls", dt=0.004, max_events=150),
+                 marks=pytest.mark.slow),
     Scene(n_sliders=10, seed=7, loading="pushed_end", incline=0.4, driver_stiffness=0.2,
           dt=0.004),
 ], ids=["free", "walls", "steep_soft_driver"])
@@ -156,10 +169,11 @@ def test_fortran_matches_numpy_bit_for_bit(scene, monkeypatch):
     assert_bit_for_bit(f, n)
 
 
+@PUSHED_REFERENCE
 def test_fortran_matches_numpy_with_cantilevers():
     """xi > 0: the mean of du is summed in another order, so the drives agree
     to rounding (the run's tolerances), the events exactly."""
-    f, n = sliders.tilt(PUSHED, "fortran"), sliders.tilt(PUSHED, "numpy")
+    f, n = run(PUSHED, "fortran"), run(PUSHED, "numpy")
     assert n.status == "sliding"
     assert_same_run(f, n)
 
@@ -193,6 +207,7 @@ def test_ensembles_refuse_the_pushed_end_in_one_line(tmp_path):
     assert len(lines) == 1 and "ensembles and studies gather the tilt's statistics" in lines[0]
 
 
+@pytest.mark.parametrize("backend", ["fortran", REFERENCE_SLOW])
 def test_result_forces_include_the_driver(backend):
     """TiltResult's force analysis is the loading's: after every event the
     rebuilt forces balance N sin(tilt) + K (D - u_1) and are stable; up to the

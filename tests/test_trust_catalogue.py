@@ -20,6 +20,9 @@ from sliders.io.catalogue import Catalogue
 from test_forecast import rate_law_catalogue
 from test_trust_model_file import reduced, shipped, write_model  # noqa: F401 - fixtures
 
+# one xdist worker writes the reduced model file (the module's fixture) for all these tests
+pytestmark = pytest.mark.xdist_group("trust-catalogue")
+
 
 @pytest.fixture(scope="module")
 def model(reduced, tmp_path_factory):  # noqa: F811
