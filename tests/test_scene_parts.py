@@ -129,6 +129,30 @@ def test_files_written_with_the_flat_layout_load():
     np.testing.assert_array_equal(sliders.tilt(tilt.scene).events["alpha"], tilt.events["alpha"])
 
 
+def test_a_run_file_holds_the_drive_and_the_incline_each_in_its_column(tmp_path):
+    """Format 2: ``events/drive`` the loading's variable (rad, or D in g tau^2), a coordinate of
+    the events; ``events/alpha`` the incline's angle (the drive under the tilt, the fixed
+    incline under the pushed end).  Read back, the drive is the run's."""
+    h5py = pytest.importorskip("h5py")
+    for scene, unit in ((Scene(n_sliders=8, seed=2, mode="explore"), "rad"),
+                        (Scene(n_sliders=8, seed=2, loading=PushedEnd(incline=0.15)), "g tau^2")):
+        run = sliders.run(scene)
+        path = tmp_path / f"{scene.loading.name}.h5"
+        run.save(path)
+        with h5py.File(path, "r") as f:
+            assert f.attrs["format_version"] == 2
+            drive, alpha = f["events/drive"][()], f["events/alpha"][()]
+            assert f["events/drive"].attrs["units"] == unit
+            assert f["events/alpha"].attrs["units"] == "rad"
+            assert f["events/n_moved"].attrs["coordinates"] == "drive"
+        np.testing.assert_array_equal(drive, run.drive)
+        expected = run.drive if scene.loading.name == "tilt" else np.full(run.n_events, 0.15)
+        np.testing.assert_array_equal(alpha, expected)
+        back = sliders.Result.load(path)
+        np.testing.assert_array_equal(back.drive, run.drive)
+        assert sorted(back.events) == sorted(run.events)
+
+
 # ------------------------------------------------ a new loading costs one class
 @dataclass(frozen=True, repr=False)
 class UniformPull(Loading):

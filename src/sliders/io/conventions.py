@@ -80,17 +80,24 @@ TILT_STATE_VARIABLES = {
 }
 
 
-# a loading whose drive is not the tilt stores its drive where the tilt's alpha is
+# the drive of a loading whose drive is not the tilt (format 1 stored it where the tilt's alpha is)
 DRIVE_EVENT_VARIABLE = {"pushed_end": (LENGTH, "driver position D at which the rearrangement "
                                                "happened")}
+INCLINE_EVENT_VARIABLE = ("rad", "incline angle at which the rearrangement happened")
 
 
 def tilt_variables(h5file) -> dict[str, Variable]:
-    """Dimensions, units and long name of every dataset of a tilt-result file (path: Variable)."""
+    """Dimensions, units and long name of every dataset of a run file (path: Variable)."""
     drive = DRIVE_EVENT_VARIABLE.get(json.loads(h5file.attrs["scene"]).get("loading"))
-    events = dict(TILT_EVENT_VARIABLES, **({"alpha": drive} if drive else {}))
-    out = {f"events/{k}": Variable(("event",), u, ln, None if k == "alpha" else "alpha")
-           for k, (u, ln) in events.items()}  # alpha: a coordinate of event
+    if "events/drive" in h5file:  # format 2: the drive in its own column, a coordinate of event
+        coordinate = "drive"
+        events = dict(TILT_EVENT_VARIABLES, alpha=INCLINE_EVENT_VARIABLE,
+                      drive=drive or TILT_EVENT_VARIABLES["alpha"])
+    else:  # format 1: the drive under the tilt's name
+        coordinate = "alpha"
+        events = dict(TILT_EVENT_VARIABLES, **({"alpha": drive} if drive else {}))
+    out = {f"events/{k}": Variable(("event",), u, ln, None if k == coordinate else coordinate)
+           for k, (u, ln) in events.items()}
     out["displacement/ptr"] = Variable(("event_boundary",), "1",
                                        "start of each event's entries in index/value (CSR)")
     out["displacement/index"] = Variable(("entry",), "1", "slider that moved (0-based)")
@@ -106,7 +113,7 @@ def tilt_coordinates(h5file) -> dict[str, tuple[np.ndarray, str, str]]:
     k = h5file["events/alpha"].shape[0] if "events/alpha" in h5file else 0
     n = h5file["initial/mu_s"].shape[0]
     coords = {
-        "event": (np.arange(k), "1", "rearrangement number (0-based, in the order of alpha)"),
+        "event": (np.arange(k), "1", "rearrangement number (0-based, in the order of the drive)"),
         "slider": (np.arange(n), "1", "slider number (0-based, up the chain)"),
     }
     if "displacement" in h5file:

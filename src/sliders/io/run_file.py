@@ -8,7 +8,10 @@ One file holds one ``Result`` (of any loading; the format keeps its name ``slide
                            software_version, scene (JSON of Scene.to_dict()),
                            backend, status, message, alpha_c, wall_time,
                            relaxation (JSON), final_event (JSON), attrs_crc32
-    /events/<name>         (K,) per-event arrays (alpha, n_moved, ...)
+    /events/<name>         (K,) per-event arrays: drive (the loading's variable: the tilt
+                           alpha in rad, or the driver position D), alpha (the incline's
+                           angle: the drive under the tilt, the fixed incline under the
+                           pushed end), n_moved, ...; format 1 held the drive in alpha
     /displacement/ptr, index, value   the moved sliders per event (CSR);
                            absent when the scene records only a summary
     /initial/<field>, /final/<field>  (N,) ChainState arrays; attr alpha
@@ -41,8 +44,8 @@ from .conventions import describe_tilt_file
 from .filelock import OutputClaim
 
 FORMAT = formats.TILT
-FORMAT_VERSION = 1
-KNOWN_VERSIONS = (1,)  # format_version values this reader understands (a newer one is refused)
+FORMAT_VERSION = 2
+KNOWN_VERSIONS = (1, 2)  # format_version values this reader understands (a newer one is refused)
 STATE_FIELDS = ("elastic_force0", "spring_extension0", "cantilever_stretch0",
                 "lattice_position0", "mu_s", "displacement", "n_stops")
 WHOLE_FILE_BLOCK = 512  # bytes before the HDF5 superblock, which HDF5 leaves to the user
@@ -74,8 +77,12 @@ def run_file_bytes(result) -> bytes:
         f.attrs["relaxation"] = json.dumps(result.relaxation)
         f.attrs["final_event"] = json.dumps(result.final_event)
         ev = f.create_group("events")
+        drive = result.events["alpha"]  # the kernel's column of the drive
+        dataset(ev, "drive", drive)
+        dataset(ev, "alpha", result.scene.loading.incline_at(drive))
         for name, values in result.events.items():
-            dataset(ev, name, values)
+            if name != "alpha":
+                dataset(ev, name, values)
         if result.displacement is not None:
             g = f.create_group("displacement")
             dataset(g, "ptr", result.displacement.ptr)
@@ -142,6 +149,8 @@ def read_datasets_checked(path):
             safeio.check_header(f, FORMAT, where, ValueError, versions=KNOWN_VERSIONS)
             scene = Scene.from_stored(json.loads(f.attrs["scene"]))
             events = {name: safeio.read_checked(ds, where) for name, ds in f["events"].items()}
+            if int(f.attrs["format_version"]) >= 2:  # the drive in its own column; alpha,
+                events["alpha"] = events.pop("drive")  # the incline's angle, follows from it
             disp = None
             if "displacement" in f:
                 g = f["displacement"]

@@ -110,6 +110,10 @@ class Loading(Part):
         broadcasts over drives and (G, N) displacements, for analysis."""
         raise NotImplementedError
 
+    def incline_at(self, drives) -> np.ndarray:
+        """The incline's angle (rad) at each drive: the drive itself for the tilt."""
+        raise NotImplementedError
+
     def next_instability(self, elastic: np.ndarray, mu: np.ndarray, drive: float, du: np.ndarray,
                          force_tol: float):
         """The next critical drive >= ``drive``: (drive, trigger indices, directions)."""
@@ -157,6 +161,10 @@ class Tilt(Loading):
         check_real("alpha_max", self.alpha_max, 0.0, ALPHA_MAX_LIMIT, open_low=True,
                    why="pi/2 - 1e-6: towards pi/2 the rearrangements pile up without end "
                        "(Delta alpha ~ cos alpha) and cos alpha sinks below rounding")
+
+    def incline_at(self, drives) -> np.ndarray:
+        """The incline's angle at each drive: the drive, the tilt alpha itself."""
+        return np.asarray(drives, dtype=float)
 
     def weight(self, alpha: float) -> float:
         """Tangential force the drive adds to every slider (sin alpha)."""
@@ -241,6 +249,10 @@ class PushedEnd(Loading):
         force = elastic + weight
         force[0] += self.stiffness * (drive - du[0])
         return force
+
+    def incline_at(self, drives) -> np.ndarray:
+        """The fixed incline, at every driver position."""
+        return np.full(np.shape(drives), self.incline, dtype=float)
 
     def weight(self, drive: float) -> float:
         """Tangential component of the weight at the fixed incline."""
