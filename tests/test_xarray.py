@@ -73,7 +73,9 @@ def test_tilt_file(tilt_file):
     tree = xr.open_datatree(path, engine="h5netcdf")
     events = tree["events"].to_dataset()
     assert list(events.event.values) == list(range(k))  # coordinate inherited from the root
-    assert events.alpha.attrs["units"] == "rad" and "tilt" in events.alpha.attrs["long_name"]
+    assert events.alpha.attrs["units"] == "rad" and "incline" in events.alpha.attrs["long_name"]
+    assert events.drive.attrs["units"] == "rad" and "tilt" in events.drive.attrs["long_name"]
+    assert np.array_equal(events.drive.values, result.drive)
     assert events.duration.attrs["units"] == "tau"
     # one reduction against the package's own numbers
     assert float(events.n_moved.sum()) == result.events["n_moved"].sum()
@@ -231,13 +233,13 @@ def test_every_file_opens_as_a_tree_with_named_dimensions_and_no_warning(files, 
     assert not unitless, unitless
 
 
-def test_tilt_events_have_alpha_as_coordinate_and_the_recipe_gives_dense_displacements(
+def test_tilt_events_have_the_drive_as_coordinate_and_the_recipe_gives_dense_displacements(
         files, tmp_path, monkeypatch):
     result = sliders.TiltResult.load(files["tilt"])
     tree = xr.open_datatree(files["tilt"], engine="h5netcdf")
     events = tree["events"].to_dataset()
-    assert "alpha" in events.coords and events.coords["alpha"].dims == ("event",)
-    assert np.array_equal(events.n_moved.sel(event=events.alpha < 0.3).values,
+    assert "drive" in events.coords and events.coords["drive"].dims == ("event",)
+    assert np.array_equal(events.n_moved.sel(event=events.drive < 0.3).values,
                           result.events["n_moved"][result.events["alpha"] < 0.3])
     monkeypatch.chdir(tmp_path)
     Path("run.h5").symlink_to(files["tilt"])
@@ -252,9 +254,10 @@ def test_tilt_events_have_alpha_as_coordinate_and_the_recipe_gives_dense_displac
 
 def test_the_drive_of_a_pushed_end_is_a_length(files):
     events = xr.open_datatree(files["pushed_end"], engine="h5netcdf")["events"].to_dataset()
-    assert events.alpha.attrs["units"] == "g tau^2" and "driver" in events.alpha.attrs["long_name"]
+    assert events.drive.attrs["units"] == "g tau^2" and "driver" in events.drive.attrs["long_name"]
+    assert events.alpha.attrs["units"] == "rad" and np.all(events.alpha.values == events.alpha.values[0])
     tilted = xr.open_datatree(files["tilt"], engine="h5netcdf")["events"].to_dataset()
-    assert tilted.alpha.attrs["units"] == "rad"
+    assert tilted.drive.attrs["units"] == "rad" and tilted.alpha.attrs["units"] == "rad"
 
 
 def dense_recipe() -> str:
