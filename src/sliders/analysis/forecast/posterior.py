@@ -42,6 +42,7 @@ import math
 import numpy as np
 from scipy.special import ndtr, ndtri
 from sklearn.base import BaseEstimator
+from sklearn.utils.metadata_routing import UNUSED
 from sklearn.ensemble import HistGradientBoostingRegressor
 from threadpoolctl import threadpool_limits
 
@@ -195,6 +196,10 @@ class ParameterPosterior(BaseEstimator):
         """(n, P) the parameters of ``cset``'s rows ``rows`` on the learned scale."""
         return np.column_stack([learned_scale(p, np.asarray(cset.parameters[p])[rows],
                                               self.xi_zero_code_) for p in self.parameters_])
+
+    # the training set is data, not metadata to route through a meta-estimator: no
+    # set_fit_request (whose scikit-learn docstring the API pages would carry)
+    __metadata_request__fit = {"train": UNUSED}
 
     def fit(self, train, y=None):
         """Fit the regressors on ``train`` (a ``CatalogueSet`` with its parameters), calibrate on
