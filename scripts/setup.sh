@@ -178,7 +178,7 @@ printf '%s' "$SUMMARY"
 # ---- what to do after set-up ----------------------------------------------------
 case "${1:-}" in
   "") ;;
-  test) shift; exec "$PY" -m pytest -q -n "${SLIDERS_TEST_WORKERS:-$(nproc)}" --dist loadgroup "$@" ;;
-  fast) shift; exec "$PY" -m pytest -q -n "${SLIDERS_TEST_WORKERS:-$(nproc)}" --dist loadgroup -m "not slow" "$@" ;;
+  test) shift; exec "$PY" -m pytest -q -n "${SLIDERS_TEST_WORKERS:-$(getconf _NPROCESSORS_ONLN)}" --dist loadgroup "$@" ;;
+  fast) shift; exec "$PY" -m pytest -q -n "${SLIDERS_TEST_WORKERS:-$(getconf _NPROCESSORS_ONLN)}" --dist loadgroup -m "not slow" "$@" ;;
   run) shift; main_job "$@" ;;
 esac

@@ -45,7 +45,7 @@ EOF
 
 write_conf() {
   local host=$1 port=$2 cpus
-  cpus=$(nproc)
+  cpus=$(getconf _NPROCESSORS_ONLN)  # the machine's, whatever OMP_NUM_THREADS says (nproc reads it)
   cat > "$DIR/slurm.conf" <<EOF
 # Written by scripts/slurm_local.sh: one node on localhost, no accounting, no cgroups.
 ClusterName=sliders-local
