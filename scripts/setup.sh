@@ -3,7 +3,7 @@
 #
 #   bash scripts/setup.sh                 set up only
 #   bash scripts/setup.sh test [ARGS...]  set up, then the whole suite on both cores (docs build included)
-#   bash scripts/setup.sh fast [ARGS...]  set up, then the fast loop: pytest -m "not slow" (3 min loaded)
+#   bash scripts/setup.sh fast [ARGS...]  set up, then the fast loop: pytest -m "not slow" (1.5 min idle)
 #   bash scripts/setup.sh run  [ARGS...]  set up, then the main job below
 #
 # Steps: Debian packages (+ SLURM for `test`) -> .venv -> Python deps -> mpi4py (PyPI's binary

@@ -184,6 +184,7 @@ def test_two_sliders_obey_the_facts_on_both_backends(ends):
 
 # --------------------------------------------------------------------------- large N
 
+@pytest.mark.slow  # 10^5 sliders, seconds of kernel time
 def test_hundred_thousand_sliders_early_regime():
     """N = 1e5 (summary) up to alpha = 0.2: clean state, every number finite, sane timing.
 
@@ -253,6 +254,7 @@ def test_stiff_cantilever_refuses_a_too_large_time_step():
 
 # --------------------------------------------------------------------------- friction
 
+@pytest.mark.slow  # the NumPy reference on every tie (the kernel's ties: the walls' test below)
 def test_no_static_disorder_exact_ties_on_both_backends():
     scene = Scene(n_sliders=10, seed=1, sigma_mu=0.0)
     runs = {b: isolated(stepped, scene, b) for b in ("fortran", "numpy")}
@@ -377,7 +379,7 @@ def test_no_disorder_free_chain_avalanches_at_atan_mu_s_without_precursor(backen
         assert abs(force.sum() - n * math.sin(result.alpha_c)) < 1e-9 * n
 
 
-@pytest.mark.parametrize("backend", ["fortran", "numpy"])
+@pytest.mark.parametrize("backend", ["fortran", pytest.param("numpy", marks=pytest.mark.slow)])
 def test_no_disorder_between_walls_stays_symmetric(backend):
     scene = Scene(n_sliders=10, seed=1, initial_forces="zero", sigma_mu=0.0, ends="walls",
                   alpha_max=1.0 if backend == "fortran" else 0.75)
