@@ -33,7 +33,7 @@ import numpy as np
 from ...driver import run as tilt_to
 from ...io.catalogue import Catalogue
 from ...io.forecast_files import ForecastInputError, parse_angle, tilt_in_range
-from ...io.forecast_model import ModelFileError, default_posterior_path, load_forecasters
+from ...io.forecast_model import default_posterior_path
 from ...io.safeio import publish_bytes
 from ...analysis.forecast.features import Cuts
 from ...analysis.forecast.measurement import Measurement, degrade
@@ -44,7 +44,8 @@ from ..command import DEFAULT_BACKEND
 from ..prior_spec import parse_prior
 from .catalogue import angles_and_sizes, measurement_as_json, measurement_from, read_source
 from .common import CHECK_DRAWS, angle_option, jsonable
-from .predict import ForecastModel, at_tilt, load_model, measurement_options
+from .predict import (ForecastModel, at_tilt, load_model, measurement_options,
+                      read_model_file)
 
 #: the most piles the predictive check may simulate
 MAX_CHECK_DRAWS = 1000
@@ -81,16 +82,10 @@ def check_infer_options(args) -> None:
 
 def load_posterior(path=None) -> "PosteriorModel":
     """The posterior of the file ``path`` (default: the shipped one), read once, as data."""
-    shipped = path is None
-    path = default_posterior_path() if shipped else path
-    if shipped and not path.is_file():
-        raise ForecastInputError(f"{path}: the default posterior is missing from this "
-                                 "installation; reinstall sliders, or fit one with python -m "
-                                 "sliders.forecast train --fit posterior and pass --posterior FILE")
-    try:
-        models, prov = load_forecasters(path)
-    except ModelFileError as exc:
-        raise ForecastInputError(str(exc)) from None
+    models, prov, path = read_model_file(
+        path, default_posterior_path(), "the default posterior is missing from this "
+        "installation; reinstall sliders, or fit one with python -m sliders.forecast train "
+        "--fit posterior and pass --posterior FILE")
     posterior = models.get("posterior")
     if type(posterior).__name__ != "ParameterPosterior":
         raise ForecastInputError(f"{path}: not a posterior file (written by train --fit "

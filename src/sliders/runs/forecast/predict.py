@@ -68,16 +68,10 @@ def load_model(path=None) -> "ForecastModel":
     read once, as data (``io.forecast_model``)."""
     from ...analysis.forecast.base import Forecaster
 
-    shipped = path is None
-    path = default_model_path() if shipped else path
-    if shipped and not path.is_file():
-        raise ForecastInputError(f"{path}: the default forecaster is missing from this "
-                                 "installation; reinstall sliders, or train one with python -m "
-                                 "sliders.forecast train and pass --model FILE")
-    try:
-        models, prov = load_forecasters(path)
-    except ModelFileError as exc:
-        raise ForecastInputError(str(exc)) from None
+    models, prov, path = read_model_file(
+        path, default_model_path(), "the default forecaster is missing from this installation; "
+        "reinstall sliders, or train one with python -m sliders.forecast train and pass --model "
+        "FILE")
     wrong = next((k for k, f in models.items() if not isinstance(f, Forecaster)), None)
     if wrong is not None:
         raise ForecastInputError(f"{path}: {wrong!r} holds a {type(models[wrong]).__name__}, not "
@@ -85,6 +79,21 @@ def load_model(path=None) -> "ForecastModel":
     if "learned_blind" not in models:
         raise ForecastInputError(f"{path}: no forecaster of angles and sizes (learned_blind) in it")
     return ForecastModel(path, models, prov)
+
+
+def read_model_file(path, shipped_path, missing: str):
+    """``(models, provenance, path)`` of the model file ``path`` (None: the one shipped at
+    ``shipped_path``, refused with ``missing`` if absent), read as data; every refusal one line
+    (``ForecastInputError``)."""
+    if path is None:
+        path = shipped_path
+        if not path.is_file():
+            raise ForecastInputError(f"{path}: {missing}")
+    try:
+        models, prov = load_forecasters(path)
+    except ModelFileError as exc:
+        raise ForecastInputError(str(exc)) from None
+    return models, prov, path
 
 
 def fallback_reason(method: str, forecast, complete: bool = True) -> str | None:
