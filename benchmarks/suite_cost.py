@@ -9,7 +9,9 @@ environment and build, the machine's Debian packages, pip's cache and the h5py w
 they are; ``--cold-wheels`` also empties the wheel cache for that run), reads the seconds of each
 step from its summary, then runs the suite there the way the README's test command does
 (``pytest -n <cores>``, or the fast loop) with a JUnit report, and reads each test's seconds
-(setup + call + teardown) from it.  Prints the steps, the totals and the slowest tests, and
+(setup + call + teardown) from it, and where the cores' time went (``SLIDERS_TEST_TIMELINE``:
+tests/conftest.py records each test's CPU and its waits for one core or for both).  Prints the
+steps, the totals, the core use and the slowest tests, and
 writes them to ``benchmarks/results/suite_cost.json`` (``--out`` to change).  Wall-clock seconds
 on a possibly shared machine: compare figures of one run, and state the load beside them.
 """
@@ -49,6 +51,21 @@ def slowest_tests(junit: Path, count: int) -> tuple[list[dict], int]:
     return sorted(cases, key=lambda c: -c["s"])[:count], len(cases)
 
 
+def core_use(timeline: Path, suite_s: float, count: int) -> dict:
+    """Where the cores' time went (tests/conftest.py writes one record per test under xdist):
+    CPU of the tests, waiting for a core or for both, holding both."""
+    tests = [json.loads(line) for line in timeline.read_text().splitlines()]
+    waits = sorted(tests, key=lambda t: -t["waited_both"])[:count]
+    return {"available_s": round(suite_s * (os.cpu_count() or 1), 1),
+            "cpu_s": round(sum(t["cpu"] for t in tests), 1),
+            "waiting_for_one_s": round(sum(t["waited_one"] for t in tests), 1),
+            "waiting_for_both_s": round(sum(t["waited_both"] for t in tests), 1),
+            "holding_both_s": round(sum(t["end"] - t["start"] - t["waited_both"] - t["waited_one"]
+                                        for t in tests if t["both_cores"]), 1),
+            "longest_waits_for_both": [{"test": t["test"], "waited_both": round(t["waited_both"], 1)}
+                                       for t in waits if t["waited_both"] > 0]}
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--fresh-clone", action="store_true", help="set up a clone of HEAD from scratch")
@@ -73,11 +90,13 @@ def main():
         if setup.returncode != 0:
             sys.exit(f"suite_cost: set-up failed:\n{setup.stderr[-2000:]}")
         junit = scratch / "junit.xml"
+        timeline = scratch / "timeline.jsonl"
         suite, suite_s = timed(["bash", "scripts/setup.sh", target, "-p", "no:cacheprovider",
                                 f"--junitxml={junit}", "-o", "junit_duration_report=total"],
-                               where, env)
+                               where, dict(env, SLIDERS_TEST_TIMELINE=str(timeline)))
         tail = suite.stdout.strip().splitlines()[-1:] or ["(no output)"]
         slow, n_tests = slowest_tests(junit, args.slowest) if junit.exists() else ([], 0)
+        cores = core_use(timeline, suite_s, args.slowest) if timeline.exists() else {}
     finally:  # the clone, the cold wheel cache and the JUnit report
         shutil.rmtree(scratch, ignore_errors=True)
     report = {
@@ -87,7 +106,7 @@ def main():
         "load_average_before": os.getloadavg(),
         "setup_s": round(setup_s, 1), "setup_steps": setup_steps(setup.stdout),
         "suite_s": round(suite_s, 1), "suite_exit": suite.returncode, "suite_summary": tail[0],
-        "tests": n_tests, "slowest": slow,
+        "tests": n_tests, "slowest": slow, "cores_used": cores,
     }
     print(f"set-up {setup_s:.0f} s ({report['checkout']}, wheel cache {report['wheel_cache']})")
     for s in report["setup_steps"]:
@@ -97,6 +116,14 @@ def main():
     print(f"slowest {len(slow)} of {n_tests} tests (setup + call + teardown):")
     for c in slow:
         print(f"  {c['s']:7.1f} s  {c['test']}")
+    if cores:
+        print(f"core-seconds: {cores['available_s']:.0f} available, {cores['cpu_s']:.0f} of CPU in "
+              f"the tests, {cores['waiting_for_one_s']:.0f} waiting for a core, "
+              f"{cores['waiting_for_both_s']:.0f} waiting for both; "
+              f"{cores['holding_both_s']:.0f} s of wall time with both cores held by one test")
+        print("tests that waited longest for both cores:")
+        for c in cores["longest_waits_for_both"]:
+            print(f"  {c['waited_both']:7.1f} s  {c['test']}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1) + "\n")
     print(f"written: {args.out}")

@@ -46,6 +46,9 @@ EOF
 write_conf() {
   local host=$1 port=$2 cpus
   cpus=$(getconf _NPROCESSORS_ONLN)  # the machine's, whatever OMP_NUM_THREADS says (nproc reads it)
+  # MinJobAge=5: a finished job's record is kept 5 s (its state is read right after it leaves
+  # the queue), and `sbatch --wait` polls every 2 s instead of 2, 8, then 32 s (Slurm 22.05
+  # lengthens its poll while the poll is under MinJobAge/2): a 12 s job returned after 42 s.
   cat > "$DIR/slurm.conf" <<EOF
 # Written by scripts/slurm_local.sh: one node on localhost, no accounting, no cgroups.
 ClusterName=sliders-local
@@ -75,7 +78,7 @@ SlurmdLogFile=$DIR/slurmd.log
 SlurmctldTimeout=30
 SlurmdTimeout=30
 InactiveLimit=0
-MinJobAge=300
+MinJobAge=5
 KillWait=5
 NodeName=$host NodeAddr=127.0.0.1 CPUs=$cpus State=UNKNOWN
 PartitionName=debug Nodes=$host Default=YES MaxTime=INFINITE State=UP

@@ -19,9 +19,11 @@ from __future__ import annotations
 
 import fcntl
 import hashlib
+import json
 import os
 import pickle
 import re
+import resource
 import shutil
 import subprocess
 import sys
@@ -82,18 +84,21 @@ class CoreSlots:
         self.turnstile = open(directory / "turnstile", "a")
         self.cores = open(directory / "cores", "a")
         self.held = None
+        self.waited = {fcntl.LOCK_SH: 0.0, fcntl.LOCK_EX: 0.0}  # seconds, this test
 
     def hold(self, mode: int) -> None:
         if self.held == mode or self.held == fcntl.LOCK_EX:
             return
         if self.held is not None:
             fcntl.flock(self.cores, fcntl.LOCK_UN)
+        started = time.monotonic()
         fcntl.flock(self.turnstile, fcntl.LOCK_EX)
         try:
             fcntl.flock(self.cores, mode)
             self.held = mode
         finally:
             fcntl.flock(self.turnstile, fcntl.LOCK_UN)
+            self.waited[mode] += time.monotonic() - started
 
     def release(self) -> None:
         fcntl.flock(self.cores, fcntl.LOCK_UN)
@@ -151,11 +156,28 @@ def pytest_runtest_protocol(item, nextitem):
     if slots is None:
         yield
         return
+    slots.waited = {fcntl.LOCK_SH: 0.0, fcntl.LOCK_EX: 0.0}
+    started, cpu = time.time(), _cpu_seconds()
     slots.hold(fcntl.LOCK_EX if item.get_closest_marker("two_cores") else fcntl.LOCK_SH)
     try:
         yield
     finally:
+        both = slots.held == fcntl.LOCK_EX
         slots.release()
+        timeline = os.environ.get("SLIDERS_TEST_TIMELINE")
+        if timeline:  # benchmarks/suite_cost.py: where the suite's wall time goes
+            record = {"test": item.nodeid, "worker": item.config.workerinput["workerid"],
+                      "start": started, "end": time.time(), "cpu": _cpu_seconds() - cpu,
+                      "both_cores": both, "waited_one": slots.waited[fcntl.LOCK_SH],
+                      "waited_both": slots.waited[fcntl.LOCK_EX]}
+            with open(timeline, "a") as f:
+                f.write(json.dumps(record) + "\n")
+
+
+def _cpu_seconds() -> float:
+    """CPU time of this worker and of the subprocesses it has waited for."""
+    own, children = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
 # where run() keeps its results: a folder of the test session that its xdist workers share
