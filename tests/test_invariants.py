@@ -14,23 +14,26 @@ from sliders.chain import elastic_force
 from sliders.driver import make_engine
 
 CHAINS = [Scene(n_sliders=10, seed=s, xi=xi) for s in (1, 2) for xi in (0.0, 0.001)]
-# The fast loop checks the kernel on every chain and the NumPy reference on one, run event by
-# event (seconds where the kernel takes milliseconds); the reference's other runs are the full
-# suite's.  A reference that broke an invariant elsewhere would also part from the kernel, which
-# tests/test_backends.py compares with it event by event, energies included.
+# The kernel is checked on every chain; the NumPy reference, run event by event (seconds where
+# the kernel takes milliseconds), on one chain of each xi: FAST_REFERENCE in the fast loop, the
+# other in the full suite.  A reference that broke an invariant on another chain would also part
+# from the kernel, which tests/test_backends.py compares with it event by event, energies
+# included.
 FAST_REFERENCE = CHAINS[1]
+REFERENCE_CHAINS = (FAST_REFERENCE, CHAINS[2])
 
 
 def cases(fast_reference: bool):
-    """(scene, backend) of every chain on both backends; the reference's are slow but for
-    FAST_REFERENCE if ``fast_reference``.  The tests of one reference chain go to one xdist
-    worker, which runs it once for them all."""
+    """(scene, backend) of every chain on the kernel and of REFERENCE_CHAINS on the reference,
+    slow but for FAST_REFERENCE if ``fast_reference``.  The tests of one reference chain go to
+    one xdist worker, which runs it once for them all."""
     return [pytest.param(scene, backend, id=f"{backend}-N10-seed{scene.seed}-xi{scene.xi}",
                          marks=() if backend == "fortran" else
                          [pytest.mark.xdist_group(f"reference-N10-seed{scene.seed}-xi{scene.xi}")]
                          + ([] if fast_reference and scene == FAST_REFERENCE
                             else [pytest.mark.slow]))
-            for backend in BACKENDS for scene in CHAINS]
+            for backend in BACKENDS for scene in CHAINS
+            if backend == "fortran" or scene in REFERENCE_CHAINS]
 
 
 def step_events(scene, backend, max_events=10_000):

@@ -74,8 +74,8 @@ def laplacian(du: np.ndarray, walls: bool) -> np.ndarray:
 
     Works on the last axis, so a stack of configurations (K, N) is fine.
     """
-    out = np.zeros_like(du)
-    step = np.diff(du, axis=-1)  # du_{n+1} - du_n, spring n+1
+    out = np.zeros(du.shape)
+    step = du[..., 1:] - du[..., :-1]  # du_{n+1} - du_n, spring n+1 (np.diff, without its checks)
     out[..., :-1] += step
     out[..., 1:] -= step
     if walls:  # the walls do not move: spring to a wall changes by -du at the end
@@ -88,8 +88,8 @@ def elastic_force(state: ChainState, xi: float, walls: bool, displacement=None) 
     """Elastic force E_n (springs + cantilever) for du (default: the state's)."""
     du = state.displacement if displacement is None else displacement
     e = state.elastic_force0 + laplacian(du, walls)
-    if xi != 0.0:
-        e = e - xi * (du - du.mean(axis=-1, keepdims=True))
+    if xi != 0.0:  # the mean as np.mean computes it (sum, then divided), without its checks
+        e = e - xi * (du - np.add.reduce(du, axis=-1, keepdims=True) / du.shape[-1])
     return e
 
 

@@ -151,7 +151,7 @@ class NumpyEngine:
             trial = event.refined_step()
             if trial is None:  # refine_tol below the step's resolution
                 return event.unfinished(status.REFINE_LIMIT, refine_limit_message(sc, state.drive))
-            if not (np.all(np.isfinite(trial[0])) and np.all(np.isfinite(trial[1]))):
+            if not (np.isfinite(trial[0]).all() and np.isfinite(trial[1]).all()):
                 event.count_step(trial)
                 return event.unfinished(status.NON_FINITE, f"non-finite state at alpha={state.drive}")
             event.accept(trial)
@@ -268,7 +268,7 @@ class _Rearrangement:
         coefficient, RuntimeError if the draw fails), then start every resting
         slider beyond its threshold in the direction of its force."""
         state, moving, direction = self.state, self.moving, self.direction
-        stops = np.flatnonzero(moving & (direction * self.v < 0.0))
+        stops = (moving & (direction * self.v < 0.0)).nonzero()[0]
         if stops.size:
             self.n_stops += stops.size
             self.v[stops] = 0.0
@@ -278,7 +278,7 @@ class _Rearrangement:
             state.mu_s[stops] = self.law.draw_at_stop(self.scene.seed, stops, state.n_stops[stops])
             self.threshold[stops] = self.law.static_threshold(state.mu_s[stops], self.normal,
                                                               self.scene.force_tol)
-        starts = np.flatnonzero(~moving & (np.abs(self.force) > self.threshold))
+        starts = (~moving & (np.abs(self.force) > self.threshold)).nonzero()[0]
         moving[starts] = True
         direction[starts] = np.sign(self.force[starts])
         self.moved[starts] = True
