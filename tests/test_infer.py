@@ -229,3 +229,39 @@ def test_the_shipped_posterior_passes_the_archive_check_its_digest_stands_for():
 
     path = default_posterior_path()
     check_archive(read_model_bytes(path), path)  # raises ModelFileError if not
+
+
+def test_the_verdict_fails_when_either_predictive_test_fails_and_says_which():
+    from sliders.runs.forecast.infer import check_text, combined_verdict
+
+    posterior_ok = {"reproduced": True, "p_values": {"onset": 0.4, "stands_to_tilt": 0.5},
+                    "simulated": 24, "alpha": 0.01}
+    both_ok = combined_verdict(posterior_ok, True, "")
+    assert both_ok["reproduced"] is True and both_ok["reasons"] == []
+    assert both_ok["tests"] == {"prior_predictive": True, "posterior_predictive": True}
+    outside = combined_verdict(posterior_ok, False, "the tilt reached is above 99.5 %")
+    assert outside["reproduced"] is False
+    assert [r["test"] for r in outside["reasons"]] == ["prior_predictive"]
+    assert "the tilt reached" in outside["reasons"][0]["detail"]
+    assert "prior predictive check failed" in check_text(outside)
+    differs = combined_verdict({**posterior_ok, "reproduced": False,
+                                "p_values": {"onset": 1e-5, "stands_to_tilt": 0.5}}, False, "x")
+    assert [r["test"] for r in differs["reasons"]] == ["prior_predictive", "posterior_predictive"]
+    assert "onset" in differs["reasons"][1]["detail"]
+    assert differs["p_values"]["onset"] == 1e-5 and differs["simulated"] == 24
+
+
+def test_the_json_verdict_names_the_failed_test_of_a_pile_prepared_outside_the_prior(model):
+    # a material of the prior, prepared without internal forces: silent up to a tilt where
+    # every pile of the prior has had events (the prior predictive test fails)
+    scene = parse_prior(model.posterior.prior_spec()).base_scene.replace(
+        mu_d=0.7, mu_s_mean=0.74, sigma_mu=0.03, xi=0.0, n_sliders=100, seed=3,
+        initial_forces="zero")
+    result = run(scene, "fortran")
+    cat = Catalogue.from_result(result).cut(result.alpha_c - math.radians(1.0))
+    inference = model.infer_catalogue(cat, PERFECT, check=True, check_draws=8)
+    check = inference.to_dict()["check"]  # what infer --json prints
+    assert check["reproduced"] is False and check["tests"]["prior_predictive"] is False
+    assert "prior_predictive" in [r["test"] for r in check["reasons"]]
+    assert {"p_values", "simulated", "alpha", "avalanched_before"} <= set(check)
+    assert "prior predictive check failed" in str(inference)
