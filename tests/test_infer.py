@@ -265,3 +265,18 @@ def test_the_json_verdict_names_the_failed_test_of_a_pile_prepared_outside_the_p
     assert "prior_predictive" in [r["test"] for r in check["reasons"]]
     assert {"p_values", "simulated", "alpha", "avalanched_before"} <= set(check)
     assert "prior predictive check failed" in str(inference)
+
+
+def test_mu_d_and_xi_come_together_from_the_lone_slips_of_a_coupled_pile(model):
+    from sliders.analysis.forecast.features import coupled_lone_slips, densest_value, \
+        single_slider_mu_d
+
+    scene = parse_prior(model.posterior.prior_spec()).base_scene.replace(
+        mu_d=0.6, mu_s_mean=0.64, sigma_mu=0.01, xi=0.05, n_sliders=30, seed=4)
+    result = run(scene, "fortran")
+    cat = Catalogue.from_result(result).cut(result.alpha_c - math.radians(1.0))
+    mu_d, xi, agree = coupled_lone_slips(cat)
+    assert agree >= 3
+    assert mu_d == pytest.approx(0.6, abs=1e-6) and xi == pytest.approx(0.05, rel=1e-3)
+    neglected, _ = densest_value(single_slider_mu_d(cat))  # the cantilevers neglected
+    assert not abs(neglected - 0.6) < 1e-3

@@ -29,6 +29,11 @@ simulation-based calibration tests (``probability_integral``).  Between the
 levels the CDF is linear, and below the lowest and above the highest it
 reaches the prior's range.
 
+mu_d is learned about an estimate where the catalogue gives one: from the
+lone slips of a complete catalogue of exact angles, mu_d and the cantilevers'
+xi solved together (``features.coupled_lone_slips``, exact whatever xi), or
+failing that the lone-slider pairs that neglect xi (exact when xi = 0).
+
 The predictive check compares a catalogue with piles simulated at posterior
 draws (``posterior_check``; the simulations are the command's,
 ``sliders.runs.forecast.infer``).
@@ -48,7 +53,7 @@ from threadpoolctl import threadpool_limits
 
 from ...io.catalogue import Catalogue
 from .domain import DOMAIN_FEATURES, DomainCheck
-from .features import Cuts, feature_matrix, training_cuts
+from .features import Cuts, coupled_lone_slips, feature_matrix, training_cuts
 from .integrity import IntegrityError, check_array, check_boosting, check_number, require
 from .measurement import PERFECT, degrade_cuts
 
@@ -65,6 +70,11 @@ CATALOGUE_CLASSES = ("complete", "angles_sizes")
 #: lone-slider pairs that must agree (``features.single_slider_mu_d``) for mu_d to be learned
 #: about their estimate, in a complete catalogue of exact angles
 REFERENCE_AGREE = 2
+#: lone-slip pairs that must agree with mu_d and xi solved together
+#: (``features.coupled_lone_slips``) for mu_d to be learned about that solution instead
+COUPLED_AGREE = 4
+#: the columns of ``features.coupled_lone_slips`` in ``design``
+COUPLED_NAMES = ["coupled_mu_d", "coupled_xi", "coupled_agree"]
 #: the points of the posterior's CDF its variance is computed on
 VARIANCE_POINTS = 400
 
@@ -93,27 +103,37 @@ def is_complete(cat: Catalogue) -> bool:
 
 def design(cuts: Cuts) -> np.ndarray:
     """(n, F) what the regressors see: the catalogue's and the measurement's features
-    (``features.feature_matrix``), whether the catalogue is complete, and whether its
-    lone-slider pairs give mu_d (``lone_slider_mu_d``)."""
+    (``features.feature_matrix``), mu_d and xi solved together from the lone-slip pairs and
+    how many agree (``features.coupled_lone_slips``), whether the catalogue is complete, and
+    whether its lone-slider pairs give mu_d (``lone_slider_mu_d``)."""
     x, names = feature_matrix(cuts)
+    coupled = np.array([coupled_lone_slips(c) for c in cuts.catalogues],
+                       dtype=float).reshape(len(cuts), len(COUPLED_NAMES))
+    x = np.hstack([x, coupled])
     complete = np.array([is_complete(c) for c in cuts.catalogues], dtype=float)
-    exact = np.isfinite(lone_slider_mu_d(x, names)).astype(float)
+    exact = np.isfinite(lone_slider_mu_d(x, names + COUPLED_NAMES)).astype(float)
     return np.hstack([x, complete[:, None], exact[:, None]])
 
 
 def lone_slider_mu_d(x, names) -> np.ndarray:
-    """(n,) mu_d from the lone-slider pairs where ``REFERENCE_AGREE`` of them agree in a
-    catalogue of exact angles (exact when xi = 0), NaN elsewhere."""
+    """(n,) mu_d from the lone-slip pairs of a catalogue of exact angles, NaN elsewhere: mu_d
+    and xi solved together where ``COUPLED_AGREE`` pairs agree with them (exact whatever xi),
+    else the estimate ``REFERENCE_AGREE`` pairs agree on neglecting xi (exact when xi = 0)."""
+    exact_angles = x[:, names.index("angle_resolution")] == 0
     a = x[:, names.index("atan_mu_d_single")]
-    exact = (np.isfinite(a) & (x[:, names.index("single_slider_agree")] >= REFERENCE_AGREE)
-             & (x[:, names.index("angle_resolution")] == 0))
-    return np.where(exact, np.tan(np.where(exact, a, 0.0)), np.nan)
+    single = (np.isfinite(a) & (x[:, names.index("single_slider_agree")] >= REFERENCE_AGREE)
+              & exact_angles)
+    c = x[:, names.index("coupled_mu_d")]
+    coupled = (np.isfinite(c) & (x[:, names.index("coupled_agree")] >= COUPLED_AGREE)
+               & exact_angles)
+    return np.where(coupled, c, np.where(single, np.tan(np.where(single, a, 0.0)), np.nan))
 
 
 def design_names() -> list[str]:
     """The names of ``design``'s columns."""
     one = Catalogue([0.1], [1], [0.0], [0], [0], 0.1)
-    return feature_matrix(Cuts.from_catalogues([one]))[1] + ["complete", "lone_slider_mu_d"]
+    return (feature_matrix(Cuts.from_catalogues([one]))[1] + COUPLED_NAMES
+            + ["complete", "lone_slider_mu_d"])
 
 
 class ParameterPosterior(BaseEstimator):
