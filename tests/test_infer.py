@@ -8,6 +8,7 @@ they run in seconds, each cut at a random tilt before its avalanche.
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import shutil
@@ -280,3 +281,24 @@ def test_mu_d_and_xi_come_together_from_the_lone_slips_of_a_coupled_pile(model):
     assert mu_d == pytest.approx(0.6, abs=1e-6) and xi == pytest.approx(0.05, rel=1e-3)
     neglected, _ = densest_value(single_slider_mu_d(cat))  # the cantilevers neglected
     assert not abs(neglected - 0.6) < 1e-3
+
+
+def test_the_domain_check_flags_the_share_of_calibration_cuts_it_is_set_to(model):
+    from sliders.analysis.forecast.domain import DomainCheck
+
+    post = model.posterior
+    assert post.get_params()["domain_level"] == 0.005
+    # the shipped posterior's domain check, set again on catalogues of the prior it knows
+    prior = parse_prior(post.prior_spec())
+    rng = np.random.default_rng(2)
+    cats = []
+    for r in range(8):
+        whole = Catalogue.from_result(run(prior.scene(r).replace(n_sliders=20), "fortran"))
+        cats += [whole.cut(a) for a in rng.uniform(0.0, whole.tilt_now, 40)]
+    cuts = Cuts.from_catalogues(cats, PERFECT)
+    check = copy.deepcopy(post.domain_)
+    assert isinstance(check, DomainCheck)
+    for level in (0.05, 0.2):
+        check.calibrate(cuts, level)
+        share = float(np.mean(check.novel(cuts)))
+        assert level - 1 / len(cuts) <= share <= level + 1e-9, (level, share)

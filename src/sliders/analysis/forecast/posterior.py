@@ -34,8 +34,11 @@ lone slips of a complete catalogue of exact angles, mu_d and the cantilevers'
 xi solved together (``features.coupled_lone_slips``, exact whatever xi), or
 failing that the lone-slider pairs that neglect xi (exact when xi = 0).
 
-The predictive check compares a catalogue with piles simulated at posterior
-draws (``posterior_check``; the simulations are the command's,
+The domain check (``domain.DomainCheck``) is fitted on the training cuts and
+its thresholds set on the calibration realisations' cuts (``domain_level`` of
+them flagged): it is the prior predictive test of the command's check, and
+the posterior predictive test compares a catalogue with piles simulated at
+posterior draws (``posterior_check``; the simulations are the command's,
 ``sliders.runs.forecast.infer``).
 """
 
@@ -155,6 +158,9 @@ class ParameterPosterior(BaseEstimator):
         Share of the cuts kept to their angles and sizes.
     calibration_share : float
         Share of the realisations held out of the fit to calibrate (split by realisation).
+    domain_level : float
+        The prior predictive check's level: the share of the calibration realisations' cuts
+        the domain check's novelty detectors flag (``DomainCheck.calibrate``).
     random_state : int
         Seeds the split, the cuts, the degradations and the regressors.
 
@@ -185,7 +191,8 @@ class ParameterPosterior(BaseEstimator):
     def __init__(self, draws_per_row: int = 6, max_iter: int = 50, learning_rate: float = 0.1,
                  max_leaf_nodes: int = 15, min_samples_leaf: int = 40, max_bins: int = 63,
                  degrade: bool = True, exact_share: float = 0.5, angles_sizes_share: float = 0.3,
-                 calibration_share: float = 0.2, random_state: int = 0):
+                 calibration_share: float = 0.2, domain_level: float = 0.005,
+                 random_state: int = 0):
         self.draws_per_row = draws_per_row
         self.max_iter = max_iter
         self.learning_rate = learning_rate
@@ -196,6 +203,7 @@ class ParameterPosterior(BaseEstimator):
         self.exact_share = exact_share
         self.angles_sizes_share = angles_sizes_share
         self.calibration_share = calibration_share
+        self.domain_level = domain_level
         self.random_state = random_state
 
     # -- fit ------------------------------------------------------------------------------
@@ -228,8 +236,14 @@ class ParameterPosterior(BaseEstimator):
         with threadpool_limits(limits=1, user_api="openmp"):
             return self._fit(train)
 
-    def _fit(self, train):
+    def calibration_split(self, n: int):
+        """The fit's generator and which of ``n`` training realisations it holds out of the
+        fit to calibrate (the conformal shifts, the copula, the domain check's thresholds)."""
         rng = np.random.default_rng(self.random_state)
+        return rng, rng.random(n) < self.calibration_share
+
+    def _fit(self, train):
+        rng, held = self.calibration_split(len(train))
         self.parameters_ = tuple(p for p in POSTERIOR_PARAMETERS if p in train.parameters)
         require(self.parameters_, "the prior file holds none of the material parameters")
         xi = np.asarray(train.parameters.get("xi", []), dtype=float)
@@ -240,7 +254,6 @@ class ParameterPosterior(BaseEstimator):
         every = self.targets(train, np.arange(len(train)))
         self.low_, self.high_ = every.min(axis=0), every.max(axis=0)
         self.prior_variance_ = np.maximum(every.var(axis=0), 1e-12)
-        held = rng.random(len(train)) < self.calibration_share
         fit_set, cal_set = train.subset(np.flatnonzero(~held)), train.subset(np.flatnonzero(held))
         cuts = self.cuts_of(fit_set, rng)
         x = design(cuts)
@@ -255,7 +268,7 @@ class ParameterPosterior(BaseEstimator):
                                for p in self.parameters_}, rng)
         self.domain_ = DomainCheck(DOMAIN_FEATURES, random_state=self.random_state).fit(
             cuts, fit_set.alpha_c, order=rng.permutation(len(cuts)),
-            n_sliders=fit_set.parameters.get("n_sliders"))
+            n_sliders=fit_set.parameters.get("n_sliders")).calibrate(cal, self.domain_level)
         self.prior_ = str(train.attrs.get("prior", "{}"))
         self.n_training_cuts_, self.n_calibration_cuts_ = len(cuts), len(cal)
         return self
