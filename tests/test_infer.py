@@ -8,6 +8,7 @@ they run in seconds, each cut at a random tilt before its avalanche.
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import shutil
@@ -229,3 +230,85 @@ def test_the_shipped_posterior_passes_the_archive_check_its_digest_stands_for():
 
     path = default_posterior_path()
     check_archive(read_model_bytes(path), path)  # raises ModelFileError if not
+
+
+def test_the_verdict_fails_when_either_predictive_test_fails_and_says_which():
+    from sliders.runs.forecast.infer import check_text, combined_verdict
+
+    posterior_ok = {"reproduced": True, "p_values": {"onset": 0.4, "stands_to_tilt": 0.5},
+                    "simulated": 24, "alpha": 0.01}
+    both_ok = combined_verdict(posterior_ok, True, "")
+    assert both_ok["reproduced"] is True and both_ok["reasons"] == []
+    assert both_ok["tests"] == {"prior_predictive": True, "posterior_predictive": True}
+    outside = combined_verdict(posterior_ok, False, "the tilt reached is above 99.5 %")
+    assert outside["reproduced"] is False
+    assert [r["test"] for r in outside["reasons"]] == ["prior_predictive"]
+    assert "the tilt reached" in outside["reasons"][0]["detail"]
+    assert "prior predictive check failed" in check_text(outside)
+    differs = combined_verdict({**posterior_ok, "reproduced": False,
+                                "p_values": {"onset": 1e-5, "stands_to_tilt": 0.5}}, False, "x")
+    assert [r["test"] for r in differs["reasons"]] == ["prior_predictive", "posterior_predictive"]
+    assert "onset" in differs["reasons"][1]["detail"]
+    assert differs["p_values"]["onset"] == 1e-5 and differs["simulated"] == 24
+
+
+def test_the_json_verdict_names_the_failed_test_of_a_pile_prepared_outside_the_prior(model):
+    # a material of the prior, prepared without internal forces: silent up to a tilt where
+    # every pile of the prior has had events (the prior predictive test fails)
+    scene = parse_prior(model.posterior.prior_spec()).base_scene.replace(
+        mu_d=0.7, mu_s_mean=0.74, sigma_mu=0.03, xi=0.0, n_sliders=100, seed=3,
+        initial_forces="zero")
+    result = run(scene, "fortran")
+    cat = Catalogue.from_result(result).cut(result.alpha_c - math.radians(1.0))
+    inference = model.infer_catalogue(cat, PERFECT, check=True, check_draws=8)
+    check = inference.to_dict()["check"]  # what infer --json prints
+    assert check["reproduced"] is False and check["tests"]["prior_predictive"] is False
+    assert "prior_predictive" in [r["test"] for r in check["reasons"]]
+    assert {"p_values", "simulated", "alpha", "avalanched_before"} <= set(check)
+    assert "prior predictive check failed" in str(inference)
+
+
+def test_mu_d_and_xi_come_together_from_the_lone_slips_of_a_coupled_pile(model):
+    from sliders.analysis.forecast.features import coupled_lone_slips, densest_value, \
+        single_slider_mu_d
+
+    scene = parse_prior(model.posterior.prior_spec()).base_scene.replace(
+        mu_d=0.6, mu_s_mean=0.64, sigma_mu=0.01, xi=0.05, n_sliders=30, seed=4)
+    result = run(scene, "fortran")
+    cat = Catalogue.from_result(result).cut(result.alpha_c - math.radians(1.0))
+    mu_d, xi, agree = coupled_lone_slips(cat)
+    assert agree >= 3
+    assert mu_d == pytest.approx(0.6, abs=1e-6) and xi == pytest.approx(0.05, rel=1e-3)
+    neglected, _ = densest_value(single_slider_mu_d(cat))  # the cantilevers neglected
+    assert not abs(neglected - 0.6) < 1e-3
+
+
+def test_the_domain_check_flags_the_share_of_calibration_cuts_it_is_set_to(model):
+    from sliders.analysis.forecast.domain import DomainCheck
+
+    post = model.posterior
+    assert post.get_params()["domain_level"] == 0.005
+    # the shipped posterior's domain check, set again on catalogues of the prior it knows
+    prior = parse_prior(post.prior_spec())
+    rng = np.random.default_rng(2)
+    cats = []
+    for r in range(8):
+        whole = Catalogue.from_result(run(prior.scene(r).replace(n_sliders=20), "fortran"))
+        cats += [whole.cut(a) for a in rng.uniform(0.0, whole.tilt_now, 40)]
+    cuts = Cuts.from_catalogues(cats, PERFECT)
+    check = copy.deepcopy(post.domain_)
+    assert isinstance(check, DomainCheck)
+    for level in (0.05, 0.2):
+        check.calibrate(cuts, level)
+        share = float(np.mean(check.novel(cuts)))
+        assert level - 1 / len(cuts) <= share <= level + 1e-9, (level, share)
+
+
+def test_the_benchmark_names_the_shipped_posterior_by_its_name_and_digest():
+    import pathlib
+
+    results = pathlib.Path(__file__).parents[1] / "benchmarks" / "results"
+    d = json.loads((results / "inference_calibration.json").read_text())
+    recorded = pathlib.Path(str(default_posterior_path()) + ".sha256").read_text().split()[0]
+    assert d["posterior"] == {"name": default_posterior_path().name, "sha256": recorded}
+    assert "/work" not in json.dumps(d)

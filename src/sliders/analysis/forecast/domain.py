@@ -184,6 +184,24 @@ class DomainCheck(BaseEstimator):
         self.n_sliders_range_ = None if n is None or not n.size else np.array([n.min(), n.max()])
         return self
 
+    def calibrate(self, cuts, level: float, fewest: int = 200):
+        """Set each novelty detector's threshold so that it flags the share ``level`` of the
+        calibration ``cuts`` of its measurement class (cuts of realisations the detector did not
+        learn from; the finite-sample quantile, rounded towards fewer flags); a class with fewer
+        than ``fewest`` calibration cuts keeps the threshold of ``contamination``."""
+        x, kind = domain_features(cuts, self.features), measurement_class(cuts)
+        for k, label in enumerate(MEASUREMENT_CLASSES):
+            rows = np.flatnonzero(kind == k)
+            det = self.detectors_[k]
+            if det is None or rows.size < fewest:
+                continue
+            scores = np.sort(det.score_samples(x[rows][:, self._columns(label)]))
+            j = int(np.floor(level * (rows.size + 1))) - 1
+            # flagged: a score below the offset; the j+1 lowest calibration scores are flagged
+            det.steps[-1][1].offset_ = float(np.nextafter(scores[j], np.inf)) if j >= 0 \
+                else float(scores[0])
+        return self
+
     def _columns(self, label) -> list:
         """The features the detector of measurement class ``label`` compares."""
         return [i for i, f in enumerate(self.features) if label != "arbitrary" or f not in IN_SLIDERS]

@@ -163,6 +163,30 @@ def size_one_delta_mu(cat: Catalogue) -> float:
     return float(np.median(cat.displacement[one] / np.cos(cat.alpha[one])))
 
 
+def lone_slip_pairs(cat: Catalogue) -> list[tuple[int, int]]:
+    """Every pair (j, i) of events in which one slider slipped alone, at j and again at i,
+    while its neighbours stayed at rest in between; in the order of the second slip (empty
+    without the moved sliders, ``first``/``last``)."""
+    n = len(cat)
+    if n < 2 or cat.first[0] < 0 and cat.first.max() < 0:
+        return []
+    first, last, size = cat.first.tolist(), cat.last.tolist(), cat.size.tolist()
+    width = max(last) + 3
+    previous = [-1] * width  # per slider: its last lone slip, if its neighbourhood kept still since
+    out = []
+    for i in range(n):
+        lo, hi = first[i], last[i]
+        if lo < 0:
+            continue
+        if size[i] == 1 and lo == hi and previous[lo + 1] >= 0:
+            out.append((previous[lo + 1], i))
+        for k in range(lo, hi + 3):  # sliders lo-1 .. hi+1, shifted by one
+            previous[k] = -1
+        if size[i] == 1 and lo == hi:
+            previous[lo + 1] = i
+    return out
+
+
 def single_slider_mu_d(cat: Catalogue) -> np.ndarray:
     """mu_d from every slider that slipped alone twice while its neighbours stayed at rest.
 
@@ -178,32 +202,67 @@ def single_slider_mu_d(cat: Catalogue) -> np.ndarray:
     ``Delta alpha = 2 Delta mu / (1 + mu_s tan(alpha))``.  It needs the moved
     sliders (``first``/``last``) and the displacement in the model's units
     (g tau^2, i.e. the spring stiffness known).  One estimate per such pair
-    of slips, in the order of the second slip (empty without any); neglects
-    the cantilever springs (xi), whose plate moves with the chain.
+    of slips (``lone_slip_pairs``), in the order of the second slip (empty without any);
+    neglects the cantilever springs (xi), whose plate moves with the chain
+    (``coupled_lone_slips`` does not).
     """
-    n = len(cat)
-    if n < 2 or cat.first[0] < 0 and cat.first.max() < 0:
-        return np.zeros(0)
     alpha, disp = cat.alpha.tolist(), cat.displacement.tolist()
-    first, last, size = cat.first.tolist(), cat.last.tolist(), cat.size.tolist()
-    width = max(last) + 3
-    previous = [-1] * width  # per slider: its last lone slip, if its neighbourhood kept still since
     out = []
-    for i in range(n):
-        lo, hi = first[i], last[i]
-        if lo < 0:
-            continue
-        if size[i] == 1 and lo == hi:
-            j = previous[lo + 1]
-            if j >= 0:
-                den = math.cos(alpha[j]) - math.cos(alpha[i])
-                if den > 0:
-                    out.append((disp[j] + disp[i] - (math.sin(alpha[i]) - math.sin(alpha[j]))) / den)
-        for k in range(lo, hi + 3):  # sliders lo-1 .. hi+1, shifted by one
-            previous[k] = -1
-        if size[i] == 1 and lo == hi:
-            previous[lo + 1] = i
+    for j, i in lone_slip_pairs(cat):
+        den = math.cos(alpha[j]) - math.cos(alpha[i])
+        if den > 0:
+            out.append((disp[j] + disp[i] - (math.sin(alpha[i]) - math.sin(alpha[j]))) / den)
     return np.array(out)
+
+
+#: lone-slip pairs whose equation ``coupled_lone_slips``' solution satisfies within this
+#: (in units of mu_d) agree with it
+COUPLED_TOL = 1e-4
+#: the unknowns ``coupled_lone_slips`` solves for: mu_d, xi and xi / N
+COUPLED_UNKNOWNS = 3
+
+
+def coupled_lone_slips(cat: Catalogue) -> tuple[float, float, int]:
+    """mu_d and xi from the lone-slip pairs (``lone_slip_pairs``), the cantilever springs
+    counted, and how many pairs agree with them: (NaN, NaN, 0) with fewer than four.
+
+    A slider alone in its slip at ``alpha_j`` meets the stiffness K = 2 + xi (1 - 1/N) (its
+    two springs, its cantilever less the plate's share of its own move: the plate follows
+    the barycentre), so it moves by ``d_j = 2 (mu_1 - mu_d) cos(alpha_j) / K`` and stops with
+    the force ``(2 mu_d - mu_1) cos(alpha_j)``, as without the plate.  Until it slips again
+    at ``alpha_i``, the tilt adds ``sin(alpha_i) - sin(alpha_j)`` to that force and the plate
+    ``xi S / N``, S the displacements of the events in between (their sliders' sum).  At
+    ``alpha_i`` the force is ``mu_d cos(alpha_i) + K d_i / 2``.  Each pair is thus an
+    equation linear in mu_d, xi and xi / N (D = d_j + d_i):
+
+        mu_d (cos a_j - cos a_i) - xi D / 2 + (xi / N) (S + D / 2) = D - (sin a_i - sin a_j),
+
+    solved by least squares over the pairs, those off by more than ``COUPLED_TOL`` dropped
+    and the rest solved again (twice at most).  Exact when the angles are, whatever xi
+    (N is not needed: an estimate from the slider indices would spoil it).
+    """
+    pairs = lone_slip_pairs(cat)
+    if len(pairs) < COUPLED_UNKNOWNS + 1:
+        return math.nan, math.nan, 0
+    j, i = np.array(pairs).T
+    alpha, disp = cat.alpha, cat.displacement
+    a = np.cos(alpha[j]) - np.cos(alpha[i])
+    j, i, a = j[a > 0], i[a > 0], a[a > 0]
+    if a.size < COUPLED_UNKNOWNS + 1:
+        return math.nan, math.nan, 0
+    before = np.concatenate([[0.0], np.cumsum(disp)])
+    d = disp[i] + disp[j]
+    m = np.column_stack([np.ones_like(a), -d / 2 / a, (before[i] - before[j + 1] + d / 2) / a])
+    y = (d - (np.sin(alpha[i]) - np.sin(alpha[j]))) / a
+    keep = np.ones(a.size, dtype=bool)
+    for _ in range(3):
+        sol = np.linalg.lstsq(m[keep], y[keep], rcond=None)[0]
+        off = np.abs(y - m @ sol)
+        near = off <= max(COUPLED_TOL, 3.0 * float(np.median(off[keep])))
+        if near.sum() <= COUPLED_UNKNOWNS or (near == keep).all():
+            break
+        keep = near
+    return float(sol[0]), float(sol[1]), int(np.sum(off <= COUPLED_TOL))
 
 
 def n_sliders_estimate(cat: Catalogue) -> float:

@@ -29,8 +29,16 @@ simulation-based calibration tests (``probability_integral``).  Between the
 levels the CDF is linear, and below the lowest and above the highest it
 reaches the prior's range.
 
-The predictive check compares a catalogue with piles simulated at posterior
-draws (``posterior_check``; the simulations are the command's,
+mu_d is learned about an estimate where the catalogue gives one: from the
+lone slips of a complete catalogue of exact angles, mu_d and the cantilevers'
+xi solved together (``features.coupled_lone_slips``, exact whatever xi), or
+failing that the lone-slider pairs that neglect xi (exact when xi = 0).
+
+The domain check (``domain.DomainCheck``) is fitted on the training cuts and
+its thresholds set on the calibration realisations' cuts (``domain_level`` of
+them flagged): it is the prior predictive test of the command's check, and
+the posterior predictive test compares a catalogue with piles simulated at
+posterior draws (``posterior_check``; the simulations are the command's,
 ``sliders.runs.forecast.infer``).
 """
 
@@ -48,7 +56,7 @@ from threadpoolctl import threadpool_limits
 
 from ...io.catalogue import Catalogue
 from .domain import DOMAIN_FEATURES, DomainCheck
-from .features import Cuts, feature_matrix, training_cuts
+from .features import Cuts, coupled_lone_slips, feature_matrix, training_cuts
 from .integrity import IntegrityError, check_array, check_boosting, check_number, require
 from .measurement import PERFECT, degrade_cuts
 
@@ -65,6 +73,11 @@ CATALOGUE_CLASSES = ("complete", "angles_sizes")
 #: lone-slider pairs that must agree (``features.single_slider_mu_d``) for mu_d to be learned
 #: about their estimate, in a complete catalogue of exact angles
 REFERENCE_AGREE = 2
+#: lone-slip pairs that must agree with mu_d and xi solved together
+#: (``features.coupled_lone_slips``) for mu_d to be learned about that solution instead
+COUPLED_AGREE = 4
+#: the columns of ``features.coupled_lone_slips`` in ``design``
+COUPLED_NAMES = ["coupled_mu_d", "coupled_xi", "coupled_agree"]
 #: the points of the posterior's CDF its variance is computed on
 VARIANCE_POINTS = 400
 
@@ -93,27 +106,37 @@ def is_complete(cat: Catalogue) -> bool:
 
 def design(cuts: Cuts) -> np.ndarray:
     """(n, F) what the regressors see: the catalogue's and the measurement's features
-    (``features.feature_matrix``), whether the catalogue is complete, and whether its
-    lone-slider pairs give mu_d (``lone_slider_mu_d``)."""
+    (``features.feature_matrix``), mu_d and xi solved together from the lone-slip pairs and
+    how many agree (``features.coupled_lone_slips``), whether the catalogue is complete, and
+    whether its lone-slider pairs give mu_d (``lone_slider_mu_d``)."""
     x, names = feature_matrix(cuts)
+    coupled = np.array([coupled_lone_slips(c) for c in cuts.catalogues],
+                       dtype=float).reshape(len(cuts), len(COUPLED_NAMES))
+    x = np.hstack([x, coupled])
     complete = np.array([is_complete(c) for c in cuts.catalogues], dtype=float)
-    exact = np.isfinite(lone_slider_mu_d(x, names)).astype(float)
+    exact = np.isfinite(lone_slider_mu_d(x, names + COUPLED_NAMES)).astype(float)
     return np.hstack([x, complete[:, None], exact[:, None]])
 
 
 def lone_slider_mu_d(x, names) -> np.ndarray:
-    """(n,) mu_d from the lone-slider pairs where ``REFERENCE_AGREE`` of them agree in a
-    catalogue of exact angles (exact when xi = 0), NaN elsewhere."""
+    """(n,) mu_d from the lone-slip pairs of a catalogue of exact angles, NaN elsewhere: mu_d
+    and xi solved together where ``COUPLED_AGREE`` pairs agree with them (exact whatever xi),
+    else the estimate ``REFERENCE_AGREE`` pairs agree on neglecting xi (exact when xi = 0)."""
+    exact_angles = x[:, names.index("angle_resolution")] == 0
     a = x[:, names.index("atan_mu_d_single")]
-    exact = (np.isfinite(a) & (x[:, names.index("single_slider_agree")] >= REFERENCE_AGREE)
-             & (x[:, names.index("angle_resolution")] == 0))
-    return np.where(exact, np.tan(np.where(exact, a, 0.0)), np.nan)
+    single = (np.isfinite(a) & (x[:, names.index("single_slider_agree")] >= REFERENCE_AGREE)
+              & exact_angles)
+    c = x[:, names.index("coupled_mu_d")]
+    coupled = (np.isfinite(c) & (x[:, names.index("coupled_agree")] >= COUPLED_AGREE)
+               & exact_angles)
+    return np.where(coupled, c, np.where(single, np.tan(np.where(single, a, 0.0)), np.nan))
 
 
 def design_names() -> list[str]:
     """The names of ``design``'s columns."""
     one = Catalogue([0.1], [1], [0.0], [0], [0], 0.1)
-    return feature_matrix(Cuts.from_catalogues([one]))[1] + ["complete", "lone_slider_mu_d"]
+    return (feature_matrix(Cuts.from_catalogues([one]))[1] + COUPLED_NAMES
+            + ["complete", "lone_slider_mu_d"])
 
 
 class ParameterPosterior(BaseEstimator):
@@ -135,6 +158,9 @@ class ParameterPosterior(BaseEstimator):
         Share of the cuts kept to their angles and sizes.
     calibration_share : float
         Share of the realisations held out of the fit to calibrate (split by realisation).
+    domain_level : float
+        The prior predictive check's level: the share of the calibration realisations' cuts
+        the domain check's novelty detectors flag (``DomainCheck.calibrate``).
     random_state : int
         Seeds the split, the cuts, the degradations and the regressors.
 
@@ -165,7 +191,8 @@ class ParameterPosterior(BaseEstimator):
     def __init__(self, draws_per_row: int = 6, max_iter: int = 50, learning_rate: float = 0.1,
                  max_leaf_nodes: int = 15, min_samples_leaf: int = 40, max_bins: int = 63,
                  degrade: bool = True, exact_share: float = 0.5, angles_sizes_share: float = 0.3,
-                 calibration_share: float = 0.2, random_state: int = 0):
+                 calibration_share: float = 0.2, domain_level: float = 0.005,
+                 random_state: int = 0):
         self.draws_per_row = draws_per_row
         self.max_iter = max_iter
         self.learning_rate = learning_rate
@@ -176,6 +203,7 @@ class ParameterPosterior(BaseEstimator):
         self.exact_share = exact_share
         self.angles_sizes_share = angles_sizes_share
         self.calibration_share = calibration_share
+        self.domain_level = domain_level
         self.random_state = random_state
 
     # -- fit ------------------------------------------------------------------------------
@@ -208,8 +236,14 @@ class ParameterPosterior(BaseEstimator):
         with threadpool_limits(limits=1, user_api="openmp"):
             return self._fit(train)
 
-    def _fit(self, train):
+    def calibration_split(self, n: int):
+        """The fit's generator and which of ``n`` training realisations it holds out of the
+        fit to calibrate (the conformal shifts, the copula, the domain check's thresholds)."""
         rng = np.random.default_rng(self.random_state)
+        return rng, rng.random(n) < self.calibration_share
+
+    def _fit(self, train):
+        rng, held = self.calibration_split(len(train))
         self.parameters_ = tuple(p for p in POSTERIOR_PARAMETERS if p in train.parameters)
         require(self.parameters_, "the prior file holds none of the material parameters")
         xi = np.asarray(train.parameters.get("xi", []), dtype=float)
@@ -220,7 +254,6 @@ class ParameterPosterior(BaseEstimator):
         every = self.targets(train, np.arange(len(train)))
         self.low_, self.high_ = every.min(axis=0), every.max(axis=0)
         self.prior_variance_ = np.maximum(every.var(axis=0), 1e-12)
-        held = rng.random(len(train)) < self.calibration_share
         fit_set, cal_set = train.subset(np.flatnonzero(~held)), train.subset(np.flatnonzero(held))
         cuts = self.cuts_of(fit_set, rng)
         x = design(cuts)
@@ -235,7 +268,7 @@ class ParameterPosterior(BaseEstimator):
                                for p in self.parameters_}, rng)
         self.domain_ = DomainCheck(DOMAIN_FEATURES, random_state=self.random_state).fit(
             cuts, fit_set.alpha_c, order=rng.permutation(len(cuts)),
-            n_sliders=fit_set.parameters.get("n_sliders"))
+            n_sliders=fit_set.parameters.get("n_sliders")).calibrate(cal, self.domain_level)
         self.prior_ = str(train.attrs.get("prior", "{}"))
         self.n_training_cuts_, self.n_calibration_cuts_ = len(cuts), len(cal)
         return self

@@ -5,11 +5,12 @@ catalogues like the one measured?
 (``sliders.runs.forecast.infer``), measures them as the catalogue was, and
 compares summary statistics (``CHECK_STATISTICS``): each statistic's two-sided
 p-value against the simulated ones, and how likely a simulated pile stands up
-to the tilt the measured one reached (``survival_p_value``).  The catalogue is
-reproduced when the survival p-value is at least ``CHECK_ALPHA`` and no
-statistic's p-value falls below ``CHECK_ALPHA`` divided by their number
-(Bonferroni).  No scikit-learn here: the command's module imports
-this one at its top.
+to the tilt the measured one reached (``survival_p_value``).  This posterior
+predictive test passes (``reproduced``) when the survival p-value is at least
+``CHECK_ALPHA`` and no statistic's p-value falls below ``CHECK_ALPHA`` divided
+by their number (Bonferroni); the command's verdict also needs the prior
+predictive test, the posterior's domain check (``infer.combined_verdict``).
+No scikit-learn here: the command's module imports this one at its top.
 """
 
 from __future__ import annotations

@@ -11,9 +11,15 @@ file of one entry, ``"posterior"``, a fitted
 model file's checks (``io.forecast_model``).  For each parameter it gives the
 median and the 80 and 95 % intervals, how much the catalogue narrowed the
 prior (the contraction), whether the catalogue is like the training ones,
-and the predictive check: ``CHECK_DRAWS`` piles simulated at posterior draws
-up to the tilt reached, measured as the catalogue was, compared with it
-(``analysis.forecast.posterior_check``); ``--no-check`` skips them.
+and the predictive check, two tests in one verdict (``combined_verdict``): the
+prior predictive test, whether the model over its prior makes catalogues like
+this one (the posterior's domain check, ``in_domain``, its thresholds set on
+the fit's calibration split), and the posterior predictive test,
+``CHECK_DRAWS`` piles simulated at posterior draws up to the tilt reached,
+measured as the catalogue was, compared with it
+(``analysis.forecast.posterior_check``).  The catalogue is reproduced when
+both pass; ``reasons`` names each that failed.  ``--no-check`` skips the
+simulations and the verdict (``in_domain`` stays).
 
 One code path for the command and the Python API: ``PosteriorModel.infer``
 returns an ``Inference`` whose ``to_dict()`` is what ``infer --json`` prints
@@ -159,14 +165,17 @@ class PosteriorModel:
                                      f"{self.provenance.get('sliders', '?')}, whose posterior "
                                      "this version cannot use; fit it again") from None
         rng = np.random.default_rng([seed, 11])
+        verdict = None
+        if check:
+            verdict = self.predictive_check(q, cat, measurement, check_draws, rng, complete)
+            verdict = combined_verdict(verdict, bool(inside[0]), reasons[0])
         report = {"parameters": post.summary(q), "contraction": post.contraction(q),
                   "in_domain": bool(inside[0]), "domain_reason": reasons[0],
                   "events": len(cat), "tilt_now": float(cat.tilt_now),
                   "complete": complete, "notes": list(notes),
                   "prior_range": post.prior_range(),
                   "measurement": measurement_as_json(measurement),
-                  "check": (self.predictive_check(q, cat, measurement, check_draws, rng,
-                                                  complete) if check else None),
+                  "check": verdict,
                   "posterior": {"path": str(self.path), **self.provenance}}
         return Inference(jsonable(report), post.sample(q, 4000, rng), post.prior_range())
 
@@ -189,6 +198,34 @@ class PosteriorModel:
     def prior_scene(self):
         """The base scene of the prior the posterior was fitted on."""
         return parse_prior(self.posterior.prior_spec(), "the posterior's prior").base_scene
+
+
+def combined_verdict(check: dict, in_domain: bool, domain_reason: str) -> dict:
+    """The check's verdict on both tests: the prior predictive one (the model over its prior
+    makes catalogues like this one: ``in_domain``) and the posterior predictive one (piles at
+    posterior draws reproduce it: ``check["reproduced"]``).  The catalogue is reproduced when
+    both pass; ``reasons`` names each test that failed (``test``) and why (``detail``), and
+    ``tests`` each one's result."""
+    reasons = []
+    if not in_domain:
+        reasons.append({"test": "prior_predictive",
+                        "detail": "no pile of the prior makes a catalogue like it: "
+                                  + domain_reason})
+    if not check["reproduced"]:
+        name, p = smallest_p_value(check)
+        n = sum(v is not None for v in check["p_values"].values())
+        reasons.append({"test": "posterior_predictive",
+                        "detail": f"{check['simulated']} piles simulated at posterior draws "
+                                  f"differ in {name} (p = {p:.2g}, below {check['alpha']:g} "
+                                  f"over the {n} statistics)"})
+    return {**check, "reproduced": not reasons, "reasons": reasons,
+            "tests": {"prior_predictive": in_domain, "posterior_predictive": check["reproduced"]}}
+
+
+def smallest_p_value(check: dict) -> tuple:
+    """The statistic of the check's smallest p-value and that p-value."""
+    return min(((k, v) for k, v in check["p_values"].items() if v is not None),
+               key=lambda kv: kv[1], default=("none", 1.0))
 
 
 def simulate_piles(base_scene, material: dict, tilt: float, measurement: Measurement, rng):
@@ -312,15 +349,14 @@ def check_text(check) -> str:
     """The predictive check in a line."""
     if check is None:
         return "predictive check: skipped (--no-check)"
-    worst = min(((k, v) for k, v in check["p_values"].items() if v is not None),
-                key=lambda kv: kv[1], default=("none", 1.0))
+    name, p = smallest_p_value(check)
     if check["reproduced"]:
-        return (f"predictive check: {check['simulated']} piles simulated at posterior draws "
-                f"reproduce this catalogue (smallest p-value {worst[1]:.2g}, {worst[0]})")
-    return (f"predictive check: the model does not reproduce this catalogue: "
-            f"{check['simulated']} piles simulated at posterior draws differ in {worst[0]} "
-            f"(p = {worst[1]:.2g}, below {check['alpha']:g} over the "
-            f"{sum(v is not None for v in check['p_values'].values())} statistics); its "
+        return (f"predictive check: the prior's piles make catalogues like this one, and "
+                f"{check['simulated']} piles simulated at posterior draws reproduce it "
+                f"(smallest p-value {p:.2g}, {name})")
+    failed = "; ".join(f"{r['test'].replace('_', ' ')} check failed: {r['detail']}"
+                       for r in check["reasons"])
+    return (f"predictive check: the model does not reproduce this catalogue ({failed}); its "
             "parameters are not to be trusted")
 
 
