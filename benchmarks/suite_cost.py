@@ -66,21 +66,6 @@ def core_use(timeline: Path, suite_s: float, count: int) -> dict:
                                        for t in waits if t["waited_both"] > 0]}
 
 
-def store_durations(timeline: Path, out: Path, note: str) -> int:
-    """tests/durations.json: each test's seconds with its cores held (waits left out) and
-    whether it needed both, which tests/conftest.py orders the suite by.  Tests under 0.3 s
-    that need one core are left out (the order counts them as short anyway)."""
-    tests = {}
-    for t in map(json.loads, timeline.read_text().splitlines()):
-        held = t["end"] - t["start"] - t["waited_one"] - t["waited_both"]
-        if t["both_cores"] or held >= 0.3:
-            tests[t["test"]] = {"s": round(held, 1), "both_cores": t["both_cores"]}
-    lines = [f"  {json.dumps(k)}: {json.dumps(v)}" for k, v in sorted(tests.items())]
-    out.write_text(f'{{"measured": {json.dumps(note)},\n "tests": {{\n' + ",\n".join(lines)
-                   + "\n}}\n")
-    return len(tests)
-
-
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--fresh-clone", action="store_true", help="set up a clone of HEAD from scratch")
@@ -88,8 +73,6 @@ def main():
                    help="with --fresh-clone: an empty h5py wheel cache (h5py is built)")
     p.add_argument("--fast", action="store_true", help='the fast loop: -m "not slow"')
     p.add_argument("--slowest", type=int, default=25, help="how many of the slowest tests to list")
-    p.add_argument("--store-durations", action="store_true",
-                   help="write each test's cost to tests/durations.json (the suite's order)")
     p.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "suite_cost.json")
     args = p.parse_args()
 
@@ -114,11 +97,6 @@ def main():
         tail = suite.stdout.strip().splitlines()[-1:] or ["(no output)"]
         slow, n_tests = slowest_tests(junit, args.slowest) if junit.exists() else ([], 0)
         cores = core_use(timeline, suite_s, args.slowest) if timeline.exists() else {}
-        if args.store_durations and timeline.exists():
-            stored = store_durations(timeline, ROOT / "tests" / "durations.json",
-                                     f"{time.strftime('%Y-%m-%d')}, {target}, "
-                                     f"load average {os.getloadavg()[0]:.1f} after the suite")
-            print(f"tests/durations.json: {stored} tests")
     finally:  # the clone, the cold wheel cache and the JUnit report
         shutil.rmtree(scratch, ignore_errors=True)
     report = {

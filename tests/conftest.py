@@ -133,29 +133,6 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.xdist_group("slurm"))
 
 
-# what each test cost in a past run (benchmarks/suite_cost.py --store-durations): its seconds
-# with a core (or both) held, and whether it needed both cores
-DURATIONS = ROOT / "tests" / "durations.json"
-
-
-@pytest.hookimpl(trylast=True)
-def pytest_collection_modifyitems(config, items):
-    """Under xdist, the tests that need both cores first, then the others, each longest first.
-
-    pytest-xdist deals tests out in this order, as workers ask for them.  A test that needs
-    both cores waits for the other worker's current test to end, with one core idle: the tests
-    that need both run together, the other worker's current test being one of them.  Longest
-    first, the last tests to end are short ones, and neither worker idles long at the end.  A
-    test the file does not know (a new one) counts as short and needing one core; the order
-    changes only when and where the tests run, never what they check."""
-    if not hasattr(config, "workerinput") or not DURATIONS.exists():  # xdist's workers collect
-        return
-    known = json.loads(DURATIONS.read_text())["tests"]
-    cost = {item: known.get(item.nodeid, {}) for item in items}
-    items.sort(key=lambda item: (not cost[item].get("both_cores", False),
-                                 -cost[item].get("s", 0.0)))
-
-
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_finish(session):
     """``--dist loadgroup`` sends the tests of one ``xdist_group`` to one worker, which knows
@@ -189,7 +166,7 @@ def pytest_runtest_protocol(item, nextitem):
         slots.release()
         timeline = os.environ.get("SLIDERS_TEST_TIMELINE")
         if timeline:  # benchmarks/suite_cost.py: where the suite's wall time goes
-            record = {"test": item.nodeid.split("@")[0], "worker": item.config.workerinput["workerid"],
+            record = {"test": item.nodeid, "worker": item.config.workerinput["workerid"],
                       "start": started, "end": time.time(), "cpu": _cpu_seconds() - cpu,
                       "both_cores": both, "waited_one": slots.waited[fcntl.LOCK_SH],
                       "waited_both": slots.waited[fcntl.LOCK_EX]}
