@@ -367,9 +367,10 @@ class ParameterPosterior(BaseEstimator):
         the fit's cuts, a generator of their own); per group of catalogue
         (``RECALIBRATION_GROUPS``) and parameter, the CDF the posterior reports is the
         conformal one mapped through the empirical CDF of the held-out truths' probability
-        integral transforms (quantile recalibration), so that these are uniform.  The atoms
-        (xi = 0, each number of sliders) spread their PIT uniformly over their probability
-        in the CDF reported, which the map changes: it is composed again
+        integral transforms (quantile recalibration), so that these are uniform, where the
+        conformal CDF's are not (``pit_is_off``).  The atoms (xi = 0, each number of sliders,
+        runs of equal quantiles) spread their PIT uniformly over their probability in the
+        CDF reported, which the map changes: it is composed again
         ``RECALIBRATION_ROUNDS`` times on the PITs of the CDF it makes.  Between the learned
         levels the conformal CDF is linear, too coarse where a posterior is sharp (mu_d from
         the lone slips): the map resolves it to ``REPORTED_LEVELS``."""
@@ -397,7 +398,7 @@ class ParameterPosterior(BaseEstimator):
 
     def _fit_copula(self, u) -> None:
         """How the parameters vary together about their posterior: the correlation of the
-        normal scores ``u`` of the held-out truths' posterior CDFs (a Gaussian copula, the
+        normal scores of ``u``, the held-out truths' posterior CDFs (a Gaussian copula, the
         same for every catalogue: the quantiles are learned one parameter at a time)."""
         u = np.clip(u, 1e-4, 1 - 1e-4)
         c = np.corrcoef(ndtri(u), rowvar=False) if len(u) > 2 else np.eye(u.shape[1])
@@ -622,8 +623,8 @@ class ParameterPosterior(BaseEstimator):
         check_array(self.shifts_, "posterior: conformal shifts",
                     shape=(len(CATALOGUE_CLASSES), n_p, n_l), lo=-1e3, hi=1e3)
         check_array(self.recalibration_, "posterior: recalibration",
-                        shape=(len(RECALIBRATION_GROUPS), n_p, REPORTED_LEVELS.size),
-                        lo=0.0, hi=1.0, increasing=True)
+                    shape=(len(RECALIBRATION_GROUPS), n_p, REPORTED_LEVELS.size),
+                    lo=0.0, hi=1.0, increasing=True)
         check_array(self.n_sliders_values_, "posterior: numbers of sliders", lo=1.0,
                     increasing=True, min_size=1)
         check_number(self.mu_d_reference_, "posterior: mu_d's reference", -1e3, 1e3)
