@@ -7,12 +7,16 @@ predictive check tell a pile outside the prior, and what does ``infer`` cost?
 On the rows of the prior file that the shipped posterior's fit held out (their
 indices are in its provenance):
 
-* simulation-based calibration: ``--pairs`` (row, cut) pairs, each row cut at a
-  tilt drawn uniformly below its avalanche angle, complete catalogues and the
-  same kept to angles and sizes: each true parameter's posterior CDF (its
-  rank, the atoms spread uniformly), the Kolmogorov-Smirnov p-value of their
-  uniformity, and the coverage of the central 50, 80 and 95 % intervals
-  (target: within 0.03 of nominal);
+* simulation-based calibration: ``--pairs`` (row, cut) pairs drawn from the
+  joint law the posterior conditions on, the training cuts' (each row cut at a
+  tilt drawn uniformly below the prior's largest avalanche angle, without
+  looking at its own, and kept if it comes before it: a tilt drawn below each
+  row's own avalanche angle would tell its avalanche angle, which no
+  experimenter knows), complete catalogues and the same kept to angles and
+  sizes: each true parameter's posterior CDF (its rank, the atoms spread
+  uniformly), the Kolmogorov-Smirnov p-value of their uniformity, and the
+  coverage of the central 50, 80 and 95 % intervals (target: within 0.03 of
+  nominal);
 * the contraction (1 - posterior variance / prior variance, learned scale) at a
   third and two thirds of the avalanche angle and 3° before it;
 * atan(mu_d)'s median absolute error 3° before the avalanche, complete
@@ -69,10 +73,27 @@ TARGETED_SETS = ("outside_material", "outside_preparation", "outside_small_pile"
                  "outside_coupling")
 
 
-def sbc(post, cset, rows, rng, kind: str) -> dict:
-    """Ranks (posterior CDFs of the truths) of ``rows`` cut at random tilts, their KS p-value
-    and the central intervals' coverage, per parameter."""
-    cats = [cset.catalogue(int(r)).cut(rng.uniform(0.0, cset.alpha_c[r])) for r in rows]
+def sbc_pairs(cset, held, n: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` (row, tilt) pairs of the held-out rows ``held`` as the training cuts draw them
+    (``features.training_cuts``): passes over the rows in random order, each row's tilt
+    uniform below the prior file's largest avalanche angle, kept below the row's own."""
+    alpha_c = np.asarray(cset.alpha_c, dtype=float)
+    top = float(np.nanmax(alpha_c))
+    rows, tilts = [], []
+    while len(rows) < n:
+        for r in rng.permutation(held[np.isfinite(alpha_c[held])]):
+            t = rng.uniform(0.0, top)
+            if t < alpha_c[r] and len(rows) < n:
+                rows.append(int(r))
+                tilts.append(t)
+    return np.array(rows), np.array(tilts)
+
+
+def sbc(post, cset, pairs, rng, kind: str) -> dict:
+    """Ranks (posterior CDFs of the truths) of the (row, tilt) ``pairs``, their KS p-value and
+    the central intervals' coverage, per parameter."""
+    rows, tilts = pairs
+    cats = [cset.catalogue(int(r)).cut(t) for r, t in zip(rows, tilts)]
     if kind == "angles_sizes":
         cats = [angles_sizes_only(c) for c in cats]
     truth = {p: np.asarray(cset.parameters[p])[rows] for p in post.parameters_}
@@ -272,8 +293,10 @@ def main(argv=None) -> int:
     results = {"posterior": {"name": os.path.basename(model.path), "sha256": digest},
                "held_out_rows": int(held.size),
                "pairs": int(rows.size), "targets": TARGETS, "sbc": {}}
+    sbc_rng = np.random.default_rng([args.seed, 1])  # the rows checked below do not depend on it
     for kind in ("complete", "angles_sizes"):
-        results["sbc"][kind] = sbc(post, cset, rows, rng, kind)
+        results["sbc"][kind] = sbc(post, cset, sbc_pairs(cset, held, args.pairs, sbc_rng),
+                                   sbc_rng, kind)
         for p, d in results["sbc"][kind].items():
             log(f"SBC {kind:12s} {p:16s} KS p {d['ks_p_value']:.3f}  coverage "
                 + "  ".join(f"{c}: {v:.3f}" for c, v in d["coverage"].items()))

@@ -16,11 +16,16 @@ import zipfile
 
 import numpy as np
 import pytest
+from scipy.special import ndtr
+from scipy.stats import kstest
 from sklearn.base import clone
 
 from sliders.analysis.forecast.features import Cuts
 from sliders.analysis.forecast.measurement import PERFECT
-from sliders.analysis.forecast.posterior import POSTERIOR_PARAMETERS, ParameterPosterior
+from sliders.analysis.forecast.integrity import IntegrityError
+from sliders.analysis.forecast.posterior import (POSTERIOR_PARAMETERS, RECALIBRATION_GROUPS,
+                                                 REPORTED_LEVELS, ParameterPosterior,
+                                                 recalibrated, recalibration_map)
 from sliders.driver import run
 from sliders.io.catalogue import Catalogue
 from sliders.io.forecast_files import ForecastInputError
@@ -312,3 +317,35 @@ def test_the_benchmark_names_the_shipped_posterior_by_its_name_and_digest():
     recorded = pathlib.Path(str(default_posterior_path()) + ".sha256").read_text().split()[0]
     assert d["posterior"] == {"name": default_posterior_path().name, "sha256": recorded}
     assert "/work" not in json.dumps(d)
+
+
+def test_the_recalibration_makes_the_pits_of_a_too_wide_cdf_uniform():
+    rng = np.random.default_rng(3)
+    # truths N(0, 1) read on a CDF N(0, 2^2), too wide: their PITs crowd the middle
+    fit_u, new_u = (ndtr(rng.standard_normal(n) / 2) for n in (4000, 2000))
+    assert kstest(new_u, "uniform").pvalue < 1e-6
+    r = recalibration_map(fit_u)
+    assert type(r) is np.ndarray and r.dtype == np.float64 and r.shape == REPORTED_LEVELS.shape
+    assert (np.diff(r) >= 0).all() and 0.0 <= r.min() and r.max() <= 1.0
+    assert kstest(recalibrated(new_u, r), "uniform").pvalue > 0.01
+    # composed again on the PITs of the CDF it makes, the map stays where it is
+    assert np.allclose(recalibration_map(recalibrated(fit_u, r), r), r, atol=0.01)
+
+
+def test_the_shipped_posterior_stores_a_monotone_recalibration_of_plain_numbers(model):
+    post = model.posterior
+    r = post.recalibration_
+    assert type(r) is np.ndarray and r.dtype == np.float64
+    assert r.shape == (len(RECALIBRATION_GROUPS), len(post.parameters_), REPORTED_LEVELS.size)
+    assert (np.diff(r, axis=2) >= 0).all() and 0.0 <= r.min() and r.max() <= 1.0
+    # mu_d from the lone slips, sharper than a CDF linear between seven levels, is recalibrated
+    lone = RECALIBRATION_GROUPS.index("complete_lone_slips")
+    assert not np.allclose(r[lone, post.parameters_.index("mu_d")], REPORTED_LEVELS)
+    reversed_ = r.copy()
+    reversed_[lone, 0, 10] = reversed_[lone, 0, 11] + 0.01
+    try:
+        post.recalibration_ = reversed_
+        with pytest.raises(IntegrityError, match="recalibration"):
+            post.check_fitted()
+    finally:
+        post.recalibration_ = r

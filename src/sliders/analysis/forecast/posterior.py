@@ -26,8 +26,12 @@ by the level's quantile of their residuals, in units of the predicted 10-90 %
 spread, per class of catalogue (complete, or angles and sizes only).  Each
 calibrated quantile then holds its level over the prior, the property
 simulation-based calibration tests (``probability_integral``).  Between the
-levels the CDF is linear, and below the lowest and above the highest it
-reaches the prior's range.
+levels that CDF is linear, and below the lowest and above the highest it
+reaches the prior's range: too coarse where a posterior is sharp.  The CDF
+reported is that one mapped, per group of catalogue (``RECALIBRATION_GROUPS``)
+and parameter, through the empirical CDF of the calibration realisations'
+probability integral transforms (quantile recalibration), read at
+``REPORTED_LEVELS``: medians, intervals, draws and ranks all use it.
 
 mu_d is learned about an estimate where the catalogue gives one: from the
 lone slips of a complete catalogue of exact angles, mu_d and the cantilevers'
@@ -49,6 +53,7 @@ import math
 
 import numpy as np
 from scipy.special import ndtr, ndtri
+from scipy.stats import binomtest, kstest
 from sklearn.base import BaseEstimator
 from sklearn.utils.metadata_routing import UNUSED
 from sklearn.ensemble import HistGradientBoostingRegressor
@@ -58,7 +63,7 @@ from ...io.catalogue import Catalogue
 from .domain import DOMAIN_FEATURES, DomainCheck
 from .features import Cuts, coupled_lone_slips, feature_matrix, training_cuts
 from .integrity import IntegrityError, check_array, check_boosting, check_number, require
-from .measurement import PERFECT, degrade_cuts
+from .measurement import MEASUREMENT_FEATURES, PERFECT, degrade_cuts
 
 #: the material parameters inferred, in order
 POSTERIOR_PARAMETERS = ("mu_d", "mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders")
@@ -80,6 +85,57 @@ COUPLED_AGREE = 4
 COUPLED_NAMES = ["coupled_mu_d", "coupled_xi", "coupled_agree"]
 #: the points of the posterior's CDF its variance is computed on
 VARIANCE_POINTS = 400
+#: the levels of the quantile function a posterior reports (``quantiles``): every 1/80, the
+#: learned ``POSTERIOR_LEVELS`` among them
+REPORTED_LEVELS = np.arange(1, 80) / 80
+#: the groups of catalogues with their own recalibration of every parameter's CDF: complete
+#: ones whose lone slips give mu_d (``lone_slider_mu_d``), the other complete ones recorded
+#: as they are (``measurement.PERFECT``) or measured, and those of angles and sizes only,
+#: recorded as they are or measured
+RECALIBRATION_GROUPS = ("complete_lone_slips", "complete_exact", "complete_measured",
+                        "angles_sizes_exact", "angles_sizes_measured")
+#: calibration cuts a group needs for its recalibration (fewer: the CDF is left as it is)
+RECALIBRATION_MIN_CUTS = 200
+#: the recalibration's cuts of each calibration realisation, in units of ``draws_per_row``
+RECALIBRATION_DRAWS = 4
+#: the level of the uniformity tests (``pit_is_off``, one calibration cut a realisation)
+#: that a group's PITs of a parameter under the conformal CDF must fail for that CDF to be
+#: recalibrated: a map fitted where the CDF is already calibrated would only add its noise
+RECALIBRATION_ALPHA = 0.05
+#: the recalibration map's compositions (the atoms' uniform spread depends on the map)
+RECALIBRATION_ROUNDS = 8
+#: the share of a prior's range within which two values are one: a run of the reported
+#: quantiles that close (a posterior sharper than that: mu_d from the lone slips) is an atom
+ATOM_WIDTH = 1e-9
+#: the central intervals whose share of the truths ``pit_is_off`` tests
+CENTRAL_INTERVALS = (0.5, 0.8, 0.95)
+
+
+def pit_is_off(u) -> bool:
+    """Independent probability integral transforms ``u`` are not uniform: the
+    Kolmogorov-Smirnov test, or the share in a central 50, 80 or 95 % interval (binomial),
+    fails at ``RECALIBRATION_ALPHA``."""
+    if kstest(u, "uniform").pvalue < RECALIBRATION_ALPHA:
+        return True
+    inside = [int(np.sum(np.abs(np.asarray(u) - 0.5) <= c / 2)) for c in CENTRAL_INTERVALS]
+    return any(binomtest(k, len(u), c).pvalue < RECALIBRATION_ALPHA
+               for k, c in zip(inside, CENTRAL_INTERVALS))
+
+
+def recalibration_map(u, previous=REPORTED_LEVELS) -> np.ndarray:
+    """(M,) the recalibration that makes the probability integral transforms ``u`` uniform:
+    for each of ``REPORTED_LEVELS``, the probability of the CDF ``u`` were read on at which
+    the CDF reported reaches it (the PITs' empirical quantile), composed with the map
+    ``previous`` that CDF was already read through."""
+    ends = np.concatenate([[0.0], REPORTED_LEVELS, [1.0]])
+    return np.interp(np.quantile(u, REPORTED_LEVELS), ends,
+                     np.concatenate([[0.0], previous, [1.0]]))
+
+
+def recalibrated(u, recalibration) -> np.ndarray:
+    """The probabilities ``u`` of a CDF through its ``recalibration``: the CDF reported."""
+    return np.interp(u, np.concatenate([[0.0], recalibration, [1.0]]),
+                     np.concatenate([[0.0], REPORTED_LEVELS, [1.0]]))
 
 
 def learned_scale(name: str, values, xi_zero_code: float = math.nan) -> np.ndarray:
@@ -176,6 +232,10 @@ class ParameterPosterior(BaseEstimator):
         (P,) the prior's variance on the learned scale (the contraction's reference).
     shifts_ : numpy.ndarray
         (classes, P, L) the conformal shifts, in units of the predicted 10-90 % spread.
+    recalibration_ : numpy.ndarray
+        (groups, P, M) the recalibration: the probability of the conformal CDF at which the
+        CDF reported reaches each of ``REPORTED_LEVELS``, non-decreasing in [0, 1] (the
+        levels themselves where a group's CDF was left as it is).
     copula_ : numpy.ndarray
         (P, P) the correlation of the parameters' normal scores about their posterior.
     xi_zero_code_ : float
@@ -207,9 +267,10 @@ class ParameterPosterior(BaseEstimator):
         self.random_state = random_state
 
     # -- fit ------------------------------------------------------------------------------
-    def cuts_of(self, cset, rng) -> Cuts:
-        """Random cuts of ``cset``, degraded if ``degrade``, a share kept to angles and sizes."""
-        cuts = training_cuts(cset, self.draws_per_row, rng)
+    def cuts_of(self, cset, rng, draws: int | None = None) -> Cuts:
+        """Random cuts of ``cset`` (``draws`` a realisation, ``draws_per_row`` unless given),
+        degraded if ``degrade``, a share kept to angles and sizes."""
+        cuts = training_cuts(cset, self.draws_per_row if draws is None else draws, rng)
         if self.degrade:
             kept = cuts.catalogues
             exact = rng.random(len(cuts)) < self.exact_share
@@ -264,8 +325,7 @@ class ParameterPosterior(BaseEstimator):
                         for p in range(len(self.parameters_))]
         cal = self.cuts_of(cal_set, rng)
         self._calibrate(cal, self.targets(cal_set, cal.row))
-        self._fit_copula(cal, {p: np.asarray(cal_set.parameters[p])[cal.row]
-                               for p in self.parameters_}, rng)
+        self._recalibrate(cal_set)
         self.domain_ = DomainCheck(DOMAIN_FEATURES, random_state=self.random_state).fit(
             cuts, fit_set.alpha_c, order=rng.permutation(len(cuts)),
             n_sliders=fit_set.parameters.get("n_sliders")).calibrate(cal, self.domain_level)
@@ -300,12 +360,48 @@ class ParameterPosterior(BaseEstimator):
                 self.shifts_[k] = np.stack([np.quantile(r[:, :, j], lv[j], axis=0)
                                             for j in range(lv.size)], axis=1)
 
-    def _fit_copula(self, cuts: Cuts, truth: dict, rng) -> None:
+    def _recalibrate(self, cal_set) -> None:
+        """The recalibration of every parameter's CDF, then the copula.
+
+        The calibration realisations ``cal_set`` are cut again (``RECALIBRATION_DRAWS`` times
+        the fit's cuts, a generator of their own); per group of catalogue
+        (``RECALIBRATION_GROUPS``) and parameter, the CDF the posterior reports is the
+        conformal one mapped through the empirical CDF of the held-out truths' probability
+        integral transforms (quantile recalibration), so that these are uniform, where the
+        conformal CDF's are not (``pit_is_off``).  The atoms (xi = 0, each number of sliders,
+        runs of equal quantiles) spread their PIT uniformly over their probability in the
+        CDF reported, which the map changes: it is composed again
+        ``RECALIBRATION_ROUNDS`` times on the PITs of the CDF it makes.  Between the learned
+        levels the conformal CDF is linear, too coarse where a posterior is sharp (mu_d from
+        the lone slips): the map resolves it to ``REPORTED_LEVELS``."""
+        rng = np.random.default_rng([self.random_state, 1])
+        cuts = self.cuts_of(cal_set, rng, self.draws_per_row * RECALIBRATION_DRAWS)
+        truth = {p: np.asarray(cal_set.parameters[p])[cuts.row] for p in self.parameters_}
+        x = design(cuts)
+        conformal, group = self.conformal_quantiles(cuts, x), self._group_of(x)
+        n_g, n_p = len(RECALIBRATION_GROUPS), len(self.parameters_)
+        self.recalibration_ = np.tile(REPORTED_LEVELS, (n_g, n_p, 1))
+        off = np.zeros((n_g, n_p), dtype=bool)  # the conformal CDFs that are off
+        for round_ in range(RECALIBRATION_ROUNDS):
+            u = self._pit(self._reported(conformal, group), truth, rng)
+            for g in range(n_g):
+                if (group == g).sum() < RECALIBRATION_MIN_CUTS:
+                    continue
+                if round_ == 0:  # one cut a realisation, independent PITs: off at all?
+                    order = rng.permutation(np.flatnonzero(group == g))
+                    one = order[np.unique(cuts.row[order], return_index=True)[1]]
+                    off[g] = [pit_is_off(u[one, p]) for p in range(n_p)]
+                for p in np.flatnonzero(off[g]):
+                    self.recalibration_[g, p] = recalibration_map(
+                        u[group == g, p], self.recalibration_[g, p])
+        self._fit_copula(self._pit(self._reported(conformal, group), truth, rng))
+
+    def _fit_copula(self, u) -> None:
         """How the parameters vary together about their posterior: the correlation of the
-        normal scores of the held-out truths' posterior CDFs (a Gaussian copula, the same for
-        every catalogue: the quantiles are learned one parameter at a time)."""
-        u = np.clip(self.probability_integral(cuts, truth, rng), 1e-4, 1 - 1e-4)
-        c = np.corrcoef(ndtri(u), rowvar=False) if len(cuts) > 2 else np.eye(u.shape[1])
+        normal scores of ``u``, the held-out truths' posterior CDFs (a Gaussian copula, the
+        same for every catalogue: the quantiles are learned one parameter at a time)."""
+        u = np.clip(u, 1e-4, 1 - 1e-4)
+        c = np.corrcoef(ndtri(u), rowvar=False) if len(u) > 2 else np.eye(u.shape[1])
         c = np.nan_to_num(np.atleast_2d(c), nan=0.0)
         np.fill_diagonal(c, 1.0)
         # kept positive definite: shrunk towards independence until its Cholesky factor exists
@@ -345,20 +441,48 @@ class ParameterPosterior(BaseEstimator):
     def _class_of(cuts: Cuts) -> np.ndarray:
         return np.array([0 if is_complete(c) else 1 for c in cuts.catalogues])
 
-    def quantiles(self, cuts: Cuts) -> np.ndarray:
-        """(n, P, L) the calibrated quantiles of every parameter at ``POSTERIOR_LEVELS``,
-        on the learned scale, within the prior's range."""
-        q = self._raw_quantiles(design(cuts))
+    @staticmethod
+    def _group_of(x) -> np.ndarray:
+        """(n,) each cut's index in ``RECALIBRATION_GROUPS``, from its ``design`` row."""
+        names = design_names()
+        complete = x[:, names.index("complete")] > 0
+        lone = x[:, names.index("lone_slider_mu_d")] > 0
+        m = x[:, [names.index(k) for k in MEASUREMENT_FEATURES]]
+        exact = (m == PERFECT.as_features(Catalogue([], [], [], [], []))).all(axis=1)
+        return np.where(complete, np.where(lone, 0, np.where(exact, 1, 2)),
+                        np.where(exact, 3, 4))
+
+    def conformal_quantiles(self, cuts: Cuts, x=None) -> np.ndarray:
+        """(n, P, L) the conformally calibrated quantiles of every parameter at
+        ``POSTERIOR_LEVELS``, on the learned scale, within the prior's range."""
+        q = self._raw_quantiles(design(cuts) if x is None else x)
         q = q + self.shifts_[self._class_of(cuts)] * self._spread(q)[:, :, None]
         return np.sort(np.clip(q, self.low_[None, :, None], self.high_[None, :, None]), axis=2)
 
+    def quantiles(self, cuts: Cuts) -> np.ndarray:
+        """(n, P, M) every parameter's posterior quantiles at ``REPORTED_LEVELS`` on the
+        learned scale: the conformal quantile function (linear between the learned levels and
+        out to the prior's range) at the levels the recalibration of the cut's group maps
+        them to."""
+        x = design(cuts)
+        return self._reported(self.conformal_quantiles(cuts, x), self._group_of(x))
+
+    def _reported(self, q, group) -> np.ndarray:
+        levels = np.concatenate([[0.0], POSTERIOR_LEVELS, [1.0]])
+        out = np.empty(q.shape[:2] + (REPORTED_LEVELS.size,))
+        for i in range(len(q)):
+            for p in range(q.shape[1]):
+                knots = np.concatenate([[self.low_[p]], q[i, p], [self.high_[p]]])
+                out[i, p] = np.interp(self.recalibration_[group[i], p], levels, knots)
+        return out
+
     def knots(self, q_row: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
         """The CDF of parameter ``p`` for one cut: (values, probabilities), increasing, from
-        the prior's low end (0) through the calibrated quantiles to its high end (1)."""
+        the prior's low end (0) through the reported quantiles to its high end (1)."""
         x = np.concatenate([[self.low_[p]], q_row[p], [self.high_[p]]])
         x = np.maximum.accumulate(x)
         x = x + np.arange(x.size) * 1e-12 * max(1.0, float(np.abs(x).max()))
-        return x, np.concatenate([[0.0], POSTERIOR_LEVELS, [1.0]])
+        return x, np.concatenate([[0.0], REPORTED_LEVELS, [1.0]])
 
     def cdf(self, q_row, p: int, value) -> np.ndarray:
         """P(parameter ``p`` <= ``value``) for one cut (learned scale)."""
@@ -382,13 +506,18 @@ class ParameterPosterior(BaseEstimator):
     def probability_integral(self, cuts: Cuts, truth: dict, rng) -> np.ndarray:
         """(n, P) each true parameter's posterior CDF (the rank of simulation-based
         calibration): uniform on [0, 1] when the posterior is calibrated.  The atoms (xi = 0,
-        each number of sliders) are spread uniformly over their probability."""
-        q = self.quantiles(cuts)
-        out = np.zeros((len(cuts), len(self.parameters_)))
+        each number of sliders, and a run of equal quantiles where a posterior is sharper
+        than ``ATOM_WIDTH`` of the prior's range) are spread uniformly over their
+        probability."""
+        return self._pit(self.quantiles(cuts), truth, rng)
+
+    def _pit(self, q, truth: dict, rng) -> np.ndarray:
+        out = np.zeros((len(q), len(self.parameters_)))
         for p, name in enumerate(self.parameters_):
             y = learned_scale(name, truth[name], self.xi_zero_code_)
-            for i in range(len(cuts)):
-                lo = hi = float(self.cdf(q[i], p, y[i]))
+            tol = ATOM_WIDTH * (self.high_[p] - self.low_[p])
+            for i in range(len(q)):
+                lo, hi = (float(v) for v in self.cdf(q[i], p, [y[i] - tol, y[i] + tol]))
                 if name == "xi" and y[i] <= self.xi_zero_edge():
                     lo, hi = 0.0, float(self.cdf(q[i], p, self.xi_zero_edge()))
                 elif name == "n_sliders":
@@ -493,6 +622,9 @@ class ParameterPosterior(BaseEstimator):
         check_array(self.prior_variance_, "posterior: prior variances", shape=(n_p,), lo=1e-300)
         check_array(self.shifts_, "posterior: conformal shifts",
                     shape=(len(CATALOGUE_CLASSES), n_p, n_l), lo=-1e3, hi=1e3)
+        check_array(self.recalibration_, "posterior: recalibration",
+                    shape=(len(RECALIBRATION_GROUPS), n_p, REPORTED_LEVELS.size),
+                    lo=0.0, hi=1.0, increasing=True)
         check_array(self.n_sliders_values_, "posterior: numbers of sliders", lo=1.0,
                     increasing=True, min_size=1)
         check_number(self.mu_d_reference_, "posterior: mu_d's reference", -1e3, 1e3)
