@@ -157,7 +157,7 @@ def pytest_runtest_protocol(item, nextitem):
         yield
         return
     slots.waited = {fcntl.LOCK_SH: 0.0, fcntl.LOCK_EX: 0.0}
-    started, cpu = time.time(), _cpu_seconds()
+    started, cpu = time.time(), cpu_seconds()
     slots.hold(fcntl.LOCK_EX if item.get_closest_marker("two_cores") else fcntl.LOCK_SH)
     try:
         yield
@@ -167,17 +167,18 @@ def pytest_runtest_protocol(item, nextitem):
         timeline = os.environ.get("SLIDERS_TEST_TIMELINE")
         if timeline:  # benchmarks/suite_cost.py: where the suite's wall time goes
             record = {"test": item.nodeid, "worker": item.config.workerinput["workerid"],
-                      "start": started, "end": time.time(), "cpu": _cpu_seconds() - cpu,
+                      "start": started, "end": time.time(), "cpu": cpu_seconds() - cpu,
                       "both_cores": both, "waited_one": slots.waited[fcntl.LOCK_SH],
                       "waited_both": slots.waited[fcntl.LOCK_EX]}
             with open(timeline, "a") as f:
                 f.write(json.dumps(record) + "\n")
 
 
-def _cpu_seconds() -> float:
-    """CPU time of this worker and of the subprocesses it has waited for."""
-    own, children = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
-    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+def cpu_seconds(*who: int) -> float:
+    """CPU time (user + system) of ``who`` (``resource.RUSAGE_SELF``, ``RUSAGE_CHILDREN``: the
+    subprocesses waited for); both by default."""
+    usages = [resource.getrusage(w) for w in who or (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
+    return sum(u.ru_utime + u.ru_stime for u in usages)
 
 
 # where run() keeps its results: a folder of the test session that its xdist workers share

@@ -46,6 +46,8 @@ from sybil import Sybil
 from sybil.evaluators.python import PythonEvaluator
 from sybil.parsers.markdown import CodeBlockParser, PythonCodeBlockParser, SkipParser
 
+from conftest import cpu_seconds
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCTEST_FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
 RUN_LANGUAGES = ("bash", "console", "pycon", "python")
@@ -61,16 +63,6 @@ def pages() -> list[Path]:
     docs = sorted(p for p in (ROOT / "docs").rglob("*.md")
                   if not {"_build", "generated"} & set(p.relative_to(ROOT).parts))
     return [ROOT / "README.md", *docs, ROOT / "mpi_runs" / "README.md"]
-
-
-def _children_cpu() -> float:
-    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return usage.ru_utime + usage.ru_stime
-
-
-def _own_cpu() -> float:
-    usage = resource.getrusage(resource.RUSAGE_SELF)
-    return usage.ru_utime + usage.ru_stime
 
 
 def page_id(page: Path) -> str:
@@ -182,7 +174,8 @@ def test_page_commands_run_as_written(page, tmp_path_factory, monkeypatch, reque
         except pytest.skip.Exception as why:  # the other blocks still run
             no_slurm = str(why)
     document.namespace.update(__env__=env, __timings__=[])
-    skipped, started, cpu, own = [], time.monotonic(), _children_cpu(), _own_cpu()
+    skipped, started = [], time.monotonic()
+    cpu, own = cpu_seconds(resource.RUSAGE_CHILDREN), cpu_seconds(resource.RUSAGE_SELF)
     for example in examples:
         where = f"{page_id(page)}, block at line {example.line}"
         if no_slurm and _needs_slurm(example):
@@ -196,8 +189,8 @@ def test_page_commands_run_as_written(page, tmp_path_factory, monkeypatch, reque
             pytest.fail(f"{where}: {exc}", pytrace=False)
     slow = sorted(document.namespace["__timings__"], key=lambda t: -t[1])[:3]
     sys.stderr.write(f"\n{page_id(page)}: {time.monotonic() - started:.1f} s wall, "
-                     f"CPU {_children_cpu() - cpu:.1f} s in its commands + "
-                     f"{_own_cpu() - own:.1f} s in its Python blocks"
+                     f"CPU {cpu_seconds(resource.RUSAGE_CHILDREN) - cpu:.1f} s in its commands + "
+                     f"{cpu_seconds(resource.RUSAGE_SELF) - own:.1f} s in its Python blocks"
                      + "".join(f", line {line}: {t:.1f} s" for line, t in slow)
                      + "".join(f"\n  not run, {s}" for s in skipped))
     if no_slurm:
