@@ -73,6 +73,7 @@ def _stopped(tmp_path, module_args: list[str], ready, sig) -> tuple[int, str]:
                                stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
         try:
             writer = ready(job, err_path)
+            _handling_signals(job.pid)
             time.sleep(1.0)
             os.killpg(job.pid, sig)  # the terminal's Ctrl-C reaches the whole group
             code = job.wait(timeout=60)
@@ -83,6 +84,47 @@ def _stopped(tmp_path, module_args: list[str], ready, sig) -> tuple[int, str]:
                 os.killpg(job.pid, signal.SIGKILL)
                 job.wait()
     return code, err_path.read_text()
+
+
+def _ranks(launcher: int) -> list[int]:
+    """The Python processes (the ranks) among the launcher's descendants (each rank in its
+    own session, as MPICH's proxy starts it)."""
+    ranks, todo = [], [launcher]
+    while todo:
+        pid = todo.pop()
+        try:
+            children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+            argv0 = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")[0]
+        except OSError:
+            continue
+        if argv0 == os.fsencode(sys.executable):
+            ranks.append(pid)
+        todo += [int(c) for c in children]
+    return ranks
+
+
+def _handling_signals(launcher: int) -> None:
+    """Wait until both ranks handle SIGTERM (catch or ignore it): past their imports, inside
+    the command.  A signal that reaches a rank still importing kills it by the default
+    action, and the launcher's status then depends on which process it reaps first."""
+    mask = 1 << (signal.SIGTERM - 1)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        caught = []
+        for pid in _ranks(launcher):
+            try:
+                status = Path(f"/proc/{pid}/status").read_text()
+            except OSError:
+                continue
+            handled = 0  # the signals caught or ignored: not left to the default action
+            for line in status.splitlines():
+                if line.startswith(("SigCgt:", "SigIgn:")):
+                    handled |= int(line.split()[1], 16)
+            caught.append(bool(handled & mask))
+        if len(caught) == 2 and all(caught):
+            return
+        time.sleep(0.05)
+    pytest.fail("the ranks never installed their signal handlers")
 
 
 def _cpu_seconds(pid: int) -> float:
