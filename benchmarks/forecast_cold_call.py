@@ -1,5 +1,6 @@
 """Cost of a cold ``predict``: a fresh interpreter forecasting a 150-event catalogue, against a
-fresh interpreter importing scikit-learn's ensembles.
+fresh interpreter importing scikit-learn's ensembles; and of ``predict --help``, against one
+importing numpy and argparse.
 
     .venv/bin/python benchmarks/forecast_cold_call.py --runs 7
 
@@ -12,7 +13,8 @@ that both meet the same load of the machine; the medians of the wall clock and
 of the CPU time (user + system of the child) are compared.  The target: the
 forecast at most ``TARGET_RATIO`` times the import.  The catalogue is 150
 events of a simulated pile (200 sliders, ``EXAMPLE`` below: deterministic, no
-simulation needed).  Prints one JSON line and writes it to
+simulation needed).  ``predict --help`` is timed the same way against ``python -c "import
+numpy, argparse"`` (the parser needs no more; target: a ratio of at most 1).  Prints one JSON line and writes it to
 benchmarks/results/forecast_cold_call.json.
 """
 
@@ -32,6 +34,8 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 TARGET_RATIO = 1.5
+#: ``predict --help`` at most the import of numpy and argparse
+HELP_TARGET_RATIO = 1.0
 
 
 def example_csv(path: str, n: int = 150, seed: int = 7) -> float:
@@ -69,18 +73,25 @@ def main(argv=None) -> int:
         tilt = example_csv(cat)
         forecast = [sys.executable, "-m", "sliders.forecast", "predict", cat,
                     "--tilt-now", f"{tilt:.4f}deg", "--json"]
-        reference = [sys.executable, "-c", "import sklearn.ensemble"]
-        timed(forecast, env), timed(reference, env)  # warm the disk cache and the .pyc files
-        times = {"forecast": [], "import_sklearn_ensemble": []}
+        commands = {"forecast": forecast,
+                    "import_sklearn_ensemble": [sys.executable, "-c", "import sklearn.ensemble"],
+                    "help": [sys.executable, "-m", "sliders.forecast", "predict", "--help"],
+                    "import_numpy_argparse": [sys.executable, "-c", "import numpy, argparse"]}
+        for cmd in commands.values():
+            timed(cmd, env)  # warm the disk cache and the .pyc files
+        times = {k: [] for k in commands}
         for _ in range(args.runs):
-            times["import_sklearn_ensemble"].append(timed(reference, env))
-            times["forecast"].append(timed(forecast, env))
+            for k, cmd in commands.items():
+                times[k].append(timed(cmd, env))
     med = {k: {"wall_s": statistics.median(w for w, _ in v),
                "cpu_s": statistics.median(c for _, c in v)} for k, v in times.items()}
     ratio = {k: med["forecast"][k] / med["import_sklearn_ensemble"][k] for k in ("wall_s", "cpu_s")}
+    help_ratio = {k: med["help"][k] / med["import_numpy_argparse"][k] for k in ("wall_s", "cpu_s")}
     out = {"benchmark": "forecast_cold_call", "events": 150, "runs": args.runs,
            "median": med, "ratio": ratio, "target_ratio": TARGET_RATIO,
            "within_target": bool(ratio["wall_s"] <= TARGET_RATIO),
+           "help_ratio": help_ratio, "help_target_ratio": HELP_TARGET_RATIO,
+           "help_within_target": bool(help_ratio["wall_s"] <= HELP_TARGET_RATIO),
            "load_average": os.getloadavg()[0], "cpus": os.cpu_count(),
            "raw": {k: [[round(w, 4), round(c, 4)] for w, c in v] for k, v in times.items()},
            "python": sys.version.split()[0], "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}

@@ -29,7 +29,7 @@ from sliders.analysis.forecast.evaluation import cuts_at_leads
 from sliders.analysis.forecast.learned import INTERVALS
 from sliders.analysis.forecast.registry import FORECASTERS
 from sliders.analysis.forecast.reliability import coverage_report
-from sliders.runs.forecast.common import load_set
+from sliders.runs.forecast.catalogue import load_set
 from sliders.runs.forecast.train import concatenate
 
 #: the learned forecasters measured, and how their test catalogues are stripped

@@ -36,8 +36,8 @@ def started(tmp_path, module: str, *argv: str) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.parametrize("command, module, who", [
-    ("sliders.forecast", "sliders.driver", "sliders"),  # in the package's import
-    ("sliders.forecast", "sliders.runs.forecast.predict", "sliders.forecast"),  # in its own
+    ("sliders.forecast", "sliders.runs.forecast.cli", "sliders.forecast"),  # its parser's
+    ("sliders.forecast", "sliders.io.forecast_files", "sliders.forecast"),  # what it reads
     ("sliders.ensemble", "sliders.runs.ensemble", "ensemble"),
     ("sliders", "sliders.scene", "sliders"),
 ])
@@ -50,6 +50,6 @@ def test_ctrl_c_while_a_command_starts_is_one_line(tmp_path, command, module, wh
 
 
 def test_a_program_importing_the_package_keeps_its_ctrl_c(tmp_path):
-    res = started(tmp_path, "sliders.driver", "-c", "import sliders")
+    res = started(tmp_path, "sliders.driver", "-c", "import sliders; sliders.Scene; sliders.run")
     assert res.returncode != 0 and "KeyboardInterrupt" in res.stderr
     assert "while starting" not in res.stderr

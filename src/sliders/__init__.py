@@ -13,30 +13,43 @@ public API:
 * ``analysis``, ``figures``, ``runs``: the layers above (docs/architecture.md).
 """
 
-import sys
+import importlib
 
-from ._forward import interrupted_while_starting
 from ._version import __version__
 
-try:
-    from .chain import ChainState
-    from .driver import Interrupted, Progress, run
-    from .parts.checks import SceneError
-    from .parts.friction import Coulomb
-    from .parts.loading import PushedEnd, Tilt
-    from .preparation import prepare
-    from .result import EventSparse, Result
-    from .scene import Scene
-except KeyboardInterrupt:
-    if sys.argv[:1] != ["-m"]:  # an import in a program: its Ctrl-C, as always
-        raise
-    interrupted_while_starting("sliders")  # `python -m sliders...` (argv[0] is "-m" until found)
+#: the public names, each read from its module at first use: ``import sliders`` costs
+#: nothing more than its version (a command's ``--help`` needs no more)
+_PUBLIC = {
+    "ChainState": ("chain", "ChainState"),
+    "Interrupted": ("driver", "Interrupted"),
+    "Progress": ("driver", "Progress"),
+    "run": ("driver", "run"),
+    "SceneError": ("parts.checks", "SceneError"),
+    "Coulomb": ("parts.friction", "Coulomb"),
+    "PushedEnd": ("parts.loading", "PushedEnd"),
+    "Tilt": ("parts.loading", "Tilt"),
+    "prepare": ("preparation", "prepare"),
+    "EventSparse": ("result", "EventSparse"),
+    "Result": ("result", "Result"),
+    "Scene": ("scene", "Scene"),
+    # the paper's names (its loading is the tilt; they run and hold any loading alike)
+    "tilt": ("driver", "run"),
+    "TiltResult": ("result", "Result"),
+}
 
-# The paper's names (its loading is the tilt; they run and hold any loading alike).
-tilt = run
-TiltResult = Result
+__all__ = sorted([*_PUBLIC, "__version__"])
 
-__all__ = [
-    "ChainState", "Coulomb", "EventSparse", "Interrupted", "Progress", "PushedEnd", "Result",
-    "Scene", "SceneError", "Tilt", "TiltResult", "__version__", "prepare", "run", "tilt",
-]
+
+def __getattr__(name: str):
+    """A public name, imported from its module at first use (PEP 562)."""
+    try:
+        module, attribute = _PUBLIC[name]
+    except KeyError:
+        raise AttributeError(f"module 'sliders' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), attribute)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted({*globals(), *_PUBLIC})

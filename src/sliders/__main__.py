@@ -6,15 +6,22 @@ import argparse
 import math
 import sys
 
-from . import status
-from .runs.cli import (OneLineParser, ProgressLine, add_scene_arguments, check_output, fail,
-                       scene_from_args)
-from .runs.signals import Received
-from .io.filelock import ClaimError, OutputClaim
-from .io.safeio import describe_os_error, leftovers_note
-from .parts.checks import SceneError
-from .scene import BACKENDS, check_memory
-from .driver import run
+from ._forward import interrupted_while_starting
+
+try:
+    from . import status
+    from .runs.cli import (OneLineParser, ProgressLine, add_scene_arguments, check_output, fail,
+                           scene_from_args)
+    from .runs.signals import Received
+    from .io.filelock import ClaimError, OutputClaim
+    from .io.safeio import describe_os_error, leftovers_note
+    from .parts.checks import SceneError
+    from .scene import BACKENDS, check_memory
+    from .driver import run
+except KeyboardInterrupt:  # Ctrl-C while the command's modules are imported
+    if __name__ != "__main__":
+        raise
+    interrupted_while_starting("sliders")
 
 
 def build_parser() -> argparse.ArgumentParser:

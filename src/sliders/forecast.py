@@ -15,22 +15,38 @@ is this API (``sliders.runs.forecast.predict``): one code path.
 
 from __future__ import annotations
 
+import importlib
 import sys
 
 from ._forward import interrupted_while_starting
 
-try:
-    from .runs.forecast.infer import Inference, InferenceModel, load_inference_model
-    from .runs.forecast.predict import ForecastModel, Prediction
-except KeyboardInterrupt:
-    if __name__ != "__main__":
-        raise
-    interrupted_while_starting("sliders.forecast")
+#: the API's names, each read from its module at first use: ``python -m sliders.forecast
+#: predict --help`` imports neither the forecasters nor scikit-learn
+_API = {
+    "ForecastModel": "predict",
+    "Prediction": "predict",
+    "Inference": "infer",
+    "InferenceModel": "infer",
+}
 
-__all__ = ["load", "main", "ForecastModel", "Prediction", "Inference"]
+__all__ = ["load", "main", "ForecastModel", "Prediction", "Inference", "InferenceModel"]
 
 
-def load(path=None, posterior=None) -> InferenceModel:
+def __getattr__(name: str):
+    """An API class, imported from its module at first use (PEP 562)."""
+    if name not in _API:
+        raise AttributeError(f"module 'sliders.forecast' has no attribute {name!r}")
+    value = getattr(_module(_API[name]), name)
+    globals()[name] = value
+    return value
+
+
+def _module(name: str):
+    """``sliders.runs.forecast.NAME``."""
+    return importlib.import_module(f"{__package__}.runs.forecast.{name}")
+
+
+def load(path=None, posterior=None):
     """The forecasters of a model file, loaded once (default: the one shipped in the package).
 
     Parameters
@@ -52,15 +68,16 @@ def load(path=None, posterior=None) -> InferenceModel:
     sliders.io.forecast_files.ForecastInputError
         The file is not a model file this version reads (one line naming it).
     """
-    return load_inference_model(path, posterior)
+    return _module("infer").load_inference_model(path, posterior)
 
 
 def main(argv=None) -> int:
     """``python -m sliders.forecast``: the forecast commands (``sliders.runs.forecast.cli``)."""
-    from .runs.forecast.cli import main as cli_main
-
-    return cli_main(argv)
+    return _module("cli").main(argv)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except KeyboardInterrupt:  # while the command's modules are imported, before its handler
+        interrupted_while_starting("sliders.forecast")

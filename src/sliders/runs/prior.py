@@ -34,9 +34,8 @@ from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, Usage
                       resume_header, check_run_options, input_command_parser, open_output,
                       run_planned)
 from .prior_spec import Prior, check_plan_memory, load_prior
-from .rows import status_code
+from .rows import status_code, tilt_interruptibly
 from .scheduler import serve_rows
-from .signals import tilt_interruptibly
 from ..driver import run as plain
 from ..io.catalogue import Catalogue
 from ..io.prior_file import (HANDLERS, PARAMETERS, catalogue_events, prior_attributes,

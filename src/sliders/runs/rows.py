@@ -7,15 +7,16 @@ prior ensemble's rows (``runs.prior``) share ``status_code``.
 
 from __future__ import annotations
 
+import signal
 import time
 from typing import Any
 
 import numpy as np
 
 from .. import status as status_codes
-from .signals import tilt_interruptibly
+from .signals import Interrupted, StopFlag
 from ..analysis.observables import realisation_statistics
-from ..driver import realisation_scene
+from ..driver import realisation_scene, run
 from ..io.storage import STATISTICS
 from ..keyed_random import key_hash
 
@@ -26,6 +27,31 @@ UNKNOWN_STATUS = -2
 def status_code(status: str) -> int:
     """The stored code of a run's end status (``sliders.status``; -2 for an unknown one)."""
     return STATUS_CODES.get(status, UNKNOWN_STATUS)
+
+
+def tilt_interruptibly(scene, backend: str, progress, **options):
+    """``tilt`` with ``StopFlag.computing`` set except inside the progress callback
+    (``options``: more of ``tilt``'s keywords, such as ``state``)."""
+
+    def callback(p):
+        StopFlag.computing = False
+        try:
+            if progress is not None:
+                progress(p)
+        finally:
+            StopFlag.computing = True
+
+    StopFlag.computing = True
+    try:
+        if StopFlag.signum is not None:  # arrived just before
+            raise Interrupted()
+        return run(scene, backend=backend, progress=callback, **options)
+    except KeyboardInterrupt:  # also when the kernel caught the signal itself: stop the run
+        if StopFlag.signum is None:
+            StopFlag.signum = signal.SIGINT
+        raise
+    finally:
+        StopFlag.computing = False
 
 
 def compute_row(scene, r: int, backend: str, grids, progress=None,

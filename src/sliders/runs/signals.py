@@ -2,7 +2,7 @@
 
 * ``StopFlag``: the run commands' flag (``runs.command``, ``runs.scheduler``):
   the signal is remembered and acted on at the next safe point, or interrupts
-  local work at once (``interruptible``, ``tilt_interruptibly``: a row's tilt);
+  local work at once (``interruptible``; a row's tilt: ``rows.tilt_interruptibly``);
 * ``Interrupted``: raised at a safe point once a run has to stop;
 * ``Received``: the signals of ``python -m sliders tilt``: they stop the tilt
   (the events so far are kept), then wait while its file is written;
@@ -15,7 +15,6 @@ from __future__ import annotations
 import contextlib
 import signal
 
-from ..driver import run
 
 #: the signals that stop a command
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT)
@@ -80,31 +79,6 @@ class StopFlag:
             yield cls
         finally:
             cls.computing = before
-
-
-def tilt_interruptibly(scene, backend: str, progress, **options):
-    """``tilt`` with ``StopFlag.computing`` set except inside the progress callback
-    (``options``: more of ``tilt``'s keywords, such as ``state``)."""
-
-    def callback(p):
-        StopFlag.computing = False
-        try:
-            if progress is not None:
-                progress(p)
-        finally:
-            StopFlag.computing = True
-
-    StopFlag.computing = True
-    try:
-        if StopFlag.signum is not None:  # arrived just before
-            raise Interrupted()
-        return run(scene, backend=backend, progress=callback, **options)
-    except KeyboardInterrupt:  # also when the kernel caught the signal itself: stop the run
-        if StopFlag.signum is None:
-            StopFlag.signum = signal.SIGINT
-        raise
-    finally:
-        StopFlag.computing = False
 
 
 class Received(list):

@@ -9,6 +9,7 @@ and the column (``io.forecast_files.read_catalogue_csv``).  How it was measured
 (angle error, smallest size, missed events, size unit, pile) are flags, read
 here as a ``Measurement``.
 
+``load_set`` reads a prior file's rows (``evaluate``, ``train``, ``catalogue``);
 ``catalogue`` writes one simulated row as the CSV ``predict`` reads, cut at a
 tilt or a lead before its avalanche: the documentation's examples are made so.
 
@@ -24,11 +25,24 @@ import os
 import numpy as np
 
 from ...analysis.forecast.measurement import Measurement
-from ...io.catalogue import Catalogue
+from ...io.catalogue import Catalogue, CatalogueSet
 from ...io.forecast_files import (ForecastInputError, parse_angle, read_catalogue_file,
                                   read_catalogue_stream)
-from ...io.safeio import publish_bytes
-from .common import angle_option, load_set
+from ...io.prior_file import read_prior_ensemble
+from ...io.safeio import describe_os_error, publish_bytes
+from ...io.storage import StorageError
+from .common import angle_option
+
+
+def load_set(path: str, what: str = "--data") -> CatalogueSet:
+    """A prior ensemble file (``sliders.io.prior_file``) as a ``CatalogueSet``; one line naming
+    ``what`` if it is not one (another kind, damaged, truncated, of a newer format)."""
+    try:
+        return read_prior_ensemble(path)
+    except (StorageError, ValueError) as exc:
+        raise ForecastInputError(f"{what}: {' '.join(str(exc).split())}") from None
+    except OSError as exc:
+        raise ForecastInputError(f"{what}: {describe_os_error(exc, path)}") from None
 
 
 def read_source(source, where: str = "catalogue") -> tuple[Catalogue, float, str]:

@@ -1,5 +1,5 @@
-"""What the forecast subcommands share: the defaults their options show, the progress log, a
-prior file read as a ``CatalogueSet``, the provenance of what they write, JSON values.
+"""What the forecast subcommands share: the defaults their options show, the progress log, the
+provenance of what they write, JSON values.
 
 Imports nothing of scikit-learn: the parser (``cli``) reads the defaults here.
 """
@@ -15,11 +15,7 @@ import numpy as np
 
 from ..._version import __version__
 from ...analysis.forecast.registry import METHODS
-from ...io.catalogue import CatalogueSet
 from ...io.forecast_files import ForecastInputError, parse_angle
-from ...io.prior_file import read_prior_ensemble
-from ...io.safeio import describe_os_error
-from ...io.storage import StorageError
 
 #: leads before the avalanche at which the test runs are cut, degrees
 DEFAULT_LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0)
@@ -61,17 +57,6 @@ def progress_log(quiet: bool):
     if quiet:
         return lambda *a: None
     return lambda *a: print(*a, file=sys.stderr, flush=True)
-
-
-def load_set(path: str, what: str = "--data") -> CatalogueSet:
-    """A prior ensemble file (``sliders.io.prior_file``) as a ``CatalogueSet``; one line naming
-    ``what`` if it is not one (another kind, damaged, truncated, of a newer format)."""
-    try:
-        return read_prior_ensemble(path)
-    except (StorageError, ValueError) as exc:
-        raise ForecastInputError(f"{what}: {' '.join(str(exc).split())}") from None
-    except OSError as exc:
-        raise ForecastInputError(f"{what}: {describe_os_error(exc, path)}") from None
 
 
 def provenance(argv) -> dict:

@@ -36,7 +36,8 @@ from ...io.forecast_files import (ForecastInputError, OutputSet, check_output_ta
 from ...io.forecast_model import forecasters_bytes
 from ...io.safeio import (check_output_name, leftovers_note, os_reason, remove_leftovers,
                           resolve_target)
-from .common import jsonable, load_set, progress_log, provenance
+from .catalogue import load_set
+from .common import jsonable, progress_log, provenance
 from .dev import dev_catalogue_set
 from .scoring import score_forecasters
 

@@ -32,7 +32,8 @@ from ...analysis.forecast.registry import fit_methods
 from ...io.catalogue import CatalogueSet
 from ...io.forecast_files import ForecastInputError
 from ...io.forecast_model import save_forecasters
-from .common import POSTERIOR_MAX_ITER, TRAIN_MAX_ITER, load_set, progress_log, provenance
+from .catalogue import load_set
+from .common import POSTERIOR_MAX_ITER, TRAIN_MAX_ITER, progress_log, provenance
 
 
 def run_prior(args, prior_out: str, log) -> None:
