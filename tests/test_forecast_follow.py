@@ -78,6 +78,46 @@ def model():
     return sf.load()
 
 
+def test_an_idle_follower_parses_nothing_and_forecasts_once(tmp_path, model, monkeypatch):
+    """Polls of a file that does not change cost a stat and an empty read: its lines are parsed
+    once, forecast once, and parsed again only when a complete line arrives (a half line
+    does not count)."""
+    import threading
+
+    from sliders.runs.forecast import follow as live
+    from sliders.runs.forecast.cli import build_parser
+
+    alpha, size = accelerating(60, seed=3)
+    path = tmp_path / "pile.csv"
+    path.write_text("angle [deg],size\n" + "".join(f"{a},{s}\n" for a, s in zip(alpha, size)))
+    parsed, forecasts = [], []
+    read_source = live.read_source
+    monkeypatch.setattr(live, "read_source", lambda *a: parsed.append(1) or read_source(*a))
+    monkeypatch.setattr(live, "report", lambda args, pred, rows, alarm, say:
+                        forecasts.append(rows) or alarm)
+    args = build_parser().parse_args(["predict", str(path), "--follow", "--json"])
+    seen = {}
+
+    def writer():                                     # the follower runs in the main thread
+        time.sleep(12 * live.POLL_SECONDS)             # a dozen idle polls
+        seen["idle"] = (len(parsed), list(forecasts))
+        with open(path, "a") as f:
+            f.write("31.5,")                          # half a row: held, nothing parsed
+            f.flush()
+            time.sleep(6 * live.POLL_SECONDS)
+            seen["half"] = len(parsed)
+            f.write("2\n# avalanche\n")
+
+    thread = threading.Thread(target=writer)
+    thread.start()
+    try:
+        assert live.follow(args, model) == 0
+    finally:
+        thread.join(timeout=30)
+    assert seen == {"idle": (1, [60]), "half": 1}
+    assert len(parsed) == 2 and forecasts == [60, 61]
+
+
 @pytest.mark.slow  # a replay at lab pace through two processes; batch's rows: test_forecast_cli
 def test_follow_forecasts_what_batch_forecasts(tmp_path, model):
     alpha, size = accelerating(180, seed=5)

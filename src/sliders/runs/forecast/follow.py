@@ -6,9 +6,11 @@ until its newline; a file truncated, rewritten from its start or replaced (a
 new inode at the path) is read again from its start, and a line on stderr says
 so.  The tilt reached is the last ``# tilt-now ANGLE`` line of the file, or
 ``--tilt-now``, advanced at ``--tilt-rate`` by the wall clock, and never below
-the last event's angle.  At each poll everything that arrived is read first and
-the latest state alone is forecast (a burst of rows is one update), when rows
-arrived or the tilt advanced (by the clock: at most every ``CLOCK_SECONDS``).
+the last event's angle.  At each poll everything that arrived is read first (the lines are parsed again
+only when complete lines arrived: an idle follower costs a stat and an empty
+read) and the latest state alone is forecast (a burst of rows is one update),
+when rows arrived or the tilt advanced (by the clock: at most every
+``CLOCK_SECONDS``).
 
 Each update prints one line (``--json``: the ``predict --json`` object and
 ``rows``, the complete rows read, and ``alarm``; JSON Lines); the alarm's
@@ -21,6 +23,8 @@ or on a ``# avalanche`` line.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import json
 import math
 import os
@@ -43,6 +47,25 @@ CLOCK_SECONDS = 1.0
 HEAD_BYTES = 256
 
 
+def _heap_trimmer():
+    """glibc's ``malloc_trim`` (a function of one argument), or None on another C library."""
+    try:
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
+_MALLOC_TRIM = _heap_trimmer()
+
+
+def release_freed_memory() -> None:
+    """Hand the heap's freed pages back to the system.  A forecast of a long catalogue frees
+    what it allocated, but glibc keeps the freed heap mapped: without this the follower's
+    resident memory would stay at its largest forecast's mark (16 MB more after 10^4 rows)."""
+    if _MALLOC_TRIM is not None:
+        _MALLOC_TRIM(0)
+
+
 class Tail:
     """The complete lines of a file that grows, as ``tail -F`` follows it.
 
@@ -54,11 +77,17 @@ class Tail:
     def __init__(self, path: str):
         self.path = path
         self.fh = None
+        self.started = 0  # times the file was read from its start
         self.reset()
 
     def reset(self) -> None:
         """Forget what was read (the file is read again from its start)."""
         self.pos, self.data, self.partial, self.head = 0, bytearray(), b"", b""
+        self.started += 1
+
+    def version(self) -> tuple[int, int]:
+        """Changes when complete lines arrive or the file is read again from its start."""
+        return self.started, len(self.data)
 
     def _open(self) -> bool:
         try:
@@ -170,6 +199,7 @@ def follow(args, model) -> int:
 
     anchor_text, anchor_time = args.tilt_now, time.monotonic()
     last_state, last_error, alarm, last_clock = None, None, False, 0.0
+    parsed, read, avalanche = None, None, False
     with handled(lambda signum, frame: stop.append(signum)):
         try:
             while not stop:
@@ -178,18 +208,20 @@ def follow(args, model) -> int:
                     say(f"sliders.forecast: {args.catalogue} was {notice}: read again from its "
                         "start", err=True)
                     last_state = last_error = None
-                data = bytes(tail.data)
-                tilt_text, avalanche = comments(data)
-                if tilt_text is not None and tilt_text != anchor_text:
-                    anchor_text, anchor_time = tilt_text, time.monotonic()
-                try:
-                    read = read_source(data, args.catalogue)
-                except ForecastInputError as exc:
-                    if "no events" not in str(exc) and "empty file" not in str(exc) \
-                            and str(exc) != last_error:
-                        say(f"sliders.forecast: {exc}", err=True)
-                        last_error = str(exc)
-                    read = None
+                if tail.version() != parsed:  # the lines are parsed when they change only
+                    parsed = tail.version()
+                    data = bytes(tail.data)
+                    tilt_text, avalanche = comments(data)
+                    if tilt_text is not None and tilt_text != anchor_text:
+                        anchor_text, anchor_time = tilt_text, time.monotonic()
+                    try:
+                        read = read_source(data, args.catalogue)
+                    except ForecastInputError as exc:
+                        if "no events" not in str(exc) and "empty file" not in str(exc) \
+                                and str(exc) != last_error:
+                            say(f"sliders.forecast: {exc}", err=True)
+                            last_error = str(exc)
+                        read = None
                 if read is not None:
                     cat, scale, unit = read
                     last = float(cat.alpha[-1])
@@ -213,6 +245,8 @@ def follow(args, model) -> int:
                         else:
                             last_error = None
                             alarm = report(args, pred, len(cat), alarm, say)
+                            del pred
+                            release_freed_memory()
                         if until is not None and tilt >= until:
                             say(f"the tilt reached {math.degrees(tilt):.2f}° (--until "
                                 f"{args.until}): stopped", err=args.json)
