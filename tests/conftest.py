@@ -4,8 +4,10 @@ cluster of a test session, and the machine's cores shared between pytest-xdist w
 Cores.  Under ``pytest -n N`` every test holds one core slot while it runs (setup, call and
 teardown, so module fixtures count too); a test marked ``two_cores`` (it starts ``mpirun -n 2``,
 a SLURM job or a second busy process) holds them all, so it never runs beside another test and
-the machine is never oversubscribed.  A waiting ``two_cores`` test holds a turnstile that keeps
-new tests from starting, so it is not starved.  Without xdist nothing is locked.
+the machine is never oversubscribed; one marked ``ranks_share_one_core`` (a serial command under
+``mpirun -n 2``, whose second rank sleeps) keeps its one core.  A waiting ``two_cores`` test
+holds a turnstile that keeps new tests from starting, so it is not starved.  Without xdist
+nothing is locked.
 
 ``slurm`` starts munged, slurmctld and slurmd for one node on localhost
 (``scripts/slurm_local.sh start``, in a private directory with its own munge
@@ -52,6 +54,9 @@ BACKENDS = ("fortran", "numpy")
 def pytest_configure(config):
     config.addinivalue_line("markers", "two_cores: the test keeps both cores busy (mpirun -n 2, "
                                        "SLURM, a second process); under xdist it runs alone")
+    config.addinivalue_line("markers", "ranks_share_one_core: the test's ranks use one core "
+                                       "between them (a serial command under mpirun: rank 1 "
+                                       "sleeps until rank 0's status); it holds one core")
     config.addinivalue_line("markers", "slow: left out of the fast loop (pytest -m 'not slow')")
     # pytest-xdist's own, named here too for a run without it (-p no:xdist)
     config.addinivalue_line("markers", "xdist_group(name): under --dist loadgroup, the tests of "
@@ -85,6 +90,7 @@ class CoreSlots:
         self.cores = open(directory / "cores", "a")
         self.held = None
         self.waited = {fcntl.LOCK_SH: 0.0, fcntl.LOCK_EX: 0.0}  # seconds, this test
+        self.ranks_share_one_core = False  # this test's ranks need no second core
 
     def hold(self, mode: int) -> None:
         if self.held == mode or self.held == fcntl.LOCK_EX:
@@ -114,7 +120,7 @@ def pytest_sessionstart(session):
     execute = subprocess.Popen._execute_child
 
     def execute_holding_cores(self, args, *rest, **kw):
-        if slots.held is not None and starts_ranks(args):
+        if slots.held is not None and not slots.ranks_share_one_core and starts_ranks(args):
             slots.hold(fcntl.LOCK_EX)
         return execute(self, args, *rest, **kw)
 
@@ -157,6 +163,7 @@ def pytest_runtest_protocol(item, nextitem):
         yield
         return
     slots.waited = {fcntl.LOCK_SH: 0.0, fcntl.LOCK_EX: 0.0}
+    slots.ranks_share_one_core = item.get_closest_marker("ranks_share_one_core") is not None
     started, cpu = time.time(), cpu_seconds()
     slots.hold(fcntl.LOCK_EX if item.get_closest_marker("two_cores") else fcntl.LOCK_SH)
     try:

@@ -150,6 +150,7 @@ def _computing(pid: int, seconds: float = 3.0) -> None:
     assert _cpu_seconds(pid) >= seconds, "the job never started computing"
 
 
+@pytest.mark.ranks_share_one_core  # rank 1 sleeps until rank 0's status
 @pytest.mark.parametrize("phase", ["reads", "computes"])
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_a_stopped_forecast_command_under_mpirun_exits_with_128_plus_the_signal(tmp_path, sig,
@@ -177,6 +178,7 @@ def test_a_stopped_forecast_command_under_mpirun_exits_with_128_plus_the_signal(
     assert text.count("interrupted") == 1, text  # one line, from rank 0
 
 
+@pytest.mark.ranks_share_one_core  # rank 1 sleeps until rank 0's status
 @pytest.mark.parametrize("args, code", [(["predict", "--help"], 0), (["--help"], 0),
                                          (["predict", "--no-such-option"], 2),
                                          (["predict", "missing.csv"], 2)])
