@@ -78,6 +78,7 @@ def model():
     return sf.load()
 
 
+@pytest.mark.slow  # three seconds of polls beside the model's load
 def test_an_idle_follower_parses_nothing_and_forecasts_once(tmp_path, model, monkeypatch):
     """Polls of a file that does not change cost a stat and an empty read: its lines are parsed
     once, forecast once, and parsed again only when a complete line arrives (a half line
