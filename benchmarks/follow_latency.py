@@ -35,16 +35,15 @@ import time
 
 import numpy as np
 
+from forecast_cold_call import accelerating_events, publish  # benchmarks/, beside this one
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 SPIN = "while True:\n    pass\n"
 
 
 def catalogue_rows(n: int, seed: int = 11) -> list[str]:
     """``n`` event rows (``angle [deg],size``) accelerating towards an avalanche near 31°."""
-    rng = np.random.default_rng(seed)
-    u = np.sort(rng.random(n))
-    alpha = 31.0 - 31.0 * np.exp(-3.0 * u)
-    size = np.maximum(1, np.round(rng.pareto(1.5, n) + 1)).astype(int)
+    alpha, size = accelerating_events(n, seed)
     return [f"{a:.6f},{s}\n" for a, s in zip(alpha, size)]
 
 
@@ -181,11 +180,7 @@ def main(argv=None) -> int:
            "load_average": os.getloadavg()[0], "cpus": os.cpu_count(),
            "python": sys.version.split()[0],
            "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    line = json.dumps(out)
-    print(line)
-    os.makedirs(os.path.dirname(args.out), exist_ok=True)
-    with open(args.out, "w") as fh:
-        fh.write(line + "\n")
+    publish(out, args.out)
     return 0
 
 

@@ -38,14 +38,30 @@ TARGET_RATIO = 1.5
 HELP_TARGET_RATIO = 1.0
 
 
-def example_csv(path: str, n: int = 150, seed: int = 7) -> float:
-    """A catalogue of ``n`` events accelerating towards an avalanche near 31°, as the CSV
-    ``predict`` reads; returns the tilt reached (degrees)."""
+def accelerating_events(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The angles (degrees, increasing) and sizes of ``n`` events accelerating towards an
+    avalanche near 31°."""
     rng = np.random.default_rng(seed)
     # an event rate growing as 1 / (31° - alpha): angles from its inverse distribution function
     u = np.sort(rng.random(n))
     alpha = 31.0 - 31.0 * np.exp(-3.0 * u)
     size = np.maximum(1, np.round(rng.pareto(1.5, n) + 1)).astype(int)
+    return alpha, size
+
+
+def publish(out: dict, path: str) -> None:
+    """Print a benchmark's figures as one JSON line and write that line to ``path``."""
+    line = json.dumps(out)
+    print(line)
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(path, "w") as fh:
+        fh.write(line + "\n")
+
+
+def example_csv(path: str, n: int = 150, seed: int = 7) -> float:
+    """A catalogue of ``n`` events accelerating towards an avalanche near 31°, as the CSV
+    ``predict`` reads; returns the tilt reached (degrees)."""
+    alpha, size = accelerating_events(n, seed)
     with open(path, "w") as fh:
         fh.write("angle [deg],size\n")
         fh.writelines(f"{a:.4f},{s}\n" for a, s in zip(alpha, size))
@@ -95,11 +111,7 @@ def main(argv=None) -> int:
            "load_average": os.getloadavg()[0], "cpus": os.cpu_count(),
            "raw": {k: [[round(w, 4), round(c, 4)] for w, c in v] for k, v in times.items()},
            "python": sys.version.split()[0], "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    line = json.dumps(out)
-    print(line)
-    os.makedirs(os.path.dirname(args.out), exist_ok=True)
-    with open(args.out, "w") as fh:
-        fh.write(line + "\n")
+    publish(out, args.out)
     return 0
 
 

@@ -86,20 +86,30 @@ def _stopped(tmp_path, module_args: list[str], ready, sig) -> tuple[int, str]:
     return code, err_path.read_text()
 
 
+def _descendants(pid: int):
+    """``pid`` and the processes under it that are still running (``/proc``'s children lists)."""
+    todo = [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            children = Path(f"/proc/{p}/task/{p}/children").read_text().split()
+        except OSError:
+            continue
+        yield p
+        todo += [int(c) for c in children]
+
+
 def _ranks(launcher: int) -> list[int]:
     """The Python processes (the ranks) among the launcher's descendants (each rank in its
     own session, as MPICH's proxy starts it)."""
-    ranks, todo = [], [launcher]
-    while todo:
-        pid = todo.pop()
+    ranks = []
+    for pid in _descendants(launcher):
         try:
-            children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
             argv0 = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")[0]
         except OSError:
             continue
         if argv0 == os.fsencode(sys.executable):
             ranks.append(pid)
-        todo += [int(c) for c in children]
     return ranks
 
 
@@ -129,16 +139,13 @@ def _handling_signals(launcher: int) -> None:
 
 def _cpu_seconds(pid: int) -> float:
     """CPU time used by ``pid`` and its descendants that are still running."""
-    total, todo = 0.0, [pid]
-    while todo:
-        p = todo.pop()
+    total = 0.0
+    for p in _descendants(pid):
         try:
             fields = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()
-            children = Path(f"/proc/{p}/task/{p}/children").read_text().split()
         except OSError:
             continue
         total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-        todo += [int(c) for c in children]
     return total
 
 

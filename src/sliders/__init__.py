@@ -13,8 +13,7 @@ public API:
 * ``analysis``, ``figures``, ``runs``: the layers above (docs/architecture.md).
 """
 
-import importlib
-
+from ._forward import names_at_first_use as _names_at_first_use
 from ._version import __version__
 
 #: the public names, each read from its module at first use: ``import sliders`` costs
@@ -40,15 +39,7 @@ _PUBLIC = {
 __all__ = sorted([*_PUBLIC, "__version__"])
 
 
-def __getattr__(name: str):
-    """A public name, imported from its module at first use (PEP 562)."""
-    try:
-        module, attribute = _PUBLIC[name]
-    except KeyError:
-        raise AttributeError(f"module 'sliders' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), attribute)
-    globals()[name] = value
-    return value
+__getattr__ = _names_at_first_use(__name__, _PUBLIC)
 
 
 def __dir__():

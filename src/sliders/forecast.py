@@ -18,27 +18,21 @@ from __future__ import annotations
 import importlib
 import sys
 
-from ._forward import interrupted_while_starting
+from ._forward import interrupted_while_starting, names_at_first_use
 
 #: the API's names, each read from its module at first use: ``python -m sliders.forecast
 #: predict --help`` imports neither the forecasters nor scikit-learn
 _API = {
-    "ForecastModel": "predict",
-    "Prediction": "predict",
-    "Inference": "infer",
-    "InferenceModel": "infer",
+    "ForecastModel": ("runs.forecast.predict", "ForecastModel"),
+    "Prediction": ("runs.forecast.predict", "Prediction"),
+    "Inference": ("runs.forecast.infer", "Inference"),
+    "InferenceModel": ("runs.forecast.infer", "InferenceModel"),
 }
 
 __all__ = ["load", "main", "ForecastModel", "Prediction", "Inference", "InferenceModel"]
 
 
-def __getattr__(name: str):
-    """An API class, imported from its module at first use (PEP 562)."""
-    if name not in _API:
-        raise AttributeError(f"module 'sliders.forecast' has no attribute {name!r}")
-    value = getattr(_module(_API[name]), name)
-    globals()[name] = value
-    return value
+__getattr__ = names_at_first_use(__name__, _API)
 
 
 def _module(name: str):

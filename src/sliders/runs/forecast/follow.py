@@ -6,11 +6,11 @@ until its newline; a file truncated, rewritten from its start or replaced (a
 new inode at the path) is read again from its start, and a line on stderr says
 so.  The tilt reached is the last ``# tilt-now ANGLE`` line of the file, or
 ``--tilt-now``, advanced at ``--tilt-rate`` by the wall clock, and never below
-the last event's angle.  At each poll everything that arrived is read first (the lines are parsed again
-only when complete lines arrived: an idle follower costs a stat and an empty
-read) and the latest state alone is forecast (a burst of rows is one update),
-when rows arrived or the tilt advanced (by the clock: at most every
-``CLOCK_SECONDS``).
+the last event's angle.  At each poll everything that arrived is read first
+(the lines are parsed again only when complete lines arrived: an idle follower
+costs a stat and an empty read) and the latest state alone is forecast (a
+burst of rows is one update), when rows arrived or the tilt advanced (by the
+clock: at most every ``CLOCK_SECONDS``).
 
 Each update prints one line (``--json``: the ``predict --json`` object and
 ``rows``, the complete rows read, and ``alarm``; JSON Lines); the alarm's
