@@ -18,6 +18,7 @@ is handled in one of two ways, decided from the environment the launcher sets:
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import time
 
@@ -112,10 +113,16 @@ def stopped_job_status(comm, code: int) -> int:
     with it lose it when the terminal's Ctrl-C also reaches the launcher's
     proxy (``mpiexec`` returned 0 there).  MPICH's own "application called
     MPI_Abort" line is not printed: the command has said why it stopped.
-    Serially (or for any other code) the code is returned as it is.
+    From here on every rank ignores SIGINT and SIGTERM: MPICH's proxy forwards the
+    terminal's Ctrl-C to the ranks, which had it from the terminal too, and that copy
+    may land after the command's handlers are gone (a KeyboardInterrupt traceback
+    while the interpreter shuts down).  Serially (or for any other code) the code is
+    returned as it is.
     """
     if code <= 128 or comm.size < 2:
         return code
+    for stop in (signal.SIGINT, signal.SIGTERM):  # the job is stopping: copies change nothing
+        signal.signal(stop, signal.SIG_IGN)
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
