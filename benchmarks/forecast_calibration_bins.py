@@ -1,6 +1,6 @@
 """Coverage per kind of pile under other Mondrian bins of a model's conformal calibration.
 
-    .venv/bin/python benchmarks/forecast_calibration_bins.py MODEL.skops learned_blind \
+    .venv/bin/python benchmarks/forecast_calibration_bins.py MODEL.zip learned_blind \
         4,4,1,1 4,4,3,1 4,4,1,3 4,4,3,3 4,4,4,4
 
 Each scheme is (bins of the tilt reached, of the events so far, of the mean event

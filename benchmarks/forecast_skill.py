@@ -1,6 +1,6 @@
 """The shipped forecaster measured on rows it never saw: skill, coverage, domain flag, degradations.
 
-    .venv/bin/python benchmarks/forecast_skill.py --model src/sliders/data/default_forecaster.skops \\
+    .venv/bin/python benchmarks/forecast_skill.py --model src/sliders/data/default_forecaster.zip \\
         --outside results/train/outside_*.h5 --out benchmarks/results
 
 The model's provenance names its prior files and its held-out rows

@@ -5,7 +5,7 @@
 #      R = 5000), and RR test-only rows of each other preparation (initial_forces = "zero",
 #      and "history": the last stable state before an avalanche, tilted back to zero);
 #   2. python -m sliders.forecast evaluate: fits every forecaster, prints the table, writes
-#      forecast_table.md, forecast_metrics.json, forecaster.skops (for predict) and the figures.
+#      forecast_table.md, forecast_metrics.json, forecaster.zip (for predict) and the figures.
 #
 #   bash mpi_runs/forecast.sh                        # NP=2, R=5000, RR=500, explore mode
 #   R=2000 RR=300 OUT=/tmp/fc bash mpi_runs/forecast.sh

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The default forecaster shipped in the package (src/sliders/data/default_forecaster.skops),
+# The default forecaster shipped in the package (src/sliders/data/default_forecaster.zip),
 # from scratch, and its measurements (docs/forecasting_results.md):
 #   1. python -m sliders.forecast train: the prior ensemble of mpi_runs/priors/forecaster.toml
 #      on NP ranks (resumable: run the script again to complete it), then every forecaster
@@ -25,7 +25,7 @@ cd "$ROOT"
 export OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}
 T0=$SECONDS
 nice -n "$NICE" "$PY" -m sliders.forecast train --prior mpi_runs/priors/forecaster.toml \
-  --out "$OUT/default_forecaster.skops" --np "$NP" --hold-out 0.2
+  --out "$OUT/default_forecaster.zip" --np "$NP" --hold-out 0.2
 echo "forecast_default_model.sh: model in $((SECONDS - T0)) s on $NP ranks"
 OUTSIDE=()
 for toml in mpi_runs/priors/outside/*.toml; do
@@ -34,9 +34,9 @@ for toml in mpi_runs/priors/outside/*.toml; do
     --resume --quiet
   OUTSIDE+=("$name=$OUT/outside_$name.h5")
 done
-nice -n "$NICE" "$PY" benchmarks/forecast_skill.py --model "$OUT/default_forecaster.skops" \
+nice -n "$NICE" "$PY" benchmarks/forecast_skill.py --model "$OUT/default_forecaster.zip" \
   --outside "${OUTSIDE[@]}" --out "$OUT"
 if [ "$SHIP" = 1 ]; then
-  cp "$OUT/default_forecaster.skops" src/sliders/data/default_forecaster.skops
+  cp "$OUT/default_forecaster.zip" src/sliders/data/default_forecaster.zip
 fi
 echo "forecast_default_model.sh: everything in $((SECONDS - T0)) s"

@@ -25,8 +25,8 @@ APT_PACKAGES=(gfortran mpich libmpich-dev libhdf5-mpich-dev pkg-config)
 # sphinx, numpydoc, myst-nb (+ ipykernel to execute the tutorial): tests/test_docs.py builds the
 # documentation with warnings as errors; sybil: tests/test_docs_commands.py runs every page's commands
 PY_DEPS=(meson-python meson ninja numpy scipy pytest matplotlib xarray h5netcdf sphinx numpydoc myst-nb ipykernel
-         scikit-learn skops crepes  # the learned forecasters: scikit-learn, skops (their model
-         sybil pytest-xdist         # files, read as data), crepes (their conformal calibration);
+         scikit-learn crepes        # the learned forecasters: scikit-learn, crepes (their
+         sybil pytest-xdist         # conformal calibration);
          pytest-timeout)            # pytest-xdist: the suite on every core; pytest-timeout: a
                                     # hung test fails with its stack instead of stalling the suite
 H5PY_BUILD_DEPS=(cython pkgconfig "setuptools>=77")

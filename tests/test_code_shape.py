@@ -131,7 +131,6 @@ LAZY_IMPORTS = {
                                  "the forecast parser and the picture import them when a "
                                  "forecast is made",
     "threadpoolctl": "the tree walk's threads, held to one when a forecast runs",
-    "skops": "a model file's format, imported when one is read or written",
     "crepes": "the conformal calibration, imported by the learned forecaster that fits it",
     "sliders.analysis.forecast.learned": "imports scikit-learn (2 s): only when fitting",
     "mpi4py": "importing it starts MPI: a serial run never does",

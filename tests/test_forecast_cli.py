@@ -69,7 +69,7 @@ def test_predict_command_prints_the_forecast_and_json(tmp_path):
     train = synthetic_set(30)
     models = {"learned": Learned(draws_per_row=6, max_iter=10, random_state=0).fit(train),
               "learned_blind": Learned(draws_per_row=6, max_iter=10, inputs="angles_sizes").fit(train)}
-    path = str(tmp_path / "model.skops")
+    path = str(tmp_path / "model.zip")
     save_forecasters(path, models, {"command": "test"})
     cat = write(tmp_path, "angle [deg],size,displacement\n"
                 + "".join(f"{a:.3f},1,0.01\n" for a in np.linspace(1, 20, 80)))
@@ -85,11 +85,11 @@ def test_predict_command_prints_the_forecast_and_json(tmp_path):
     bad = subprocess.run(run[:4] + [write(tmp_path, "angle,size\n1,1\n", "b.csv"), "--model", path],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
-    # a byte flipped inside the archive's schema: its CRC-32 fails before anything is built
-    damaged = tmp_path / "damaged.skops"
+    # a byte flipped inside the archive's tree: its CRC-32 fails before anything is built
+    damaged = tmp_path / "damaged.zip"
     raw = bytearray(open(path, "rb").read())
-    schema = zipfile.ZipFile(path).getinfo("schema.json")
-    raw[schema.header_offset + 30 + len(schema.filename) + schema.compress_size // 2] ^= 0xFF
+    tree = zipfile.ZipFile(path).getinfo("tree.json")
+    raw[tree.header_offset + 30 + len(tree.filename) + tree.compress_size // 2] ^= 0xFF
     damaged.write_bytes(bytes(raw))
     with pytest.raises(ModelFileError, match="damaged model file"):
         load_forecasters(str(damaged))

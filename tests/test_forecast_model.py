@@ -54,7 +54,7 @@ def predict(capsys, monkeypatch):
 @pytest.fixture(scope="module")
 def model_file(tmp_path_factory):
     """Every method fitted on a small synthetic set, in a model file."""
-    path = tmp_path_factory.mktemp("model") / "model.skops"
+    path = tmp_path_factory.mktemp("model") / "model.zip"
     models = fit_methods(synthetic_set(40, seed=1), max_iter=10, seed=0)
     save_forecasters(str(path), models, {"rows": 40, "prior": "synthetic rate laws"})
     return str(path)
@@ -83,7 +83,7 @@ def test_a_crafted_pickle_is_refused_and_never_run(tmp_path):
         def __reduce__(self):
             return (os.system, (f"touch {marker}",))
 
-    crafted = tmp_path / "crafted.skops"
+    crafted = tmp_path / "crafted.zip"
     crafted.write_bytes(pickle.dumps(Evil()))
     catalogue = tmp_path / "c.csv"
     catalogue.write_text("angle [deg],size\n1,1\n2,1\n")
@@ -93,18 +93,15 @@ def test_a_crafted_pickle_is_refused_and_never_run(tmp_path):
     assert out.stderr.count("\n") == 1 and "refused" in out.stderr and str(crafted) in out.stderr
 
 
-def test_a_skops_file_naming_an_unlisted_type_is_refused(tmp_path, predict):
-    """A skops archive whose loading would build a class that writes a file: refused by its
-    types before anything is built."""
-    import skops.io as sio
-
-    from marker_class import MarkerOnLoad
+def test_a_model_file_naming_an_unlisted_type_is_refused(tmp_path, predict):
+    """A model archive whose loading would build a class that writes a file: refused by its
+    names before anything is imported or built."""
+    from marker_class import MarkerOnLoad, archive_as_is
 
     marker = tmp_path / "ran"
-    crafted = tmp_path / "crafted.skops"
-    crafted.write_bytes(sio.dumps({"format": MODEL_FORMAT,
-                                   "forecasters": {"learned_blind": MarkerOnLoad(str(marker))},
-                                   "provenance": {}}))
+    crafted = archive_as_is(tmp_path / "crafted.zip", {
+        "format": MODEL_FORMAT, "forecasters": {"learned_blind": MarkerOnLoad(str(marker))},
+        "provenance": {}})
     with pytest.raises(ModelFileError, match="refused.*marker_class.MarkerOnLoad"):
         load_forecasters(str(crafted))
     assert not marker.exists()
@@ -115,7 +112,7 @@ def test_a_skops_file_naming_an_unlisted_type_is_refused(tmp_path, predict):
 
 
 def test_a_model_file_holding_something_else_is_one_line(tmp_path, predict):
-    path = tmp_path / "wrong.skops"
+    path = tmp_path / "wrong.zip"
     save_forecasters(str(path), {"learned_blind": np.arange(3)}, {"rows": 1})
     catalogue = tmp_path / "c.csv"
     catalogue.write_text("angle [deg],size\n1,1\n2,1\n")
@@ -125,11 +122,10 @@ def test_a_model_file_holding_something_else_is_one_line(tmp_path, predict):
 
 
 def test_a_model_file_of_another_format_asks_to_be_trained_again(tmp_path):
-    import skops.io as sio
+    from marker_class import archive_as_is
 
-    older = tmp_path / "older.skops"
-    older.write_bytes(sio.dumps({"format": "sliders-forecaster-2", "forecasters": {},
-                                 "provenance": {}}))
+    older = archive_as_is(tmp_path / "older.zip", {"format": "sliders-forecaster-2",
+                                                   "forecasters": {}, "provenance": {}})
     with pytest.raises(ModelFileError, match="format sliders-forecaster-2.*train it again"):
         load_forecasters(str(older))
 
@@ -139,9 +135,9 @@ def test_the_default_model_is_never_taken_from_the_current_folder(tmp_path, pred
     assert "site-packages" in str(path) or "src" in str(path)
     assert os.path.dirname(str(path)) != str(tmp_path)
     # a file of the default's name in the current folder is not read
-    (tmp_path / "default_forecaster.skops").write_bytes(b"not a model")
+    (tmp_path / "default_forecaster.zip").write_bytes(b"not a model")
     (tmp_path / "results" / "forecast").mkdir(parents=True)
-    (tmp_path / "results" / "forecast" / "forecaster.skops").write_bytes(b"not a model")
+    (tmp_path / "results" / "forecast" / "forecaster.zip").write_bytes(b"not a model")
     catalogue = tmp_path / "c.csv"
     catalogue.write_text("angle [deg],size\n1,1\n2,1\n3,2\n")
     out = predict([str(catalogue), "--json"], cwd=tmp_path)
@@ -277,16 +273,16 @@ def test_train_runs_a_prior_and_writes_a_model_file_of_its_provenance(tmp_path, 
                      '[parameters]\nmu_d = { uniform = [0.3, 0.6] }\n'
                      'mu_s_minus_mu_d = { loguniform = [0.02, 0.1] }\nsigma_mu = 0.01\nxi = 0.0\n'
                      'n_sliders = { choice = [12, 16] }\n')
-    out = tmp_path / "tiny.skops"
+    out = tmp_path / "tiny.zip"
     assert main(["train", "--prior", str(prior), "--out", str(out), "--max-iter", "3",
                  "--hold-out", "0.25", "--quiet"]) == 0
     models, prov = load_forecasters(str(out))
     assert set(models) >= {"learned", "learned_blind", "ffm_ml_events", "model_based"}
     assert 12 <= prov["rows"] and prov["rows"] + len(prov["held_out_rows"]) <= 24
     assert "n_sliders" in prov["prior"]
-    assert prov["mode"] == "explore" and prov["skops"] and prov["scikit-learn"]
+    assert prov["mode"] == "explore" and prov["crepes"] and prov["scikit-learn"]
     # the provenance names no path of the machine: the prior file outside the folder by its name
-    assert prov["data_files"] == ["tiny.skops.prior.h5"]
+    assert prov["data_files"] == ["tiny.zip.prior.h5"]
     assert str(tmp_path) not in json.dumps(prov)
     # the held-out accuracy per bin of the forecast's lead, plain floats, in each learned one
     for method in ("learned", "learned_blind"):

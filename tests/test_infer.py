@@ -164,7 +164,7 @@ def test_bad_input_is_one_line_and_status_2(tmp_path, capsys):
 
 def test_a_corrupted_posterior_file_is_refused_in_one_line(tmp_path, held_out, capsys):
     cats, _ = held_out
-    copy = tmp_path / "posterior.skops"
+    copy = tmp_path / "posterior.zip"
     shutil.copyfile(default_posterior_path(), copy)
     with zipfile.ZipFile(copy) as z:  # an array member of the copy, rewritten as other bytes
         member = next(i for i in z.infolist() if i.filename.endswith(".npy")
@@ -213,7 +213,7 @@ def test_a_posterior_fitted_on_a_few_piles_round_trips_through_its_file(tmp_path
         attrs={"prior": model.posterior.prior_}).subset(np.arange(len(whole)))
     post = ParameterPosterior(max_iter=5, draws_per_row=3, random_state=1).fit(train)
     post.check_fitted()
-    path = tmp_path / "tiny.skops"
+    path = tmp_path / "tiny.zip"
     save_forecasters(str(path), {"posterior": post}, {"command": "test"})
     d = load_posterior(path).infer_catalogue(cats[0], PERFECT, check=False).to_dict()
     assert set(d["parameters"]) == set(post.parameters_)

@@ -26,7 +26,7 @@ pytestmark = pytest.mark.xdist_group("trust-catalogue")
 
 @pytest.fixture(scope="module")
 def model(reduced, tmp_path_factory):  # noqa: F811
-    return str(write_model(tmp_path_factory.mktemp("model") / "model.skops", *reduced))
+    return str(write_model(tmp_path_factory.mktemp("model") / "model.zip", *reduced))
 
 
 @pytest.fixture
@@ -167,7 +167,7 @@ def test_the_python_api_refuses_a_catalogue_that_contradicts_its_measurement(red
     ("--missed-fraction", "1"), ("--missed-fraction", "-0.1"), ("--missed-fraction", "nan"),
     ("--sliders", "0"), ("--sliders", "1.5"), ("--tilt-now", "100deg"), ("--tilt-now", "nan"),
     ("--tilt-now", "-1deg"), ("--method", "nope"), ("--size-unit", "furlongs"), ("--model", ""),
-    ("--model", "/nonexistent/m.skops"),
+    ("--model", "/nonexistent/m.zip"),
 ])
 def test_every_bad_option_is_one_line(tmp_path, predict, rate_rows, option):
     path = csv(tmp_path, "angle [rad],size", [(a, 1) for a in rate_rows])

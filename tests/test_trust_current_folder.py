@@ -1,8 +1,9 @@
 """Reading a model file runs nothing from the current folder.
 
-skops names a type by looking it up in every loaded module; ``Cython.Shadow`` (loaded by scipy
-wherever Cython is installed) answers a lookup by importing a module of that name, so a
-``./exp2.py`` (a name of scipy.special) ran while ``predict`` read the shipped model.  Here a
+Reading a model file imports the modules of the classes it names, and a module loaded by
+then may answer a lookup by importing a module of that name (``Cython.Shadow`` does, loaded by
+scipy wherever Cython is installed): a ``./exp2.py`` (a name of scipy.special) would run while
+``predict`` read the shipped model.  Here a
 stand-in for such a module is loaded by a ``sitecustomize`` (so the test does not depend on
 Cython being installed), and the folder holds a module under every name it could be asked for.
 """

@@ -32,6 +32,7 @@ from sliders.runs import ensemble, study
 from sliders.io.forecast_files import ForecastInputError, read_catalogue_csv
 from sliders.runs.forecast import cli as forecast_cli
 from sliders.runs.forecast import evaluate as rf_evaluate
+from marker_class import archive_as_is
 
 pytestmark = pytest.mark.slow  # attacks on the forecast commands, each a process
 
@@ -478,14 +479,6 @@ def pickle_model_file(path: Path, blob: bytes) -> Path:
     return path
 
 
-def skops_model_file(path: Path, contents) -> Path:
-    """A skops archive of ``contents``, written as-is (no allow-list check on writing)."""
-    import skops.io as sio
-
-    path.write_bytes(sio.dumps(contents))
-    return path
-
-
 class Vanished:
     """A forecaster class a later sliders no longer has."""
 
@@ -508,7 +501,7 @@ def test_model_naming_a_class_this_version_lacks_is_one_line(tmp_path, catalogue
 
     Vanished.__module__, Vanished.__qualname__ = learned.__name__, "Vanished"
     monkeypatch.setattr(learned, "Vanished", Vanished, raising=False)
-    path = skops_model_file(tmp_path / "m.skops", {"format": MODEL_FORMAT, "provenance": {},
+    path = archive_as_is(tmp_path / "m.zip", {"format": MODEL_FORMAT, "provenance": {},
                                                    "forecasters": {"learned_blind": Vanished()}})
     monkeypatch.delattr(learned, "Vanished")
     code, err = forecast_main(capsys, "predict", catalogue, "--model", path)
@@ -522,7 +515,7 @@ def test_model_of_a_forecaster_lacking_what_this_version_reads_is_one_line(
 
     models, prov = load_forecasters(previous / MODEL)
     del models["learned_blind"].domain_
-    path = tmp_path / "m.skops"
+    path = tmp_path / "m.zip"
     save_forecasters(str(path), models, prov | {"sliders": "0.0.1"})
     code, err = forecast_main(capsys, "predict", catalogue, "--model", path)
     assert "sliders 0.0.1" in one_line(code, err) and "train it again" in err
@@ -537,6 +530,6 @@ def test_model_of_a_forecaster_lacking_what_this_version_reads_is_one_line(
 ])
 def test_model_holding_the_wrong_contents_is_one_line(tmp_path, catalogue, capsys, contents,
                                                       words):
-    path = skops_model_file(tmp_path / "m.skops", contents)
+    path = archive_as_is(tmp_path / "m.zip", contents)
     code, err = forecast_main(capsys, "predict", catalogue, "--model", path)
     assert words in one_line(code, err)

@@ -29,6 +29,7 @@ from sliders.io.forecast_model import (DIGEST_SUFFIX, MODEL_FORMAT, ModelFileErr
                                        check_archive, check_forecasters, default_model_path,
                                        load_forecasters, read_model_bytes)
 
+from marker_class import archive_as_is
 from test_forecast import rate_law_catalogue
 
 pytestmark = pytest.mark.slow  # corrupted model files forecast in processes
@@ -55,13 +56,10 @@ def run_predict(args, timeout=TIMEOUT):
     return res.returncode, res.stdout, res.stderr
 
 
-def write_model(path, forecasters, provenance, compression=zipfile.ZIP_DEFLATED):
-    """A model file of ``forecasters`` as an adversary writes it: skops, no check."""
-    import skops.io as sio
-
-    path.write_bytes(sio.dumps({"format": MODEL_FORMAT, "forecasters": forecasters,
-                                "provenance": provenance}, compression=compression))
-    return path
+def write_model(path, forecasters, provenance):
+    """A model file of ``forecasters`` as an adversary writes it: no check."""
+    return archive_as_is(path, {"format": MODEL_FORMAT, "forecasters": forecasters,
+                                "provenance": provenance})
 
 
 @pytest.fixture(scope="module")
@@ -93,13 +91,13 @@ def catalogue_csv(tmp_path_factory):
 @pytest.fixture(scope="module")
 def reference(reduced, catalogue_csv, tmp_path_factory):
     """The reduced model's file and its forecast of the catalogue (JSON)."""
-    path = write_model(tmp_path_factory.mktemp("ref") / "ref.skops", *reduced)
+    path = write_model(tmp_path_factory.mktemp("ref") / "ref.zip", *reduced)
     code, out, err = run_predict([catalogue_csv, "--model", path, "--json"])
     assert code == 0, err
     return path, json.loads(out)
 
 
-def attacked(reduced, tmp_path, change, name="attack.skops", **kw):
+def attacked(reduced, tmp_path, change, name="attack.zip", **kw):
     """A copy of the reduced model changed by ``change(forecasters, provenance)``, written."""
     models, prov = copy.deepcopy(reduced)
     change(models, prov)
@@ -170,7 +168,7 @@ def test_a_device_is_refused_before_a_byte_is_read(catalogue_csv):
 
 
 def test_a_model_file_above_the_size_bound_is_refused(catalogue_csv, tmp_path):
-    path = tmp_path / "big.skops"
+    path = tmp_path / "big.zip"
     with open(path, "wb") as fh:
         fh.truncate(65 * 2**20)  # sparse: no disk used
     assert_refused(*run_predict([catalogue_csv, "--model", path]), path, "MB")
@@ -178,8 +176,8 @@ def test_a_model_file_above_the_size_bound_is_refused(catalogue_csv, tmp_path):
 
 def test_a_member_that_lies_about_its_array_is_refused(reduced, tmp_path):
     """An .npy member whose header declares more data than the member holds."""
-    good = attacked(reduced, tmp_path, lambda m, p: None, name="good.skops")
-    bad = tmp_path / "lying.skops"
+    good = attacked(reduced, tmp_path, lambda m, p: None, name="good.zip")
+    bad = tmp_path / "lying.zip"
     with zipfile.ZipFile(good) as src, zipfile.ZipFile(bad, "w") as dst:
         for i, info in enumerate(src.infolist()):
             data = src.read(info)
@@ -227,10 +225,10 @@ def test_provenance_reaches_the_terminal_escaped(reduced, catalogue_csv, tmp_pat
 
 
 def test_a_file_name_with_control_characters_is_escaped_in_the_refusal(catalogue_csv, tmp_path):
-    path = tmp_path / "\x1b[31mmodel.skops"
+    path = tmp_path / "\x1b[31mmodel.zip"
     path.write_bytes(b"PK\x05\x06" + bytes(18))
     code, out, err = run_predict([catalogue_csv, "--model", path])
-    assert code == 2 and "\x1b" not in err and "\\x1b[31mmodel.skops" in err
+    assert code == 2 and "\x1b" not in err and "\\x1b[31mmodel.zip" in err
 
 
 def test_the_shipped_model_matches_its_recorded_digest():
@@ -244,7 +242,7 @@ def test_the_shipped_archive_passes_the_check_its_digest_stands_for(tmp_path):
     by member: these bytes pass the member-by-member check, and so does a copy loaded from
     elsewhere, in full."""
     check_archive(read_model_bytes(default_model_path()), "the shipped model")
-    copy_path = tmp_path / "copy.skops"
+    copy_path = tmp_path / "copy.zip"
     shutil.copyfile(default_model_path(), copy_path)
     models, _ = load_forecasters(copy_path)
     assert set(models) == set(load_forecasters(default_model_path())[0])
@@ -326,7 +324,7 @@ def test_fuzz_every_corruption_is_the_forecast_or_a_refusal(reduced, reference, 
     except ModelFileError as exc:
         assert "\n" not in str(exc) and str(exc).startswith("corrupted: forecaster"), what
         return
-    path = write_model(tmp_path / "fuzz.skops", models, prov)
+    path = write_model(tmp_path / "fuzz.zip", models, prov)
     code, out, err = run_predict([catalogue_csv, "--model", path, "--json"])
     assert code in (0, 2), (what, code, err[-2000:])
     if code == 2:

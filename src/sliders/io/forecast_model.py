@@ -1,15 +1,15 @@
 """The fitted forecasters' file: data, never code.
 
-A model file is a skops archive (``skops.io``: a zip of JSON and NumPy
-arrays) of one dict::
+A model file is an archive of fitted objects (``io.model_archive``: a zip of one
+JSON tree and a few packed NumPy arrays) of one dict::
 
     {"format": MODEL_FORMAT, "forecasters": {method: fitted forecaster},
      "provenance": {prior, rows, mode, versions, date, ...}}
 
-Loading never runs code from the file: before anything is built, every type
-the file names must be trusted by skops or on ``ALLOWED_TYPES``, an explicit list of the
-classes the package writes (``skops.io.loads`` audits the whole tree first); anything else
-(a pickle, a zip naming another class or a function) is refused in one line.
+Loading never runs code from the file: before anything is imported or built, every
+class or function the tree names must be on ``ALLOWED_NAMES``, an explicit list of what
+the package writes; anything else (a pickle, a tree naming another class or a
+function) is refused in one line.
 
 The file is read as data within bounds, before anything is built: a regular
 file of at most ``MAX_MODEL_BYTES``, read once; a zip of at most ``MAX_MEMBERS``
@@ -47,35 +47,52 @@ import zipfile
 
 import numpy as np
 
+from . import model_archive
 from .safeio import printable, publish_bytes
 
 
-MODEL_FORMAT = "sliders-forecaster-3"
+MODEL_FORMAT = "sliders-forecaster-4"
 #: the shipped model's file name inside the package's data folder
-DEFAULT_MODEL_NAME = "default_forecaster.skops"
+DEFAULT_MODEL_NAME = "default_forecaster.zip"
 #: the shipped posterior of the pile's parameters (``infer``), a model file of one entry
-DEFAULT_POSTERIOR_NAME = "default_posterior.skops"
-#: the bounds of a model file (the shipped one: 5.3 MB, 5112 members, 14 MB inflated)
+DEFAULT_POSTERIOR_NAME = "default_posterior.zip"
+#: the bounds of a model file (the shipped one: 3.4 MB, 8 members, 12 MB inflated)
 MAX_MODEL_BYTES = 64 * 2**20
 MAX_MEMBERS = 100_000
 MAX_MEMBER_BYTES = 64 * 2**20
 MAX_INFLATED_BYTES = 256 * 2**20
 #: the SHA-256 of the shipped model, in a file beside it
 DIGEST_SUFFIX = ".sha256"
-#: every type a model file may name beyond skops' own defaults
-ALLOWED_TYPES = frozenset({
+#: every class or function a model file may name: the package's forecasters and the
+#: scikit-learn, crepes and NumPy parts they hold, and the functions that make those parts
+#: as ``pickle`` makes them (``io.model_archive``)
+ALLOWED_NAMES = frozenset({
+    "copyreg.__newobj__",
     "crepes.base.ConformalPredictiveSystem",
-    "numpy.dtype",
-    "sklearn.ensemble._hist_gradient_boosting.predictor.TreePredictor",
+    "numpy.random._generator.Generator",
+    "numpy.random._pcg64.PCG64",
+    "numpy.random._pickle.__bit_generator_ctor",
+    "numpy.random._pickle.__generator_ctor",
+    "numpy.random.bit_generator.SeedSequence",
+    "numpy.random.bit_generator.__pyx_unpickle_SeedSequence",
+    "sklearn._loss._loss.CyPinballLoss",
+    "sklearn._loss.link.IdentityLink",
+    "sklearn._loss.link.Interval",
+    "sklearn._loss.loss.PinballLoss",
     "sklearn.ensemble._hist_gradient_boosting.binning._BinMapper",
+    "sklearn.ensemble._hist_gradient_boosting.gradient_boosting.HistGradientBoostingRegressor",
+    "sklearn.ensemble._hist_gradient_boosting.predictor.TreePredictor",
     "sklearn.impute._base.SimpleImputer",
+    "sklearn.metrics._dist_metrics.EuclideanDistance64",
+    "sklearn.metrics._dist_metrics.newObj",
+    "sklearn.neighbors._ball_tree.BallTree",
+    "sklearn.neighbors._ball_tree.newObj",
+    "sklearn.neighbors._kd_tree.KDTree",
+    "sklearn.neighbors._kd_tree.newObj",
+    "sklearn.neighbors._lof.LocalOutlierFactor",
+    "sklearn.pipeline.Pipeline",
     "sklearn.preprocessing._data.QuantileTransformer",
     "sklearn.preprocessing._data.StandardScaler",
-    "sklearn.neighbors._lof.LocalOutlierFactor",
-    "sklearn.neighbors._kd_tree.KDTree",
-    "sklearn.metrics._dist_metrics.EuclideanDistance64",
-    "sklearn.neighbors._ball_tree.BallTree",
-    "sklearn.pipeline.Pipeline",
     "sliders.analysis.forecast.baselines.Climatology",
     "sliders.analysis.forecast.baselines.ConditionedClimatology",
     "sliders.analysis.forecast.domain.DomainCheck",
@@ -120,12 +137,11 @@ def forecasters_bytes(forecasters: dict, provenance: dict, where: str = "model")
     Checked as ``load_forecasters`` reads it, so that a model naming a type
     off the allow-list is never written.
     """
-    with no_imports_from_the_current_folder():
-        import skops.io as sio
-
-        blob = sio.dumps({"format": MODEL_FORMAT, "forecasters": dict(forecasters),
-                          "provenance": dict(provenance)}, compression=zipfile.ZIP_DEFLATED,
-                         compresslevel=9)
+    try:
+        blob = model_archive.dumps({"format": MODEL_FORMAT, "forecasters": dict(forecasters),
+                                    "provenance": dict(provenance)}, ALLOWED_NAMES)
+    except model_archive.ArchiveError as exc:
+        raise ModelFileError(f"{printable(where)}: not written: {exc}") from None
     _loads(blob, where)
     return blob
 
@@ -138,19 +154,17 @@ def save_forecasters(path: str, forecasters: dict, provenance: dict) -> int:
 
 
 def _loads(blob: bytes, where):
-    """The object of a skops archive, built only if every type it names is trusted by skops or
-    on ``ALLOWED_TYPES`` (skops audits the whole tree before it builds anything)."""
+    """The object of a model archive, built only if every class or function it names is on
+    ``ALLOWED_NAMES`` (the whole tree is read before anything is imported or built)."""
     with no_imports_from_the_current_folder():
         return _loads_here(blob, where)
 
 
 def _loads_here(blob: bytes, where):
-    import skops.io as sio
-
     try:
-        return sio.loads(blob, trusted=sorted(ALLOWED_TYPES))
-    except sio.exceptions.UntrustedTypesFoundException:
-        refused = sorted(set(sio.get_untrusted_types(data=blob)) - ALLOWED_TYPES)
+        return model_archive.loads(blob, ALLOWED_NAMES)
+    except model_archive.UntrustedNames as exc:
+        refused = [printable(n) for n in exc.names]
         raise ModelFileError(f"{where}: refused: the file names types that are not on the "
                              f"allow-list of forecaster files ({', '.join(refused[:3])}"
                              f"{', ...' if len(refused) > 3 else ''}); nothing was loaded") \
@@ -160,6 +174,8 @@ def _loads_here(blob: bytes, where):
     except MemoryError:
         raise ModelFileError(f"{where}: damaged model file (out of memory while reading it)") \
             from None
+    except model_archive.ArchiveError as exc:
+        raise ModelFileError(f"{where}: damaged model file ({printable(str(exc))})") from None
     except Exception as exc:  # noqa: BLE001 (whatever the archive holds: it is not a model file)
         raise ModelFileError(f"{where}: damaged model file ({type(exc).__name__})") from None
 
@@ -168,10 +184,11 @@ def _loads_here(blob: bytes, where):
 def no_imports_from_the_current_folder():
     """Within: no module is imported from the current folder or the running script's.
 
-    skops names a type by looking it up in every loaded module, and a module may answer a
-    lookup by importing a module of that name (``Cython.Shadow`` does, and scipy loads it
-    wherever Cython is installed): ``./exp2.py`` or ``./gamma.py`` (scipy.special's names)
-    would then run while a model file is read.  The folders leave ``sys.path`` for that time.
+    Reading a model file imports the modules of the classes it names (all on the
+    allow-list), and a module imported then may import others by names of its own (scipy's
+    Cython shadows do, wherever Cython is installed): ``./exp2.py`` or ``./gamma.py``
+    (scipy.special's names) would then run while a model file is read.  The folders leave
+    ``sys.path`` for that time.
     """
     mine = {os.getcwd()}
     if sys.argv and sys.argv[0] not in ("", "-c", "-m"):
@@ -193,7 +210,7 @@ def read_model_bytes(path) -> bytes:
         with open(path, "rb") as fh:
             st = os.fstat(fh.fileno())
             if not stat.S_ISREG(st.st_mode):
-                raise ModelFileError(f"{where}: not a regular file (a model file is a skops "
+                raise ModelFileError(f"{where}: not a regular file (a model file is a zip "
                                      "archive on disk)")
             if st.st_size > MAX_MODEL_BYTES:
                 raise ModelFileError(f"{where}: {st.st_size / 2**20:.0f} MB; a model file holds "
@@ -217,8 +234,8 @@ def check_archive(blob: bytes, where) -> None:
         archive = zipfile.ZipFile(io.BytesIO(blob))
         infos = archive.infolist()
     except (zipfile.BadZipFile, ValueError, OSError, EOFError):
-        raise ModelFileError(f"{where}: refused: not a sliders model file (a skops archive; "
-                             "a pickle is never loaded)") from None
+        raise ModelFileError(f"{where}: refused: not a sliders model file (a zip of fitted "
+                             "objects; a pickle is never loaded)") from None
     if len(infos) > MAX_MEMBERS:
         raise ModelFileError(f"{where}: {len(infos)} members; a model file holds at most "
                              f"{MAX_MEMBERS}")
@@ -301,7 +318,7 @@ def load_forecasters(path) -> tuple[dict, dict]:
 
     Nothing in the file runs, and nothing it holds is used unchecked (module
     docstring): its size, its members' sizes and arrays, the types it names
-    (``ALLOWED_TYPES``) before ``skops.io.load`` builds anything, then every
+    (``ALLOWED_NAMES``) before anything is built, then every
     forecaster's parts (``check_forecasters``).  The shipped model is also
     checked by its digest.
     """
@@ -314,8 +331,8 @@ def load_forecasters(path) -> tuple[dict, dict]:
         check_digest(path, blob)
     else:
         if not zipfile.is_zipfile(io.BytesIO(blob)):
-            raise ModelFileError(f"{where}: refused: not a sliders model file (a skops archive; "
-                                 "a pickle is never loaded)")
+            raise ModelFileError(f"{where}: refused: not a sliders model file (a zip of fitted "
+                                 "objects; a pickle is never loaded)")
         check_archive(blob, path)
     obj = _loads(blob, where)
     if isinstance(obj, dict) and str(obj.get("format", "")).startswith("sliders-forecaster-") \

@@ -90,8 +90,9 @@ def check_choice(v, what: str, choices) -> None:
             f"{what} = {v!r} is not one of {tuple(choices)}")
 
 
-def check_tree(nodes, n_features: int, what: str) -> None:
-    """One boosted tree's nodes (``TreePredictor.nodes``), as scikit-learn's walk reads them.
+def check_trees(trees, n_features: int, what: str) -> None:
+    """Boosted trees' nodes (each a ``TreePredictor.nodes``), as scikit-learn's walk reads them;
+    the first tree that fails is named (``what, tree i``).
 
     The record dtype is scikit-learn's own; every split's children lie after it
     in the array (so every walk moves forward and ends) and every node but the
@@ -99,43 +100,54 @@ def check_tree(nodes, n_features: int, what: str) -> None:
     a split reads a feature below ``n_features``, by a threshold that is not
     NaN (+-inf: "every value one way", which scikit-learn writes), never by
     category; a leaf's value is finite and bounded (``MAX_LEAF``), its children
-    unset (0, as scikit-learn leaves them).
+    unset (0, as scikit-learn leaves them).  The trees are checked together, as
+    one array of every node: a model's hundreds of trees in a few array operations.
     """
     from sklearn.ensemble._hist_gradient_boosting.common import PREDICTOR_RECORD_DTYPE
 
-    require(isinstance(nodes, np.ndarray) and nodes.dtype == PREDICTOR_RECORD_DTYPE,
-            f"{what}: nodes are not scikit-learn's tree records")
-    require(nodes.ndim == 1 and 1 <= nodes.size <= MAX_NODES,
-            f"{what}: {nodes.size} nodes (1 to {MAX_NODES})")
-    n = nodes.size
+    for i, nodes in enumerate(trees):
+        require(isinstance(nodes, np.ndarray) and nodes.dtype == PREDICTOR_RECORD_DTYPE,
+                f"{what}, tree {i}: nodes are not scikit-learn's tree records")
+        require(nodes.ndim == 1 and 1 <= nodes.size <= MAX_NODES,
+                f"{what}, tree {i}: {nodes.size} nodes (1 to {MAX_NODES})")
+    sizes = np.array([nodes.size for nodes in trees], dtype=np.int64)
+    starts = np.cumsum(sizes) - sizes
+    nodes = np.concatenate(trees)
+    n = np.repeat(sizes, sizes)  # each node's tree's size
+    index = np.arange(nodes.size) - np.repeat(starts, sizes)  # each node's index in its tree
+
+    def none(bad, problem: str) -> None:
+        if bad.any():
+            tree = int(np.searchsorted(starts, np.argmax(bad), side="right") - 1)
+            raise IntegrityError(f"{what}, tree {tree}: {problem}")
+
     leaf = nodes["is_leaf"]
-    require(np.isin(leaf, (0, 1)).all(), f"{what}: a node is neither leaf nor split")
-    require(not nodes["is_categorical"].any(), f"{what}: a categorical split (none is fitted)")
-    require(np.isin(nodes["missing_go_to_left"], (0, 1)).all(),
-            f"{what}: a split sends missing values neither way")
-    split = np.flatnonzero(leaf == 0)
+    none(~np.isin(leaf, (0, 1)), "a node is neither leaf nor split")
+    none(nodes["is_categorical"] != 0, "a categorical split (none is fitted)")
+    none(~np.isin(nodes["missing_go_to_left"], (0, 1)), "a split sends missing values neither way")
+    split = leaf == 0
     left, right = nodes["left"].astype(np.int64), nodes["right"].astype(np.int64)
-    require(((left[split] > split) & (left[split] < n) & (right[split] > split)
-             & (right[split] < n)).all(),
-            f"{what}: a child index points backwards or past the {n} nodes")
-    parents = np.bincount(np.concatenate([left[split], right[split]]), minlength=n)
-    require(parents[0] == 0 and (parents[1:] == 1).all(),
-            f"{what}: the nodes do not form one tree (a node with no parent or two)")
-    feature = nodes["feature_idx"][split]
-    require(((feature >= 0) & (feature < n_features)).all(),
-            f"{what}: a split reads a feature outside the {n_features} features")
-    require(not np.isnan(nodes["num_threshold"][split]).any(), f"{what}: a NaN threshold")
-    values = nodes["value"][leaf == 1]
-    require(np.isfinite(values).all() and (np.abs(values) <= MAX_LEAF).all(),
-            f"{what}: a leaf value is NaN, infinite or beyond {MAX_LEAF:g}")
-    require((left[leaf == 1] == 0).all() and (right[leaf == 1] == 0).all(),
-            f"{what}: a leaf has children")
+    none(split & ~((left > index) & (left < n) & (right > index) & (right < n)),
+         "a child index points backwards or past the tree's nodes")
+    children = np.concatenate([(left + starts.repeat(sizes))[split],
+                               (right + starts.repeat(sizes))[split]])
+    parents = np.bincount(children, minlength=nodes.size)
+    none(parents != (index != 0), "the nodes do not form one tree (a node with no parent or two)")
+    feature = nodes["feature_idx"]
+    none(split & ((feature < 0) | (feature >= n_features)),
+         f"a split reads a feature outside the {n_features} features")
+    none(split & np.isnan(nodes["num_threshold"]), "a NaN threshold")
+    value = nodes["value"]
+    with np.errstate(invalid="ignore"):
+        none(~split & ~(np.isfinite(value) & (np.abs(value) <= MAX_LEAF)),
+             f"a leaf value is NaN, infinite or beyond {MAX_LEAF:g}")
+    none(~split & ((left != 0) | (right != 0)), "a leaf has children")
 
 
 def check_boosting(model, n_features: int, what: str) -> None:
     """A fitted ``HistGradientBoostingRegressor`` with the quantile loss, as ``predict`` reads it:
     no categorical features, ``n_features`` inputs, one tree per iteration, every tree
-    checked (``check_tree``)."""
+    checked (``check_trees``)."""
     from sklearn.ensemble import HistGradientBoostingRegressor
     from sklearn.ensemble._hist_gradient_boosting.predictor import TreePredictor
 
@@ -159,9 +171,9 @@ def check_boosting(model, n_features: int, what: str) -> None:
     for i, it in enumerate(trees):
         require(isinstance(it, list) and len(it) == 1 and type(it[0]) is TreePredictor,
                 f"{what}: iteration {i} is not one tree")
-        check_tree(it[0].nodes, n_features, f"{what}, tree {i}")
         check_array(it[0].raw_left_cat_bitsets, f"{what}, tree {i}: category bitsets", ndim=2,
                     kind="u")
+    check_trees([it[0].nodes for it in trees], n_features, what)
 
 
 def check_novelty_detector(pipe, n_features: int, what: str) -> None:

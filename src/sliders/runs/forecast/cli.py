@@ -4,9 +4,9 @@
     python -m sliders.forecast evaluate --dev 300 --out /tmp/forecast      # serial development data
     python -m sliders.forecast predict CATALOGUE.csv [--tilt-now ANGLE] [--json] [--model FILE]
     python -m sliders.forecast predict CATALOGUE.csv --method all --size-unit arbitrary --verbose
-    python -m sliders.forecast train --prior my.toml --out my_model.skops --np 2
+    python -m sliders.forecast train --prior my.toml --out my_model.zip --np 2
     python -m sliders.forecast infer CATALOGUE.csv [--tilt-now ANGLE] [--json] [--plot FILE.png]
-    python -m sliders.forecast train --data prior.h5 --fit posterior --out my_posterior.skops
+    python -m sliders.forecast train --data prior.h5 --fit posterior --out my_posterior.zip
     python -m sliders.forecast catalogue --data prior.h5 --row 7 --lead 3deg --out row7.csv
 
 The parser and the error boundary.  Each subcommand is the function of the
@@ -177,7 +177,7 @@ def add_train_arguments(t) -> None:
     src.add_argument("--prior", metavar="PRIOR.toml", help="run this prior ensemble, then fit")
     src.add_argument("--data", nargs="+", metavar="PRIOR.h5",
                      help="fit on prior files already computed (several: their rows together)")
-    t.add_argument("--out", required=True, metavar="MODEL.skops", help="the model file written")
+    t.add_argument("--out", required=True, metavar="MODEL.zip", help="the model file written")
     t.add_argument("--np", type=int, default=1, help="MPI ranks of the prior ensemble")
     t.add_argument("--fit", default="forecasters", choices=("forecasters", "posterior"),
                    help="what --out holds: forecasters (the forecasters of predict) or "

@@ -69,7 +69,7 @@ def provenance(argv) -> dict:
             return "?"
 
     return {"sliders": __version__, "python": sys.version.split()[0],
-            **{p: installed(p) for p in ("numpy", "scikit-learn", "skops", "crepes")},
+            **{p: installed(p) for p in ("numpy", "scikit-learn", "crepes")},
             "command": "python -m sliders.forecast " + " ".join(argv),
             "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 

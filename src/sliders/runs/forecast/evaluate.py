@@ -42,7 +42,7 @@ from .dev import dev_catalogue_set
 from .scoring import score_forecasters
 
 #: the files an evaluation writes: in --out, and the figures (png and pdf) in --figures
-TABLE_NAME, METRICS_NAME, MODEL_NAME = "forecast_table.md", "forecast_metrics.json", "forecaster.skops"
+TABLE_NAME, METRICS_NAME, MODEL_NAME = "forecast_table.md", "forecast_metrics.json", "forecaster.zip"
 FIGURE_NAMES = tuple(f"forecast_{n}.{ext}" for n in ("error", "coverage", "convergence", "roc")
                      for ext in ("png", "pdf"))
 #: the forecasters a model file holds (their names)

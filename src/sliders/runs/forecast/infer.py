@@ -5,7 +5,7 @@
 The catalogue and its measurement flags are read as ``predict`` reads them
 (``catalogue.read_source``, ``predict.at_tilt``, ``predict.measurement_options``).
 The posterior file (default: the one shipped in the package,
-``sliders/data/default_posterior.skops``, checked by its digest) is a model
+``sliders/data/default_posterior.zip``, checked by its digest) is a model
 file of one entry, ``"posterior"``, a fitted
 ``analysis.forecast.posterior.ParameterPosterior``, read as data through the
 model file's checks (``io.forecast_model``).  For each parameter it gives the

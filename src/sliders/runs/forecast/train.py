@@ -1,6 +1,6 @@
 """``python -m sliders.forecast train``: a forecaster for a prior of one's own.
 
-    python -m sliders.forecast train --prior my.toml --out my_model.skops --np 2
+    python -m sliders.forecast train --prior my.toml --out my_model.zip --np 2
 
 ``train`` runs the prior ensemble (``python -m sliders.prior``, on ``--np``
 MPI ranks, ``--resume``: an interrupted training run completes its file),
