@@ -95,3 +95,15 @@ def test_the_trees_are_checked_together_and_the_failing_one_named(boosted, tree,
     change(broken._predictors[tree][0].nodes)
     with pytest.raises(IntegrityError, match=f"regressor, tree {tree}: .*{words}"):
         check_boosting(broken, 3, "regressor")
+
+
+def test_a_tree_of_more_than_16_mb_is_refused_before_it_is_parsed(tmp_path):
+    """20 MB of JSON (a list of zeros) deflated to a few kB: refused from its declared size."""
+    from sliders.io.forecast_model import ModelFileError, load_forecasters
+
+    path = tmp_path / "wide.zip"
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("tree.json", "[" + "0," * 10_000_000 + "0]")
+    assert path.stat().st_size < 2**20
+    with pytest.raises(ModelFileError, match="tree inflates to 19 MB"):
+        load_forecasters(path)

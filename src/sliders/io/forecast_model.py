@@ -15,7 +15,7 @@ The file is read as data within bounds, before anything is built: a regular
 file of at most ``MAX_MODEL_BYTES``, read once; a zip of at most ``MAX_MEMBERS``
 members whose declared sizes (``zipfile`` inflates no more than a member
 declares) are bounded, each and together (``MAX_MEMBER_BYTES``,
-``MAX_INFLATED_BYTES``: no zip bomb); every NumPy member's header read first, its
+``MAX_INFLATED_BYTES``: no zip bomb), its JSON tree at most ``MAX_TREE_BYTES``; every NumPy member's header read first, its
 array of a numeric dtype and exactly the size its member declares.  After the
 objects are built and before any forecast, every forecaster checks every part a
 forecast reads (``check_fitted``: the trees' child indices, features and
@@ -61,6 +61,9 @@ MAX_MODEL_BYTES = 64 * 2**20
 MAX_MEMBERS = 100_000
 MAX_MEMBER_BYTES = 64 * 2**20
 MAX_INFLATED_BYTES = 256 * 2**20
+#: the most bytes of the JSON tree (the shipped model's: 0.5 MB); a larger tree would cost
+#: gigabytes of Python objects before anything could be checked
+MAX_TREE_BYTES = 16 * 2**20
 #: the SHA-256 of the shipped model, in a file beside it
 DIGEST_SUFFIX = ".sha256"
 #: every class or function a model file may name: the package's forecasters and the
@@ -248,6 +251,10 @@ def check_archive(blob: bytes, where) -> None:
     if total > MAX_INFLATED_BYTES:
         raise ModelFileError(f"{where}: its members inflate to {total / 2**20:.0f} MB; a model "
                              f"file holds at most {MAX_INFLATED_BYTES // 2**20} MB")
+    tree = next((i for i in infos if i.filename == model_archive.TREE_MEMBER), None)
+    if tree is not None and tree.file_size > MAX_TREE_BYTES:
+        raise ModelFileError(f"{where}: its tree inflates to {tree.file_size / 2**20:.0f} MB; a "
+                             f"model file's tree holds at most {MAX_TREE_BYTES // 2**20} MB")
     for info in infos:
         if not info.filename.endswith(".npy"):
             continue
