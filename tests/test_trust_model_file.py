@@ -312,27 +312,60 @@ def corrupt(models, seed: int) -> str:
     return f"{kind} in {name}"
 
 
-@pytest.mark.parametrize("seed", range(FUZZ_CASES))
+#: one process forecasts every corrupted file the check let through, as ``predict --json``
+#: does, and prints one JSON line a file: a crash or a hang stops its lines at that file
+FORECAST_EACH = """
+import contextlib, io, json, sys
+from sliders.runs.forecast.cli import main
+catalogue, files = sys.argv[1], sys.argv[2:]
+for path in files:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(["predict", catalogue, "--model", path, "--json"])
+        except SystemExit as exc:
+            code = exc.code
+    print(json.dumps({"file": path, "code": code, "out": out.getvalue(), "err": err.getvalue()}),
+          flush=True)
+"""
+
+
 def test_fuzz_every_corruption_is_the_forecast_or_a_refusal(reduced, reference, catalogue_csv,
-                                                            tmp_path, seed):
-    """Refused by the check in one line, or (the corruption touched nothing a forecast reads)
-    the uncorrupted forecast itself, run in a subprocess: never a crash, a hang or a NaN."""
-    models, prov = copy.deepcopy(reduced)
-    what = corrupt(models, seed)
+                                                            tmp_path):
+    """Each of ``FUZZ_CASES`` seeded corruptions is refused by the check in one line, or (the
+    corruption touched nothing a forecast reads) gives the uncorrupted forecast itself, read
+    in a process of its own: never a crash, a hang or a NaN."""
+    written = {}
+    for seed in range(FUZZ_CASES):
+        models, prov = copy.deepcopy(reduced)
+        what = corrupt(models, seed)
+        try:
+            check_forecasters(copy.deepcopy(models), "corrupted")
+        except ModelFileError as exc:
+            assert "\n" not in str(exc) and str(exc).startswith("corrupted: forecaster"), what
+            continue
+        written[str(write_model(tmp_path / f"fuzz{seed}.zip", models, prov))] = what
+    assert written, "every corruption was refused by the check: none reached a forecast"
     try:
-        check_forecasters(copy.deepcopy(models), "corrupted")
-    except ModelFileError as exc:
-        assert "\n" not in str(exc) and str(exc).startswith("corrupted: forecaster"), what
-        return
-    path = write_model(tmp_path / "fuzz.zip", models, prov)
-    code, out, err = run_predict([catalogue_csv, "--model", path, "--json"])
-    assert code in (0, 2), (what, code, err[-2000:])
-    if code == 2:
-        assert len(err.strip().splitlines()) == 1, (what, err)
-        return
-    d = json.loads(out)
+        res = subprocess.run([sys.executable, "-c", FORECAST_EACH, str(catalogue_csv), *written],
+                             capture_output=True, text=True, timeout=TIMEOUT + 5 * len(written),
+                             preexec_fn=_limit_memory)
+    except subprocess.TimeoutExpired as exc:
+        done = (exc.stdout or b"").decode().count("\n")
+        pytest.fail(f"hung on {list(written.values())[done]}")
+    lines = [json.loads(line) for line in res.stdout.splitlines()]
+    print(f"{FUZZ_CASES - len(written)} refused by the check, {len(written)} read and forecast")
+    assert len(lines) == len(written), (f"crashed ({res.returncode}) on "
+                                        f"{list(written.values())[len(lines)]}: {res.stderr[-2000:]}")
     ref = reference[1]
-    assert d["alpha_c"] == ref["alpha_c"] and d["interval"] == ref["interval"], what
+    for line in lines:
+        what = written[line["file"]]
+        assert line["code"] in (0, 2), (what, line)
+        if line["code"] == 2:
+            assert len(line["err"].strip().splitlines()) == 1, (what, line["err"])
+            continue
+        d = json.loads(line["out"])
+        assert d["alpha_c"] == ref["alpha_c"] and d["interval"] == ref["interval"], what
 
 
 # ---------------------------------------------------------------------------
