@@ -134,6 +134,8 @@ LAZY_IMPORTS = {
     "crepes": "the conformal calibration, imported by the learned forecaster that fits it",
     "sliders.analysis.forecast.learned": "imports scikit-learn (2 s): only when fitting",
     "mpi4py": "importing it starts MPI: a serial run never does",
+    "importlib.metadata": "the installed distributions' versions (18 ms), read when a file's "
+                          "provenance is written: the forecast parser's --help does not need it",
     "scipy": "imported by the one statistic that needs it",
     "sliders._kernel": "the compiled kernel is optional: the NumPy reference runs without it",
 }

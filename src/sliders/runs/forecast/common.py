@@ -9,7 +9,6 @@ from __future__ import annotations
 import math
 import sys
 import time
-from importlib.metadata import PackageNotFoundError, version
 
 import numpy as np
 
@@ -61,6 +60,8 @@ def progress_log(quiet: bool):
 
 def provenance(argv) -> dict:
     """Versions and command of a file this command writes (the installed distributions' versions)."""
+
+    from importlib.metadata import PackageNotFoundError, version
 
     def installed(package: str) -> str:
         try:
