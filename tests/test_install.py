@@ -112,6 +112,7 @@ def test_broken_mpi4py_plain_process_warns_once_then_runs_serially(broken_mpi4py
     assert "libmpi.so.12" in lines[0]
 
 
+@pytest.mark.ranks_share_one_core  # both ranks stop at their first import: they need no core
 @pytest.mark.parametrize("what", ["broken", "absent"])
 def test_under_mpirun_without_working_mpi4py_every_rank_exits(broken_mpi4py, tmp_path, what):
     """mpirun -n 2 with no usable MPI in Python: one line saying what to install, exit != 0, no hang."""
