@@ -107,3 +107,26 @@ def test_a_tree_of_more_than_16_mb_is_refused_before_it_is_parsed(tmp_path):
     assert path.stat().st_size < 2**20
     with pytest.raises(ModelFileError, match="tree inflates to 19 MB"):
         load_forecasters(path)
+
+
+@pytest.mark.parametrize("tree, words", [
+    ("[" * 5000 + "]" * 5000, "not JSON"),
+    ("{{{", "not JSON"),
+    ('{"dict": [["format", "sliders-forecaster-4"], ["forecasters", {"ref": 99}]]}', "KeyError"),
+    ('{"dict": [["forecasters", {"array": [5, 0, [3]], "id": 0}]]}', "IndexError"),
+    ('{"dict": [["forecasters", {"array": [0, -1, [3]], "id": 0}]]}', "past the end"),
+    ('{"dict": [[[1, 2], 3]]}', "TypeError"),
+    ('{"object": ["builtins.eval", ["1"], null], "id": 0}', "refused"),
+])
+def test_a_malformed_tree_is_one_line_naming_the_file(tmp_path, tree, words):
+    from sliders.io.forecast_model import ModelFileError, load_forecasters
+
+    path = tmp_path / "bad.zip"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("tree.json", tree)
+        buf = io.BytesIO()
+        np.lib.format.write_array(buf, np.zeros(2))
+        zf.writestr("arrays/0.npy", buf.getvalue())
+    with pytest.raises(ModelFileError, match=words) as exc:
+        load_forecasters(path)
+    assert str(path) in str(exc.value) and "\n" not in str(exc.value)
