@@ -82,6 +82,14 @@ def test_wheel_from_clean_checkout(clean_checkout, tmp_path):
     res = run([py, "-c", "from sliders.io.storage import read_realisations; r = read_realisations('e.h5'); "
                          "print(int(r['done'].sum()))"], cwd=work, env=_pip_env())
     assert res.stdout.strip() == "3", res.stderr
+    # the shipped forecaster is in the wheel, and forecasts with the declared dependencies only
+    assert {"sliders/data/default_forecaster.zip",
+            "sliders/data/default_forecaster.zip.sha256"} <= names
+    (work / "pile.csv").write_text("angle [deg],size\n" + "".join(
+        f"{20 + 8 * (1 - 0.9 ** k):.4f},{1 + k % 3}\n" for k in range(40)))
+    res = run([py, "-m", "sliders.forecast", "predict", "pile.csv", "--json"], cwd=work,
+              env=_pip_env())
+    assert res.returncode == 0 and '"alpha_c"' in res.stdout, res.stderr
 
 
 # ---------------------------------------------------------------------------
