@@ -36,7 +36,9 @@ for toml in mpi_runs/priors/outside/*.toml; do
 done
 nice -n "$NICE" "$PY" benchmarks/forecast_skill.py --model "$OUT/default_forecaster.zip" \
   --outside "${OUTSIDE[@]}" --out "$OUT"
-if [ "$SHIP" = 1 ]; then
+if [ "$SHIP" = 1 ]; then  # the model and the SHA-256 predict checks it by
   cp "$OUT/default_forecaster.zip" src/sliders/data/default_forecaster.zip
+  sha256sum src/sliders/data/default_forecaster.zip | cut -d' ' -f1 \
+    > src/sliders/data/default_forecaster.zip.sha256
 fi
 echo "forecast_default_model.sh: everything in $((SECONDS - T0)) s"
