@@ -27,6 +27,7 @@ import pickle
 import re
 import resource
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -52,6 +53,13 @@ BACKENDS = ("fortran", "numpy")
 
 
 def pytest_configure(config):
+    # A suite started in the background by a script (``cmd &``, nohup) inherits SIGINT ignored,
+    # and so would every process a test starts: Python then installs no KeyboardInterrupt
+    # handler, and the tests of Ctrl-C would see a run that cannot be interrupted.  The
+    # tests' processes get SIGINT as a terminal gives it (a handled signal is reset to the
+    # default at exec).
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     config.addinivalue_line("markers", "two_cores: the test keeps both cores busy (mpirun -n 2, "
                                        "SLURM, a second process); under xdist it runs alone")
     config.addinivalue_line("markers", "ranks_share_one_core: the test's ranks use one core "
