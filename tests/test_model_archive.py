@@ -130,3 +130,17 @@ def test_a_malformed_tree_is_one_line_naming_the_file(tmp_path, tree, words):
     with pytest.raises(ModelFileError, match=words) as exc:
         load_forecasters(path)
     assert str(path) in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_a_zip_of_another_format_asks_to_be_trained_again(tmp_path):
+    """A zip of NumPy members and a schema of its own (as other model formats write)."""
+    from sliders.io.forecast_model import ModelFileError, load_forecasters
+
+    path = tmp_path / "other.skops"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("schema.json", '{"__class__": "dict"}')
+        buf = io.BytesIO()
+        np.lib.format.write_array(buf, np.zeros(2))
+        zf.writestr("0.npy", buf.getvalue())
+    with pytest.raises(ModelFileError, match="no tree.json.*train it again"):
+        load_forecasters(path)

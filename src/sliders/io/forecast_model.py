@@ -341,6 +341,9 @@ def load_forecasters(path) -> tuple[dict, dict]:
             raise ModelFileError(f"{where}: refused: not a sliders model file (a zip of fitted "
                                  "objects; a pickle is never loaded)")
         check_archive(blob, path)
+        if model_archive.TREE_MEMBER not in zipfile.ZipFile(io.BytesIO(blob)).namelist():
+            raise ModelFileError(f"{where}: not a sliders model file of format {MODEL_FORMAT} "
+                                 f"(it holds no {model_archive.TREE_MEMBER}): train it again")
     obj = _loads(blob, where)
     if isinstance(obj, dict) and str(obj.get("format", "")).startswith("sliders-forecaster-") \
             and obj["format"] != MODEL_FORMAT:
