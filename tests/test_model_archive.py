@@ -51,6 +51,7 @@ def test_a_tree_of_python_and_numpy_values_comes_back_equal_and_shared():
 def test_a_fitted_regressor_predicts_the_same_after_the_archive(boosted):
     model, x = boosted
     blob = model_archive.dumps({"m": model}, ALLOWED_NAMES)
+    assert model_archive.dumps({"m": model}, ALLOWED_NAMES) == blob  # no date: the same bytes
     with zipfile.ZipFile(io.BytesIO(blob)) as zf:  # 6 trees' nodes in one packed array
         assert sum(n.startswith("arrays/") for n in zf.namelist()) <= 8
     back = model_archive.loads(blob, ALLOWED_NAMES)["m"]
