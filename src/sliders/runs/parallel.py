@@ -65,6 +65,10 @@ class SerialComm:
 # abort read first kills the job before the proxy drains the pipe, and the one line that says
 # why is lost (seen once in CI: "realisation 4 fails" never reached the terminal).
 ABORT_GRACE = 0.5
+#: how long the other ranks of a stopped job wait for rank 0's abort beyond that grace (a rank
+#: that exits with the code before the abort leaves MPICH's mpiexec to return 0 at times: 1
+#: run in 5 of a SIGTERM while rank 0 reads its input); they exit with it if none comes
+ABORT_WAIT = 10.0
 
 
 def error_line(message: str) -> str:
@@ -116,7 +120,8 @@ def stopped_job_status(comm, code: int) -> int:
     From here on every rank ignores SIGINT and SIGTERM: MPICH's proxy forwards the
     terminal's Ctrl-C to the ranks, which had it from the terminal too, and that copy
     may land after the command's handlers are gone (a KeyboardInterrupt traceback
-    while the interpreter shuts down).  Serially (or for any other code) the code is
+    while the interpreter shuts down).  The other ranks wait for rank 0's abort
+    (``ABORT_WAIT``) rather than exit first.  Serially (or for any other code) the code is
     returned as it is.
     """
     if code <= 128 or comm.size < 2:
@@ -136,6 +141,8 @@ def stopped_job_status(comm, code: int) -> int:
         except OSError:
             pass
         comm.Abort(code)
+    else:  # the other ranks wait for rank 0's abort: one that exits first may lose the code
+        time.sleep(ABORT_GRACE + ABORT_WAIT)
     return code
 
 
