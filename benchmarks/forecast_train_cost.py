@@ -9,7 +9,7 @@ random among the rows of the prior's own design with that N (a row's cost is
 heavy-tailed in the threshold gap and the disorder, so the first rows of an N
 are not a fair sample), and weighs each N's mean CPU cost by its share of the
 prior: the mean CPU seconds of a row, with its standard error.  Then fits
-every forecaster of a model file (``registry.fit_methods``) on those rows and
+every forecaster of a model file (``fitting.fit_methods``) on those rows and
 divides by the rows: the fit's CPU seconds per row.  CPU time is
 ``time.process_time`` (the machine may be shared; under load the wall clock
 is longer, the CPU time is not).  ``--measured`` also reads the seconds each
@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from sliders.analysis.forecast.registry import fit_methods
+from sliders.analysis.forecast.fitting import fit_methods
 from sliders.io.catalogue import Catalogue, CatalogueSet
 from sliders.runs.prior import compute_prior_row
 from sliders.runs.prior_spec import load_prior

@@ -17,7 +17,8 @@ from sliders.analysis.forecast import Cuts, Measurement
 from sliders.analysis.forecast.features import feature_matrix
 from sliders.analysis.forecast.learned import Learned
 from sliders.analysis.forecast.measurement import degrade
-from sliders.analysis.forecast.registry import FORECASTERS, fit_methods, make_forecasters
+from sliders.analysis.forecast.fitting import fit_methods
+from sliders.analysis.forecast.registry import FORECASTERS, make_forecasters
 from sliders.io.catalogue import Catalogue
 from sliders.io.forecast_model import (MODEL_FORMAT, ModelFileError, default_model_path,
                                        load_forecasters, save_forecasters)

@@ -390,6 +390,21 @@ def tilt_in_range(angle: float, what: str) -> float:
     return angle
 
 
+def angle_option(value, option: str, default_scale: float = math.pi / 180.0) -> float:
+    """The angle (radians) of an angle option's value: ``"0.3deg"``, ``"0.005rad"``, or a bare
+    number in ``default_scale`` radians a unit (degrees unless said); one line naming the option
+    if it is not a finite angle of at least 0."""
+    text = value if isinstance(value, str) else repr(value)
+    try:
+        x = parse_angle(text, default_scale) if isinstance(value, str) else float(value) * default_scale
+    except (ForecastInputError, TypeError, ValueError):
+        raise ForecastInputError(f"{option} {text}: not an angle (e.g. 0.3deg, 0.005rad, or a "
+                                 "bare number of degrees)") from None
+    if not (math.isfinite(x) and x >= 0):
+        raise ForecastInputError(f"{option} {text}: an angle of at least 0 is expected")
+    return x
+
+
 def parse_angle(text: str, default_scale: float) -> float:
     """``"27.5deg"``, ``"0.48 rad"`` or a bare number (in ``default_scale``) -> radians
     (``sliders.units.parse_angle``, refusing with ``ForecastInputError``)."""

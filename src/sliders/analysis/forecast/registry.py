@@ -16,10 +16,7 @@ from __future__ import annotations
 
 import functools
 import importlib
-import time
 from dataclasses import dataclass, field
-
-import numpy as np
 
 #: the fallback of the forecasters that give the conditioned climatology when they cannot forecast
 _FFM_FALLBACK = ("no acceleration of the rate in the last half of the tilt range seen (or fewer "
@@ -169,46 +166,3 @@ def method_of(forecaster) -> str:
     if e is None or not e.method:
         raise KeyError(forecaster.name)
     return e.method
-
-
-def fit_sharing_cuts(f, train, validation, shared: dict, seed: int):
-    """Fit a learned forecaster on training (and calibration) cuts drawn once per kind of
-    training catalogue (exact or degraded: ``shared`` keeps them) for every learned forecaster.
-
-    ``validation`` None: the forecaster calibrates on its training cuts, out of fold.
-    """
-    if f.degrade not in shared:
-        shared[f.degrade] = {"cuts": f.training_cuts(train, np.random.default_rng(seed))}
-        if validation is not None:
-            shared[f.degrade]["validation_cuts"] = f.training_cuts(
-                validation, np.random.default_rng(seed + 1))
-    return f.fit(train, validation=validation, **shared[f.degrade])
-
-
-def fit_methods(train, max_iter: int = 200, seed: int = 0, log=None) -> dict:
-    """Every forecaster a model file holds, fitted on ``train``: ``{method: forecaster}``.
-
-    The learned forecasters draw their training cuts once per kind
-    (``fit_sharing_cuts``) and calibrate out of fold on them, or on
-    ``learned.CALIBRATION_SHARE`` of the rows held out (``calibration="held_out"``).
-    """
-    from .learned import CALIBRATION_SHARE  # scikit-learn: imported when fitting (module docstring)
-
-    hold = np.random.default_rng(seed).random(len(train)) < CALIBRATION_SHARE
-    rows_of = {"out_of_fold": (train, None),
-               "held_out": (train.subset(~hold), train.subset(hold))}
-    shared = {}
-    out = {}
-    for e in FORECASTERS:
-        if not e.method:
-            continue
-        f = e.make(max_iter, seed)
-        t = time.time()
-        if hasattr(f, "training_cuts"):
-            fit_sharing_cuts(f, *rows_of[f.calibration], shared, seed)
-        else:
-            f.fit(train)
-        out[e.method] = f
-        if log is not None:
-            log(f"forecast: fitted {e.method} in {time.time() - t:.1f} s")
-    return out

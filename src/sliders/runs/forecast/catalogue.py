@@ -26,12 +26,11 @@ import numpy as np
 
 from ...analysis.forecast.measurement import Measurement
 from ...io.catalogue import Catalogue, CatalogueSet
-from ...io.forecast_files import (ForecastInputError, parse_angle, read_catalogue_file,
-                                  read_catalogue_stream)
+from ...io.forecast_files import (ForecastInputError, angle_option, parse_angle,
+                                  read_catalogue_file, read_catalogue_stream)
 from ...io.prior_file import read_prior_ensemble
 from ...io.safeio import describe_os_error, publish_bytes
 from ...io.storage import StorageError
-from .common import angle_option
 
 
 def load_set(path: str, what: str = "--data") -> CatalogueSet:

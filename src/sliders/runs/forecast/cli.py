@@ -30,11 +30,7 @@ import os
 import signal
 import sys
 import time
-import traceback
 
-from ...io.filelock import ClaimError
-from ...io.forecast_files import ForecastInputError
-from ...io.safeio import describe_os_error, os_reason
 from ..parallel import (MPIUnavailable, error_line, get_comm, launcher_rank, stopped_job_status,
                         under_mpi_launcher)
 from ..signals import STOP_SIGNALS, stop_signal, stopped_by_sigterm
@@ -50,7 +46,12 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):
         """Raise the one-line refusal (exit status 2)."""
-        raise ForecastInputError(f"{message} (see {self.prog} --help)")
+        raise _refusal().command_line_error(f"{message} (see {self.prog} --help)")
+
+
+def _refusal():
+    """The module that says what a failed command says (``refusal``), read when one fails."""
+    return importlib.import_module(f"{__package__}.refusal")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -267,17 +268,9 @@ def _command(argv: list[str], resignal: bool = False) -> int:
             signal.signal(signum, signal.SIG_DFL)
             os.kill(os.getpid(), signum)
         return code
-    except (ForecastInputError, ClaimError) as exc:
-        return _error(str(exc), 2)
-    except OSError as exc:
-        return _error(describe_os_error(exc, exc.filename) if exc.filename else os_reason(exc), 1)
-    except MemoryError:
-        return _error("out of memory", 1)
-    except Exception as exc:  # noqa: BLE001 - a fault: one line, the traceback with SLIDERS_DEBUG
-        if os.environ.get("SLIDERS_DEBUG"):
-            traceback.print_exc()
-        return _error(f"{type(exc).__name__}: {' '.join(str(exc).split())} (an internal error; "
-                      "SLIDERS_DEBUG=1 shows where)", 1)
+    except Exception as exc:  # noqa: BLE001 - bad input, an I/O error or a fault: one line
+        code, line = _refusal().status_and_line(exc)
+        return _error(line, code)
 
 
 def _error(message: str, code: int) -> int:

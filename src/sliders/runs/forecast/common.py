@@ -1,7 +1,8 @@
 """What the forecast subcommands share: the defaults their options show, the progress log, the
 provenance of what they write, JSON values.
 
-Imports nothing of scikit-learn: the parser (``cli``) reads the defaults here.
+Imports neither NumPy nor scikit-learn: the parser (``cli``) reads the defaults here, and
+``--help`` costs no more than Python and argparse.
 """
 
 from __future__ import annotations
@@ -10,11 +11,8 @@ import math
 import sys
 import time
 
-import numpy as np
-
 from ..._version import __version__
 from ...analysis.forecast.registry import METHODS
-from ...io.forecast_files import ForecastInputError, parse_angle
 
 #: leads before the avalanche at which the test runs are cut, degrees
 DEFAULT_LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0)
@@ -34,21 +32,6 @@ CHECK_DRAWS = 24
 #: the choices of ``predict --method`` (the registry's): "learned" picks the learned forecaster
 #: for the columns given (every feature, or angles and sizes only)
 PREDICT_METHODS = ("learned", *(m for m in METHODS if m not in ("learned", "learned_blind")), "all")
-
-
-def angle_option(value, option: str, default_scale: float = math.pi / 180.0) -> float:
-    """The angle (radians) of an angle option's value: ``"0.3deg"``, ``"0.005rad"``, or a bare
-    number in ``default_scale`` radians a unit (degrees unless said); one line naming the option
-    if it is not a finite angle of at least 0."""
-    text = value if isinstance(value, str) else repr(value)
-    try:
-        x = parse_angle(text, default_scale) if isinstance(value, str) else float(value) * default_scale
-    except (ForecastInputError, TypeError, ValueError):
-        raise ForecastInputError(f"{option} {text}: not an angle (e.g. 0.3deg, 0.005rad, or a "
-                                 "bare number of degrees)") from None
-    if not (math.isfinite(x) and x >= 0):
-        raise ForecastInputError(f"{option} {text}: an angle of at least 0 is expected")
-    return x
 
 
 def progress_log(quiet: bool):
@@ -81,10 +64,8 @@ def jsonable(x):
         return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
+    if hasattr(x, "tolist") and not isinstance(x, (str, bytes)):  # a NumPy array or scalar
         return jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        return float(x) if np.isfinite(x) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
     return x

@@ -28,8 +28,8 @@ import numpy as np
 
 from ...analysis.forecast import Cuts
 from ...analysis.forecast import evaluation as ev
-from ...analysis.forecast.registry import (fit_sharing_cuts, make_forecasters, method_of,
-                                           names_where)
+from ...analysis.forecast.fitting import fit_sharing_cuts
+from ...analysis.forecast.registry import make_forecasters, method_of, names_where
 from ...io.catalogue import CatalogueSet
 from ...io.forecast_files import (ForecastInputError, OutputSet, check_output_target,
                                   claim_folder, complete_publication)

@@ -32,10 +32,9 @@ import signal
 import sys
 import time
 
-from ...io.forecast_files import ForecastInputError, parse_angle
+from ...io.forecast_files import ForecastInputError, angle_option, parse_angle
 from ..signals import handled
 from .catalogue import measurement_of, read_source
-from .common import angle_option
 from .predict import (at_tilt, check_predict_options, load_model, probability_text,
                       within_option)
 

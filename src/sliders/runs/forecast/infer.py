@@ -38,7 +38,7 @@ import numpy as np
 
 from ...driver import run as tilt_to
 from ...io.catalogue import Catalogue
-from ...io.forecast_files import ForecastInputError, parse_angle, tilt_in_range
+from ...io.forecast_files import ForecastInputError, angle_option, parse_angle, tilt_in_range
 from ...io.forecast_model import default_posterior_path
 from ...io.safeio import publish_bytes
 from ...analysis.forecast.features import Cuts
@@ -49,7 +49,7 @@ from ...analysis.forecast.posterior_check import (CHECK_ALPHA, SURVIVAL, check_s
 from ..command import DEFAULT_BACKEND
 from ..prior_spec import parse_prior
 from .catalogue import angles_and_sizes, measurement_as_json, measurement_from, read_source
-from .common import CHECK_DRAWS, angle_option, jsonable
+from .common import CHECK_DRAWS, jsonable
 from .predict import (ForecastModel, at_tilt, load_model, measurement_options,
                       read_model_file)
 

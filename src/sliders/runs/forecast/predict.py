@@ -23,11 +23,11 @@ import numpy as np
 from ...analysis.forecast.features import Cuts
 from ...analysis.forecast.registry import fallback_of
 from ...io.catalogue import Catalogue
-from ...io.forecast_files import ForecastInputError, parse_angle, tilt_in_range
+from ...io.forecast_files import ForecastInputError, angle_option, parse_angle, tilt_in_range
 from ...io.forecast_model import ModelFileError, default_model_path, load_forecasters
 from ...io.safeio import publish_bytes
 from .catalogue import angles_and_sizes, measurement_as_json, measurement_from, read_source
-from .common import ALARM_DELTA_DEG, PREDICT_METHODS, angle_option, jsonable
+from .common import ALARM_DELTA_DEG, PREDICT_METHODS, jsonable
 
 #: why a method of the displacements gave no forecast of its own on a catalogue without them
 NO_DISPLACEMENT = ("the catalogue has no displacement column: the conditioned climatology is "

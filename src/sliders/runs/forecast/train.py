@@ -5,7 +5,7 @@
 ``train`` runs the prior ensemble (``python -m sliders.prior``, on ``--np``
 MPI ranks, ``--resume``: an interrupted training run completes its file),
 then fits every forecaster a model file holds
-(``analysis.forecast.registry.fit_methods``) and writes the model file
+(``analysis.forecast.fitting.fit_methods``) and writes the model file
 (``io.forecast_model``: data, not code) with its provenance.  With
 ``--data`` it fits on a prior file already computed (e.g. on a cluster).
 With ``--fit posterior`` it fits the posterior of the pile's parameters
@@ -28,7 +28,7 @@ import numpy as np
 
 from ...analysis.forecast.evaluation import measure_expected_accuracy
 from ...analysis.forecast.posterior import ParameterPosterior
-from ...analysis.forecast.registry import fit_methods
+from ...analysis.forecast.fitting import fit_methods
 from ...io.catalogue import CatalogueSet
 from ...io.forecast_files import ForecastInputError
 from ...io.forecast_model import save_forecasters
