@@ -15,7 +15,19 @@ import pytest
 
 from sliders.analysis.forecast.integrity import IntegrityError, check_boosting
 from sliders.io import model_archive
-from sliders.io.forecast_model import ALLOWED_NAMES
+from sliders.io.forecast_model import ALLOWED_NAMES, ModelFileError, load_forecasters
+
+
+def zip_of(path, members: dict):
+    """A zip at ``path`` of ``members``: text as it is, arrays as NumPy members."""
+    with zipfile.ZipFile(path, "w") as zf:
+        for name, data in members.items():
+            if isinstance(data, np.ndarray):
+                buf = io.BytesIO()
+                np.lib.format.write_array(buf, data)
+                data = buf.getvalue()
+            zf.writestr(name, data)
+    return path
 
 
 @pytest.fixture(scope="module")
@@ -100,8 +112,6 @@ def test_the_trees_are_checked_together_and_the_failing_one_named(boosted, tree,
 
 def test_a_tree_of_more_than_16_mb_is_refused_before_it_is_parsed(tmp_path):
     """20 MB of JSON (a list of zeros) deflated to a few kB: refused from its declared size."""
-    from sliders.io.forecast_model import ModelFileError, load_forecasters
-
     path = tmp_path / "wide.zip"
     with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("tree.json", "[" + "0," * 10_000_000 + "0]")
@@ -120,14 +130,7 @@ def test_a_tree_of_more_than_16_mb_is_refused_before_it_is_parsed(tmp_path):
     ('{"object": ["builtins.eval", ["1"], null], "id": 0}', "refused"),
 ])
 def test_a_malformed_tree_is_one_line_naming_the_file(tmp_path, tree, words):
-    from sliders.io.forecast_model import ModelFileError, load_forecasters
-
-    path = tmp_path / "bad.zip"
-    with zipfile.ZipFile(path, "w") as zf:
-        zf.writestr("tree.json", tree)
-        buf = io.BytesIO()
-        np.lib.format.write_array(buf, np.zeros(2))
-        zf.writestr("arrays/0.npy", buf.getvalue())
+    path = zip_of(tmp_path / "bad.zip", {"tree.json": tree, "arrays/0.npy": np.zeros(2)})
     with pytest.raises(ModelFileError, match=words) as exc:
         load_forecasters(path)
     assert str(path) in str(exc.value) and "\n" not in str(exc.value)
@@ -135,13 +138,7 @@ def test_a_malformed_tree_is_one_line_naming_the_file(tmp_path, tree, words):
 
 def test_a_zip_of_another_format_asks_to_be_trained_again(tmp_path):
     """A zip of NumPy members and a schema of its own (as other model formats write)."""
-    from sliders.io.forecast_model import ModelFileError, load_forecasters
-
-    path = tmp_path / "other.skops"
-    with zipfile.ZipFile(path, "w") as zf:
-        zf.writestr("schema.json", '{"__class__": "dict"}')
-        buf = io.BytesIO()
-        np.lib.format.write_array(buf, np.zeros(2))
-        zf.writestr("0.npy", buf.getvalue())
+    path = zip_of(tmp_path / "other.skops", {"schema.json": '{"__class__": "dict"}',
+                                              "0.npy": np.zeros(2)})
     with pytest.raises(ModelFileError, match="no tree.json.*train it again"):
         load_forecasters(path)

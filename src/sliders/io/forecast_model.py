@@ -252,7 +252,10 @@ def check_archive(blob: bytes, where) -> None:
         raise ModelFileError(f"{where}: its members inflate to {total / 2**20:.0f} MB; a model "
                              f"file holds at most {MAX_INFLATED_BYTES // 2**20} MB")
     tree = next((i for i in infos if i.filename == model_archive.TREE_MEMBER), None)
-    if tree is not None and tree.file_size > MAX_TREE_BYTES:
+    if tree is None:
+        raise ModelFileError(f"{where}: not a sliders model file of format {MODEL_FORMAT} "
+                             f"(it holds no {model_archive.TREE_MEMBER}): train it again")
+    if tree.file_size > MAX_TREE_BYTES:
         raise ModelFileError(f"{where}: its tree inflates to {tree.file_size / 2**20:.0f} MB; a "
                              f"model file's tree holds at most {MAX_TREE_BYTES // 2**20} MB")
     for info in infos:
@@ -341,9 +344,6 @@ def load_forecasters(path) -> tuple[dict, dict]:
             raise ModelFileError(f"{where}: refused: not a sliders model file (a zip of fitted "
                                  "objects; a pickle is never loaded)")
         check_archive(blob, path)
-        if model_archive.TREE_MEMBER not in zipfile.ZipFile(io.BytesIO(blob)).namelist():
-            raise ModelFileError(f"{where}: not a sliders model file of format {MODEL_FORMAT} "
-                                 f"(it holds no {model_archive.TREE_MEMBER}): train it again")
     obj = _loads(blob, where)
     if isinstance(obj, dict) and str(obj.get("format", "")).startswith("sliders-forecaster-") \
             and obj["format"] != MODEL_FORMAT:

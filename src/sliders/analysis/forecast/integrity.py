@@ -114,7 +114,8 @@ def check_trees(trees, n_features: int, what: str) -> None:
     starts = np.cumsum(sizes) - sizes
     nodes = np.concatenate(trees)
     n = np.repeat(sizes, sizes)  # each node's tree's size
-    index = np.arange(nodes.size) - np.repeat(starts, sizes)  # each node's index in its tree
+    first = np.repeat(starts, sizes)  # each node's tree's first node
+    index = np.arange(nodes.size) - first  # each node's index in its tree
 
     def none(bad, problem: str) -> None:
         if bad.any():
@@ -129,8 +130,7 @@ def check_trees(trees, n_features: int, what: str) -> None:
     left, right = nodes["left"].astype(np.int64), nodes["right"].astype(np.int64)
     none(split & ~((left > index) & (left < n) & (right > index) & (right < n)),
          "a child index points backwards or past the tree's nodes")
-    children = np.concatenate([(left + starts.repeat(sizes))[split],
-                               (right + starts.repeat(sizes))[split]])
+    children = np.concatenate([(left + first)[split], (right + first)[split]])
     parents = np.bincount(children, minlength=nodes.size)
     none(parents != (index != 0), "the nodes do not form one tree (a node with no parent or two)")
     feature = nodes["feature_idx"]

@@ -64,7 +64,7 @@ def jsonable(x):
         return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [jsonable(v) for v in x]
-    if hasattr(x, "tolist") and not isinstance(x, (str, bytes)):  # a NumPy array or scalar
+    if hasattr(x, "tolist"):  # a NumPy array or scalar
         return jsonable(x.tolist())
     if isinstance(x, float):
         return x if math.isfinite(x) else None
