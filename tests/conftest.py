@@ -2,12 +2,15 @@
 cluster of a test session, and the machine's cores shared between pytest-xdist workers.
 
 Cores.  Under ``pytest -n N`` every test holds one core slot while it runs (setup, call and
-teardown, so module fixtures count too); a test marked ``two_cores`` (it starts ``mpirun -n 2``,
-a SLURM job or a second busy process) holds them all, so it never runs beside another test and
+teardown, so module fixtures count too); a test marked ``two_cores`` (it starts ``mpirun``, a
+SLURM job or a second busy process) holds them all, so it never runs beside another test and
 the machine is never oversubscribed; one marked ``ranks_share_one_core`` (a serial command under
 ``mpirun -n 2``, whose second rank sleeps) keeps its one core.  A waiting ``two_cores`` test
-holds a turnstile that keeps new tests from starting, so it is not starved.  Without xdist
-nothing is locked.
+holds a turnstile that keeps new tests from starting, so it is not starved.  The ``two_cores``
+tests form one xdist group, run back to back on one worker, which keeps both cores from one to
+the next: the other worker gives up its core once for all of them, not once per test.  A test
+that starts ranks without the mark fails, naming the mark (pages of commands are marked from
+their blocks).  Without xdist nothing is locked.
 
 ``slurm`` starts munged, slurmctld and slurmd for one node on localhost
 (``scripts/slurm_local.sh start``, in a private directory with its own munge
@@ -129,7 +132,10 @@ def pytest_sessionstart(session):
 
     def execute_holding_cores(self, args, *rest, **kw):
         if slots.held is not None and not slots.ranks_share_one_core and starts_ranks(args):
-            slots.hold(fcntl.LOCK_EX)
+            if slots.held != fcntl.LOCK_EX:  # it would share a core with another test's work
+                raise RuntimeError("this test starts ranks or a job: mark it "
+                                   "@pytest.mark.two_cores (or ranks_share_one_core if its "
+                                   "second rank sleeps); see tests/conftest.py")
         return execute(self, args, *rest, **kw)
 
     subprocess.Popen._execute_child = execute_holding_cores
@@ -138,13 +144,25 @@ def pytest_sessionstart(session):
 CORE_SLOTS = pytest.StashKey[CoreSlots]()
 
 
+# the shell blocks of a Markdown page (those tests/test_docs_commands.py runs)
+SHELL_BLOCK = re.compile(r"^```(?:bash|console)[^\n]*\n(.*?)^```", re.M | re.S)
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """The tests of the SLURM cluster go to one worker, which starts the session's one cluster."""
+    """Every test that starts ranks or a job, and every test of the SLURM cluster, goes to one
+    worker (the group ``two_cores``), which starts the session's one cluster and keeps both
+    cores from one such test to the next.  Within the group, the tests that need one core come
+    first, so that the others follow one another."""
     for item in items:
         page = getattr(item, "callspec", None) and item.callspec.params.get("page")
-        if "slurm" in item.fixturenames or (page and "sbatch" in Path(page).read_text()):
-            item.add_marker(pytest.mark.xdist_group("slurm"))
+        text = Path(page).read_text() if page else ""
+        if page and any(starts_ranks(block) for block in SHELL_BLOCK.findall(text)):
+            item.add_marker(pytest.mark.two_cores)
+        if (item.get_closest_marker("two_cores") or "slurm" in item.fixturenames
+                or "sbatch" in text):
+            item.add_marker(pytest.mark.xdist_group("two_cores"))
+    items.sort(key=lambda item: item.get_closest_marker("two_cores") is not None)
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -178,7 +196,8 @@ def pytest_runtest_protocol(item, nextitem):
         yield
     finally:
         both = slots.held == fcntl.LOCK_EX
-        slots.release()
+        if not (both and nextitem is not None and nextitem.get_closest_marker("two_cores")):
+            slots.release()  # else kept for the next test, which holds both cores too
         timeline = os.environ.get("SLIDERS_TEST_TIMELINE")
         if timeline:  # benchmarks/suite_cost.py: where the suite's wall time goes
             record = {"test": item.nodeid, "worker": item.config.workerinput["workerid"],

@@ -99,4 +99,7 @@ def test_docs_build_without_warnings_and_run_the_tutorial(tmp_path):
     assert re.search(r"alpha_c = 0\.5\d{3} rad in \[0\.5028, 0\.5404\]", tutorial)
     for page in ("index", "model", "api", "howto/xarray", "reproduction", "performance"):
         assert (out / f"{page}.html").is_file(), page
-    assert (out / "generated" / "sliders.Scene.html").is_file()  # the API reference was generated
+    # the API reference was generated: a page per module, its classes and functions on it
+    assert 'id="sliders.Scene"' in (out / "generated" / "sliders.html").read_text()
+    assert 'id="sliders.io.catalogue.Catalogue"' in (
+        out / "generated" / "sliders.io.catalogue.html").read_text()

@@ -33,7 +33,8 @@ from sliders.io import h5tools, storage
 from sliders.keyed_random import realisation_seed
 from sliders.analysis.observables import default_grids, realisation_statistics, statistics_layout
 
-pytestmark = pytest.mark.slow  # MPI ensembles under mpirun, kills and resumes
+# MPI ensembles under mpirun, kills and resumes (the few serial tests cost little beside them)
+pytestmark = [pytest.mark.slow, pytest.mark.two_cores]
 
 # The tests pick the backend explicitly (no skipping).  "fortran" is the
 # production kernel; the lead makes sure it is built in the final set-up.

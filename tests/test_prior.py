@@ -185,6 +185,7 @@ def test_a_bad_row_is_named_before_anything_runs(tmp_path, capsys):
 # ---------------------------------------------------------------------------
 # the runner
 # ---------------------------------------------------------------------------
+@pytest.mark.two_cores  # it starts mpirun -n 2
 def test_one_rank_equals_two_ranks(small, reference, tmp_path):
     """The same rows, events, parameters and ceiling, bit for bit, with 1 and 2 ranks."""
     out = tmp_path / "two.h5"

@@ -94,6 +94,7 @@ def tmpfs(tmp_path):
 # ---------------------------------------------------------------------------
 # ownership: concurrent writers
 # ---------------------------------------------------------------------------
+@pytest.mark.two_cores  # its ensembles run on 2 ranks
 def test_second_writer_refused_while_first_runs(reference, tmp_path):
     """Same path, --overwrite and --resume while a first ensemble writes: refused at once,
     one line naming the holder; the first run finishes intact."""
@@ -178,6 +179,7 @@ def check_then_resume(reference, out, n=2):
 
 
 @pytest.mark.parametrize("trial", range(KILL_TRIALS))
+@pytest.mark.two_cores  # its ensembles run on 2 ranks
 def test_kill9_at_random_moment(reference, tmp_path, trial):
     rng = random.Random(1000 + trial)
     out = tmp_path / f"kill{trial}.h5"
@@ -200,6 +202,7 @@ def test_kill9_at_random_moment(reference, tmp_path, trial):
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.two_cores  # its ensembles run on 2 ranks
 def test_ensemble_signal_stops_every_rank_quickly(reference, tmp_path, sig):
     out = tmp_path / f"sig{int(sig)}.h5"
     job = _Run(ensemble_args(out), 2, _env(SLIDERS_ENSEMBLE_TEST_DELAY=0.3))
@@ -218,6 +221,7 @@ def test_ensemble_signal_stops_every_rank_quickly(reference, tmp_path, sig):
     assert f"resuming {R - done} of {R}" in check_then_resume(reference, out)
 
 
+@pytest.mark.two_cores  # its ensembles run on 2 ranks
 def test_resume_alone_takes_everything_from_the_file(reference, tmp_path):
     out = tmp_path / "alone.h5"
     res = run(ensemble_args(out), n=2, env=_env(SLIDERS_ENSEMBLE_STOP_AFTER=3))
@@ -236,6 +240,7 @@ def test_resume_alone_takes_everything_from_the_file(reference, tmp_path):
 # ---------------------------------------------------------------------------
 # full disk, read-only file system and other I/O errors: one line, nothing lost
 # ---------------------------------------------------------------------------
+@pytest.mark.two_cores  # its ensembles run on 2 ranks
 def test_full_disk_ensemble_keeps_finished_rows(reference, tmpfs):
     disk = tmpfs("3m")
     out = disk / "e.h5"
@@ -277,7 +282,7 @@ def test_full_disk_tilt_keeps_the_old_file(tmpfs):
 
 @pytest.mark.parametrize("case", ["dev_full", "read_only", "permission", "missing_folder",
                                   "directory"])
-@pytest.mark.parametrize("program", ["tilt", "ensemble"])
+@pytest.mark.parametrize("program", ["tilt", pytest.param("ensemble", marks=pytest.mark.two_cores)])
 def test_io_error_is_one_line(tmp_path, tmpfs, case, program):
     if case == "read_only":
         target = tmpfs("1m", read_only=True) / "o.h5"
@@ -509,6 +514,7 @@ def test_truncated_files_give_one_line(tmp_path, tilt_file, reference, kind):
     assert all(ln.startswith("ERROR") for ln in lines), lines
 
 
+@pytest.mark.two_cores  # its ensembles run on 2 ranks
 def test_damaged_ensemble_refuses_resume_in_one_line(tmp_path, reference):
     out = tmp_path / "damaged.h5"
     shutil.copy(reference, out)
@@ -546,6 +552,7 @@ def test_script_loop_without_handler_is_not_swallowed(tmp_path):
     assert "sliders.driver.Interrupted" in res.stderr
 
 
+@pytest.mark.two_cores  # its ensembles run on 2 ranks
 def test_resume_recomputes_a_damaged_row(tmp_path, reference):
     """A finished row whose bytes were flipped: reading names it; --resume recomputes it."""
     out = tmp_path / "row.h5"

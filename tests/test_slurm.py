@@ -23,7 +23,7 @@ import pytest
 from sliders.io.storage import read_realisations
 from test_ensemble import assert_same_file
 
-pytestmark = pytest.mark.slow  # jobs on the session's SLURM cluster
+pytestmark = [pytest.mark.slow, pytest.mark.two_cores]  # jobs on the session's SLURM cluster
 
 ROOT = Path(__file__).resolve().parents[1]
 JOBS = ROOT / "mpi_runs" / "slurm"

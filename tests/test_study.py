@@ -60,6 +60,7 @@ def spec(tmp_path):
 
 
 @pytest.mark.parametrize("storage", ["auto", "gather"])  # auto: parallel HDF5 (mpio) here
+@pytest.mark.two_cores  # it starts mpirun -n 2
 def test_two_ranks_same_bits_as_serial_and_same_seeds_at_every_point(spec, tmp_path, storage):
     serial, par = tmp_path / "serial.h5", tmp_path / "par.h5"
     a = study([spec, "--out", serial, "--quiet"])

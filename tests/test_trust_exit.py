@@ -37,6 +37,7 @@ def _reading(fifo) -> int:
 
 @pytest.mark.parametrize("phase", ["plans", "runs"])
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.two_cores  # it starts mpirun -n 2
 def test_a_stopped_prior_under_mpirun_exits_with_128_plus_the_signal(tmp_path, sig, phase):
     """Stopped while rank 0 reads its input (planning), or while the rows run."""
     assert MPIRUN, "mpirun not found (install Debian mpich: scripts/setup.sh)"

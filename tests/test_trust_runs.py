@@ -150,8 +150,9 @@ class FifoFeeder:
 # ---------------------------------------------------------------------------
 # 1. a file is its identity
 # ---------------------------------------------------------------------------
-@pytest.mark.parametrize("command, ranks", [("ensemble", None), ("ensemble", 2),
-                                            ("study", None), ("prior", 2)])
+@pytest.mark.parametrize("command, ranks", [
+    ("ensemble", None), pytest.param("ensemble", 2, marks=pytest.mark.two_cores),
+    ("study", None), pytest.param("prior", 2, marks=pytest.mark.two_cores)])
 def test_second_resume_through_a_hard_link_is_refused(tmp_path, command, ranks):
     source = tmp_path / "input.toml"
     source.write_text(input_text(command))
@@ -187,6 +188,7 @@ def test_second_resume_through_a_hard_link_is_refused(tmp_path, command, ranks):
 # 2. one input, one plan on every rank
 # ---------------------------------------------------------------------------
 @pytest.mark.parametrize("command", sorted(MODULES))
+@pytest.mark.two_cores  # it starts mpirun -n 2
 def test_every_rank_runs_the_input_rank_0_read(tmp_path, command):
     """The input changes after its first read (a pipe here; a file edited at job start or two
     copies on NFS elsewhere): every rank still computes rank 0's plan."""
@@ -217,7 +219,7 @@ def _blocked_in_open(pid: int) -> bool:
 
 
 @pytest.mark.parametrize("command", sorted(MODULES))
-@pytest.mark.parametrize("ranks", [None, 2])
+@pytest.mark.parametrize("ranks", [None, pytest.param(2, marks=pytest.mark.two_cores)])
 def test_ctrl_c_while_rank_0_plans_ends_every_rank(tmp_path, command, ranks):
     """Rank 0 is still planning (its input, a pipe, has no writer yet) and gets SIGINT alone:
     every rank exits at once with 128 + 2 and one line, no traceback, no file."""
@@ -287,7 +289,7 @@ def test_a_plan_larger_than_the_memory_is_refused(tmp_path, capsys, monkeypatch)
 # ---------------------------------------------------------------------------
 # 5. a full disk
 # ---------------------------------------------------------------------------
-@pytest.mark.parametrize("ranks", [None, 2])
+@pytest.mark.parametrize("ranks", [None, pytest.param(2, marks=pytest.mark.two_cores)])
 def test_a_full_disk_stops_a_prior_run_at_the_first_write_in_one_line(tmp_path, ranks):
     """A 600 kB file system (tmpfs in a user and mount namespace) cannot hold the run: one
     line, exit 1, no crash (HDF5 is never left with a failed write), the rows marked done

@@ -103,7 +103,8 @@ def test_tilt_file_provenance(tilt_file):
         assert a["git_commit"].startswith(head.stdout.strip())
 
 
-@pytest.mark.parametrize("n_ranks", [1, 2])  # 2: parallel HDF5 (mpio), described by rank 0
+@pytest.mark.parametrize("n_ranks", [1, pytest.param(2, marks=pytest.mark.two_cores)])  # 2: parallel
+# HDF5 (mpio), described by rank 0
 def test_ensemble_file(tmp_path, n_ranks):
     path = ensemble_file(tmp_path, n_ranks)
     dims = all_dims(path, ["/", "grids", "realisations", "realisations/statistics"])
@@ -219,6 +220,7 @@ KINDS = ("tilt", "tilt_summary", "pushed_end", "ensemble", "ensemble_mpio", "mer
 
 
 @pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.two_cores  # its fixture writes files on 2 ranks
 def test_every_file_opens_as_a_tree_with_named_dimensions_and_no_warning(files, kind):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # phony dimensions, undecodable attributes, ...
@@ -233,6 +235,7 @@ def test_every_file_opens_as_a_tree_with_named_dimensions_and_no_warning(files, 
     assert not unitless, unitless
 
 
+@pytest.mark.two_cores  # its fixture writes files on 2 ranks
 def test_tilt_events_have_the_drive_as_coordinate_and_the_recipe_gives_dense_displacements(
         files, tmp_path, monkeypatch):
     result = sliders.TiltResult.load(files["tilt"])
@@ -252,6 +255,7 @@ def test_tilt_events_have_the_drive_as_coordinate_and_the_recipe_gives_dense_dis
     assert np.flatnonzero(dense[k]).size == result.events["n_moved"][k] > 1
 
 
+@pytest.mark.two_cores  # its fixture writes files on 2 ranks
 def test_the_drive_of_a_pushed_end_is_a_length(files):
     events = xr.open_datatree(files["pushed_end"], engine="h5netcdf")["events"].to_dataset()
     assert events.drive.attrs["units"] == "g tau^2" and "driver" in events.drive.attrs["long_name"]
@@ -266,6 +270,7 @@ def dense_recipe() -> str:
     return re.search(r"```python\n(# dense displacements.*?)```", text, flags=re.S).group(1)
 
 
+@pytest.mark.two_cores  # its fixture writes files on 2 ranks
 def test_prior_tree_is_the_catalogue_set(files):
     from sliders.io.prior_file import read_prior_ensemble
 
@@ -281,6 +286,7 @@ def test_prior_tree_is_the_catalogue_set(files):
                           got.catalogue(r).size)
 
 
+@pytest.mark.two_cores  # its fixture writes files on 2 ranks
 def test_study_tree_has_the_axes_and_each_point_its_grids(files):
     tree = xr.open_datatree(files["study"], engine="h5netcdf")
     root = tree.to_dataset()
