@@ -252,6 +252,24 @@ def session_cached(what: str, compute, *args):
     return value
 
 
+def session_folder(what: str, make) -> Path:
+    """A folder that ``make(folder)`` fills once per test session, for every xdist worker: the
+    first to ask fills it (under a lock, then renames it into place); the others wait and get
+    it.  The tests only read it (copy what they change)."""
+    base = SCENE_CACHE if SCENE_CACHE is not None else Path(tempfile.mkdtemp())
+    key = hashlib.sha256(repr((what, sliders.__version__)).encode()).hexdigest()[:24]
+    folder = base / key
+    with open(base / f"{key}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not folder.exists():
+            partial = base / f"{key}.{os.getpid()}.part"
+            shutil.rmtree(partial, ignore_errors=True)
+            partial.mkdir()
+            make(partial)
+            partial.rename(folder)
+    return folder
+
+
 def run(scene: sliders.Scene, backend: str) -> sliders.TiltResult:
     """Tilt a scene once per test session (``session_cached``).  Tests that patch the engines
     or the transcendentals call ``sliders.tilt`` themselves."""

@@ -32,6 +32,8 @@ from sliders.runs import ensemble, study
 from sliders.io.forecast_files import ForecastInputError, read_catalogue_csv
 from sliders.runs.forecast import cli as forecast_cli
 from sliders.runs.forecast import evaluate as rf_evaluate
+
+from conftest import session_folder
 from marker_class import archive_as_is
 
 pytestmark = pytest.mark.slow  # attacks on the forecast commands, each a process
@@ -110,23 +112,27 @@ def leftovers(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
 
 
-@pytest.fixture(scope="module")
-def prior(tmp_path_factory) -> Path:
-    """A 12-row prior ensemble (``python -m sliders.prior``)."""
-    d = tmp_path_factory.mktemp("fcprior")
+def _make_prior(d: Path) -> None:
     (d / "p.toml").write_text(PRIOR)
     res = subprocess.run([PY, "-m", "sliders.prior", str(d / "p.toml"), "--out", str(d / "p.h5"),
                           "--quiet"], capture_output=True, text=True, timeout=TIMEOUT, env=_env())
     assert res.returncode == 0, res.stderr
-    return d / "p.h5"
 
 
 @pytest.fixture(scope="module")
-def previous(prior, tmp_path_factory) -> Path:
-    """A complete evaluation of ``prior`` (seed 0): the set a rerun must never damage."""
-    out = tmp_path_factory.mktemp("fcprev") / "out"
-    assert forecast_cli.main(["evaluate", "--data", str(prior), "--out", str(out), "--quiet", *FAST]) == 0
-    return out
+def prior() -> Path:
+    """A 12-row prior ensemble (``python -m sliders.prior``), made once for every worker."""
+    return session_folder("trust-forecast-prior", _make_prior) / "p.h5"
+
+
+@pytest.fixture(scope="module")
+def previous(prior) -> Path:
+    """A complete evaluation of ``prior`` (seed 0): the set a rerun must never damage (made
+    once for every worker; the tests change copies of it, ``out``)."""
+    def evaluate(d: Path) -> None:
+        assert forecast_cli.main(["evaluate", "--data", str(prior), "--out", str(d / "out"),
+                                  "--quiet", *FAST]) == 0
+    return session_folder("trust-forecast-previous", evaluate) / "out"
 
 
 @pytest.fixture
