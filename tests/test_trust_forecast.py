@@ -257,7 +257,7 @@ def test_evaluate_stopped_by_a_signal_is_one_line_and_leaves_the_previous_set(ou
     assert snapshot(out) == before and leftovers(out) == []
 
 
-@pytest.mark.two_cores  # it starts mpirun -n 2
+@pytest.mark.ranks_share_one_core  # a serial command: rank 1 sleeps until rank 0's status
 def test_predict_under_mpirun_is_one_answer_and_one_refusal(previous, catalogue):
     good = cli("predict", catalogue, "--model", previous / MODEL, "--json", n=2)
     assert good.returncode == 0, good.stderr
@@ -266,7 +266,7 @@ def test_predict_under_mpirun_is_one_answer_and_one_refusal(previous, catalogue)
     assert bad.returncode == 2 and "--within" in one_line(bad.returncode, bad.stderr)
 
 
-@pytest.mark.two_cores  # it starts mpirun -n 2
+@pytest.mark.ranks_share_one_core  # a serial command: rank 1 sleeps until rank 0's status
 def test_evaluate_under_mpirun_refuses_in_one_line(tmp_path, prior):
     res = cli("evaluate", "--data", prior, "--out", tmp_path / "o", "--tilts", "-1", n=2)
     assert "--tilts" in one_line(res.returncode, res.stderr)
