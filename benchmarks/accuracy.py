@@ -203,12 +203,13 @@ def fit_order(dts, errs, floor) -> dict:
 def trajectories(args) -> dict:
     say("\n=== A. Trajectories: error against cost (Fortran unless stated) ===")
     report = {}
+    ref_dt = 10 * REF_DT if args.quick else REF_DT  # a smoke run: a coarser reference
     for name, base in TRAJECTORY_SCENES.items():
         say(f"\n--- {name}: N={base.n_sliders} ends={base.ends} seed={base.seed} "
             f"max_events={base.max_events if base.max_events < 10**6 else '-'} alpha_max={base.alpha_max:.4g}")
         exact = name == "single_walls"
-        ref, ref_cost = timed_tilt(base.replace(dt=REF_DT, refine_tol=REF_TOL), min_cpu=0.0)
-        check, check_cost = timed_tilt(base.replace(dt=2 * REF_DT, refine_tol=REF_TOL), min_cpu=0.0)
+        ref, ref_cost = timed_tilt(base.replace(dt=ref_dt, refine_tol=REF_TOL), min_cpu=0.0)
+        check, check_cost = timed_tilt(base.replace(dt=2 * ref_dt, refine_tol=REF_TOL), min_cpu=0.0)
         if exact:
             ref_err = compare_single_slider(ref)
             check_err = compare_single_slider(check)
@@ -218,8 +219,8 @@ def trajectories(args) -> dict:
             ref_err = {"identical_sequence": True} | energy_errors(ref)
             # order 2: error(ref) ~ difference(ref, 2 ref) / 3
             floor = check_err["err_x"] / 3.0
-        say(f"reference dt={REF_DT:g} tol={REF_TOL:g}: {ref.n_events} events, status {ref.status}, "
-            f"cpu {ref_cost['cpu_s']:.2f} s; check dt={2 * REF_DT:g}: err_alpha "
+        say(f"reference dt={ref_dt:g} tol={REF_TOL:g}: {ref.n_events} events, status {ref.status}, "
+            f"cpu {ref_cost['cpu_s']:.2f} s; check dt={2 * ref_dt:g}: err_alpha "
             f"{check_err['err_alpha']:.2e}, err_x {check_err['err_x']:.2e}, "
             f"identical sequence {check_err['identical_sequence']}"
             + (f"; reference vs closed form: err_alpha {ref_err['err_alpha']:.2e}, "
@@ -259,9 +260,9 @@ def trajectories(args) -> dict:
                 for k, v in o.items()))
         report[name] = {
             "scene": base.to_dict(),
-            "reference": {"dt": REF_DT, "refine_tol": REF_TOL, "exact_closed_form": exact,
+            "reference": {"dt": ref_dt, "refine_tol": REF_TOL, "exact_closed_form": exact,
                           "n_events": ref.n_events, "status": ref.status} | ref_cost | ref_err,
-            "reference_check": {"dt": 2 * REF_DT, "refine_tol": REF_TOL} | check_cost | check_err,
+            "reference_check": {"dt": 2 * ref_dt, "refine_tol": REF_TOL} | check_cost | check_err,
             "rows": rows, "orders": orders,
         }
     return report
