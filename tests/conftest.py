@@ -162,7 +162,8 @@ def pytest_collection_modifyitems(config, items):
         if (item.get_closest_marker("two_cores") or "slurm" in item.fixturenames
                 or "sbatch" in text):
             item.add_marker(pytest.mark.xdist_group("two_cores"))
-    items.sort(key=lambda item: item.get_closest_marker("two_cores") is not None)
+    if getattr(config.option, "loadgroup", False):  # in one process, modules stay whole
+        items.sort(key=lambda item: item.get_closest_marker("two_cores") is not None)
 
 
 @pytest.hookimpl(tryfirst=True)
