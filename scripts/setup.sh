@@ -86,15 +86,25 @@ PY=$VENV/bin/python
 # (the grep hides this machine's pip-config noise about absent local index dirs)
 pip() { "$PY" -m pip "$@" 2> >(grep -v "^WARNING: Location 'file:" >&2); }
 
-# ---- c. Python deps (pip's own cache keeps the downloads) ---------------------
+# ---- c. Python deps -----------------------------------------------------------
+# uv installs the same packages from PyPI as pip would, four times faster (it downloads and
+# unpacks in parallel and byte-compiles on every core: 15-18 s here, pip 59-72 s); its cache
+# and pip's keep the downloads.  pip when uv cannot be had or fails.
 deps_stamp=$VENV/.sliders-deps-stamp
 deps_key=$(printf '%s\n' "${PY_DEPS[@]}" | sha256sum | cut -c1-16)
 if [ "$(cat "$deps_stamp" 2>/dev/null)" = "$deps_key" ]; then
-  step_done "pip: the same ${#PY_DEPS[@]} packages as last time, present"
+  step_done "Python packages: the same ${#PY_DEPS[@]} as last time, present"
 else
-  pip install -q "${PY_DEPS[@]}"
+  if pip install -q uv && "$VENV/bin/uv" pip install -q --python "$PY" --compile-bytecode \
+       "${PY_DEPS[@]}"; then
+    installer=uv
+  else
+    echo "setup.sh: uv could not install the Python packages; pip installs them" >&2
+    pip install -q "${PY_DEPS[@]}"
+    installer=pip
+  fi
   echo "$deps_key" > "$deps_stamp"
-  step_done "pip: ${PY_DEPS[*]}"
+  step_done "$installer: ${PY_DEPS[*]}"
 fi
 
 # ---- d. MPI stack against Debian's MPICH, h5py's wheel cached ------------------
