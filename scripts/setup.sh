@@ -62,13 +62,6 @@ else
   step_done "apt: all present"
 fi
 
-# SLURM (munge, slurmctld, slurmd, sbatch) for tests/test_slurm.py, which starts a
-# real one-node cluster of its own; only the test command needs it.
-if [ "${1:-}" = test ]; then
-  bash scripts/slurm_local.sh install
-  step_done "apt: SLURM for the tests (scripts/slurm_local.sh install)"
-fi
-
 # ---- b. virtual environment -------------------------------------------------
 command -v python3 >/dev/null || die "python3 not on PATH"
 want=$(python3 -c 'import sys; print("%d.%d" % sys.version_info[:2])')
@@ -85,35 +78,29 @@ export PATH="$VENV/bin:$PATH" VIRTUAL_ENV=$VENV
 PY=$VENV/bin/python
 # (the grep hides this machine's pip-config noise about absent local index dirs)
 pip() { "$PY" -m pip "$@" 2> >(grep -v "^WARNING: Location 'file:" >&2); }
-
-# ---- c. Python deps -----------------------------------------------------------
 # uv installs the same packages from PyPI as pip would, four times faster (it downloads and
 # unpacks in parallel and byte-compiles on every core: 15-18 s here, pip 59-72 s); its cache
 # and pip's keep the downloads.  pip when uv cannot be had or fails.
-deps_stamp=$VENV/.sliders-deps-stamp
-deps_key=$(printf '%s\n' "${PY_DEPS[@]}" | sha256sum | cut -c1-16)
-if [ "$(cat "$deps_stamp" 2>/dev/null)" = "$deps_key" ]; then
-  step_done "Python packages: the same ${#PY_DEPS[@]} as last time, present"
-else
-  if pip install -q uv && "$VENV/bin/uv" pip install -q --python "$PY" --compile-bytecode \
-       "${PY_DEPS[@]}"; then
-    installer=uv
-  else
-    echo "setup.sh: uv could not install the Python packages; pip installs them" >&2
-    pip install -q "${PY_DEPS[@]}"
-    installer=pip
+installer=uv
+pip_install() {  # pip_install PACKAGE...: by uv, or pip when uv cannot
+  if [ "$installer" = uv ] && { [ -x "$VENV/bin/uv" ] || pip install -q uv; } \
+       && "$VENV/bin/uv" pip install -q --python "$PY" --compile-bytecode "$@"; then
+    return
   fi
-  echo "$deps_key" > "$deps_stamp"
-  step_done "$installer: ${PY_DEPS[*]}"
-fi
+  [ "$installer" = pip ] || echo "setup.sh: uv could not install the Python packages; pip installs them" >&2
+  installer=pip
+  pip install -q "$@"
+}
 
-# ---- d. MPI stack against Debian's MPICH, h5py's wheel cached ------------------
+# ---- c. MPI stack against Debian's MPICH, h5py's wheel built beside the other steps -
 # mpi4py: PyPI's binary wheel, which runs against the machine's MPICH through MPICH's ABI: it
 # loads libmpi.so.12.  Debian bookworm's libmpich12 names that library libmpich.so.12 only
 # (trixie's names it both ways), so the ABI's name is added beside it once.  Where that cannot
 # be done (no root), mpi4py is built from source against MPICH (-O1: the default flags take
 # 15+ min).  h5py: PyPI has no wheel with parallel HDF5, so it is built once, against
-# libhdf5-mpich, and kept in $WHEELS; concurrent set-ups wait for one build (flock).
+# libhdf5-mpich, and kept in $WHEELS; concurrent set-ups wait for one build (flock).  The build
+# (about 2 min of one core for Cython, then the C files on every core) runs in the background
+# while SLURM, the Python packages and the package itself are installed.
 LIBDIR=/usr/lib/$(gcc -print-multiarch 2>/dev/null || echo x86_64-linux-gnu)
 mpi4py_ok() { "$PY" -c 'from mpi4py import MPI; MPI.Get_library_version()' 2>/dev/null; }
 h5py_ok() { "$PY" -c 'import h5py; assert h5py.get_config().mpi' 2>/dev/null; }
@@ -143,6 +130,7 @@ else
     exec 9>&-
   fi
 fi
+h5py_build=""  # the background build's log, when one runs
 if h5py_ok; then
   step_done "h5py(mpi): already installed"
 else
@@ -150,16 +138,40 @@ else
   exec 9>"$WHEELS/.lock"; flock 9   # a second set-up waits here for the first one's build
   if cached h5py && h5py_ok; then
     step_done "h5py(mpi): from the cache $WHEELS"
+    exec 9>&-
   else
-    echo "setup.sh: building h5py with parallel HDF5 (about 1 min, once) into $WHEELS"
-    pip install -q "${H5PY_BUILD_DEPS[@]}"
-    HDF5_MPI=ON HDF5_PKGCONFIG_NAME=hdf5-mpich CC=mpicc CFLAGS="-O1 -g0" \
-      pip wheel -q --no-deps --no-binary=h5py --no-build-isolation -w "$WHEELS" h5py
-    cached h5py || die "h5py wheel built but does not install"
-    h5py_ok || die "h5py lacks MPI support"
-    step_done "h5py(mpi): built against parallel HDF5 into $WHEELS"
+    pip_install numpy "${H5PY_BUILD_DEPS[@]}"
+    step_done "$installer: numpy ${H5PY_BUILD_DEPS[*]} (to build h5py)"
+    h5py_build=$(mktemp "${TMPDIR:-/tmp}/sliders-h5py-build.XXXXXX")
+    echo "setup.sh: building h5py with parallel HDF5 (about 2 min, once, beside the next steps) into $WHEELS"
+    cfg=$h5py_build.cfg; printf '[build_ext]\nparallel = %s\n' "$(getconf _NPROCESSORS_ONLN)" > "$cfg"
+    (  # holds the lock (fd 9) until the wheel is in the cache
+      started=$SECONDS
+      DIST_EXTRA_CONFIG=$cfg HDF5_MPI=ON HDF5_PKGCONFIG_NAME=hdf5-mpich CC=mpicc CFLAGS="-O1 -g0" \
+        "$PY" -m pip wheel -q --no-deps --no-binary=h5py --no-build-isolation -w "$WHEELS" h5py
+      echo "built in $((SECONDS - started)) s"
+    ) > "$h5py_build" 2>&1 &
+    h5py_pid=$!
+    exec 9>&-
   fi
-  exec 9>&-
+fi
+
+# SLURM (munge, slurmctld, slurmd, sbatch) for tests/test_slurm.py, which starts a
+# real one-node cluster of its own; only the test command needs it.
+if [ "${1:-}" = test ]; then
+  bash scripts/slurm_local.sh install
+  step_done "apt: SLURM for the tests (scripts/slurm_local.sh install)"
+fi
+
+# ---- d. Python deps -----------------------------------------------------------
+deps_stamp=$VENV/.sliders-deps-stamp
+deps_key=$(printf '%s\n' "${PY_DEPS[@]}" | sha256sum | cut -c1-16)
+if [ "$(cat "$deps_stamp" 2>/dev/null)" = "$deps_key" ]; then
+  step_done "Python packages: the same ${#PY_DEPS[@]} as last time, present"
+else
+  pip_install "${PY_DEPS[@]}"
+  echo "$deps_key" > "$deps_stamp"
+  step_done "$installer: ${PY_DEPS[*]}"
 fi
 
 # ---- e. the package itself, editable ------------------------------------------
@@ -181,6 +193,14 @@ else
   step_done "sliders: editable install (meson build)"
 fi
 "$PY" -c 'import sliders._kernel' || die "cannot import sliders._kernel"
+
+if [ -n "$h5py_build" ]; then
+  wait "$h5py_pid" || { tail -30 "$h5py_build" >&2; die "the h5py build failed (its log: $h5py_build)"; }
+  cached h5py || die "h5py wheel built but does not install"
+  h5py_ok || die "h5py lacks MPI support"
+  step_done "h5py(mpi): built in $(tail -1 "$h5py_build" | cut -d' ' -f3) s beside the steps above, into $WHEELS"
+  rm -f "$h5py_build" "$h5py_build.cfg"
+fi
 
 echo "setup.sh: ready in $((SECONDS - T_START)) s ($VENV)"
 printf '%s' "$SUMMARY"
