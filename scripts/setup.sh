@@ -135,12 +135,13 @@ if h5py_ok; then
   step_done "h5py(mpi): already installed"
 else
   mkdir -p "$WHEELS"
+  pip_install numpy  # h5py imports it
   exec 9>"$WHEELS/.lock"; flock 9   # a second set-up waits here for the first one's build
   if cached h5py && h5py_ok; then
     step_done "h5py(mpi): from the cache $WHEELS"
     exec 9>&-
   else
-    pip_install numpy "${H5PY_BUILD_DEPS[@]}"
+    pip_install "${H5PY_BUILD_DEPS[@]}"
     step_done "$installer: numpy ${H5PY_BUILD_DEPS[*]} (to build h5py)"
     h5py_build=$(mktemp "${TMPDIR:-/tmp}/sliders-h5py-build.XXXXXX")
     echo "setup.sh: building h5py with parallel HDF5 (about 2 min, once, beside the next steps) into $WHEELS"
