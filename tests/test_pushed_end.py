@@ -151,8 +151,8 @@ def test_bad_pushed_end_values_give_one_line_errors(values, message):
 
 # ------------------------------------------------ Fortran against NumPy
 # free and walls (seconds each with glibc's functions in the reference): the full suite; the fast
-# loop keeps a free chain bit for bit (steep_soft_driver), PUSHED's first 80 events compared with cantilevers
-# below, and walls compared on the tilt (test_backends)
+# loop keeps a free chain bit for bit (steep_soft_driver), the first 80 events of PUSHED
+# compared with cantilevers below, and walls compared on the tilt (test_backends)
 @pytest.mark.parametrize("scene", [
     pytest.param(PUSHED.replace(xi=0.0), marks=pytest.mark.slow),
     pytest.param(Scene(n_sliders=12, seed=2, loading="pushed_end", incline=0.0,
