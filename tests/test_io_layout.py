@@ -140,6 +140,7 @@ def prior_files(tmp_path_factory):
     return one, two
 
 
+@pytest.mark.slow  # runs under mpirun: the full suite's
 @pytest.mark.two_cores  # its fixture runs the prior on 2 ranks
 def test_prior_file_is_the_same_on_one_and_two_ranks_and_stores_each_thing_once(prior_files):
     """Every dataset byte for byte, but the measured wall time of each row (and its CRC-32 in
@@ -195,6 +196,7 @@ def test_a_prior_file_of_format_1_still_reads_and_is_not_resumed(tmp_path):
     assert done.returncode != 0 and len(lines) == 1 and "format_version 1" in lines[0], lines
 
 
+@pytest.mark.slow  # runs under mpirun: the full suite's
 @pytest.mark.two_cores  # its fixture runs the prior on 2 ranks
 def test_putting_a_prior_file_in_row_order_is_atomic_and_resumable(prior_files, tmp_path,
                                                                      monkeypatch):

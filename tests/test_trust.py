@@ -284,7 +284,8 @@ def test_merge_removes_and_reports_a_killed_merges_temporary(chunks, capsys):
 # ---------------------------------------------------------------------------
 # 2. a path is not a file
 # ---------------------------------------------------------------------------
-@pytest.mark.parametrize("ranks", [None, pytest.param(2, marks=pytest.mark.two_cores)])
+@pytest.mark.parametrize("ranks", [None, pytest.param(2, marks=[pytest.mark.two_cores,
+                                                                 pytest.mark.slow])])
 def test_second_resume_through_a_symlink_is_refused(tmp_path, ranks):
     out = tmp_path / "e.h5"
     (tmp_path / "link.h5").symlink_to(out.name)
@@ -392,6 +393,7 @@ def memory_hog(share: float) -> sliders.Scene:
     return sliders.Scene(n_sliders=n, mode="explore")
 
 
+@pytest.mark.slow  # runs under mpirun: the full suite's
 @pytest.mark.two_cores  # it starts mpirun -n 2
 def test_memory_is_summed_over_the_ranks_of_a_node(tmp_path):
     scene = memory_hog(0.6)
