@@ -6,7 +6,7 @@
 
 Runs ``bash scripts/setup.sh`` (in a fresh clone of HEAD with ``--fresh-clone``: a new virtual
 environment and build, the machine's Debian packages, pip's cache and the h5py wheel cache as
-they are; ``--cold-wheels`` also empties the wheel cache for that run), reads the seconds of each
+they are; ``--cold-wheels`` also empties the wheel cache and pip's for that run), reads the seconds of each
 step from its summary, then runs the suite there the way the README's test command does
 (``pytest -n <cores>``, or the fast loop) with a JUnit report, and reads each test's seconds
 (setup + call + teardown) from it, and where the cores' time went (``SLIDERS_TEST_TIMELINE``:
@@ -70,7 +70,7 @@ def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--fresh-clone", action="store_true", help="set up a clone of HEAD from scratch")
     p.add_argument("--cold-wheels", action="store_true",
-                   help="with --fresh-clone: an empty h5py wheel cache (h5py is built)")
+                   help="with --fresh-clone: empty h5py wheel and pip caches (h5py is built)")
     p.add_argument("--fast", action="store_true", help='the fast loop: -m "not slow"')
     p.add_argument("--slowest", type=int, default=25, help="how many of the slowest tests to list")
     p.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "suite_cost.json")
@@ -82,9 +82,11 @@ def main():
     if args.fresh_clone:
         where = scratch / "sliders"
         subprocess.run(["git", "clone", "-q", str(ROOT), str(where)], check=True)
-        if args.cold_wheels:
+        if args.cold_wheels:  # pip's own cache would hand back the wheel it built last time
             env["SLIDERS_WHEEL_CACHE"] = str(scratch / "wheels")
+            env["PIP_CACHE_DIR"] = str(scratch / "pip-cache")
     target = "fast" if args.fast else "test"
+    load_before = os.getloadavg()
     try:
         setup, setup_s = timed(["bash", "scripts/setup.sh"], where, env)
         if setup.returncode != 0:
@@ -103,7 +105,8 @@ def main():
         "checkout": "fresh clone of HEAD" if args.fresh_clone else str(ROOT),
         "wheel_cache": "empty" if args.cold_wheels else "as on this machine",
         "target": f"scripts/setup.sh {target}", "cores": os.cpu_count(),
-        "load_average_before": os.getloadavg(),
+        "load_average_before": load_before,
+        "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "setup_s": round(setup_s, 1), "setup_steps": setup_steps(setup.stdout),
         "suite_s": round(suite_s, 1), "suite_exit": suite.returncode, "suite_summary": tail[0],
         "tests": n_tests, "slowest": slow, "cores_used": cores,
