@@ -236,28 +236,22 @@ def scene_cache(request, tmp_path_factory) -> Path:
 
 def session_cached(what: str, compute, *args):
     """``compute(*args)`` once per test session, for every xdist worker: the first to ask
-    computes it and stores it (under a lock, renamed into place); the others wait and read it.
-    Each call returns its own copy, which a test may change freely.  Keyed by ``what`` and the
+    computes it and stores it (``session_folder``); the others wait and read it.  Each call
+    returns its own copy, which a test may change freely.  Keyed by ``what`` and the
     arguments' repr (frozen scenes and strings)."""
     if SCENE_CACHE is None:  # imported outside a test session
         return compute(*args)
-    key = hashlib.sha256(repr((what, args, sliders.__version__)).encode()).hexdigest()[:24]
-    path = SCENE_CACHE / f"{key}.pickle"
-    with open(SCENE_CACHE / f"{key}.lock", "a") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if path.exists():
-            return pickle.loads(path.read_bytes())
-        value = compute(*args)
-        partial = path.with_suffix(f".{os.getpid()}.part")
-        partial.write_bytes(pickle.dumps(value))
-        partial.rename(path)
-    return value
+
+    def store(folder: Path) -> None:
+        (folder / "value.pickle").write_bytes(pickle.dumps(compute(*args)))
+
+    return pickle.loads((session_folder((what, args), store) / "value.pickle").read_bytes())
 
 
-def session_folder(what: str, make) -> Path:
+def session_folder(what, make) -> Path:
     """A folder that ``make(folder)`` fills once per test session, for every xdist worker: the
     first to ask fills it (under a lock, then renames it into place); the others wait and get
-    it.  The tests only read it (copy what they change)."""
+    it.  The tests only read it (copy what they change).  Keyed by ``what``'s repr."""
     base = SCENE_CACHE if SCENE_CACHE is not None else Path(tempfile.mkdtemp())
     key = hashlib.sha256(repr((what, sliders.__version__)).encode()).hexdigest()[:24]
     folder = base / key

@@ -103,8 +103,8 @@ def test_tilt_file_provenance(tilt_file):
         assert a["git_commit"].startswith(head.stdout.strip())
 
 
-@pytest.mark.parametrize("n_ranks", [1, pytest.param(2, marks=pytest.mark.two_cores)])  # 2: parallel
-# HDF5 (mpio), described by rank 0
+# 2: parallel HDF5 (mpio), described by rank 0
+@pytest.mark.parametrize("n_ranks", [1, pytest.param(2, marks=pytest.mark.two_cores)])
 def test_ensemble_file(tmp_path, n_ranks):
     path = ensemble_file(tmp_path, n_ranks)
     dims = all_dims(path, ["/", "grids", "realisations", "realisations/statistics"])
