@@ -211,17 +211,18 @@ class _Rearrangement:
                                        self.weight, self.drive, du)
 
     def substep(self, h):
-        """Velocity-Verlet step of size h from (du, v, acc); only movers move."""
+        """Velocity-Verlet step of size h from (du, v, acc); only movers move.
+        The trial is (du, v, force, h, acc) at its end."""
         moving, v, acc = self.moving, self.v, self.acc
         du1 = self.du + np.where(moving, v * h + 0.5 * acc * h * h, 0.0)
         force1 = self.tangential(du1)
         acc1 = np.where(moving, force1 - self.friction * self.direction, 0.0)
         v1 = np.where(moving, v + 0.5 * (acc + acc1) * h, 0.0)
-        return du1, v1, force1, h
+        return du1, v1, force1, h, acc1
 
     def crossings(self, trial):
         """Mask of the sliders that cross in this trial (stop or start)."""
-        _, v1, force1, _ = trial
+        v1, force1 = trial[1], trial[2]
         stops = self.moving & (self.direction * v1 < 0.0)
         starts = ~self.moving & (np.abs(force1) > self.threshold)
         return stops | starts
@@ -253,15 +254,17 @@ class _Rearrangement:
     def count_step(self, trial) -> None:
         """Count an integration step (steps, slider-steps, the event clock)."""
         self.n_steps += 1
-        self.slider_steps += int(self.moving.sum())
+        self.slider_steps += int(np.count_nonzero(self.moving))
         self.t += trial[3]
 
     def accept(self, trial) -> None:
-        """Take the step: counters, the path of the movers, the new state."""
+        """Take the step: counters, the path of the movers, the new state (its
+        acceleration stands until a slider stops or starts)."""
         self.count_step(trial)
-        du1, v1, force1, _ = trial
-        self.path += float(np.sum(np.where(self.moving, self.direction * (du1 - self.du), 0.0)))
-        self.du, self.v, self.force = du1, v1, force1
+        du1, v1, force1, _, acc1 = trial
+        self.path += float(np.add.reduce(np.where(self.moving, self.direction * (du1 - self.du),
+                                                  0.0)))
+        self.du, self.v, self.force, self.acc = du1, v1, force1, acc1
 
     def stop_and_start(self) -> None:
         """Stop the movers whose velocity changed sign (each draws its new static
@@ -279,10 +282,12 @@ class _Rearrangement:
             self.threshold[stops] = self.law.static_threshold(state.mu_s[stops], self.normal,
                                                               self.scene.force_tol)
         starts = (~moving & (np.abs(self.force) > self.threshold)).nonzero()[0]
-        moving[starts] = True
-        direction[starts] = np.sign(self.force[starts])
-        self.moved[starts] = True
-        self.acc = np.where(moving, self.force - self.friction * direction, 0.0)
+        if starts.size:
+            moving[starts] = True
+            direction[starts] = np.sign(self.force[starts])
+            self.moved[starts] = True
+        if stops.size or starts.size:  # else the step's own acceleration stands
+            self.acc = np.where(moving, self.force - self.friction * direction, 0.0)
 
     def unfinished(self, code, message="") -> _EventOutcome:
         """The event ends the run: its status and the work it did.  On an error
