@@ -80,11 +80,13 @@ LAUNCHERS = {"mpirun", "mpiexec", "sbatch", "srun", "salloc"}
 
 def starts_ranks(args) -> bool:
     """Whether a subprocess's command line launches MPI ranks or a SLURM job (also inside a
-    ``bash -c`` script, or as one of the job scripts of mpi_runs/)."""
+    ``bash -c`` script, as one of the job scripts of mpi_runs/, or as a command given
+    ``--np K``, K > 1, which starts its own ranks: ``sliders.forecast train``)."""
     argv = [args] if isinstance(args, (str, bytes, os.PathLike)) else list(args)
-    words = re.split(r"[\s;&|()'\"]+", " ".join(os.fsdecode(a) for a in argv))
+    words = re.split(r"[\s;&|()'\"=]+", " ".join(os.fsdecode(a) for a in argv))
     return any(Path(w).name in LAUNCHERS or ("mpi_runs/" in w and w.endswith(".sh"))
-               for w in words)
+               or (w == "--np" and nxt.isdigit() and int(nxt) > 1)
+               for w, nxt in zip(words, words[1:] + [""]))
 
 
 class CoreSlots:
