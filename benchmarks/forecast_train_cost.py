@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/forecast_train_cost.py mpi_runs/priors/forecaster.toml --per-n 6
     .venv/bin/python benchmarks/forecast_train_cost.py mpi_runs/priors/forecaster.toml \
-        --measured results/default_model/default_forecaster.skops.prior.h5
+        --measured results/default_model/default_forecaster.zip.prior.h5
 
 Simulates ``--per-n`` rows of each chain length N of the prior, drawn at
 random among the rows of the prior's own design with that N (a row's cost is

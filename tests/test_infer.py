@@ -309,11 +309,13 @@ def test_the_domain_check_flags_the_share_of_calibration_cuts_it_is_set_to(model
         assert level - 1 / len(cuts) <= share <= level + 1e-9, (level, share)
 
 
-def test_the_benchmark_names_the_shipped_posterior_by_its_name_and_digest():
+@pytest.mark.parametrize("report", ["inference_calibration.json",
+                                    "inference_checks_200_piles.json"])
+def test_the_benchmark_names_the_shipped_posterior_by_its_name_and_digest(report):
     import pathlib
 
     results = pathlib.Path(__file__).parents[1] / "benchmarks" / "results"
-    d = json.loads((results / "inference_calibration.json").read_text())
+    d = json.loads((results / report).read_text())
     recorded = pathlib.Path(str(default_posterior_path()) + ".sha256").read_text().split()[0]
     assert d["posterior"] == {"name": default_posterior_path().name, "sha256": recorded}
     assert "/work" not in json.dumps(d)
