@@ -146,8 +146,15 @@ def pytest_sessionstart(session):
 CORE_SLOTS = pytest.StashKey[CoreSlots]()
 
 
-# the shell blocks of a Markdown page (those tests/test_docs_commands.py runs)
-SHELL_BLOCK = re.compile(r"^```(?:bash|console)[^\n]*\n(.*?)^```", re.M | re.S)
+# the shell blocks of a Markdown page that tests/test_docs_commands.py runs: those not after a
+# ``<!-- skip: next "why" -->`` line (and blank lines)
+SHELL_BLOCK = re.compile(r"^(<!-- skip: next[^\n]*-->\s*)?```(?:bash|console)[^\n]*\n(.*?)^```",
+                         re.M | re.S)
+
+
+def run_blocks(text: str) -> list[str]:
+    """The shell blocks of a page that its commands' test runs (the skipped ones left out)."""
+    return [block for skip, block in SHELL_BLOCK.findall(text) if not skip]
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -160,7 +167,7 @@ def pytest_collection_modifyitems(config, items):
         page = getattr(item, "callspec", None) and item.callspec.params.get("page")
         text = Path(page).read_text() if page else ""
         runs_page = getattr(item, "originalname", "") == "test_page_commands_run_as_written"
-        if runs_page and any(starts_ranks(block) for block in SHELL_BLOCK.findall(text)):
+        if runs_page and any(starts_ranks(block) for block in run_blocks(text)):
             item.add_marker(pytest.mark.two_cores)
         if (item.get_closest_marker("two_cores") or "slurm" in item.fixturenames
                 or (runs_page and "sbatch" in text)):

@@ -45,3 +45,28 @@ def test_a_test_that_starts_ranks_unmarked_fails_naming_the_mark(tmp_path):
     assert "1 failed, 2 passed" in res.stdout, res.stdout[-3000:] + res.stderr[-2000:]
     assert "FAILED test_inner.py::test_unmarked" in res.stdout
     assert "mark it @pytest.mark.two_cores" in res.stdout
+
+
+@pytest.mark.parametrize("command, starts", [
+    ("mpirun -n 2 python -m sliders.prior p.toml --out p.h5", True),
+    ("OUT=fc bash mpi_runs/forecast.sh --quiet", True),
+    ("python -m sliders.forecast train --prior p.toml --out m.zip --np 2", True),
+    ("python -m sliders.forecast train --prior p.toml --out m.zip --np=4", True),
+    ("python -m sliders.forecast train --prior p.toml --out m.zip --np 1", False),
+    ("python -m sliders.prior p.toml --out p.h5", False),
+])
+def test_a_command_that_starts_ranks_is_known_by_its_words(command, starts):
+    from conftest import starts_ranks
+
+    assert starts_ranks(command) is starts
+    assert starts_ranks(["bash", "-c", command]) is starts
+
+
+def test_a_skipped_block_of_a_page_does_not_make_it_hold_both_cores():
+    from conftest import run_blocks
+
+    page = ('```bash\npython -m sliders.prior p.toml\n```\n\n'
+            '<!-- skip: next "the full run, an hour" -->\n\n'
+            '```bash\nmpirun -n 2 python -m sliders.prior big.toml\n```\n\n'
+            '```console\n$ sbatch --wait job.sbatch\n```\n')
+    assert run_blocks(page) == ["python -m sliders.prior p.toml\n", "$ sbatch --wait job.sbatch\n"]
