@@ -167,10 +167,11 @@ def pytest_collection_modifyitems(config, items):
         page = getattr(item, "callspec", None) and item.callspec.params.get("page")
         text = Path(page).read_text() if page else ""
         runs_page = getattr(item, "originalname", "") == "test_page_commands_run_as_written"
-        if runs_page and any(starts_ranks(block) for block in run_blocks(text)):
+        blocks = run_blocks(text) if runs_page else []
+        if any(starts_ranks(block) for block in blocks):
             item.add_marker(pytest.mark.two_cores)
         if (item.get_closest_marker("two_cores") or "slurm" in item.fixturenames
-                or (runs_page and "sbatch" in text)):
+                or any("sbatch" in block for block in blocks)):
             item.add_marker(pytest.mark.xdist_group("two_cores"))
     if getattr(config.option, "loadgroup", False):  # in one process, modules stay whole
         items.sort(key=lambda item: item.get_closest_marker("two_cores") is not None)
