@@ -156,9 +156,9 @@ def flagged_share(model, cset, rows, draws: int, log) -> dict:
 
 def outside_checks(model, folder, rows: int, draws: int, log) -> dict:
     """``flagged_share`` of the first ``rows`` avalanched piles of each ``outside_*.h5`` set of
-    ``folder``, each marked targeted or not."""
+    ``folder`` (none without a folder), each marked targeted or not."""
     out = {}
-    for path in sorted(glob.glob(os.path.join(folder, "outside_*.h5"))):
+    for path in sorted(glob.glob(os.path.join(folder, "outside_*.h5"))) if folder else []:
         name = os.path.basename(path)[:-3]
         log(f"check {name}:")
         cset = read_prior_ensemble(path)
@@ -173,8 +173,9 @@ def checks_only(model, cset, held, args, rng, log, named: dict) -> int:
     share with its 90 % Clopper-Pearson interval."""
     from scipy.stats import binomtest
 
-    results = {"posterior": named, "check_draws": args.check_draws, "check": outside_checks(model, args.outside, args.outside_rows, args.check_draws,
-                                       log) if args.outside else {}}
+    results = {"posterior": named, "check_draws": args.check_draws,
+               "check": outside_checks(model, args.outside, args.outside_rows, args.check_draws,
+                                       log)}
     if args.check_rows:
         log("check held-out rows of the prior:")
         results["check"]["in_prior"] = flagged_share(
@@ -353,8 +354,8 @@ def main(argv=None) -> int:
     results["atan_mu_d_median_abs_error_rad"] = atan_mu_d_error(post, cset, rows)
     log(f"atan(mu_d) median |error| 3° before the avalanche, complete catalogues: "
         f"{results['atan_mu_d_median_abs_error_rad']:.2e} rad")
-    results["check"] = (outside_checks(model, args.outside, args.outside_rows, args.check_draws,
-                                       log) if args.outside else {})
+    results["check"] = outside_checks(model, args.outside, args.outside_rows, args.check_draws,
+                                      log)
     log("check held-out rows of the prior:")
     checked = rng.permutation(held)[:args.check_rows]
     results["check"]["in_prior"] = flagged_share(model, cset, checked, args.check_draws, log)

@@ -164,10 +164,8 @@ def pytest_collection_modifyitems(config, items):
     cores from one such test to the next.  Within the group, the tests that need one core come
     first, so that the others follow one another."""
     for item in items:
-        page = getattr(item, "callspec", None) and item.callspec.params.get("page")
-        text = Path(page).read_text() if page else ""
         runs_page = getattr(item, "originalname", "") == "test_page_commands_run_as_written"
-        blocks = run_blocks(text) if runs_page else []
+        blocks = run_blocks(Path(item.callspec.params["page"]).read_text()) if runs_page else []
         if any(starts_ranks(block) for block in blocks):
             item.add_marker(pytest.mark.two_cores)
         if (item.get_closest_marker("two_cores") or "slurm" in item.fixturenames
