@@ -124,6 +124,27 @@ def test_true_parameters_of_held_out_piles_are_covered_at_about_the_nominal_rate
     assert 0.7 <= np.mean(list(rates.values())) <= 0.92, rates
 
 
+def test_the_rank_of_an_atom_spreads_over_its_probability(model, held_out):
+    cats, truth = held_out
+    post = model.posterior
+    q = post.quantiles(Cuts.from_catalogues(cats[:10], PERFECT))
+    n = post.parameters_.index("n_sliders")
+    # every number of sliders of the prior in turn as the truth: its atoms tile [0, 1]
+    lo, hi = np.array([post.pit_bounds(q, {p: np.full(10, v if p == "n_sliders" else
+                                                      truth[p][0]) for p in post.parameters_})
+                       for v in post.n_sliders_values_]).transpose(1, 0, 2, 3)[:, :, :, n]
+    assert np.allclose(lo[0], 0.0) and np.allclose(hi[-1], 1.0)
+    assert np.allclose(lo[1:], hi[:-1]) and (hi >= lo).all()
+    # xi = 0 is one atom from 0; the randomized rank lies within the bounds it spreads over
+    truth10 = {p: v[:10] for p, v in truth.items()}
+    lo, hi = post.pit_bounds(q, truth10)
+    u = post.probability_integral(Cuts.from_catalogues(cats[:10], PERFECT), truth10,
+                                  np.random.default_rng(0))
+    assert ((lo <= u) & (u <= hi)).all()
+    zero = post.pit_bounds(q, truth10 | {"xi": np.zeros(10)})
+    assert (zero[0][:, post.parameters_.index("xi")] == 0.0).all()
+
+
 def test_the_text_names_every_parameter_and_the_skipped_check(model, held_out):
     cats, _ = held_out
     text = str(model.infer_catalogue(cats[0], PERFECT, check=False))

@@ -512,20 +512,33 @@ class ParameterPosterior(BaseEstimator):
         return self._pit(self.quantiles(cuts), truth, rng)
 
     def _pit(self, q, truth: dict, rng) -> np.ndarray:
-        out = np.zeros((len(q), len(self.parameters_)))
+        lo, hi = self.pit_bounds(q, truth)
+        out = lo.copy()
+        for p in range(lo.shape[1]):
+            for i in range(len(lo)):
+                if hi[i, p] > lo[i, p]:
+                    out[i, p] = rng.uniform(lo[i, p], hi[i, p])
+        return out
+
+    def pit_bounds(self, q, truth: dict) -> tuple[np.ndarray, np.ndarray]:
+        """(n, P) twice: each true parameter's posterior CDF just below it and at it, given
+        the reported quantiles ``q`` (``quantiles``): the probability integral transform is
+        uniform between the two (an atom: xi = 0, each number of sliders, a run of equal
+        quantiles within ``ATOM_WIDTH`` of the prior's range), one number where they meet."""
+        lo, hi = np.zeros((2, len(q), len(self.parameters_)))
         for p, name in enumerate(self.parameters_):
             y = learned_scale(name, truth[name], self.xi_zero_code_)
             tol = ATOM_WIDTH * (self.high_[p] - self.low_[p])
             for i in range(len(q)):
-                lo, hi = (float(v) for v in self.cdf(q[i], p, [y[i] - tol, y[i] + tol]))
+                a, b = (float(v) for v in self.cdf(q[i], p, [y[i] - tol, y[i] + tol]))
                 if name == "xi" and y[i] <= self.xi_zero_edge():
-                    lo, hi = 0.0, float(self.cdf(q[i], p, self.xi_zero_edge()))
+                    a, b = 0.0, float(self.cdf(q[i], p, self.xi_zero_edge()))
                 elif name == "n_sliders":
                     e = self.n_sliders_edges()
                     k = int(np.searchsorted(e, y[i])) - 1
-                    lo, hi = (float(v) for v in self.cdf(q[i], p, np.clip(e[k:k + 2], -1e9, 1e9)))
-                out[i, p] = rng.uniform(lo, hi) if hi > lo else lo
-        return out
+                    a, b = (float(v) for v in self.cdf(q[i], p, np.clip(e[k:k + 2], -1e9, 1e9)))
+                lo[i, p], hi[i, p] = a, b
+        return lo, hi
 
     def sample(self, q_row, n: int, rng) -> dict:
         """``n`` draws of every parameter for one cut, in the parameters' own units (xi = 0
