@@ -310,8 +310,11 @@ def figure(results: dict, path: str) -> None:
         ax.tick_params(labelsize=7)
         if j == 0:
             ax.legend(fontsize=7)
-    fig.suptitle("simulation-based calibration of the shipped posterior (held-out rows): rank "
-                 "histograms (grey: +-2 sd of a uniform) and coverage", fontsize=9)
+    n = results["pairs"]
+    where = ("piles new to the fit, one cut each" if results["sbc_source"]["one_cut_a_row"]
+             else "held-out rows")
+    fig.suptitle(f"simulation-based calibration of the shipped posterior, {n} pairs ({where}): "
+                 "rank histograms (grey: +-2 sd of a uniform) and coverage", fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.96))
     fig.savefig(path, dpi=110)
 
