@@ -129,7 +129,7 @@ def sbc(post, cset, pairs, rng, kind: str) -> dict:
     truth = {p: np.asarray(cset.parameters[p])[rows] for p in post.parameters_}
     q = post.quantiles(Cuts.from_catalogues(cats, PERFECT))
     lo, hi = post.pit_bounds(q, truth)
-    ranks = np.where(hi > lo, rng.uniform(lo, np.maximum(hi, lo)), lo)
+    ranks = rng.uniform(lo, hi)  # lo itself where the two meet (no atom)
     out = {}
     for j, p in enumerate(post.parameters_):
         u = ranks[:, j]
@@ -387,9 +387,9 @@ def main(argv=None) -> int:
     sbc_rng = np.random.default_rng([args.seed, 1])  # the rows checked below do not depend on it
     if args.sbc_data:
         sbc_set = read_prior_ensemble(args.sbc_data)
+        require_same_prior(cset, sbc_set, args.sbc_data)
         top = float(np.nanmax(np.asarray(cset.alpha_c, dtype=float)))
         pairs = one_cut_per_row(sbc_set, top, sbc_rng)
-        require_same_prior(cset, sbc_set, args.sbc_data)
         source = {"file": os.path.basename(args.sbc_data),
                   "prior": json.loads(str(sbc_set.attrs["prior"]))["prior"],
                   "one_cut_a_row": True}
@@ -397,10 +397,9 @@ def main(argv=None) -> int:
         sbc_set, pairs = cset, sbc_pairs(cset, held, args.pairs, sbc_rng)
         source = {"file": "held-out rows of " + os.path.basename(args.data),
                   "one_cut_a_row": bool(np.unique(pairs[0]).size == pairs[0].size)}
-    results = {"posterior": named, "held_out_rows": int(held.size),
-               "pairs": int(pairs[0].size), "sbc_source": source, "targets": TARGETS,
-               "sbc": {}}
     n = int(pairs[0].size)
+    results = {"posterior": named, "held_out_rows": int(held.size), "pairs": n,
+               "sbc_source": source, "targets": TARGETS, "sbc": {}}
     # how far a calibrated posterior's share strays by chance (at most: an atom counted in
     # part strays less than a truth counted whole)
     results["coverage_sd_if_calibrated"] = {f"{c:g}": math.sqrt(c * (1 - c) / n)
