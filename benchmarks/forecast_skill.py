@@ -42,9 +42,9 @@ from sliders.analysis.forecast.evaluation import coverage_by_kind, cuts_at_leads
 from sliders.analysis.forecast.features import training_cuts
 from sliders.analysis.forecast.measurement import degrade_cuts
 from sliders.analysis.forecast.reliability import coverage_report
+from sliders.io.catalogue import CatalogueSet
 from sliders.io.forecast_model import load_forecasters
 from sliders.runs.forecast.catalogue import load_set
-from sliders.runs.forecast.train import concatenate
 
 LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0)
 #: the leads (deg) of the coverage per kind of pile
@@ -240,8 +240,9 @@ def main():
     args = p.parse_args()
     models, prov = load_forecasters(args.model)
     beside = os.path.dirname(os.path.abspath(args.model))
-    data = concatenate([load_set(f if os.path.exists(f) else os.path.join(beside, os.path.basename(f)))
-                        for f in prov["data_files"]])
+    data = CatalogueSet.joined([load_set(f if os.path.exists(f)
+                                         else os.path.join(beside, os.path.basename(f)))
+                                for f in prov["data_files"]])
     held = np.asarray(prov["held_out_rows"], dtype=int)
     held = held[np.isfinite(data.alpha_c[held])]
     test = data.subset(held)

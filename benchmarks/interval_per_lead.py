@@ -29,8 +29,8 @@ from sliders.analysis.forecast.evaluation import cuts_at_leads
 from sliders.analysis.forecast.learned import INTERVALS
 from sliders.analysis.forecast.registry import FORECASTERS
 from sliders.analysis.forecast.reliability import coverage_report
+from sliders.io.catalogue import CatalogueSet
 from sliders.runs.forecast.catalogue import load_set
-from sliders.runs.forecast.train import concatenate
 
 #: the learned forecasters measured, and how their test catalogues are stripped
 MEASURED = {"learned_blind": blind, "learned": None}
@@ -80,7 +80,7 @@ def main():
     p.add_argument("--test-share", type=float, default=0.2)
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args()
-    data = concatenate([load_set(f) for f in args.data])
+    data = CatalogueSet.joined([load_set(f) for f in args.data])
     ok = np.flatnonzero(np.isfinite(data.alpha_c))
     perm = np.random.default_rng(args.seed).permutation(ok)
     n_test = int(round(args.test_share * perm.size))

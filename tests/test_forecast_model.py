@@ -16,10 +16,11 @@ from sklearn.base import clone
 from sliders.analysis.forecast import Cuts, Measurement
 from sliders.analysis.forecast.features import feature_matrix
 from sliders.analysis.forecast.learned import Learned
-from sliders.analysis.forecast.measurement import degrade
+from sliders.analysis.forecast.measurement import PERFECT, degrade
 from sliders.analysis.forecast.fitting import fit_methods
 from sliders.analysis.forecast.registry import FORECASTERS, make_forecasters
 from sliders.io.catalogue import Catalogue
+from sliders.io.prior_file import read_prior_ensemble
 from sliders.io.forecast_model import (MODEL_FORMAT, ModelFileError, default_model_path,
                                        load_forecasters, save_forecasters)
 
@@ -264,6 +265,63 @@ def test_coverage_per_lead_is_computed_and_written(tmp_path):
         assert 0.0 <= v["coverage"] <= 1.0 and v["n"] > 0
     assert 0.0 <= written["all_cuts"]["coverage"] <= 1.0
     assert written["per_tilt_bin"] and written["per_events_bin"]
+
+
+TINY_PRIOR = ('[prior]\nrealisations = 24\nseed = {seed}\nceiling_step = 0.5\nceiling_k = 1\n'
+              '[parameters]\nmu_d = {{ uniform = [0.3, 0.6] }}\n'
+              'mu_s_minus_mu_d = {{ loguniform = [0.02, 0.1] }}\nsigma_mu = 0.01\n'
+              'xi = {{ loguniform = [1e-3, 1.0], zero = 0.3 }}\nn_sliders = {{ choice = [12, 16] }}\n')
+
+
+def test_a_posterior_calibrates_on_another_draw_of_its_prior_and_refuses_the_same(tmp_path,
+                                                                                  capsys):
+    from sliders.runs import prior as prior_run
+    from sliders.runs.forecast.cli import main
+
+    files = {}
+    for seed in (3, 4):
+        (tmp_path / f"p{seed}.toml").write_text(TINY_PRIOR.format(seed=seed))
+        files[seed] = tmp_path / f"p{seed}.h5"
+        assert prior_run.main([str(tmp_path / f"p{seed}.toml"), "--out", str(files[seed]),
+                               "--quiet"]) == 0
+    out = tmp_path / "post.zip"
+    base = ["train", "--data", str(files[3]), "--fit", "posterior", "--max-iter", "3",
+            "--out", str(out), "--quiet"]
+    assert main(base + ["--calibration-data", str(files[4])]) == 0
+    models, prov = load_forecasters(str(out))
+    assert prov["calibration_files"] == ["p4.h5"] and prov["calibration_seeds"] == [4]
+    held = int(models["posterior"].calibration_split(prov["rows"])[1].sum())
+    assert models["posterior"].n_calibration_realisations_ == held + 24
+    capsys.readouterr()
+    for given, words in (([str(files[3])], "seed 3, which is already used"),
+                         ([str(files[4]), str(files[4])], "seed 4, which is already used")):
+        assert main(base + ["--calibration-data"] + given) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and words in err, err
+    assert main(base[:3] + ["--out", str(out), "--quiet", "--calibration-data",
+                            str(files[4])]) == 2
+    assert "only with --fit posterior" in capsys.readouterr().err
+
+
+def test_a_posterior_of_a_prior_that_fixes_parameters_infers_them_exactly(tmp_path):
+    """sigma_mu and xi fixed by the prior (xi = 0: no positive value to code the atom below):
+    the fit writes a file that reads, whose posterior of each is the prior's value."""
+    from sliders.runs import prior as prior_run
+    from sliders.runs.forecast.cli import main
+
+    toml = tmp_path / "fixed.toml"
+    toml.write_text(TINY_PRIOR.format(seed=3).replace("xi = { loguniform = [1e-3, 1.0], "
+                                                      "zero = 0.3 }", "xi = 0.0"))
+    assert prior_run.main([str(toml), "--out", str(tmp_path / "fixed.h5"), "--quiet"]) == 0
+    out = tmp_path / "post.zip"
+    assert main(["train", "--data", str(tmp_path / "fixed.h5"), "--fit", "posterior",
+                 "--max-iter", "3", "--out", str(out), "--quiet"]) == 0
+    post = load_forecasters(str(out))[0]["posterior"]
+    cset = read_prior_ensemble(str(tmp_path / "fixed.h5"))
+    cut = cset.catalogue(0).cut(float(cset.alpha_c[0]) - 0.02)
+    summary = post.summary(post.quantiles(Cuts.from_catalogues([cut], PERFECT))[0])
+    assert summary["xi"]["p_zero"] == 1.0
+    assert summary["sigma_mu"]["interval_95"] == pytest.approx([0.01, 0.01], rel=1e-9)
 
 
 def test_train_runs_a_prior_and_writes_a_model_file_of_its_provenance(tmp_path, capsys):

@@ -372,3 +372,46 @@ def test_the_shipped_posterior_stores_a_monotone_recalibration_of_plain_numbers(
             post.check_fitted()
     finally:
         post.recalibration_ = r
+
+
+def test_interp_rows_is_numpys_interp_row_by_row_to_the_last_bit():
+    from sliders.analysis.forecast.posterior import interp_rows
+
+    rng = np.random.default_rng(11)
+    xp = np.sort(rng.normal(size=(50, 9)), axis=1)
+    xp[:5, 3] = xp[:5, 2]  # ties, as a run of equal quantiles makes
+    fp = np.sort(rng.uniform(size=(50, 9)), axis=1)
+    x = rng.normal(scale=2.0, size=(50, 4))
+    x[:, 0] = xp[:, 4]  # exactly on a knot, and outside both ends
+    x[0, 1], x[1, 1] = -np.inf, np.inf
+    for knots in (xp, xp[0]):
+        want = np.array([np.interp(x[i], knots if knots.ndim == 1 else knots[i], fp[i])
+                         for i in range(len(x))])
+        assert np.array_equal(interp_rows(x, knots, fp), want)
+
+
+def test_a_calibration_set_only_calibrates(held_out, model):
+    """Rows given as ``calibration`` join the held-out realisations: the regressors are those
+    of the fit without them, and the calibration counts them."""
+    from sliders.io.catalogue import CatalogueSet
+
+    _, truth = held_out
+    whole = [c for c, _ in HELD_OUT_PILES]
+    data = CatalogueSet.from_catalogues(whole, truth, [a for _, a in HELD_OUT_PILES],
+                                        ["avalanche"] * len(whole),
+                                        attrs={"prior": model.posterior.prior_})
+    train, extra = data.subset(np.arange(40)), data.subset(np.arange(40, len(whole)))
+    kw = dict(max_iter=5, draws_per_row=3, random_state=2)
+    alone = ParameterPosterior(**kw).fit(train)
+    both = ParameterPosterior(**kw).fit(train, calibration=extra)
+    held = int(alone.calibration_split(len(train))[1].sum())
+    assert alone.n_calibration_realisations_ == held
+    assert both.n_calibration_realisations_ == held + len(extra)
+    x = np.random.default_rng(0).normal(size=(7, alone.n_features_in_))
+    for a, b in zip(alone.models_, both.models_):
+        assert all(np.array_equal(ma.predict(x), mb.predict(x)) for ma, mb in zip(a, b))
+    assert not np.array_equal(alone.shifts_, both.shifts_)
+    lacking = CatalogueSet.from_catalogues([whole[0]], {"mu_d": truth["mu_d"][:1]},
+                                           extra.alpha_c[:1], ["avalanche"])
+    with pytest.raises(IntegrityError, match="calibration realisations lack"):
+        ParameterPosterior(**kw).fit(train, calibration=lacking)

@@ -273,3 +273,22 @@ def test_damaged_events_are_found_and_recomputed(small, reference, tmp_path):
     done = run([small, "--out", out, "--resume", "--quiet"])
     assert done.returncode == 0, done.stderr
     assert_same_sets(read_prior_ensemble(reference), read_prior_ensemble(out))
+
+
+def test_another_draw_is_the_same_prior_with_a_seed_of_its_own():
+    import json
+
+    from sliders.io.prior_file import another_draw, prior_seed
+
+    def attrs(seed, mu_d=(0.2, 1.1), mode="explore"):
+        return {"prior": json.dumps({"prior": {"seed": seed, "realisations": 10},
+                                     "scene": {"mode": mode},
+                                     "parameters": {"mu_d": {"uniform": list(mu_d)}}})}
+
+    assert prior_seed(attrs(7)) == 7 and prior_seed({}) is None
+    assert another_draw(attrs(1), attrs(2)) is None
+    assert "seed 1" in another_draw(attrs(1), attrs(1))
+    assert "seed 3" in another_draw(attrs(1), attrs(3), taken=[3])
+    assert "not the same prior" in another_draw(attrs(1), attrs(2, mu_d=(0.2, 1.0)))
+    assert "not the same prior" in another_draw(attrs(1), attrs(2, mode="history"))
+    assert another_draw(attrs(1), {}) is not None

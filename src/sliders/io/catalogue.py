@@ -179,6 +179,21 @@ class CatalogueSet:
             dict(self.attrs))
 
     @classmethod
+    def joined(cls, sets) -> "CatalogueSet":
+        """One set of the rows of ``sets``, in order: the parameters they have in common, no
+        ceiling, the first set's provenance with every set's prior digest."""
+        sets = list(sets)
+        if len(sets) == 1:
+            return sets[0]
+        common = set.intersection(*(set(s.parameters) for s in sets))
+        return cls.from_catalogues(
+            [s.catalogue(i) for s in sets for i in range(len(s))],
+            {k: np.concatenate([np.asarray(s.parameters[k]) for s in sets]) for k in sorted(common)},
+            np.concatenate([s.alpha_c for s in sets]), np.concatenate([s.status for s in sets]),
+            attrs=sets[0].attrs | {"prior_digest": "+".join(str(s.attrs.get("prior_digest", ""))
+                                                             for s in sets)})
+
+    @classmethod
     def from_catalogues(cls, catalogues, parameters: dict, alpha_c, status,
                         ceiling_alpha=None, ceiling_distance=None, attrs=None) -> "CatalogueSet":
         """Stack per-row ``Catalogue`` objects into ragged columns."""

@@ -457,3 +457,23 @@ def write_view(path, scene: dict | None = None) -> None:
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def prior_seed(attrs: dict) -> int | None:
+    """The seed a prior file's rows were drawn with (its attributes), None if it names none."""
+    seed = json.loads(str(attrs.get("prior", "{}"))).get("prior", {}).get("seed")
+    return None if seed is None else int(seed)
+
+
+def another_draw(reference: dict, other: dict, taken=()) -> str | None:
+    """Why a prior file (attributes ``other``) is not a draw of the prior of ``reference``
+    (the same parameters and scene) with a seed of its own (not ``reference``'s, nor one of
+    ``taken``); None if it is.  Its rows are then new piles of the same law: independent of
+    the reference's, as a calibration or a simulation-based calibration needs."""
+    a, b = (json.loads(str(c.get("prior", "{}"))) for c in (reference, other))
+    if any(a.get(k) != b.get(k) for k in ("parameters", "scene")):
+        return "not the same prior (its parameters or scene differ)"
+    seed = prior_seed(other)
+    if seed is None or seed == prior_seed(reference) or seed in set(taken):
+        return f"drawn with seed {seed}, which is already used"
+    return None

@@ -59,7 +59,7 @@ from sklearn.utils.metadata_routing import UNUSED
 from sklearn.ensemble import HistGradientBoostingRegressor
 from threadpoolctl import threadpool_limits
 
-from ...io.catalogue import Catalogue
+from ...io.catalogue import Catalogue, CatalogueSet
 from .domain import DOMAIN_FEATURES, DomainCheck
 from .features import Cuts, coupled_lone_slips, feature_matrix, training_cuts
 from .integrity import IntegrityError, check_array, check_boosting, check_number, require
@@ -136,6 +136,24 @@ def recalibrated(u, recalibration) -> np.ndarray:
     """The probabilities ``u`` of a CDF through its ``recalibration``: the CDF reported."""
     return np.interp(u, np.concatenate([[0.0], recalibration, [1.0]]),
                      np.concatenate([[0.0], REPORTED_LEVELS, [1.0]]))
+
+
+def interp_rows(x, xp, fp) -> np.ndarray:
+    """``np.interp`` row by row, to the last bit: (n, k) points ``x`` on (n, K) or (K,) knots
+    ``xp`` (increasing in each row) of (n, K) or (K,) values ``fp``."""
+    x = np.asarray(x, dtype=float)
+    n = len(x)
+    shared = np.ndim(xp) == 1
+    xp, fp = (np.broadcast_to(np.asarray(a, dtype=float), (n, np.shape(a)[-1])) for a in (xp, fp))
+    j = (np.searchsorted(xp[0], x, side="right") if shared
+         else (xp[:, None, :] <= x[:, :, None]).sum(axis=2))
+    j = np.clip(j - 1, 0, xp.shape[1] - 2)
+    rows = np.arange(n)[:, None]
+    x0, x1, f0, f1 = xp[rows, j], xp[rows, j + 1], fp[rows, j], fp[rows, j + 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = (f1 - f0) / (x1 - x0) * (x - x0) + f0
+    out = np.where(x == x0, f0, out)
+    return np.where(x < xp[:, :1], fp[:, :1], np.where(x >= xp[:, -1:], fp[:, -1:], out))
 
 
 def learned_scale(name: str, values, xi_zero_code: float = math.nan) -> np.ndarray:
@@ -246,6 +264,8 @@ class ParameterPosterior(BaseEstimator):
         Whether a catalogue is like the training cuts.
     prior_ : str
         The prior's specification (JSON): the predictive check simulates its scene.
+    n_calibration_realisations_ : int
+        The realisations held out of the fit that calibrate it (``calibration`` among them).
     """
 
     def __init__(self, draws_per_row: int = 6, max_iter: int = 50, learning_rate: float = 0.1,
@@ -288,14 +308,18 @@ class ParameterPosterior(BaseEstimator):
 
     # the training set is data, not metadata to route through a meta-estimator: no
     # set_fit_request (whose scikit-learn docstring the API pages would carry)
-    __metadata_request__fit = {"train": UNUSED}
+    __metadata_request__fit = {"train": UNUSED, "calibration": UNUSED}
 
-    def fit(self, train, y=None):
+    def fit(self, train, y=None, calibration=None):
         """Fit the regressors on ``train`` (a ``CatalogueSet`` with its parameters), calibrate on
-        its held-out realisations, and fit the domain check."""
+        its held-out realisations, and fit the domain check.
+
+        ``calibration``, a ``CatalogueSet`` of the same prior drawn with another seed, joins
+        the held-out realisations (none of its rows is fitted): the recalibration's map is
+        an empirical CDF of theirs, and its noise falls as the square root of their number."""
         # the trees' OpenMP threads on a shared machine wait for each other (20 s a fit, not 0.3)
         with threadpool_limits(limits=1, user_api="openmp"):
-            return self._fit(train)
+            return self._fit(train, calibration)
 
     def calibration_split(self, n: int):
         """The fit's generator and which of ``n`` training realisations it holds out of the
@@ -303,19 +327,26 @@ class ParameterPosterior(BaseEstimator):
         rng = np.random.default_rng(self.random_state)
         return rng, rng.random(n) < self.calibration_share
 
-    def _fit(self, train):
+    def _fit(self, train, calibration=None):
         rng, held = self.calibration_split(len(train))
         self.parameters_ = tuple(p for p in POSTERIOR_PARAMETERS if p in train.parameters)
         require(self.parameters_, "the prior file holds none of the material parameters")
         xi = np.asarray(train.parameters.get("xi", []), dtype=float)
-        self.xi_zero_code_ = (float(np.log10(xi[xi > 0].min()) - XI_ZERO_GAP)
-                              if (xi > 0).any() else math.nan)
+        # below the smallest positive xi; a prior of xi = 0 alone has it below xi = 1
+        self.xi_zero_code_ = (float(np.log10(xi[xi > 0].min() if (xi > 0).any() else 1.0)
+                                    - XI_ZERO_GAP) if xi.size else math.nan)
         self.n_sliders_values_ = np.unique(np.asarray(train.parameters.get("n_sliders", [1]),
                                                       dtype=float))
         every = self.targets(train, np.arange(len(train)))
         self.low_, self.high_ = every.min(axis=0), every.max(axis=0)
         self.prior_variance_ = np.maximum(every.var(axis=0), 1e-12)
         fit_set, cal_set = train.subset(np.flatnonzero(~held)), train.subset(np.flatnonzero(held))
+        if calibration is not None:
+            missing = sorted(set(self.parameters_) - set(calibration.parameters))
+            require(not missing, f"the calibration realisations lack {', '.join(missing)}")
+            cal_set = CatalogueSet.joined([cal_set, calibration.subset(
+                np.flatnonzero(np.isfinite(np.asarray(calibration.alpha_c, dtype=float))))])
+        self.n_calibration_realisations_ = len(cal_set)
         cuts = self.cuts_of(fit_set, rng)
         x = design(cuts)
         self.mu_d_reference_ = float(np.median(np.asarray(train.parameters.get("mu_d", [0.0]))))
@@ -434,8 +465,10 @@ class ParameterPosterior(BaseEstimator):
 
     def _spread(self, q) -> np.ndarray:
         lo, hi = np.searchsorted(POSTERIOR_LEVELS, [0.1, 0.9])
+        # a floor of a thousandth of the prior's range; a parameter the prior holds fixed
+        # (no range) has its value for every quantile, and a unit spread keeps its shifts 0
         width = (self.high_ - self.low_)[None, :]
-        return np.maximum(q[:, :, hi] - q[:, :, lo], 1e-3 * width)
+        return np.maximum(q[:, :, hi] - q[:, :, lo], np.where(width > 0, 1e-3 * width, 1.0))
 
     @staticmethod
     def _class_of(cuts: Cuts) -> np.ndarray:
@@ -470,18 +503,30 @@ class ParameterPosterior(BaseEstimator):
     def _reported(self, q, group) -> np.ndarray:
         levels = np.concatenate([[0.0], POSTERIOR_LEVELS, [1.0]])
         out = np.empty(q.shape[:2] + (REPORTED_LEVELS.size,))
-        for i in range(len(q)):
-            for p in range(q.shape[1]):
-                knots = np.concatenate([[self.low_[p]], q[i, p], [self.high_[p]]])
-                out[i, p] = np.interp(self.recalibration_[group[i], p], levels, knots)
+        for p in range(q.shape[1]):
+            knots = self._with_ends(q[:, p], p)
+            for g in np.unique(group):
+                at = group == g
+                r = np.broadcast_to(self.recalibration_[g, p], (int(at.sum()), REPORTED_LEVELS.size))
+                out[at, p] = interp_rows(r, levels, knots[at])
         return out
+
+    def _with_ends(self, q, p: int) -> np.ndarray:
+        """(n, K + 2) the quantiles ``q`` (n, K) of parameter ``p`` between its prior's ends."""
+        n = len(q)
+        return np.hstack([np.full((n, 1), self.low_[p]), q, np.full((n, 1), self.high_[p])])
 
     def knots(self, q_row: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
         """The CDF of parameter ``p`` for one cut: (values, probabilities), increasing, from
         the prior's low end (0) through the reported quantiles to its high end (1)."""
-        x = np.concatenate([[self.low_[p]], q_row[p], [self.high_[p]]])
-        x = np.maximum.accumulate(x)
-        x = x + np.arange(x.size) * 1e-12 * max(1.0, float(np.abs(x).max()))
+        x, u = self.knots_of(q_row[None], p)
+        return x[0], u
+
+    def knots_of(self, q, p: int) -> tuple[np.ndarray, np.ndarray]:
+        """``knots`` of many cuts at once: (n, M + 2) values and the (M + 2,) probabilities."""
+        x = np.maximum.accumulate(self._with_ends(q[:, p], p), axis=1)
+        scale = np.maximum(1.0, np.abs(x).max(axis=1, keepdims=True))
+        x = x + np.arange(x.shape[1]) * 1e-12 * scale
         return x, np.concatenate([[0.0], REPORTED_LEVELS, [1.0]])
 
     def cdf(self, q_row, p: int, value) -> np.ndarray:
@@ -527,17 +572,18 @@ class ParameterPosterior(BaseEstimator):
         quantiles within ``ATOM_WIDTH`` of the prior's range), one number where they meet."""
         lo, hi = np.zeros((2, len(q), len(self.parameters_)))
         for p, name in enumerate(self.parameters_):
-            y = learned_scale(name, truth[name], self.xi_zero_code_)
+            y = learned_scale(name, np.asarray(truth[name], dtype=float), self.xi_zero_code_)
             tol = ATOM_WIDTH * (self.high_[p] - self.low_[p])
-            for i in range(len(q)):
-                a, b = (float(v) for v in self.cdf(q[i], p, [y[i] - tol, y[i] + tol]))
-                if name == "xi" and y[i] <= self.xi_zero_edge():
-                    a, b = 0.0, float(self.cdf(q[i], p, self.xi_zero_edge()))
-                elif name == "n_sliders":
-                    e = self.n_sliders_edges()
-                    k = int(np.searchsorted(e, y[i])) - 1
-                    a, b = (float(v) for v in self.cdf(q[i], p, np.clip(e[k:k + 2], -1e9, 1e9)))
-                lo[i, p], hi[i, p] = a, b
+            ends = np.column_stack([y - tol, y + tol])
+            if name == "xi":
+                zero = y <= self.xi_zero_edge()
+                ends[zero] = [-np.inf, self.xi_zero_edge()]
+            elif name == "n_sliders":
+                e = np.clip(self.n_sliders_edges(), -1e9, 1e9)
+                k = np.searchsorted(self.n_sliders_edges(), y) - 1
+                ends = np.column_stack([e[k], e[k + 1]])
+            x, u = self.knots_of(q, p)
+            lo[:, p], hi[:, p] = interp_rows(ends, x, u).T
         return lo, hi
 
     def sample(self, q_row, n: int, rng) -> dict:

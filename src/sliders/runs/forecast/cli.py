@@ -186,6 +186,9 @@ def add_train_arguments(t) -> None:
     t.add_argument("--max-iter", type=int, default=None,
                    help=f"boosting iterations (default {TRAIN_MAX_ITER}; "
                         f"{POSTERIOR_MAX_ITER} with --fit posterior)")
+    t.add_argument("--calibration-data", nargs="+", default=None, metavar="PRIOR.h5",
+                   help="with --fit posterior: the same prior drawn with other seeds, whose "
+                        "rows calibrate the posterior beside its held-out share (none is fitted)")
     t.add_argument("--hold-out", type=float, default=0.0, metavar="SHARE",
                    help="share of the rows kept out of the fit, to measure the model on "
                         "(their indices go into the provenance)")

@@ -32,6 +32,7 @@ from ...analysis.forecast.fitting import fit_methods
 from ...io.catalogue import CatalogueSet
 from ...io.forecast_files import ForecastInputError
 from ...io.forecast_model import save_forecasters
+from ...io.prior_file import another_draw, prior_seed
 from .catalogue import load_set
 from .common import POSTERIOR_MAX_ITER, TRAIN_MAX_ITER, progress_log, provenance
 
@@ -72,7 +73,8 @@ def train(args, argv) -> int:
         paths = [args.out + ".prior.h5"]
         run_prior(args, paths[0], log)
     t_sim = time.time() - t0
-    data = concatenate([load_set(p, "--data" if args.data else "the prior ensemble") for p in paths])
+    data = CatalogueSet.joined([load_set(p, "--data" if args.data else "the prior ensemble")
+                                for p in paths])
     data_path = " + ".join(paths)
     ok = np.isfinite(np.asarray(data.alpha_c, dtype=float))
     if ok.sum() < 20:
@@ -82,9 +84,11 @@ def train(args, argv) -> int:
         raise ForecastInputError(f"--hold-out {args.hold_out:g}: must lie in [0, 0.9)")
     held = np.random.default_rng([args.seed, 7]).random(len(data)) < args.hold_out
     train_set = data.subset(np.flatnonzero(ok & ~held))
+    calibration, calibration_seeds = calibration_sets(args, data)
     if args.fit == "posterior":
         models = {"posterior": ParameterPosterior(max_iter=args.max_iter,
-                                                  random_state=args.seed).fit(train_set)}
+                                                  random_state=args.seed).fit(
+            train_set, calibration=calibration)}
         log(f"forecast: fitted the posterior in {time.time() - t0 - t_sim:.1f} s")
     else:
         models = fit_methods(train_set, args.max_iter, args.seed, log)
@@ -93,11 +97,34 @@ def train(args, argv) -> int:
     prov["rows"] = len(train_set)
     prov["held_out_rows"] = [int(r) for r in np.flatnonzero(held)]
     prov["data_files"] = [portable_path(p) for p in paths]
+    if calibration is not None:
+        prov["calibration_files"] = [portable_path(p) for p in args.calibration_data]
+        prov["calibration_seeds"] = calibration_seeds
     prov["seconds_simulation"], prov["seconds_fit"] = t_sim, time.time() - t0 - t_sim
     size = save_forecasters(args.out, models, prov)
     log(f"forecast: wrote {args.out} ({size / 1e6:.2f} MB) from {prov['rows']} rows in "
         f"{time.time() - t0:.0f} s")
     return 0
+
+
+def calibration_sets(args, data) -> tuple[CatalogueSet | None, list]:
+    """The rows of ``--calibration-data`` and the seeds of its files, each file checked to draw
+    the training prior with a seed of its own."""
+    if args.calibration_data is None:
+        return None, []
+    if args.fit != "posterior":
+        raise ForecastInputError("--calibration-data: only with --fit posterior (the forecasters "
+                                 "calibrate on a share of --data)")
+    parts, seeds = [], []
+    for path in args.calibration_data:
+        part = load_set(path, "--calibration-data")
+        why = another_draw(data.attrs, part.attrs, seeds)
+        if why is not None:
+            raise ForecastInputError(f"--calibration-data {path}: {why}: it must draw the "
+                                     "training prior with another seed")
+        parts.append(part)
+        seeds.append(prior_seed(part.attrs))
+    return CatalogueSet.joined(parts), seeds
 
 
 def portable_path(path: str) -> str:
@@ -110,19 +137,6 @@ def portable_path(path: str) -> str:
         return path
     rel = os.path.relpath(path, os.getcwd())
     return rel if not rel.startswith(os.pardir) else os.path.basename(path)
-
-
-def concatenate(sets):
-    """One ``CatalogueSet`` of the rows of several (their parameters in common; no ceiling)."""
-    if len(sets) == 1:
-        return sets[0]
-    common = set.intersection(*(set(s.parameters) for s in sets))
-    cats = [s.catalogue(i) for s in sets for i in range(len(s))]
-    return CatalogueSet.from_catalogues(
-        cats, {k: np.concatenate([np.asarray(s.parameters[k]) for s in sets]) for k in sorted(common)},
-        np.concatenate([s.alpha_c for s in sets]), np.concatenate([s.status for s in sets]),
-        attrs=sets[0].attrs | {"prior_digest": "+".join(str(s.attrs.get("prior_digest", ""))
-                                                         for s in sets)})
 
 
 def training_provenance(data, data_path: str, args) -> dict:
