@@ -20,8 +20,9 @@ indices are in its provenance):
   as the share of each atom's probability inside the interval (the
   non-randomized PIT of Czado, Gneiting and Held 2009: a number of sliders
   whose atom straddles an interval's end counts in part, not by a coin).  With
-  ``--sbc-data`` (a prior file of the training prior drawn again with another
-  seed, every row new to the fit) each row is cut once, so that the pairs are
+  ``--sbc-data`` (a prior file of the training prior drawn again with a seed of
+  its own, neither the training's nor one of the posterior's calibration files:
+  every row new to the fit and to its calibration) each row is cut once, so that the pairs are
   independent, as the KS test assumes; without it, ``--pairs`` pairs of the
   held-out rows, several cuts of a row once the rows run out;
 * the contraction (1 - posterior variance / prior variance, learned scale) at a
@@ -66,7 +67,7 @@ from scipy.stats import kstest
 from sliders.analysis.forecast.features import Cuts
 from sliders.analysis.forecast.measurement import PERFECT
 from sliders.analysis.forecast.posterior import angles_sizes_only
-from sliders.io.prior_file import read_prior_ensemble
+from sliders.io.prior_file import another_draw, read_prior_ensemble
 from sliders.runs.forecast.catalogue import catalogue_csv_text
 from sliders.runs.forecast.infer import load_posterior
 
@@ -139,15 +140,24 @@ def sbc(post, cset, pairs, rng, kind: str) -> dict:
     return out
 
 
-def require_same_prior(cset, other, path: str) -> None:
-    """``other`` draws from the prior ``cset`` was drawn from (the same parameters and
-    scene), with another seed: otherwise its pairs test nothing the posterior claims."""
-    a, b = (json.loads(str(c.attrs.get("prior", "{}"))) for c in (cset, other))
-    same = all(a.get(k) == b.get(k) for k in ("parameters", "scene"))
-    seeds = [c.get("prior", {}).get("seed") for c in (a, b)]
-    if not same or seeds[0] == seeds[1]:
-        sys.exit(f"--sbc-data {path}: not the training prior drawn with another seed "
-                 f"(seeds {seeds[1]} and {seeds[0]})")
+def ks_over_cut_draws(post, sbc_set, top: float, first: dict, args, log) -> dict:
+    """The KS p-values of the same piles cut again (``--sbc-draws`` draws in all, the first the
+    pairs above), and how many of all those tests fail at 5 %: a calibrated posterior fails
+    one in twenty by chance, so one draw's ten tests say less than several draws' count."""
+    p_values = {kind: {p: [d["ks_p_value"]] for p, d in first[kind].items()} for kind in first}
+    for k in range(1, args.sbc_draws):
+        rng = np.random.default_rng([args.seed, 1, k])
+        pairs = one_cut_per_row(sbc_set, top, rng)
+        for kind in p_values:
+            for p, d in sbc(post, sbc_set, pairs, rng, kind).items():
+                p_values[kind][p].append(d["ks_p_value"])
+    every = [v for kind in p_values.values() for ps in kind.values() for v in ps]
+    out = {"draws": args.sbc_draws, "p_values": p_values, "tests": len(every),
+           "failed_at_5_percent": int(sum(v <= 0.05 for v in every)),
+           "expected_to_fail_if_calibrated": 0.05 * len(every)}
+    log(f"KS over {args.sbc_draws} cut draws: {out['failed_at_5_percent']} of {out['tests']} "
+        f"tests fail at 5 % ({out['expected_to_fail_if_calibrated']:.1f} expected by chance)")
+    return out
 
 
 def contraction_at(post, cset, rows, stage) -> dict:
@@ -344,8 +354,11 @@ def main(argv=None) -> int:
     ap.add_argument("--pairs", type=int, default=600,
                     help="(row, cut) pairs of the held-out rows (without --sbc-data)")
     ap.add_argument("--sbc-data", default=None, metavar="FILE",
-                    help="a prior file of the training prior drawn with another seed: the "
-                         "calibration's pairs, one cut a row")
+                    help="a prior file of the training prior drawn with a seed of its own: "
+                         "the calibration's pairs, one cut a row")
+    ap.add_argument("--sbc-draws", type=int, default=4, metavar="K",
+                    help="with --sbc-data, cut its piles K times in all and count the KS tests "
+                         "that fail over the K draws")
     ap.add_argument("--outside-rows", type=int, default=40, help="rows of each outside set")
     ap.add_argument("--check-rows", type=int, default=200, help="held-out rows checked")
     ap.add_argument("--calibration-rows", type=int, default=200,
@@ -387,7 +400,11 @@ def main(argv=None) -> int:
     sbc_rng = np.random.default_rng([args.seed, 1])  # the rows checked below do not depend on it
     if args.sbc_data:
         sbc_set = read_prior_ensemble(args.sbc_data)
-        require_same_prior(cset, sbc_set, args.sbc_data)
+        # new piles: not the training draw, nor one the posterior calibrated on
+        why = another_draw(cset.attrs, sbc_set.attrs, model.provenance.get("calibration_seeds", []))
+        if why is not None:
+            sys.exit(f"--sbc-data {args.sbc_data}: {why}: it must draw the training prior "
+                     "with a seed of its own")
         top = float(np.nanmax(np.asarray(cset.alpha_c, dtype=float)))
         pairs = one_cut_per_row(sbc_set, top, sbc_rng)
         source = {"file": os.path.basename(args.sbc_data),
@@ -410,6 +427,9 @@ def main(argv=None) -> int:
         for p, d in results["sbc"][kind].items():
             log(f"SBC {kind:12s} {p:16s} KS p {d['ks_p_value']:.3f}  coverage "
                 + "  ".join(f"{c}: {v:.3f}" for c, v in d["coverage"].items()))
+    if args.sbc_data and args.sbc_draws > 1:
+        results["ks_over_cut_draws"] = ks_over_cut_draws(post, sbc_set, top, results["sbc"],
+                                                         args, log)
     stages = {"third": lambda a: a / 3, "two_thirds": lambda a: 2 * a / 3,
               "3deg_before": lambda a: a - LEAD_ERROR}
     results["contraction"] = {s: contraction_at(post, cset, rows, f) for s, f in stages.items()}
