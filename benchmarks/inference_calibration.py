@@ -26,7 +26,8 @@ indices are in its provenance):
   independent, as the KS test assumes; without it, ``--pairs`` pairs of the
   held-out rows, several cuts of a row once the rows run out;
 * the contraction (1 - posterior variance / prior variance, learned scale) at a
-  third and two thirds of the avalanche angle and 3° before it;
+  third and two thirds of the avalanche angle and 3° before it, complete
+  catalogues and the same kept to angles and sizes;
 * atan(mu_d)'s median absolute error 3° before the avalanche, complete
   catalogues (target: 2e-3 rad);
 * the predictive check, cut 1° before the avalanche: the share of the piles
@@ -160,9 +161,12 @@ def ks_over_cut_draws(post, sbc_set, top: float, first: dict, args, log) -> dict
     return out
 
 
-def contraction_at(post, cset, rows, stage) -> dict:
-    """Mean contraction of every parameter over ``rows`` cut at ``stage(alpha_c)``."""
+def contraction_at(post, cset, rows, stage, kind: str = "complete") -> dict:
+    """Mean contraction of every parameter over ``rows`` cut at ``stage(alpha_c)``, complete
+    catalogues or kept to their angles and sizes (``kind``)."""
     cats = [cset.catalogue(int(r)).cut(max(stage(cset.alpha_c[r]), 0.0)) for r in rows]
+    if kind == "angles_sizes":
+        cats = [angles_sizes_only(c) for c in cats]
     q = post.quantiles(Cuts.from_catalogues(cats, PERFECT))
     c = [post.contraction(row) for row in q]
     return {p: float(np.mean([d[p] for d in c])) for p in post.parameters_}
@@ -438,9 +442,13 @@ def main(argv=None) -> int:
                                                          args, log)
     stages = {"third": lambda a: a / 3, "two_thirds": lambda a: 2 * a / 3,
               "3deg_before": lambda a: a - LEAD_ERROR}
-    results["contraction"] = {s: contraction_at(post, cset, rows, f) for s, f in stages.items()}
-    for s, d in results["contraction"].items():
-        log(f"contraction at {s:12s} " + "  ".join(f"{p} {v:.2f}" for p, v in d.items()))
+    results["contraction"] = {kind: {s: contraction_at(post, cset, rows, f, kind)
+                                     for s, f in stages.items()}
+                              for kind in ("complete", "angles_sizes")}
+    for kind, by_stage in results["contraction"].items():
+        for s, d in by_stage.items():
+            log(f"contraction {kind:12s} at {s:12s} "
+                + "  ".join(f"{p} {v:.2f}" for p, v in d.items()))
     results["atan_mu_d_median_abs_error_rad"] = atan_mu_d_error(post, cset, rows)
     log(f"atan(mu_d) median |error| 3° before the avalanche, complete catalogues: "
         f"{results['atan_mu_d_median_abs_error_rad']:.2e} rad")

@@ -303,7 +303,7 @@ def test_a_posterior_calibrates_on_another_draw_of_its_prior_and_refuses_the_sam
     assert "only with --fit posterior" in capsys.readouterr().err
 
 
-def test_a_posterior_of_a_prior_that_fixes_parameters_infers_them_exactly(tmp_path):
+def test_a_posterior_of_a_prior_that_fixes_parameters_infers_them_exactly(tmp_path, capsys):
     """sigma_mu and xi fixed by the prior (xi = 0: no positive value to code the atom below):
     the fit writes a file that reads, whose posterior of each is the prior's value."""
     from sliders.runs import prior as prior_run
@@ -322,6 +322,17 @@ def test_a_posterior_of_a_prior_that_fixes_parameters_infers_them_exactly(tmp_pa
     summary = post.summary(post.quantiles(Cuts.from_catalogues([cut], PERFECT))[0])
     assert summary["xi"]["p_zero"] == 1.0
     assert summary["sigma_mu"]["interval_95"] == pytest.approx([0.01, 0.01], rel=1e-9)
+    contraction = post.contraction(post.quantiles(Cuts.from_catalogues([cut], PERFECT))[0])
+    assert contraction["sigma_mu"] is None and contraction["xi"] is None
+    assert isinstance(contraction["mu_d"], float)
+    csv = tmp_path / "row.csv"
+    assert main(["catalogue", "--data", str(tmp_path / "fixed.h5"), "--row", "0", "--lead",
+                 "1deg", "--out", str(csv)]) == 0
+    capsys.readouterr()
+    assert main(["infer", str(csv), "--posterior", str(out), "--no-check"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert any(line.strip().startswith("sigma_mu: 0.01,") and line.endswith("(fixed by the prior)")
+               for line in lines), lines
 
 
 def test_train_runs_a_prior_and_writes_a_model_file_of_its_provenance(tmp_path, capsys):

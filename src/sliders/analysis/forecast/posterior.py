@@ -639,9 +639,11 @@ class ParameterPosterior(BaseEstimator):
         return out
 
     def contraction(self, q_row) -> dict:
-        """1 - posterior variance / prior variance of every parameter (learned scale)."""
+        """1 - posterior variance / prior variance of every parameter (learned scale); None for
+        a parameter the prior holds fixed: the prior, not the catalogue, tells it."""
         u = (np.arange(VARIANCE_POINTS) + 0.5) / VARIANCE_POINTS
-        return {name: float(1.0 - np.var(self.ppf(q_row, p, u)) / self.prior_variance_[p])
+        return {name: (float(1.0 - np.var(self.ppf(q_row, p, u)) / self.prior_variance_[p])
+                       if self.high_[p] > self.low_[p] else None)
                 for p, name in enumerate(self.parameters_)}
 
     def prior_range(self) -> dict:

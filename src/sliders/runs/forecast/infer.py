@@ -297,8 +297,9 @@ class Inference:
                        "not calibrated here")
         out.append("parameter: median, 80 % interval, 95 % interval (contraction of the prior)")
         for name, p in d["parameters"].items():
+            c = d["contraction"][name]
             out.append(f"  {LABELS.get(name, name)}: {parameter_text(name, p)} "
-                       f"(contraction {d['contraction'][name]:.2f})")
+                       + ("(fixed by the prior)" if c is None else f"(contraction {c:.2f})"))
         out.append(check_text(d["check"]))
         out.append(f"posterior: {d['posterior']['path']} ({d['posterior'].get('rows', '?')} "
                    f"training rows, {d['posterior'].get('created', '?')})")
