@@ -120,16 +120,22 @@ def coverage_of(lo, hi, c: float) -> float:
     return float(np.mean(np.where(width > 0, part, (lo >= a) & (lo <= b))))
 
 
+def cut_quantiles(post, cset, rows, tilts, kind: str = "complete") -> np.ndarray:
+    """The posterior's reported quantiles (``quantiles``) of ``rows`` cut at ``tilts``, recorded
+    as they are: complete catalogues, or kept to their angles and sizes (``kind``)."""
+    cats = [cset.catalogue(int(r)).cut(t) for r, t in zip(rows, tilts)]
+    if kind == "angles_sizes":
+        cats = [angles_sizes_only(c) for c in cats]
+    return post.quantiles(Cuts.from_catalogues(cats, PERFECT))
+
+
 def sbc(post, cset, pairs, rng, kind: str) -> dict:
     """Ranks (posterior CDFs of the truths, the atoms spread at random) of the (row, tilt)
     ``pairs``, their KS p-value and the central intervals' coverage (``coverage_of``), per
     parameter."""
     rows, tilts = pairs
-    cats = [cset.catalogue(int(r)).cut(t) for r, t in zip(rows, tilts)]
-    if kind == "angles_sizes":
-        cats = [angles_sizes_only(c) for c in cats]
     truth = {p: np.asarray(cset.parameters[p])[rows] for p in post.parameters_}
-    q = post.quantiles(Cuts.from_catalogues(cats, PERFECT))
+    q = cut_quantiles(post, cset, rows, tilts, kind)
     lo, hi = post.pit_bounds(q, truth)
     ranks = rng.uniform(lo, hi)  # lo itself where the two meet (no atom)
     out = {}
@@ -164,10 +170,7 @@ def ks_over_cut_draws(post, sbc_set, top: float, first: dict, args, log) -> dict
 def contraction_at(post, cset, rows, stage, kind: str = "complete") -> dict:
     """Mean contraction of every parameter over ``rows`` cut at ``stage(alpha_c)``, complete
     catalogues or kept to their angles and sizes (``kind``)."""
-    cats = [cset.catalogue(int(r)).cut(max(stage(cset.alpha_c[r]), 0.0)) for r in rows]
-    if kind == "angles_sizes":
-        cats = [angles_sizes_only(c) for c in cats]
-    q = post.quantiles(Cuts.from_catalogues(cats, PERFECT))
+    q = cut_quantiles(post, cset, rows, [max(stage(cset.alpha_c[r]), 0.0) for r in rows], kind)
     c = [post.contraction(row) for row in q]
     return {p: float(np.mean([d[p] for d in c])) for p in post.parameters_}
 
@@ -176,8 +179,7 @@ def atan_mu_d_error(post, cset, rows) -> float:
     """Median |atan(median mu_d) - atan(mu_d)| (rad), complete catalogues 3° before the
     avalanche."""
     rows = [r for r in rows if cset.alpha_c[r] > LEAD_ERROR]
-    cats = [cset.catalogue(int(r)).cut(cset.alpha_c[r] - LEAD_ERROR) for r in rows]
-    q = post.quantiles(Cuts.from_catalogues(cats, PERFECT))
+    q = cut_quantiles(post, cset, rows, [cset.alpha_c[r] - LEAD_ERROR for r in rows])
     p = post.parameters_.index("mu_d")
     med = np.array([post.ppf(row, p, 0.5) for row in q])
     true = np.asarray(cset.parameters["mu_d"])[rows]

@@ -292,3 +292,6 @@ def test_another_draw_is_the_same_prior_with_a_seed_of_its_own():
     assert "not the same prior" in another_draw(attrs(1), attrs(2, mu_d=(0.2, 1.0)))
     assert "not the same prior" in another_draw(attrs(1), attrs(2, mode="history"))
     assert another_draw(attrs(1), {}) is not None
+    seedless = json.loads(attrs(2)["prior"])
+    del seedless["prior"]["seed"]
+    assert "names no seed" in another_draw(attrs(1), {"prior": json.dumps(seedless)})

@@ -474,6 +474,8 @@ def another_draw(reference: dict, other: dict, taken=()) -> str | None:
     if any(a.get(k) != b.get(k) for k in ("parameters", "scene")):
         return "not the same prior (its parameters or scene differ)"
     seed = prior_seed(other)
-    if seed is None or seed == prior_seed(reference) or seed in set(taken):
+    if seed is None:
+        return "its prior names no seed"
+    if seed == prior_seed(reference) or seed in set(taken):
         return f"drawn with seed {seed}, which is already used"
     return None
