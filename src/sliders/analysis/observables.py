@@ -106,11 +106,6 @@ class StatisticsGrids:
         return self.mu_s_mean - self.mu_d
 
     @property
-    def force_centers(self) -> np.ndarray:
-        """(B,) centres of the force bins, m g."""
-        return 0.5 * (self.force_edges[1:] + self.force_edges[:-1])
-
-    @property
     def ratio_centers(self) -> np.ndarray:
         """Centres of the stopped-force ratio bins (dimensionless)."""
         return 0.5 * (self.ratio_edges[1:] + self.ratio_edges[:-1])

@@ -25,7 +25,6 @@ from .filelock import current_holder
 ROW_DIGEST = "row_crc32"
 # netCDF-4's mark of a dimension that has a length but no coordinate values (no storage)
 NOT_A_VARIABLE = "This is a netCDF dimension but not a netCDF variable."
-SCALE_ATTRS = ("CLASS", "NAME", "DIMENSION_LIST", "REFERENCE_LIST", "_Netcdf4Dimid")
 
 
 class StorageError(RuntimeError):
@@ -187,8 +186,3 @@ def describe(ds, units: str, long_name: str, coordinates: str | None = None) -> 
     ds.attrs["units"], ds.attrs["long_name"] = units, long_name
     if coordinates:
         ds.attrs["coordinates"] = coordinates
-
-
-def user_attributes(ds) -> dict:
-    """A dataset's attributes without the dimension-scale bookkeeping (which is file-bound)."""
-    return {k: v for k, v in ds.attrs.items() if k not in SCALE_ATTRS}

@@ -49,10 +49,6 @@ class IntegrityError(OSError):
     """A file's content does not match its checksums (flipped bytes, truncation)."""
 
 
-class NewerFormatError(ValueError):
-    """A file written by a newer sliders (a ``format_version`` this one does not know)."""
-
-
 # ---------------------------------------------------------------------------
 # file identity
 # ---------------------------------------------------------------------------

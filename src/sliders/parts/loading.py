@@ -273,10 +273,6 @@ class PushedEnd(Loading):
         force[..., 0] += self.stiffness * (drives - du[..., 0])
         return force
 
-    def driver_force(self, drive: float, du: np.ndarray) -> float:
-        """Force of the driver's spring on slider 1."""
-        return self.stiffness * (drive - du[0])
-
     def next_instability(self, elastic: np.ndarray, mu: np.ndarray, drive: float, du: np.ndarray,
                          force_tol: float):
         """The drive at which slider 1 starts downwards (every other slider is
