@@ -1,0 +1,460 @@
+"""The live forecast's alarm, the run scored at its end, and the live picture drawn aside.
+
+Three pieces of ``predict --follow`` (``follow.py``), each usable alone:
+
+``Alarm``
+    P(avalanche within the horizon) of each update's first method against a
+    threshold, with hysteresis: the alarm rises when P reaches ``threshold``
+    and stays raised until P falls below the release level, ``release``
+    (default ``default_release(threshold)``: ``threshold - 0.1``, or half the
+    threshold below 0.2).  A forecast's P moves from row to row by a few
+    hundredths as events arrive; without the gap an alarm whose P hovers at
+    the threshold sounds and stops at every row.  One ``ALARM`` line per alarm
+    raised and one ``alarm off`` line per release; with ``hook`` (the text of
+    ``--on-alarm 'CMD ARGS'``, split as a shell splits words and run without a
+    shell) the command runs once per alarm raised, not waited on, the forecast
+    in its environment (``HOOK_ENVIRONMENT``); a hook that fails is reported in
+    one line, and the follow goes on.
+``RunScore``
+    The updates of a follow, scored at the avalanche: when the alarm first
+    rose and how far before, the last forecast and its error, the share of the
+    intervals that held the avalanche.
+``LatestPicture``
+    ``--plot``'s PNG drawn by a thread of its own (Matplotlib's Agg canvas on
+    ``Figure`` objects, no pyplot state), so that the picture does not hold up
+    the next forecast: a newer prediction replaces one still waiting to be
+    drawn, so the picture is never more than one update behind.
+"""
+
+from __future__ import annotations
+
+import inspect
+import io
+import math
+import os
+import shlex
+import shutil
+import subprocess
+import threading
+
+from ...io.forecast_files import ForecastInputError
+from ...io.safeio import publish_bytes
+from .predict import probability_text
+
+#: the release level's gap below the threshold (``default_release``)
+RELEASE_GAP = 0.1
+
+#: what a hook finds in its environment (besides the follower's own), values as text
+HOOK_ENVIRONMENT = {
+    "SLIDERS_ALARM_P": "P(avalanche within the horizon) of the first method, a number",
+    "SLIDERS_ALARM_P_TEXT": "the same as the ALARM line prints it ('= 0.62', '> 0.95')",
+    "SLIDERS_ALARM_THRESHOLD": "the alarm's threshold",
+    "SLIDERS_ALARM_WITHIN_DEG": "the alarm's horizon, degrees",
+    "SLIDERS_ALARM_ANGLE_DEG": "the forecast avalanche angle (the median), degrees",
+    "SLIDERS_ALARM_LOW_DEG": "the low end of the forecast interval, degrees",
+    "SLIDERS_ALARM_HIGH_DEG": "the high end of the forecast interval, degrees",
+    "SLIDERS_ALARM_CALIBRATED": "1 if the interval is calibrated (80 %), else 0",
+    "SLIDERS_TILT_DEG": "the tilt reached, degrees",
+    "SLIDERS_ROWS": "the complete rows read",
+    "SLIDERS_CATALOGUE": "the catalogue followed (empty if unknown)",
+}
+
+
+def threshold_option(value, option: str = "--alarm-threshold") -> float:
+    """A probability of ``option`` strictly between 0 and 1, or one line naming it."""
+    try:
+        p = float(value)
+    except (TypeError, ValueError):
+        raise ForecastInputError(f"{option} {value}: a probability, e.g. 0.5") from None
+    if not 0.0 < p < 1.0:
+        raise ForecastInputError(f"{option} {value}: a probability strictly between 0 and 1")
+    return p
+
+
+def default_release(threshold: float) -> float:
+    """The level below which a raised alarm is released: ``RELEASE_GAP`` below the threshold,
+    or half the threshold if that is smaller (a low threshold keeps a level to fall below)."""
+    return threshold - min(RELEASE_GAP, threshold / 2.0)
+
+
+def check_release(release, threshold: float, option: str = "--alarm-release") -> float:
+    """A release level in [0, ``threshold``), or one line naming ``option``."""
+    try:
+        r = float(release)
+    except (TypeError, ValueError):
+        raise ForecastInputError(f"{option} {release}: a probability, e.g. 0.4") from None
+    if not 0.0 <= r < threshold:
+        raise ForecastInputError(f"{option} {release}: the release level must lie in [0, the "
+                                 f"alarm threshold {threshold:g})")
+    return r
+
+
+def check_hook(text) -> list[str]:
+    """The words of ``--on-alarm 'CMD ARGS'`` (split as a shell splits them), its program
+    found; else one line naming the option (called before the follow starts)."""
+    try:
+        words = shlex.split(str(text))
+    except ValueError as exc:
+        raise ForecastInputError(f"--on-alarm {text}: {exc} (give the command as one "
+                                 "argument, quoted as for a shell)") from None
+    if not words:
+        raise ForecastInputError("--on-alarm: give the command to run, e.g. "
+                                 "--on-alarm 'notify-send ALARM'")
+    if shutil.which(words[0]) is None:
+        where = "no such file, or not executable" if os.sep in words[0] else \
+            "no such program on the PATH"
+        raise ForecastInputError(f"--on-alarm {text}: {words[0]}: {where}")
+    return words
+
+
+def _first_method(prediction) -> dict:
+    """The first method's entry of ``prediction`` (a ``Prediction`` or its ``to_dict()``)."""
+    methods = prediction["methods"]
+    return methods[next(iter(methods))]
+
+
+def _interval_name(method: dict) -> str:
+    return "80 % interval" if method.get("calibrated", True) else "widened interval, uncalibrated"
+
+
+class Alarm:
+    """The alarm of a live forecast, with hysteresis (module docstring).
+
+    Parameters
+    ----------
+    threshold : float or None
+        P(avalanche within the horizon) at or above which the alarm rises, in (0, 1);
+        None: each prediction's own ``alarm_threshold`` (the forecaster's).
+    release : float, optional
+        P below which a raised alarm falls, in [0, threshold); default
+        ``default_release(threshold)``.
+    hook : str, optional
+        ``--on-alarm``'s command text, run once per alarm raised (``check_hook`` refuses one
+        that cannot start).
+    say : callable
+        ``say(line)`` prints one line (the ALARM and alarm-off lines, a hook's failure).
+    catalogue : str, optional
+        The catalogue followed, for the hook's ``SLIDERS_CATALOGUE``.
+    """
+
+    def __init__(self, threshold: float | None, release: float | None = None,
+                 hook: str | None = None, say=print, catalogue: str | None = None):
+        self.threshold = None if threshold is None else threshold_option(threshold)
+        self._release = release
+        if release is not None and self.threshold is not None:
+            self._release = check_release(release, self.threshold)
+        self.argv = None if hook is None else check_hook(hook)
+        self.hook = hook
+        self.say = say
+        self.catalogue = catalogue
+        self.on = False
+        self.raised_count = 0
+        self.hooks: list[subprocess.Popen] = []  # the hooks started, newest last
+        self._waiters: list[threading.Thread] = []
+
+    def levels(self, prediction) -> tuple[float, float]:
+        """``(threshold, release)`` for ``prediction``."""
+        t = self.threshold if self.threshold is not None else float(prediction["alarm_threshold"])
+        if self._release is None:
+            return t, default_release(t)
+        return t, check_release(self._release, t)
+
+    def update(self, prediction, rows: int) -> dict:
+        """The alarm after ``prediction`` (a ``Prediction`` or its ``to_dict()``) of ``rows``
+        complete rows: ``{"alarm", "raised", "released"}``; a line when it rises or falls, and
+        the hook run when it rises."""
+        t, r = self.levels(prediction)
+        p = float(prediction["probability_within"])
+        raised = not self.on and p >= t
+        released = self.on and p < r
+        if raised:
+            self.on = True
+            self.raised_count += 1
+            self.say(self.alarm_line(prediction, rows, t))
+            if self.argv is not None:
+                self._run_hook(prediction, rows, t)
+        elif released:
+            self.on = False
+            self.say(self.off_line(prediction, rows, r))
+        return {"alarm": self.on, "raised": raised, "released": released}
+
+    @staticmethod
+    def _p_text(prediction) -> str:
+        m = _first_method(prediction)
+        return probability_text(float(prediction["probability_within"]),
+                                m.get("probability_bounds", (0.0, 1.0)))
+
+    def alarm_line(self, prediction, rows: int, threshold: float) -> str:
+        """The ALARM line: where, P as the update line prints it, the forecast."""
+        deg = math.degrees
+        m = _first_method(prediction)
+        lo, hi = prediction["interval"]
+        return (f"ALARM at {deg(prediction['tilt_now']):.2f}° (rows {rows}): P(avalanche within "
+                f"the next {deg(prediction['within']):g}°) {self._p_text(prediction)}, at or "
+                f"above the threshold {threshold:g}; avalanche angle "
+                f"{deg(prediction['alpha_c']):.2f}° ({_interval_name(m)} {deg(lo):.2f}-"
+                f"{deg(hi):.2f}°)")
+
+    def off_line(self, prediction, rows: int, release: float) -> str:
+        """The alarm-off line: where, P, the release level it fell below."""
+        deg = math.degrees
+        return (f"alarm off at {deg(prediction['tilt_now']):.2f}° (rows {rows}): P(avalanche "
+                f"within the next {deg(prediction['within']):g}°) {self._p_text(prediction)}, "
+                f"below the release level {release:g}")
+
+    def environment(self, prediction, rows: int, threshold: float) -> dict:
+        """The hook's variables (``HOOK_ENVIRONMENT``) for ``prediction``."""
+        deg = math.degrees
+        m = _first_method(prediction)
+        lo, hi = prediction["interval"]
+        return {"SLIDERS_ALARM_P": f"{float(prediction['probability_within']):.6g}",
+                "SLIDERS_ALARM_P_TEXT": self._p_text(prediction),
+                "SLIDERS_ALARM_THRESHOLD": f"{threshold:g}",
+                "SLIDERS_ALARM_WITHIN_DEG": f"{deg(prediction['within']):.6g}",
+                "SLIDERS_ALARM_ANGLE_DEG": f"{deg(prediction['alpha_c']):.4f}",
+                "SLIDERS_ALARM_LOW_DEG": f"{deg(lo):.4f}",
+                "SLIDERS_ALARM_HIGH_DEG": f"{deg(hi):.4f}",
+                "SLIDERS_ALARM_CALIBRATED": "1" if m.get("calibrated", False) else "0",
+                "SLIDERS_TILT_DEG": f"{deg(prediction['tilt_now']):.4f}",
+                "SLIDERS_ROWS": str(int(rows)),
+                "SLIDERS_CATALOGUE": "" if self.catalogue is None else str(self.catalogue)}
+
+    def _run_hook(self, prediction, rows: int, threshold: float) -> None:
+        """Start the hook (its output on stderr, in a session of its own so that a Ctrl-C of
+        the follow does not cut it short) and watch it from a thread."""
+        env = os.environ | self.environment(prediction, rows, threshold)
+        try:
+            proc = subprocess.Popen(self.argv, env=env, stdin=subprocess.DEVNULL, stdout=2,
+                                    start_new_session=True)
+        except OSError as exc:
+            self.say(f"--on-alarm {self.hook}: could not start: {exc.strerror or exc}; the "
+                     "follow goes on")
+            return
+        self.hooks.append(proc)
+        waiter = threading.Thread(target=self._watch, args=(proc,), daemon=True,
+                                  name="sliders-alarm-hook")
+        waiter.start()
+        self._waiters = [w for w in self._waiters if w.is_alive()] + [waiter]
+
+    def _watch(self, proc: subprocess.Popen) -> None:
+        code = proc.wait()
+        if code != 0:
+            how = (f"killed by signal {-code}" if code < 0 else f"exited with status {code}")
+            self.say(f"--on-alarm {self.hook}: {how}; the follow goes on")
+
+    def wait_hooks(self, timeout: float | None = None) -> bool:
+        """Wait (at most ``timeout`` seconds) for the hooks started to end and be reported;
+        True if none is left running."""
+        for w in list(self._waiters):
+            w.join(timeout)
+        return not any(w.is_alive() for w in self._waiters)
+
+
+def _deg(x):
+    return None if x is None else round(math.degrees(x), 4)
+
+
+class RunScore:
+    """The updates of a follow, scored at the avalanche.
+
+    ``add(update)`` takes each update as the follower prints it with ``--json``: the
+    prediction's ``to_dict()`` with ``rows`` and ``alarm``; ``summary(avalanche_angle)`` scores
+    them (JSON values, radians), ``lines(summary)`` says it in text.
+    """
+
+    def __init__(self):
+        self.updates: list[dict] = []
+
+    def add(self, update: dict) -> None:
+        """Keep what the score reads of one update."""
+        self.updates.append({"tilt_now": float(update["tilt_now"]),
+                             "alpha_c": float(update["alpha_c"]),
+                             "interval": [float(x) for x in update["interval"]],
+                             "rows": int(update["rows"]), "alarm": bool(update["alarm"]),
+                             "calibrated": bool(_first_method(update).get("calibrated", True))
+                             if "methods" in update else None})
+
+    def summary(self, avalanche_angle: float | None = None) -> dict:
+        """The score (radians): ``avalanche_angle`` as given (the ``# avalanche ANGLE`` line)
+        or else the last tilt reached (``avalanche_angle_source`` says which), the first alarm
+        (tilt, rows, how far before), the last forecast and its error, the share of the
+        updates' intervals that held the avalanche."""
+        u = self.updates
+        if avalanche_angle is not None:
+            a, source = float(avalanche_angle), "given"
+        elif u:
+            a, source = u[-1]["tilt_now"], "last tilt reached"
+        else:
+            a, source = None, None
+        out = {"summary": "run", "avalanche_angle": a, "avalanche_angle_source": source,
+               "updates": len(u), "alarms_raised": 0, "first_alarm": None,
+               "last_forecast": None, "interval_held": None, "interval_held_share": None}
+        if not u:
+            return out
+        prev = False
+        for x in u:
+            if x["alarm"] and not prev:
+                out["alarms_raised"] += 1
+                if out["first_alarm"] is None:
+                    out["first_alarm"] = {"tilt_now": x["tilt_now"], "rows": x["rows"],
+                                          "before": a - x["tilt_now"]}
+            prev = x["alarm"]
+        last = u[-1]
+        held = sum(1 for x in u if x["interval"][0] <= a <= x["interval"][1])
+        out["last_forecast"] = {"tilt_now": last["tilt_now"], "rows": last["rows"],
+                                "alpha_c": last["alpha_c"], "interval": last["interval"],
+                                "calibrated": last["calibrated"], "error": last["alpha_c"] - a,
+                                "held": bool(last["interval"][0] <= a <= last["interval"][1])}
+        out["interval_held"] = held
+        out["interval_held_share"] = held / len(u)
+        return out
+
+    @staticmethod
+    def lines(summary: dict) -> list[str]:
+        """The summary as text (degrees)."""
+        a = summary["avalanche_angle"]
+        if summary["updates"] == 0 or a is None:
+            return ["run: no forecast was made"]
+        deg = math.degrees
+        where = ("given on the '# avalanche' line" if summary["avalanche_angle_source"] == "given"
+                 else "the last tilt reached; write it as '# avalanche 28.85deg' to score against "
+                      "the angle measured")
+        out = [f"run scored at the avalanche angle {deg(a):.2f}° ({where}): "
+               f"{summary['updates']} updates"]
+        first = summary["first_alarm"]
+        if first is None:
+            out.append("alarm: never raised")
+        else:
+            out.append(f"alarm: first raised at {deg(first['tilt_now']):.2f}° (rows "
+                       f"{first['rows']}), {deg(first['before']):.2f}° before the avalanche; "
+                       f"raised {summary['alarms_raised']} time"
+                       f"{'s' if summary['alarms_raised'] != 1 else ''}")
+        last = summary["last_forecast"]
+        lo, hi = last["interval"]
+        name = "80 % interval" if last["calibrated"] in (True, None) else \
+            "widened interval, uncalibrated"
+        out.append(f"last forecast at {deg(last['tilt_now']):.2f}° (rows {last['rows']}): "
+                   f"{deg(last['alpha_c']):.2f}° ({name} {deg(lo):.2f}-{deg(hi):.2f}°), error "
+                   f"{deg(last['error']):+.2f}°, the avalanche "
+                   f"{'inside' if last['held'] else 'outside'} its interval")
+        out.append(f"intervals that held the avalanche: {summary['interval_held']} of "
+                   f"{summary['updates']} ({summary['interval_held_share']:.2f})")
+        return out
+
+
+def _accepts(function, keyword: str) -> bool:
+    try:
+        return keyword in inspect.signature(function).parameters
+    except (TypeError, ValueError):
+        return False
+
+
+def png_bytes(prediction, status: dict | None = None) -> bytes:
+    """The bench picture of ``prediction`` as PNG bytes, drawn on an Agg canvas of its own (no
+    pyplot: safe in a thread); ``status`` (the alarm, the time, the rows, the file) goes to the
+    figure where it takes one."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from ...figures.bench import save_png
+
+    fig = (prediction.figure(status=status) if status is not None
+           and _accepts(prediction.figure, "status") else prediction.figure())
+    FigureCanvasAgg(fig)
+    buf = io.BytesIO()
+    save_png(fig, buf)
+    return buf.getvalue()
+
+
+class LatestPicture:
+    """``--plot``'s picture, drawn and written by a thread of its own, the newest only.
+
+    ``show(prediction, status)`` hands the newest prediction over and returns at once; if one
+    is being drawn, the new one waits, replacing any that waited before it (never more than
+    one update behind).  ``close()`` waits for the last picture.  A failure to write the file
+    is raised (``ForecastInputError``, one line naming the path) from the next ``show`` or
+    from ``close``, once; nothing is drawn after it.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The PNG, replaced whole at each picture (``safeio.publish_bytes``).
+    draw : callable
+        ``draw(prediction, status) -> bytes``: the PNG (default ``png_bytes``).
+    """
+
+    def __init__(self, path, draw=png_bytes):
+        self.path = os.fspath(path)
+        self.draw = draw
+        self.drawn = 0  # pictures written
+        self.shown = 0  # predictions handed over
+        self._cond = threading.Condition()
+        self._pending = None
+        self._busy = False
+        self._closed = False
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, daemon=True, name="sliders-picture")
+        self._thread.start()
+
+    def show(self, prediction, status: dict | None = None) -> None:
+        """Draw ``prediction`` next (replacing one that waits); ``status`` what the picture
+        says beside the forecast."""
+        with self._cond:
+            self._raise_error()
+            self._pending = (prediction, dict(status or {}))
+            self.shown += 1
+            self._cond.notify_all()
+
+    def behind(self) -> int:
+        """Updates handed over but not yet written: 0, 1 or 2 (one drawn, one waiting)."""
+        with self._cond:
+            return int(self._busy) + int(self._pending is not None)
+
+    def _raise_error(self) -> None:
+        if self._error is not None:
+            exc, self._error = self._error, None
+            self._closed = True
+            raise exc
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while self._pending is None and not self._closed:
+                    self._cond.wait()
+                if self._pending is None or self._error is not None:
+                    return
+                item, self._pending = self._pending, None
+                self._busy = True
+            error = None
+            try:
+                data = self.draw(*item)
+                try:
+                    publish_bytes(self.path, data, overwrite=True)
+                except (OSError, ValueError) as exc:
+                    error = ForecastInputError(f"{self.path}: the picture could not be "
+                                               f"written: {getattr(exc, 'strerror', None) or exc}")
+            except BaseException as exc:  # noqa: BLE001 - a fault, raised in the caller's thread
+                error = exc
+            with self._cond:
+                self._busy = False
+                if error is None:
+                    self.drawn += 1
+                else:
+                    self._error, self._pending = error, None
+                self._cond.notify_all()
+                if error is not None:
+                    return
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Wait until every prediction handed over is drawn (or failed); True if so."""
+        with self._cond:
+            return self._cond.wait_for(lambda: not self._busy and self._pending is None,
+                                       timeout)
+
+    def close(self) -> None:
+        """Wait for the last picture; its failure (or an earlier one not yet raised) raised."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        self._thread.join()
+        with self._cond:
+            self._raise_error()

@@ -1,0 +1,290 @@
+"""The live forecast's alarm (hysteresis, the hook), the run's score, the picture drawn aside."""
+
+from __future__ import annotations
+
+import json
+import math
+import shlex
+import sys
+import threading
+import time
+
+import pytest
+
+from sliders.io.forecast_files import ForecastInputError
+from sliders.runs.forecast.alarm import (HOOK_ENVIRONMENT, Alarm, LatestPicture, RunScore,
+                                         check_hook, default_release)
+
+rad = math.radians
+
+
+def prediction(p, tilt=28.0, alpha=29.0, interval=(28.5, 30.0), bounds=(0.05, 0.95),
+               threshold=0.5, calibrated=True) -> dict:
+    """A forecast's ``to_dict()`` as the alarm reads it (degrees given, radians kept)."""
+    return {"probability_within": p, "tilt_now": rad(tilt), "within": rad(1.0),
+            "alpha_c": rad(alpha), "interval": [rad(interval[0]), rad(interval[1])],
+            "alarm_threshold": threshold,
+            "methods": {"learned": {"probability_bounds": list(bounds),
+                                    "calibrated": calibrated}}}
+
+
+class Lines(list):
+    def __call__(self, line):
+        self.append(line)
+
+
+# ---- hysteresis ---------------------------------------------------------------------
+
+
+def test_an_alarm_whose_p_hovers_at_the_threshold_sounds_once():
+    hovering = [0.3, 0.48, 0.52, 0.47, 0.53, 0.45, 0.55, 0.46, 0.51, 0.42]
+    said = Lines()
+    alarm = Alarm(0.5, say=said)
+    states = [alarm.update(prediction(p), rows=10 + k) for k, p in enumerate(hovering)]
+    assert [s["raised"] for s in states].count(True) == 1
+    assert not any(s["released"] for s in states)
+    assert states[2] == {"alarm": True, "raised": True, "released": False}
+    assert all(s["alarm"] for s in states[2:])
+    assert len(said) == 1 and said[0].startswith("ALARM at 28.00° (rows 12)")
+    # below the release level (0.5 - 0.1) it falls, once
+    off = alarm.update(prediction(0.39), rows=30)
+    assert off == {"alarm": False, "raised": False, "released": True}
+    assert len(said) == 2 and said[1].startswith("alarm off at 28.00° (rows 30)")
+    assert "below the release level 0.4" in said[1]
+    # without the gap the same P would flicker: the hysteresis is what stops it
+    flicker = Lines()
+    bare = Alarm(0.5, release=0.4999, say=flicker)
+    for p in hovering:
+        bare.update(prediction(p), rows=1)
+    assert sum(line.startswith("ALARM") for line in flicker) == 4
+
+
+def test_the_release_level_default_and_bounds():
+    assert default_release(0.5) == pytest.approx(0.4)
+    assert default_release(0.9) == pytest.approx(0.8)
+    assert default_release(0.1) == pytest.approx(0.05)  # a low threshold keeps a level
+    for t in (0.01, 0.15, 0.5, 0.99):
+        assert 0.0 < default_release(t) < t
+    for bad in (0.0, 1.0, 1.5, -0.2, "x"):
+        with pytest.raises(ForecastInputError, match="--alarm-threshold"):
+            Alarm(bad)
+    for bad in (0.5, 0.7, -0.1):
+        with pytest.raises(ForecastInputError, match="--alarm-release"):
+            Alarm(0.5, release=bad)
+
+
+def test_without_a_threshold_the_forecasters_own_is_used():
+    said = Lines()
+    alarm = Alarm(None, say=said)
+    assert not alarm.update(prediction(0.35, threshold=0.3 + 0.1), rows=1)["alarm"]
+    assert alarm.update(prediction(0.41, threshold=0.4), rows=2)["raised"]
+    assert "threshold 0.4" in said[0]
+    assert not alarm.update(prediction(0.31, threshold=0.4), rows=3)["released"]
+    assert alarm.update(prediction(0.29, threshold=0.4), rows=4)["released"]
+
+
+def test_the_alarm_line_prints_p_as_the_update_line_does():
+    said = Lines()
+    Alarm(0.5, say=said).update(prediction(0.999, bounds=(0.05, 0.95)), rows=7)
+    assert "P(avalanche within the next 1°) > 0.95" in said[0]
+    assert "1.00" not in said[0] and "= 0.99" not in said[0]
+    assert "avalanche angle 29.00° (80 % interval 28.50-30.00°)" in said[0]
+    said.clear()
+    Alarm(0.5, say=said).update(prediction(0.62, calibrated=False), rows=7)
+    assert "P(avalanche within the next 1°) = 0.62" in said[0]
+    assert "widened interval, uncalibrated" in said[0]
+
+
+# ---- the hook -----------------------------------------------------------------------
+
+
+HOOK = """import json, os, sys
+with open(sys.argv[1], "a") as fh:
+    fh.write(json.dumps({k: v for k, v in os.environ.items() if k.startswith("SLIDERS_")}
+                        | {"argv": sys.argv[2:]}) + "\\n")
+sys.exit(int(os.environ.get("HOOK_STATUS", "0")))
+"""
+
+
+@pytest.fixture
+def hook(tmp_path):
+    """``(command text, file of the runs)``: a tiny hook in a folder with a space in its name,
+    writing its environment and arguments as one JSON line per run."""
+    folder = tmp_path / "the hooks"
+    folder.mkdir()
+    script, runs = folder / "hook.py", folder / "runs.jsonl"
+    script.write_text(HOOK)
+    text = f"{shlex.quote(sys.executable)} {shlex.quote(str(script))} {shlex.quote(str(runs))} " \
+           "'two words' plain"
+    return text, runs
+
+
+def test_the_hook_runs_once_per_alarm_with_the_forecast_in_its_environment(hook):
+    text, runs = hook
+    said = Lines()
+    alarm = Alarm(0.5, hook=text, say=said, catalogue="pile.csv")
+    for rows, p in enumerate([0.2, 0.6, 0.7, 0.45, 0.8, 0.3, 0.2, 0.55, 0.9], start=40):
+        alarm.update(prediction(p, tilt=27.0 + rows / 100), rows=rows)
+    assert alarm.wait_hooks(timeout=30)
+    got = [json.loads(line) for line in runs.read_text().splitlines()]
+    assert len(got) == 2 == alarm.raised_count  # raised at rows 41 and 47
+    first = got[0] if got[0]["SLIDERS_ROWS"] == "41" else got[1]
+    assert first["argv"] == ["two words", "plain"]  # split as a shell splits words
+    assert set(HOOK_ENVIRONMENT) <= set(first)
+    assert float(first["SLIDERS_ALARM_P"]) == pytest.approx(0.6)
+    assert first["SLIDERS_ALARM_P_TEXT"] == "= 0.60"
+    assert float(first["SLIDERS_ALARM_ANGLE_DEG"]) == pytest.approx(29.0)
+    assert float(first["SLIDERS_ALARM_LOW_DEG"]) == pytest.approx(28.5)
+    assert float(first["SLIDERS_ALARM_HIGH_DEG"]) == pytest.approx(30.0)
+    assert float(first["SLIDERS_TILT_DEG"]) == pytest.approx(27.41)
+    assert first["SLIDERS_ALARM_THRESHOLD"] == "0.5"
+    assert first["SLIDERS_CATALOGUE"] == "pile.csv"
+    assert sorted(r["SLIDERS_ROWS"] for r in got) == ["41", "47"]
+    assert not any("--on-alarm" in line for line in said)
+
+
+def test_a_failing_hook_is_reported_in_one_line_and_the_follow_goes_on(hook, monkeypatch):
+    text, runs = hook
+    monkeypatch.setenv("HOOK_STATUS", "3")
+    said = Lines()
+    alarm = Alarm(0.5, hook=text, say=said)
+    assert alarm.update(prediction(0.7), rows=5)["raised"]
+    assert alarm.wait_hooks(timeout=30)
+    failures = [line for line in said if line.startswith("--on-alarm")]
+    assert len(failures) == 1 and "exited with status 3" in failures[0]
+    assert "\n" not in failures[0]
+    # the alarm goes on: released, raised again, the hook run again
+    assert alarm.update(prediction(0.1), rows=6)["released"]
+    assert alarm.update(prediction(0.9), rows=7)["raised"]
+    assert alarm.wait_hooks(timeout=30)
+    assert len(runs.read_text().splitlines()) == 2
+
+
+def test_a_hook_that_cannot_start_is_refused_before_the_follow(tmp_path):
+    with pytest.raises(ForecastInputError, match="no-such-program-sliders: no such program"):
+        check_hook("no-such-program-sliders --loud")
+    with pytest.raises(ForecastInputError, match="no such file, or not executable"):
+        check_hook(f"{tmp_path}/absent.sh")
+    with pytest.raises(ForecastInputError, match="--on-alarm"):
+        check_hook("notify-send 'unclosed")
+    with pytest.raises(ForecastInputError, match="give the command"):
+        check_hook("  ")
+    with pytest.raises(ForecastInputError, match="no such program"):
+        Alarm(0.5, hook="no-such-program-sliders")
+    assert check_hook(f"{shlex.quote(sys.executable)} -c 'print(1)'") == [sys.executable, "-c",
+                                                                          "print(1)"]
+
+
+# ---- the run's score ----------------------------------------------------------------
+
+
+def update(tilt, alpha, lo, hi, rows, alarm, calibrated=True):
+    return prediction(0.5, tilt=tilt, alpha=alpha, interval=(lo, hi),
+                      calibrated=calibrated) | {"rows": rows, "alarm": alarm}
+
+
+RUN = [update(25.0, 31.0, 27.0, 33.0, 100, False),   # holds 28.85
+       update(26.0, 30.0, 28.9, 31.0, 120, False),   # misses
+       update(27.0, 29.5, 28.0, 30.0, 140, True),    # holds; the first alarm
+       update(27.5, 29.2, 28.0, 29.0, 150, False),   # holds
+       update(28.0, 29.1, 28.5, 29.5, 160, True),    # holds; raised again
+       update(28.5, 29.0, 28.9, 29.5, 170, True)]    # misses
+
+
+def test_the_run_is_scored_against_the_avalanche_given():
+    score = RunScore()
+    for u in RUN:
+        score.add(u)
+    s = score.summary(rad(28.85))
+    assert json.loads(json.dumps(s)) == s  # JSON values
+    assert s["avalanche_angle"] == pytest.approx(rad(28.85))
+    assert s["avalanche_angle_source"] == "given"
+    assert s["updates"] == 6 and s["alarms_raised"] == 2
+    assert s["first_alarm"]["rows"] == 140
+    assert s["first_alarm"]["tilt_now"] == pytest.approx(rad(27.0))
+    assert s["first_alarm"]["before"] == pytest.approx(rad(1.85))
+    assert s["last_forecast"]["alpha_c"] == pytest.approx(rad(29.0))
+    assert s["last_forecast"]["error"] == pytest.approx(rad(0.15))
+    assert s["last_forecast"]["held"] is False and s["last_forecast"]["rows"] == 170
+    assert s["interval_held"] == 4 and s["interval_held_share"] == pytest.approx(4 / 6)
+    text = "\n".join(RunScore.lines(s))
+    assert "28.85° (given on the '# avalanche' line): 6 updates" in text
+    assert "first raised at 27.00° (rows 140), 1.85° before the avalanche; raised 2 times" in text
+    assert "error +0.15°" in text and "outside its interval" in text
+    assert "held the avalanche: 4 of 6 (0.67)" in text
+
+
+def test_without_an_angle_the_run_is_scored_at_the_last_tilt_and_says_so():
+    score = RunScore()
+    for u in RUN[:2]:
+        score.add(u)
+    s = score.summary()
+    assert s["avalanche_angle"] == pytest.approx(rad(26.0))
+    assert s["avalanche_angle_source"] == "last tilt reached"
+    assert s["first_alarm"] is None and s["alarms_raised"] == 0
+    assert s["interval_held"] == 0  # the tilt lies below both intervals
+    text = "\n".join(RunScore.lines(s))
+    assert "the last tilt reached" in text and "never raised" in text
+    empty = RunScore().summary(rad(28.0))
+    assert empty["updates"] == 0 and RunScore.lines(empty) == ["run: no forecast was made"]
+
+
+# ---- the picture drawn aside ----------------------------------------------------------
+
+
+class SlowDraw:
+    """A draw that takes ``seconds`` and records what it drew; the PNG is the name."""
+
+    def __init__(self, seconds):
+        self.seconds, self.drawn, self.started = seconds, [], threading.Event()
+
+    def __call__(self, prediction, status):
+        self.started.set()
+        time.sleep(self.seconds)
+        self.drawn.append((prediction, status["rows"]))
+        return prediction.encode()
+
+
+def test_only_the_newest_prediction_is_drawn_never_more_than_one_behind(tmp_path):
+    draw = SlowDraw(0.3)
+    path = tmp_path / "live.png"
+    picture = LatestPicture(path, draw=draw)
+    picture.show("update-0", {"rows": 0})
+    assert draw.started.wait(10)
+    behind = []
+    for k in range(1, 8):  # seven updates while the first is drawn
+        picture.show(f"update-{k}", {"rows": k})
+        behind.append(picture.behind())
+    assert max(behind) == 2  # one drawn, one waiting: the newest
+    picture.close()
+    assert [name for name, _ in draw.drawn] == ["update-0", "update-7"]
+    assert path.read_bytes() == b"update-7"
+    assert picture.drawn == 2 and picture.shown == 8
+    assert [p.name for p in tmp_path.iterdir()] == ["live.png"]  # no temporary left
+
+
+def test_show_returns_at_once_while_a_picture_is_drawn(tmp_path):
+    draw = SlowDraw(0.5)
+    picture = LatestPicture(tmp_path / "live.png", draw=draw)
+    started = time.monotonic()
+    for k in range(3):
+        picture.show(f"u{k}", {"rows": k})
+    assert time.monotonic() - started < 0.2
+    assert picture.wait(timeout=10)
+    picture.close()
+
+
+def test_a_picture_that_cannot_be_written_is_raised_once_naming_the_path(tmp_path):
+    path = tmp_path / "no such folder" / "live.png"
+    picture = LatestPicture(path, draw=SlowDraw(0.0))
+    picture.show("u0", {"rows": 1})
+    picture.wait(timeout=10)
+    with pytest.raises(ForecastInputError) as caught:
+        picture.show("u1", {"rows": 2})
+    line = str(caught.value)
+    assert line.startswith(str(path)) and "\n" not in line
+    picture.close()  # reported once: not again
+    again = LatestPicture(path, draw=SlowDraw(0.0))
+    again.show("u0", {"rows": 1})
+    with pytest.raises(ForecastInputError, match="could not be written"):
+        again.close()
