@@ -233,58 +233,88 @@ def test_without_an_angle_the_run_is_scored_at_the_last_tilt_and_says_so():
 
 
 class SlowDraw:
-    """A draw that takes ``seconds`` and records what it drew; the PNG is the name."""
+    """A draw that takes ``seconds`` and records what it drew (in ``log``, a file, when it runs
+    in a forked child); the PNG is the name."""
 
-    def __init__(self, seconds):
-        self.seconds, self.drawn, self.started = seconds, [], threading.Event()
+    def __init__(self, seconds, log=None):
+        self.seconds, self.log, self.drawn = seconds, log, []
+        self.started = threading.Event()
 
     def __call__(self, prediction, status):
         self.started.set()
+        if self.log is not None:
+            with open(self.log, "a") as fh:
+                fh.write(f"start {prediction}\n")
         time.sleep(self.seconds)
         self.drawn.append((prediction, status["rows"]))
+        if self.log is not None:
+            with open(self.log, "a") as fh:
+                fh.write(f"drew {prediction} rows {status['rows']}\n")
+        if prediction == "fault":
+            raise ZeroDivisionError("a fault of the drawing")
         return prediction.encode()
 
 
-def test_only_the_newest_prediction_is_drawn_never_more_than_one_behind(tmp_path):
-    draw = SlowDraw(0.3)
+def wait_until(condition, timeout=10.0):
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+
+
+@pytest.mark.parametrize("fork", [False, True], ids=["thread", "forked child"])
+def test_only_the_newest_prediction_is_drawn_never_more_than_one_behind(tmp_path, fork):
+    log = tmp_path / "draws.log"
+    draw = SlowDraw(0.3, log)
     path = tmp_path / "live.png"
-    picture = LatestPicture(path, draw=draw)
+    picture = LatestPicture(path, draw=draw, fork=fork)
     picture.show("update-0", {"rows": 0})
-    assert draw.started.wait(10)
+    wait_until(lambda: log.exists())
     behind = []
     for k in range(1, 8):  # seven updates while the first is drawn
         picture.show(f"update-{k}", {"rows": k})
         behind.append(picture.behind())
     assert max(behind) == 2  # one drawn, one waiting: the newest
     picture.close()
-    assert [name for name, _ in draw.drawn] == ["update-0", "update-7"]
+    assert log.read_text().splitlines() == ["start update-0", "drew update-0 rows 0",
+                                            "start update-7", "drew update-7 rows 7"]
     assert path.read_bytes() == b"update-7"
     assert picture.drawn == 2 and picture.shown == 8
-    assert [p.name for p in tmp_path.iterdir()] == ["live.png"]  # no temporary left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["draws.log", "live.png"]
 
 
-def test_show_returns_at_once_while_a_picture_is_drawn(tmp_path):
-    draw = SlowDraw(0.5)
-    picture = LatestPicture(tmp_path / "live.png", draw=draw)
+@pytest.mark.parametrize("fork", [False, True], ids=["thread", "forked child"])
+def test_show_returns_at_once_while_a_picture_is_drawn(tmp_path, fork):
+    picture = LatestPicture(tmp_path / "live.png", draw=SlowDraw(0.5), fork=fork)
     started = time.monotonic()
     for k in range(3):
         picture.show(f"u{k}", {"rows": k})
     assert time.monotonic() - started < 0.2
     assert picture.wait(timeout=10)
     picture.close()
+    assert (tmp_path / "live.png").read_bytes() == b"u2"
 
 
-def test_a_picture_that_cannot_be_written_is_raised_once_naming_the_path(tmp_path):
+@pytest.mark.parametrize("fork", [False, True], ids=["thread", "forked child"])
+def test_a_picture_that_cannot_be_written_is_raised_once_naming_the_path(tmp_path, fork):
     path = tmp_path / "no such folder" / "live.png"
-    picture = LatestPicture(path, draw=SlowDraw(0.0))
+    picture = LatestPicture(path, draw=SlowDraw(0.0), fork=fork)
     picture.show("u0", {"rows": 1})
     picture.wait(timeout=10)
     with pytest.raises(ForecastInputError) as caught:
         picture.show("u1", {"rows": 2})
     line = str(caught.value)
-    assert line.startswith(str(path)) and "\n" not in line
+    assert line.startswith(f"{path}: the picture could not be written") and "\n" not in line
     picture.close()  # reported once: not again
-    again = LatestPicture(path, draw=SlowDraw(0.0))
+    again = LatestPicture(path, draw=SlowDraw(0.0), fork=fork)
     again.show("u0", {"rows": 1})
     with pytest.raises(ForecastInputError, match="could not be written"):
         again.close()
+
+
+def test_a_fault_of_the_drawing_child_is_raised_in_one_line(tmp_path):
+    picture = LatestPicture(tmp_path / "live.png", draw=SlowDraw(0.0), fork=True)
+    picture.show("fault", {"rows": 1})
+    with pytest.raises(RuntimeError, match="ZeroDivisionError: a fault of the drawing"):
+        picture.close()
+    assert not (tmp_path / "live.png").exists()
