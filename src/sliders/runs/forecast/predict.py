@@ -403,8 +403,13 @@ class Prediction:
         """The text output (``lines``)."""
         return "\n".join(self.lines())
 
-    def figure(self):
-        """The bench picture (``figures.bench.bench_figure``): a matplotlib Figure."""
+    #: the sizes' unit as the picture's axis names it (``predict``'s ``size_label``)
+    size_label = None
+
+    def figure(self, status: dict | None = None):
+        """The bench picture (``figures.bench.bench_figure``): a matplotlib Figure;
+        ``status`` (the alarm and its threshold, the time, the rows, the file) a live
+        picture's status line."""
         from ...figures.bench import bench_figure
 
         d = self._report
@@ -415,15 +420,16 @@ class Prediction:
                             domain_reason=d["domain_reason"],
                             probability=probability_text(m["probability_within"],
                                                          m["probability_bounds"]),
-                            within=d["within"], size_unit=self.measurement.size_unit)
+                            within=d["within"], size_unit=self.measurement.size_unit,
+                            size_label=self.size_label, status=status)
 
-    def plot(self, path) -> None:
+    def plot(self, path, status: dict | None = None) -> None:
         """Write the bench picture to ``path`` (PNG), whole or not at all (a temporary file
-        beside it, then renamed over it)."""
+        beside it, then renamed over it); ``status`` as ``figure``'s."""
         from ...figures.bench import save_png
 
         buf = io.BytesIO()
-        save_png(self.figure(), buf)
+        save_png(self.figure(status=status), buf)
         publish_bytes(str(path), buf.getvalue(), overwrite=True)
 
 
