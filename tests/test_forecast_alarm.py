@@ -65,7 +65,7 @@ def test_the_release_level_default_and_bounds():
     assert default_release(0.1) == pytest.approx(0.05)  # a low threshold keeps a level
     for t in (0.01, 0.15, 0.5, 0.99):
         assert 0.0 < default_release(t) < t
-    for bad in (0.0, 1.0, 1.5, -0.2, "x"):
+    for bad in (0.0, 1.0, 1.5, -0.2, "x", 0.99, 0.05, 0.96):
         with pytest.raises(ForecastInputError, match="--alarm-threshold"):
             Alarm(bad)
     for bad in (0.5, 0.7, -0.1):
@@ -318,3 +318,44 @@ def test_a_fault_of_the_drawing_child_is_raised_in_one_line(tmp_path):
     with pytest.raises(RuntimeError, match="ZeroDivisionError: a fault of the drawing"):
         picture.close()
     assert not (tmp_path / "live.png").exists()
+
+
+# ---- the options --------------------------------------------------------------------
+
+
+def test_the_alarm_options_are_refused_in_one_line_before_anything_is_read(tmp_path, capsys):
+    from sliders.runs.forecast.cli import main
+
+    absent = str(tmp_path / "absent.csv")  # never read: the options are refused first
+    for options, says in [(["--alarm-threshold", "1.5"], "strictly between 0 and 1"),
+                          (["--alarm-threshold", "0.99"], "would never sound"),
+                          (["--alarm-threshold", "0.05"], "would always sound"),
+                          (["--alarm-threshold", "high"], "a probability"),
+                          (["--alarm-release", "0.3"], "with --follow only"),
+                          (["--on-alarm", "true"], "with --follow only"),
+                          (["--follow", "--alarm-threshold", "0.5", "--alarm-release", "0.5"],
+                           "must lie in [0, the alarm threshold 0.5)"),
+                          (["--follow", "--on-alarm", "no-such-program-sliders -v"],
+                           "no such program")]:
+        assert main(["predict", absent, *options]) == 2, options
+        err = capsys.readouterr().err.strip()
+        assert says in err and "\n" not in err and options[-1].split()[0] in err
+
+
+def test_a_single_forecast_says_whether_its_alarm_sounds():
+    from sliders.runs.forecast.alarm import single_alarm
+
+    report = prediction(0.62, threshold=0.5)
+    out, line = single_alarm(report, "0.6")
+    assert out["alarm"] is True and out["alarm_threshold"] == 0.6 and "alarm" not in report
+    assert line == "alarm: P(avalanche within the next 1°) = 0.62, at or above the threshold " \
+                   "0.6: ALARM"
+    out, line = single_alarm(report, 0.7)
+    assert out["alarm"] is False and line.endswith("below the threshold 0.7: no alarm")
+    # the distribution's own P decides where JSON's is clipped to what the forecast resolves
+    clipped = prediction(0.05) | {"methods": {"learned": {"probability_bounds": [0.05, 0.95],
+                                                          "probability_within_raw": 0.01}}}
+    assert Alarm(0.1, release=0.02, say=Lines()).update(clipped, 1)["alarm"] is False
+    alarm = Alarm(0.1, release=0.02, say=Lines())
+    alarm.update(prediction(0.2), 1)
+    assert alarm.update(clipped, 2)["released"]

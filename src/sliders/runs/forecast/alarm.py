@@ -64,15 +64,65 @@ HOOK_ENVIRONMENT = {
 }
 
 
+def resolved_probabilities() -> tuple[float, float]:
+    """The least and the greatest P(within) a forecast resolves (its quantile levels' ends):
+    beyond them the text gives a bound and JSON the bound's value."""
+    from ...analysis.forecast.base import LEVELS
+
+    return float(LEVELS[0]), float(LEVELS[-1])
+
+
 def threshold_option(value, option: str = "--alarm-threshold") -> float:
-    """A probability of ``option`` strictly between 0 and 1, or one line naming it."""
+    """A threshold of ``option`` that P(within) can reach and fall below: above the least
+    probability a forecast resolves, at most the greatest; or one line naming it."""
     try:
         p = float(value)
     except (TypeError, ValueError):
         raise ForecastInputError(f"{option} {value}: a probability, e.g. 0.5") from None
+    lo, hi = resolved_probabilities()
     if not 0.0 < p < 1.0:
         raise ForecastInputError(f"{option} {value}: a probability strictly between 0 and 1")
+    if not lo < p <= hi:
+        raise ForecastInputError(f"{option} {value}: the forecasts resolve P(within) from {lo:g} "
+                                 f"to {hi:g} (beyond, '< {lo:g}' and '> {hi:g}'), so the alarm "
+                                 f"would {'always' if p <= lo else 'never'} sound; give a "
+                                 f"threshold above {lo:g} and at most {hi:g}")
     return p
+
+
+def check_alarm_options(args) -> None:
+    """``--alarm-threshold``, ``--alarm-release`` and ``--on-alarm`` in range, the hook's
+    program found (one line naming the option), before the catalogue and the model are read;
+    the release level and the hook need ``--follow`` (a single forecast has no hysteresis)."""
+    threshold = getattr(args, "alarm_threshold", None)
+    release = getattr(args, "alarm_release", None)
+    hook = getattr(args, "on_alarm", None)
+    if threshold is not None:
+        threshold = threshold_option(threshold)
+    if not getattr(args, "follow", False):
+        for option, value in (("--alarm-release", release), ("--on-alarm", hook)):
+            if value is not None:
+                raise ForecastInputError(f"{option} {value}: with --follow only (a single "
+                                         "forecast has no alarm to release or act on; "
+                                         "--alarm-threshold says whether it sounds)")
+    if release is not None:
+        check_release(release, threshold if threshold is not None else 1.0)
+    if hook is not None:
+        check_hook(hook)
+
+
+def single_alarm(report: dict, threshold) -> tuple[dict, str]:
+    """A single forecast's alarm at ``threshold`` (no hysteresis): ``report`` (its JSON object)
+    with ``alarm_threshold`` and ``alarm``, and the line that says it."""
+    t = threshold_option(threshold)
+    on = probability_within(report) >= t
+    m = _first_method(report)
+    text = probability_text(float(report["probability_within"]),
+                            m.get("probability_bounds", (0.0, 1.0)))
+    line = (f"alarm: P(avalanche within the next {math.degrees(report['within']):g}°) {text}, "
+            + (f"at or above the threshold {t:g}: ALARM" if on else
+               f"below the threshold {t:g}: no alarm"))
+    return report | {"alarm_threshold": t, "alarm": on}, line
 
 
 def default_release(threshold: float) -> float:
@@ -115,6 +165,13 @@ def _first_method(prediction) -> dict:
     """The first method's entry of ``prediction`` (a ``Prediction`` or its ``to_dict()``)."""
     methods = prediction["methods"]
     return methods[next(iter(methods))]
+
+
+def probability_within(prediction) -> float:
+    """P(within) of the first method of ``prediction``, as its distribution gives it (JSON's
+    ``probability_within`` is clipped to the probabilities the forecast resolves)."""
+    m = _first_method(prediction)
+    return float(m.get("probability_within_raw", prediction["probability_within"]))
 
 
 def _interval_name(method: dict) -> str:
@@ -168,7 +225,7 @@ class Alarm:
         complete rows: ``{"alarm", "raised", "released"}``; a line when it rises or falls, and
         the hook run when it rises."""
         t, r = self.levels(prediction)
-        p = float(prediction["probability_within"])
+        p = probability_within(prediction)
         raised = not self.on and p >= t
         released = self.on and p < r
         if raised:

@@ -113,6 +113,10 @@ def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
     pr.add_argument("--plot", default=None, metavar="FILE.png",
                     help="draw the catalogue against tilt and the forecast into FILE.png "
                          "(replaced whole, at each update with --follow)")
+    pr.add_argument("--size-label", default=None, metavar="TEXT",
+                    help="the sizes' unit as --plot's axis names it, e.g. 'mm²' or 'grains' "
+                         "(default: sliders, or \"CSV's unit\" with --size-unit arbitrary); "
+                         "a label only: the sizes are read as --size-unit says")
     pr.add_argument("--follow", action="store_true",
                     help="keep following the file as the acquisition appends to it, and "
                          "forecast again when rows arrive or the tilt advances; stops on "
@@ -124,6 +128,19 @@ def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
     pr.add_argument("--until", default=None, metavar="ANGLE",
                     help="with --follow: stop once the tilt reaches ANGLE (27deg, 0.47rad, or "
                          "a bare number of degrees)")
+    pr.add_argument("--alarm-threshold", default=None, metavar="P",
+                    help="the alarm sounds when P(avalanche within --within) reaches P, above "
+                         "0.05 and at most 0.95 (default: the forecaster's own, 0.5); without "
+                         "--follow, --json's 'alarm' and a last line say whether it does")
+    pr.add_argument("--alarm-release", default=None, metavar="P",
+                    help="with --follow: a raised alarm stays raised until P(within) falls "
+                         "below P (default: 0.1 below the threshold, or half a threshold "
+                         "below 0.2)")
+    pr.add_argument("--on-alarm", default=None, metavar="'CMD ARGS'",
+                    help="with --follow: run CMD ARGS (one argument, split as a shell splits "
+                         "words, run without a shell) each time the alarm is raised, the "
+                         "forecast in its environment (SLIDERS_ALARM_P, SLIDERS_ALARM_ANGLE_DEG, "
+                         "...; docs/forecasting.md)")
     pr.add_argument("--verbose", action="store_true", help="print the model's whole provenance")
 
 

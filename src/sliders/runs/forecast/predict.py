@@ -47,10 +47,13 @@ def predict(args, argv=None) -> int:
     model = load_model(args.model)
     pred = model.predict(args.catalogue, tilt_now=args.tilt_now, within=args.within,
                          **measurement_options(args), method=args.method)
-    if args.json:
-        print(json.dumps(pred.to_dict()))
-    else:
-        print("\n".join(pred.lines(verbose=args.verbose)))
+    report, lines = pred.to_dict(), pred.lines(verbose=args.verbose)
+    if getattr(args, "alarm_threshold", None) is not None:
+        from .alarm import single_alarm
+
+        report, line = single_alarm(report, args.alarm_threshold)
+        lines.append(line)
+    print(json.dumps(report) if args.json else "\n".join(lines))
     if getattr(args, "plot", None):
         pred.plot(args.plot)
     return 0
@@ -446,3 +449,6 @@ def check_predict_options(args) -> None:
         if getattr(args, option, None) is not None:
             tilt_in_range(parse_angle(getattr(args, option), math.pi / 180.0),
                           f"--{option} {getattr(args, option)}")
+    from .alarm import check_alarm_options
+
+    check_alarm_options(args)
