@@ -38,7 +38,7 @@ C. **Ensemble statistics** (N = 100, R realisations, seeds 0..R-1): alpha_c
 Cost: CPU time per run (process time, robust on a shared machine; short runs
 are repeated and the median kept), wall time, integration steps and
 slider-steps (sum over steps of the moving sliders, the avalanche event
-included: ``TiltResult.total_slider_steps``).  CPU time is the cost to
+included: ``Result.total_slider_steps``).  CPU time is the cost to
 compare.
 
 Writes benchmarks/results/accuracy.json, accuracy.txt (the printed tables) and

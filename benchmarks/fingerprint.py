@@ -46,7 +46,7 @@ SCENES = {
 }
 
 
-def fingerprint(result: sliders.TiltResult) -> str:
+def fingerprint(result: sliders.Result) -> str:
     """sha256 over everything a run produced, as raw bytes."""
     digest = hashlib.sha256()
     digest.update(f"{result.status}|{result.message}|{result.alpha_c!r}".encode())

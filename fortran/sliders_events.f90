@@ -2,11 +2,11 @@
 !> loading loop.
 !>
 !> The loading (sliders_loading) gives the drive's terms: the tilt's sin/cos
-!> alpha, or for the pushed end sin/cos of the fixed tilt plus the driver's
+!> alpha, or for the pushed end sin/cos of the fixed incline plus the driver's
 !> spring on slider 1 (sliders_chain's tangential_force, used wherever a
 !> slider's tangential force is formed: between events, at an event's start,
-!> for the pool, and for slider 1 in end_sliders).  "alpha" below is the drive
-!> lambda: the tilt, or the driver's position.
+!> for the pool, and for slider 1 in end_sliders).  "drive" below is the drive
+!> lambda: the tilt's angle, or the driver's position.
 !>
 !> This is src/sliders/engine/reference.py (the specification) reorganised so that
 !> the cost follows what moves ("integrate only what moves").  This module
@@ -68,7 +68,7 @@ module sliders_events
                             status_interrupted, status_refine_limit, status_sliding
   use sliders_chain, only: elastic_force, tangential_force, total_displacement, &
                            spring_energy_change, cantilever_energy_change
-  use sliders_contract, only: ev_alpha, ev_duration, ev_work_gravity, ev_elastic_change, &
+  use sliders_contract, only: ev_drive, ev_duration, ev_work_gravity, ev_elastic_change, &
                               ev_dissipation, ev_n_moved, ev_n_stops, ev_n_steps, ev_slider_steps
   use sliders_friction, only: static_threshold, kinetic_force, draw_at_stop
   use sliders_loading, only: drive_terms, loading_work, loading_runaway, beyond_limit, &
@@ -107,13 +107,13 @@ contains
   !> refers to.  A nonzero interrupt(1) (set by another thread: VOLATILE)
   !> ends the call with status_interrupted within interrupt_check_steps
   !> slider-steps: the event in progress is undone entirely (du, mu, stop
-  !> counts, and alpha back to the last completed event), the completed
+  !> counts, and the drive back to the last completed event), the completed
   !> events are kept.
   !>
   !> Per event: the stability check at the current drive (unstable_sliders),
   !> else the drive of the next event (next_drive); the event (run_event);
   !> its row (record_row); the caches for the next check (end_event).
-  subroutine tilt_run(params, e0, t0, w0, mu, n_stops, du, alpha, ev_real, ev_int, &
+  subroutine tilt_run(params, e0, t0, w0, mu, n_stops, du, drive, ev_real, ev_int, &
                       sp_ptr, sp_index, sp_value, n_events, n_sparse, status, &
                       alpha_c, event_time, final_work, detail, interrupt)
     type(tilt_params), intent(in) :: params
@@ -123,7 +123,7 @@ contains
     real(dp), contiguous, intent(inout) :: mu(:)
     integer(i8), contiguous, intent(inout) :: n_stops(:)
     real(dp), contiguous, intent(inout) :: du(:)
-    real(dp), intent(inout) :: alpha
+    real(dp), intent(inout) :: drive
     real(dp), intent(inout) :: ev_real(:, :)
     integer(i8), intent(inout) :: ev_int(:, :)
     integer(i8), contiguous, intent(inout) :: sp_ptr(:)
@@ -138,7 +138,7 @@ contains
     type(workspace) :: ws
     type(event_record) :: rec
     integer(ip) :: n, n_trig, n_bad
-    real(dp) :: angle, alpha_done
+    real(dp) :: angle, drive_done
 
     p = params
     n = p%chain%n
@@ -157,13 +157,13 @@ contains
       end if
       ! A non-finite force stops the run; unstable sliders at the current
       ! angle start at once (relaxation).
-      call unstable_sliders(p, ws, mu, du, alpha, n_trig, n_bad)
+      call unstable_sliders(p, ws, mu, du, drive, n_trig, n_bad)
       if (n_bad > 0) then
         status = status_non_finite
         detail = detail_resting
         exit
       end if
-      angle = alpha
+      angle = drive
       if (n_trig == 0) then
         if (p%relax_only) then
           status = status_relaxed
@@ -173,7 +173,7 @@ contains
           status = status_running
           exit
         end if
-        call next_drive(p, ws, mu, du, alpha, angle, n_trig)
+        call next_drive(p, ws, mu, du, drive, angle, n_trig)
         if (beyond_limit(p%loading, angle)) then
           status = status_alpha_max
           exit
@@ -184,15 +184,15 @@ contains
         status = status_sparse_full
         exit
       end if
-      alpha_done = alpha
-      alpha = angle
-      p%chain%driver_position = alpha
+      drive_done = drive
+      drive = angle
+      p%chain%driver_position = drive
 
-      call run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, interrupt, rec)
+      call run_event(p, ws, e0, t0, w0, mu, n_stops, du, drive, n_trig, interrupt, rec)
       if (rec%status == status_interrupted) then
         ! undone entirely: the state after the last completed event
         status = status_interrupted
-        alpha = alpha_done
+        drive = drive_done
         exit
       end if
       if (rec%status /= status_running) then
@@ -200,12 +200,12 @@ contains
         detail = rec%detail
         event_time = rec%duration
         final_work = [rec%n_steps, rec%slider_steps]
-        if (status == status_avalanche) alpha_c = alpha
+        if (status == status_avalanche) alpha_c = drive
         exit
       end if
 
       n_events = n_events + 1
-      call record_row(p, ws, du, alpha, rec, n_events, ev_real, ev_int, sp_ptr, sp_index, &
+      call record_row(p, ws, du, drive, rec, n_events, ev_real, ev_int, sp_ptr, sp_index, &
                       sp_value, n_sparse)
       call end_event(p, ws, e0, mu, du)
       if (spanning_ends_run(p%loading) .and. .not. p%relax_only .and. rec%n_moved == n) then
@@ -251,22 +251,22 @@ contains
     end do
   end subroutine begin_run
 
-  !> The stability check at drive alpha over the sliders whose force may
+  !> The stability check at the drive over the sliders whose force may
   !> have changed (ws%changed): the n_trig unstable ones go to ws%slist with
   !> their directions in ws%sdir; n_bad counts the non-finite elastic forces.
   !> Also puts the pushed end's driver at alpha.
-  subroutine unstable_sliders(p, ws, mu, du, alpha, n_trig, n_bad)
+  subroutine unstable_sliders(p, ws, mu, du, drive, n_trig, n_bad)
     type(tilt_params), intent(inout) :: p
     type(workspace), intent(inout) :: ws
     real(dp), contiguous, intent(in) :: mu(:)
     real(dp), contiguous, intent(in) :: du(:)
-    real(dp), intent(in) :: alpha
+    real(dp), intent(in) :: drive
     integer(ip), intent(out) :: n_trig, n_bad
     integer(ip) :: k, i
     real(dp) :: sin_a, cos_a, f
 
-    call drive_terms(p%loading, alpha, sin_a, cos_a)
-    p%chain%driver_position = alpha
+    call drive_terms(p%loading, drive, sin_a, cos_a)
+    p%chain%driver_position = drive
     n_trig = 0
     n_bad = 0
     do k = 1, ws%n_changed
@@ -286,35 +286,35 @@ contains
   !> in closed form (sliders_loading, loading_next_drive: the pushed end's
   !> slider 1, the only one that feels the driver), else the smallest
   !> instability angle: the coupled chain's bounded search, or the min-tree.
-  subroutine next_drive(p, ws, mu, du, alpha, angle, n_trig)
+  subroutine next_drive(p, ws, mu, du, drive, angle, n_trig)
     type(tilt_params), intent(in) :: p
     type(workspace), intent(inout) :: ws
     real(dp), contiguous, intent(in) :: mu(:)
     real(dp), contiguous, intent(in) :: du(:)
-    real(dp), intent(in) :: alpha
+    real(dp), intent(in) :: drive
     real(dp), intent(out) :: angle
     integer(ip), intent(out) :: n_trig
     logical :: closed_form
 
-    call loading_next_drive(p%loading, ws%elastic(1), mu(1), du(1), alpha, p%force_tol, &
+    call loading_next_drive(p%loading, ws%elastic(1), mu(1), du(1), drive, p%force_tol, &
                             closed_form, angle, ws%slist(1), ws%sdir(1))
     if (closed_form) then
       n_trig = 1
     else if (p%chain%xi /= 0.0_dp) then
-      call coupled_next(ws, p%chain%n, alpha, angle, n_trig)
+      call coupled_next(ws, p%chain%n, drive, angle, n_trig)
     else
-      call tree_next(ws, alpha, angle, n_trig)
+      call tree_next(ws, drive, angle, n_trig)
     end if
   end subroutine next_drive
 
   !> Row n_events of the event buffers: the event's record and, with
   !> record_sparse, its moved sliders (0-based) and their displacements.
-  subroutine record_row(p, ws, du, alpha, rec, n_events, ev_real, ev_int, sp_ptr, sp_index, &
+  subroutine record_row(p, ws, du, drive, rec, n_events, ev_real, ev_int, sp_ptr, sp_index, &
                         sp_value, n_sparse)
     type(tilt_params), intent(in) :: p
     type(workspace), intent(in) :: ws
     real(dp), contiguous, intent(in) :: du(:)
-    real(dp), intent(in) :: alpha
+    real(dp), intent(in) :: drive
     type(event_record), intent(in) :: rec
     integer(ip), intent(in) :: n_events
     real(dp), intent(inout) :: ev_real(:, :)
@@ -325,7 +325,7 @@ contains
     integer(ip), intent(inout) :: n_sparse
     integer(ip) :: j, i
 
-    ev_real(n_events, ev_alpha) = alpha
+    ev_real(n_events, ev_drive) = drive
     ev_real(n_events, ev_duration) = rec%duration
     ev_real(n_events, ev_work_gravity) = rec%work_gravity
     ev_real(n_events, ev_elastic_change) = rec%elastic_change
@@ -349,7 +349,7 @@ contains
 
   ! ------------------------------------------------------------ one event
 
-  !> One rearrangement at fixed alpha, started by the n_trig sliders in
+  !> One rearrangement at a fixed drive, started by the n_trig sliders in
   !> ws%slist with directions ws%sdir (reference.NumpyEngine._event).
   !> On a normal end du holds the new displacements and ws%sorted the moved
   !> sliders; on an error du, mu and n_stops are restored to the event start
@@ -361,7 +361,7 @@ contains
   !> it tests only the sliders that crossed in the full step, and the pool if
   !> it did: O(crossers) per trial, not O(active)), then taken, accepted, and
   !> its stops and starts applied (after_crossing).
-  subroutine run_event(p, ws, e0, t0, w0, mu, n_stops, du, alpha, n_trig, interrupt, rec)
+  subroutine run_event(p, ws, e0, t0, w0, mu, n_stops, du, drive, n_trig, interrupt, rec)
     type(tilt_params), intent(in) :: p
     type(workspace), intent(inout) :: ws
     real(dp), contiguous, intent(in) :: e0(:)
@@ -370,7 +370,7 @@ contains
     real(dp), contiguous, intent(inout) :: mu(:)
     integer(i8), contiguous, intent(inout) :: n_stops(:)
     real(dp), contiguous, intent(inout) :: du(:)
-    real(dp), intent(in) :: alpha
+    real(dp), intent(in) :: drive
     integer(ip), intent(in) :: n_trig
     integer(ip), volatile, intent(inout) :: interrupt(:)   ! only read
     type(event_record), intent(out) :: rec
@@ -378,7 +378,7 @@ contains
     real(dp) :: sin_a, cos_a, friction, sum0, mean0, t, h, dsum_t
     logical :: crossed, resolved, draws_ok
 
-    call drive_terms(p%loading, alpha, sin_a, cos_a)
+    call drive_terms(p%loading, drive, sin_a, cos_a)
     friction = kinetic_force(p%friction, cos_a)
     sum0 = ws%sum_du
     mean0 = sum0/real(p%chain%n, dp)
@@ -445,7 +445,7 @@ contains
       end if
     end do
     call store_displacements(ws, du)
-    call record_event(p, ws, t0, w0, du, alpha, sin_a, friction, mean0, t, rec)
+    call record_event(p, ws, t0, w0, du, drive, sin_a, friction, mean0, t, rec)
   end subroutine run_event
 
   !> The event's start at fixed drive: the triggers start and, with their
@@ -624,13 +624,13 @@ contains
   !> The event is over: its moved sliders (ws%sorted, increasing), duration,
   !> the loading's work, the elastic energy change (local, exact) and the
   !> dissipation (friction times the path length).
-  subroutine record_event(p, ws, t0, w0, du, alpha, sin_a, friction, mean0, t, rec)
+  subroutine record_event(p, ws, t0, w0, du, drive, sin_a, friction, mean0, t, rec)
     type(tilt_params), intent(in) :: p
     type(workspace), intent(inout) :: ws
     real(dp), intent(in) :: t0(0:)
     real(dp), contiguous, intent(in) :: w0(:)
     real(dp), contiguous, intent(in) :: du(:)
-    real(dp), intent(in) :: alpha, sin_a, friction, mean0, t
+    real(dp), intent(in) :: drive, sin_a, friction, mean0, t
     type(event_record), intent(inout) :: rec
     integer(ip) :: n_moved, i, k
     real(dp) :: step
@@ -649,7 +649,7 @@ contains
       i = ws%sorted(k)
       step = step + (du(i) - ws%du_start(i))
     end do
-    rec%work_gravity = loading_work(p%loading, sin_a, step, alpha, du(1) - ws%du_start(1), &
+    rec%work_gravity = loading_work(p%loading, sin_a, step, drive, du(1) - ws%du_start(1), &
                                     ws%du_start(1))
     rec%elastic_change = &
       spring_energy_change(p%chain, t0, ws%du_start, du, ws%sorted(1:n_moved)) + &

@@ -5,7 +5,7 @@
 !>   incline and presses with cos(alpha) on it; a resting slider of elastic
 !>   force E and static coefficient mu destabilises at the closed-form roots
 !>   of E + sin a = +-mu cos a.
-!> * The pushed end (lambda = D): the incline fixed at `tilt`, slider 1 tied
+!> * The pushed end (lambda = D): the incline fixed at `incline`, slider 1 tied
 !>   by a spring of stiffness K to a driver at D (the chain's
 !>   driver_stiffness/driver_position, whose force sliders_chain adds); only
 !>   slider 1's force depends on D, so the next instability is slider 1's
@@ -23,8 +23,8 @@
 module sliders_loading
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_positive_inf
   use sliders_kinds, only: dp, ip, i8
-  use sliders_contract, only: loading_tilt, loading_pushed_end, par_loading, par_tilt, &
-                              par_drive_stiffness, par_alpha_max, par_drive_max
+  use sliders_contract, only: loading_tilt, loading_pushed_end, par_loading, par_incline, &
+                              par_driver_stiffness, par_alpha_max, par_drive_max
   implicit none
   private
 
@@ -38,7 +38,7 @@ module sliders_loading
   !> The loading protocol of a run (from the packed parameters).
   type :: loading_params
     integer(ip) :: protocol = loading_tilt   !< loading_tilt or loading_pushed_end
-    real(dp) :: tilt = 0.0_dp                !< pushed end: the fixed incline
+    real(dp) :: incline = 0.0_dp             !< pushed end: the fixed incline
     real(dp) :: stiffness = 0.0_dp           !< pushed end: K of the driver's spring
     real(dp) :: limit = 0.0_dp               !< end of loading: alpha_max or drive_max
   end type loading_params
@@ -63,8 +63,8 @@ contains
     type(loading_params) :: load
 
     load%protocol = int(int_params(par_loading), ip)
-    load%tilt = real_params(par_tilt)
-    load%stiffness = real_params(par_drive_stiffness)
+    load%incline = real_params(par_incline)
+    load%stiffness = real_params(par_driver_stiffness)
     load%limit = real_params(par_alpha_max)
     if (load%protocol == loading_pushed_end) load%limit = real_params(par_drive_max)
   end function unpack_loading
@@ -108,16 +108,16 @@ contains
 
   !> Tangential force the drive adds to every slider (weight) and the normal
   !> load that scales friction (normal) at drive lambda, fixed during an
-  !> event: the tilt's sin/cos(lambda), the pushed end's sin/cos(tilt).
+  !> event: the tilt's sin/cos(lambda), the pushed end's sin/cos(incline).
   pure subroutine drive_terms(load, lambda, weight, normal)
     type(loading_params), intent(in) :: load
     real(dp), intent(in) :: lambda
     real(dp), intent(out) :: weight, normal
 
     if (load%protocol == loading_pushed_end) then
-      call tilt_terms(load%tilt, weight, normal)
+      call incline_terms(load%incline, weight, normal)
     else
-      call tilt_terms(lambda, weight, normal)
+      call incline_terms(lambda, weight, normal)
     end if
   end subroutine drive_terms
 
@@ -136,7 +136,7 @@ contains
   end function loading_work
 
   !> The run ends in a runaway: the tilt's avalanche (tilt_runaway); the
-  !> pushed end never runs away (its tilt is below atan(mu_d)).
+  !> pushed end never runs away (its incline is below atan(mu_d)).
   pure function loading_runaway(load, walls, n, n_moving, n_down, weight, kinetic) &
       result(runaway)
     type(loading_params), intent(in) :: load
@@ -169,27 +169,28 @@ contains
 
   !> The pushed end's next critical drive >= drive: slider 1 (elastic force
   !> elastic1, static coefficient mu1, displacement du1) starts downwards
-  !> when E_1 + sin(tilt) + K (D - du_1) reaches mu_1 cos(tilt) + force_tol.
+  !> when E_1 + sin(incline) + K (D - du_1) reaches mu_1 cos(incline) + force_tol.
   pure function pushed_next(load, elastic1, mu1, du1, drive, force_tol) result(critical)
     type(loading_params), intent(in) :: load
     real(dp), intent(in) :: elastic1, mu1, du1, drive, force_tol
     real(dp) :: critical
     real(dp) :: weight, normal
 
-    call tilt_terms(load%tilt, weight, normal)
+    call incline_terms(load%incline, weight, normal)
     critical = du1 + (((mu1*normal + force_tol) - elastic1) - weight)/load%stiffness
     critical = max(critical, drive)
   end function pushed_next
 
-  !> The tilt's tangential force on every slider (weight = sin alpha) and
-  !> normal load (normal = cos alpha), fixed during an event.
-  pure subroutine tilt_terms(alpha, weight, normal)
+  !> Tangential force on every slider (weight = sin alpha) and normal load
+  !> (normal = cos alpha) on an incline at angle alpha: the tilt's drive, or
+  !> the pushed end's fixed incline; fixed during an event.
+  pure subroutine incline_terms(alpha, weight, normal)
     real(dp), intent(in) :: alpha
     real(dp), intent(out) :: weight, normal
 
     weight = sin(alpha)
     normal = cos(alpha)
-  end subroutine tilt_terms
+  end subroutine incline_terms
 
   !> Work of gravity in an event whose displacements sum to `step`.
   pure function tilt_work(weight, step) result(work)

@@ -35,7 +35,7 @@ module sliders_workspace
   !> set from the packed parameters (contract.py, from the scene's defaults).
   type :: tilt_params
     type(chain_params) :: chain
-    type(loading_params) :: loading   !< the drive lambda ("alpha" here) and its end
+    type(loading_params) :: loading   !< the drive lambda and its end
     type(coulomb_friction) :: friction   !< the friction law's parameters
     integer(i8) :: seed
     real(dp) :: dt

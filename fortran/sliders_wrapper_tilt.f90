@@ -13,7 +13,7 @@
 ! parameter arrays, once their widths are checked here.
 !
 ! tilt_advance runs rearrangements from the state (mu_s, n_stops and
-! displacement are updated in place, the new angle is alpha_out) until
+! displacement are updated in place, the new drive is drive_out) until
 ! max_events are recorded (status 0), the run ends (status codes of
 ! sliders_status / status.py) or a buffer is full (status 8, call again);
 ! status -1: the packed widths are not those of sliders_contract.
@@ -34,10 +34,10 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, n_real, n_int, n_real_cols, n_in
                         mu_s, n_stops, displacement, &
                         event_real, event_int, sparse_ptr, sparse_index, sparse_value, &
                         interrupt, &
-                        alpha_out, n_events, n_sparse, status, alpha_c, event_time, &
+                        drive_out, n_events, n_sparse, status, alpha_c, event_time, &
                         final_steps, final_slider_steps, detail)
   use iso_c_binding, only: c_double, c_int, c_int64_t
-  use sliders_contract, only: n_real_params, n_int_params, n_event_real, n_event_int, par_alpha
+  use sliders_contract, only: n_real_params, n_int_params, n_event_real, n_event_int, par_drive
   use sliders_events, only: tilt_params, tilt_run, unpack_params
   implicit none
   integer(c_int), intent(in) :: n
@@ -66,7 +66,7 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, n_real, n_int, n_real_cols, n_in
   integer(c_int64_t), intent(inout) :: sparse_index(n_sparse_cap)
   real(c_double), intent(inout) :: sparse_value(n_sparse_cap)
   integer(c_int), intent(inout) :: interrupt(1)
-  real(c_double), intent(out) :: alpha_out, alpha_c, event_time
+  real(c_double), intent(out) :: drive_out, alpha_c, event_time
   integer(c_int64_t), intent(out) :: final_steps, final_slider_steps
   integer(c_int), intent(out) :: n_events, n_sparse, status, detail
   type(tilt_params) :: p
@@ -76,7 +76,7 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, n_real, n_int, n_real_cols, n_in
   if (n_real /= n_real_params .or. n_int /= n_int_params .or. &
       n_real_cols /= n_event_real .or. n_int_cols /= n_event_int) then
     status = contract_mismatch       ! contract.py and sliders_contract disagree
-    alpha_out = 0.0_c_double
+    drive_out = 0.0_c_double
     alpha_c = 0.0_c_double
     event_time = 0.0_c_double
     final_steps = 0
@@ -87,9 +87,9 @@ subroutine tilt_advance(n, n_cap, n_sparse_cap, n_real, n_int, n_real_cols, n_in
     return
   end if
   p = unpack_params(n, real_params, int_params)
-  alpha_out = real_params(par_alpha)
+  drive_out = real_params(par_drive)
   call tilt_run(p, chain0(1:n), chain0(2*n + 1:3*n + 1), chain0(n + 1:2*n), mu_s, n_stops, &
-                displacement, alpha_out, event_real, event_int, sparse_ptr, sparse_index, &
+                displacement, drive_out, event_real, event_int, sparse_ptr, sparse_index, &
                 sparse_value, n_events, n_sparse, status, alpha_c, event_time, final_work, &
                 detail, interrupt)
   final_steps = final_work(1)

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Scenes A (N=10, xi=0), B (N=400, xi=0) and C (N=400, xi=0.001): one full run
-# each, written with `python -m sliders tilt` (TiltResult files: every event's
+# each, written with `python -m sliders tilt` (Result files: every event's
 # displacements, forces rebuilt on load).  B and C run side by side (2 cores).
 #
 #   bash mpi_runs/scenes_abc.sh

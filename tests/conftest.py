@@ -274,7 +274,7 @@ def session_folder(what, make) -> Path:
     return folder
 
 
-def run(scene: sliders.Scene, backend: str) -> sliders.TiltResult:
+def run(scene: sliders.Scene, backend: str) -> sliders.Result:
     """Tilt a scene once per test session (``session_cached``).  Tests that patch the engines
     or the transcendentals call ``sliders.tilt`` themselves."""
     result = session_cached("tilt", sliders.tilt, scene, backend)

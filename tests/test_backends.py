@@ -61,7 +61,7 @@ ENERGY_TOL = 1e-9  # relative to max(1, |work of gravity|) of the event (see ass
 
 
 # ------------------------------------------------------------------ helpers
-def assert_same_run(f: sliders.TiltResult, n: sliders.TiltResult) -> None:
+def assert_same_run(f: sliders.Result, n: sliders.Result) -> None:
     """The Fortran result f reproduces the NumPy result n, event by event."""
     assert (f.status, f.message) == (n.status, n.message)
     assert f.n_events == n.n_events
@@ -114,11 +114,11 @@ def first_big_event(scene: Scene) -> int:
     return int(big[0]) + 1
 
 
-def assert_bit_for_bit(f: sliders.TiltResult, n: sliders.TiltResult) -> None:
+def assert_bit_for_bit(f: sliders.Result, n: sliders.Result) -> None:
     """Same events and states to the last bit (energies: other sums, 1e-12)."""
     assert (f.status, f.n_events) == (n.status, n.n_events)
     assert f.alpha_c == n.alpha_c or (math.isnan(f.alpha_c) and math.isnan(n.alpha_c))
-    for field in ("alpha", "n_moved", "n_stops", "n_steps", "slider_steps", "duration"):
+    for field in ("drive", "n_moved", "n_stops", "n_steps", "slider_steps", "duration"):
         np.testing.assert_array_equal(f.events[field], n.events[field], err_msg=field)
     np.testing.assert_array_equal(f.displacement.ptr, n.displacement.ptr)
     np.testing.assert_array_equal(f.displacement.index, n.displacement.index)
@@ -219,7 +219,7 @@ def test_doubles_come_through_the_wrapper():
                            state.cantilever_stretch0, state.lattice_position0,
                            state.mu_s, keep), scene.xi, scene.walls)
     angle, triggers, _ = next_instability(elastic, np.array([0.6 + 2e-13, 0.61, 0.6 - 1e-13]), 0.0)
-    assert chunk.events["alpha"][0] == pytest.approx(angle, abs=1e-15)
+    assert chunk.events["drive"][0] == pytest.approx(angle, abs=1e-15)
     unmoved = np.setdiff1d(np.arange(3), chunk.sparse_index)
     np.testing.assert_array_equal(state.displacement[unmoved], keep[unmoved])  # bit for bit
 

@@ -47,7 +47,7 @@ def test_pack_parameters_takes_the_scene_values():
     scene = Scene(n_sliders=5, xi=0.01, seed=2**31 + 3, ends="walls", alpha_max=1.0)
     real, ints = contract.pack_parameters(scene, 0.25, True, False, 7)
     by_name = dict(zip(contract.REAL_PARAMETERS, real))
-    assert by_name["xi"] == 0.01 and by_name["alpha"] == 0.25 and by_name["alpha_max"] == 1.0
+    assert by_name["xi"] == 0.01 and by_name["drive"] == 0.25 and by_name["alpha_max"] == 1.0
     assert by_name["max_event_duration"] == scene.max_event_duration
     ints = dict(zip(contract.INT_PARAMETERS, ints))
     assert ints == {"walls": 1, "seed": 2**31 + 3, "record_sparse": 1, "relax_only": 0,
@@ -56,7 +56,7 @@ def test_pack_parameters_takes_the_scene_values():
                    drive_max=9.0)
     real, ints = contract.pack_parameters(pushed, 0.5, False, False, 1)
     by_name = dict(zip(contract.REAL_PARAMETERS, real))
-    assert (by_name["tilt"], by_name["drive_stiffness"], by_name["drive_max"]) == (0.1, 3.0, 9.0)
+    assert (by_name["incline"], by_name["driver_stiffness"], by_name["drive_max"]) == (0.1, 3.0, 9.0)
     assert dict(zip(contract.INT_PARAMETERS, ints))["loading"] == \
         contract.LOADING_CODES["pushed_end"]
 
@@ -85,7 +85,7 @@ def test_the_fortran_backend_does_not_depend_on_the_reference():
 
 def _chunk(alphas, moved):
     events = {f: np.zeros(len(alphas), dtype=contract.EVENT_DTYPES[f]) for f in contract.EVENT_FIELDS}
-    events["alpha"] = np.array(alphas, dtype=float)
+    events["drive"] = np.array(alphas, dtype=float)
     ptr = np.concatenate([[0], np.cumsum([len(m) for m in moved])]).astype(np.int64)
     index = np.array([i for m in moved for i in m], dtype=np.int64)
     return Chunk(status.RUNNING, events, ptr, index, index.astype(float) / 10)
@@ -95,7 +95,7 @@ def test_join_chunks_shifts_the_csr_pointers():
     joined = join_chunks([_chunk([0.1, 0.2], [[0], [1, 2]]), _chunk([0.3], [[4, 5, 6]])],
                          status.AVALANCHE, alpha_c=0.4)
     assert joined.status == status.AVALANCHE and joined.alpha_c == 0.4
-    assert joined.events["alpha"].tolist() == [0.1, 0.2, 0.3]
+    assert joined.events["drive"].tolist() == [0.1, 0.2, 0.3]
     assert joined.sparse_ptr.tolist() == [0, 1, 3, 6]
     assert joined.sparse_index.tolist() == [0, 1, 2, 4, 5, 6]
     assert joined.events["n_moved"].dtype == np.int64

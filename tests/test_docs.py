@@ -40,7 +40,7 @@ def test_docstring_examples_are_current(tmp_path, monkeypatch):
         for test in finder.find(importlib.import_module(modname)):
             runner.run(test, out=report.append)
     result = runner.summarize(verbose=False)
-    assert result.attempted >= 2  # Scene and TiltResult have examples
+    assert result.attempted >= 2  # Scene and Result have examples
     assert result.failed == 0, "".join(report)
 
 

@@ -103,7 +103,7 @@ def stepped(scene: Scene, backend: str = "fortran", max_events: int = 100_000) -
             # where it started: work and elastic change both ~1e-15)
             scale = ev["work_gravity"][0] + ev["dissipation"][0] + abs(ev["elastic_change"][0])
             out["max_energy_rel"] = max(out["max_energy_rel"], abs(residual) / (scale + 1e-5))
-            out["alpha"].append(float(ev["alpha"][0]))
+            out["alpha"].append(float(ev["drive"][0]))
             out["n_moved"].append(int(ev["n_moved"][0]))
             out["dissipation"].append(float(ev["dissipation"][0]))
         if chunk.status != status.RUNNING:

@@ -207,7 +207,7 @@ def test_bad_ensemble_files_one_line(capsys, tmp_path, runs):
     single = tmp_path / "run.h5"
     runs[0].save(single)
     line = one_error_line(capsys, F.main(["--ensemble", str(single)]))
-    assert "TiltResult.load" in line and "single run" in line
+    assert "Result.load" in line and "single run" in line
     other = tmp_path / "other.h5"
     with h5py.File(other, "w") as f:
         f["x"] = 1

@@ -61,7 +61,7 @@ def test_forces_balance_stability_and_energy_after_every_event(backend):
         excess = np.abs(force) - after.mu_s * math.cos(sc.incline)
         assert excess.max() <= sc.force_tol, f"unstable slider after event {n_events}"
         ev = {k: float(v[0]) for k, v in chunk.events.items()}
-        assert ev["alpha"] == drive >= before.drive  # the driver only advances
+        assert ev["drive"] == drive >= before.drive  # the driver only advances
         residual = ev["work_gravity"] - ev["elastic_change"] - ev["dissipation"]
         assert abs(residual) < 1e-7 * (ev["work_gravity"] + ev["dissipation"])
         if chunk.status == status.SLIDING:
@@ -108,7 +108,7 @@ def test_single_slider_stick_slip_period(backend):
 def test_run_ends_at_the_onset_of_sliding_or_the_driver_limit(backend):
     result = run(PUSHED, backend)
     assert result.status == "sliding"
-    assert f"driver position D={result.events['alpha'][-1]:.4f}" in repr(result)
+    assert f"driver position D={result.events['drive'][-1]:.4f}" in repr(result)
     assert result.events["n_moved"][-1] == PUSHED.n_sliders
     assert (result.events["n_moved"][:-1] < PUSHED.n_sliders).all()
     # the precursors' fronts start at slider 1 and are contiguous
@@ -116,9 +116,9 @@ def test_run_ends_at_the_onset_of_sliding_or_the_driver_limit(backend):
     for row in dense[:-1]:
         moved = np.flatnonzero(row)
         assert moved[0] == 0 and moved.size == moved[-1] + 1
-    limited = sliders.tilt(PUSHED.replace(drive_max=result.events["alpha"][5]), backend=backend)
+    limited = sliders.tilt(PUSHED.replace(drive_max=result.events["drive"][5]), backend=backend)
     assert limited.status == "alpha_max" and limited.n_events == 6
-    np.testing.assert_array_equal(limited.events["alpha"], result.events["alpha"][:6])
+    np.testing.assert_array_equal(limited.events["drive"], result.events["drive"][:6])
 
 
 def test_tilt_scenes_unchanged_by_the_new_keys():
@@ -190,11 +190,11 @@ def test_command_line_runs_the_pushed_end_on_the_kernel(tmp_path, capsys):
     out = tmp_path / "pushed.h5"
     assert main(["tilt", "--loading", "pushed_end", "--incline", "0.2", "--n-sliders", "6",
                  "--out", str(out), "--quiet"]) == 0
-    result = sliders.TiltResult.load(out)
+    result = sliders.Result.load(out)
     assert result.status == "sliding" and result.scene.loading == sliders.PushedEnd(incline=0.2)
     assert result.events["n_moved"][-1] == 6
     assert capsys.readouterr().out.startswith(
-        f"sliding: last drive D={result.events['alpha'][-1]:.5f}")
+        f"sliding: last drive D={result.events['drive'][-1]:.5f}")
 
 
 def test_ensembles_refuse_the_pushed_end_in_one_line(tmp_path):
@@ -213,7 +213,7 @@ def test_ensembles_refuse_the_pushed_end_in_one_line(tmp_path):
 
 
 def test_result_forces_include_the_driver():
-    """TiltResult's force analysis is the loading's: after every event the
+    """Result's force analysis is the loading's: after every event the
     rebuilt forces balance N sin(tilt) + K (D - u_1) and are stable; up to the
     next event's drive only slider 1's force grows, to a static threshold.  The
     analysis reads the run, not the backend that made it (the two agree bit for
@@ -222,7 +222,7 @@ def test_result_forces_include_the_driver():
     result = sliders.tilt(sc)
     force = result.tangential_force
     du = result.displacement_after()
-    drive = result.events["alpha"]
+    drive = result.events["drive"]
     driver = sc.driver_stiffness * (drive - du[:, 0])
     np.testing.assert_allclose(force.sum(axis=1), sc.n_sliders * math.sin(sc.incline) + driver,
                                rtol=1e-12, atol=1e-10)

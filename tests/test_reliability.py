@@ -277,7 +277,7 @@ def test_full_disk_tilt_keeps_the_old_file(tmpfs):
     line = one_error_line(res)
     assert str(out) in line and "No space left on device" in line
     assert out.read_bytes() == before  # never truncated
-    assert sliders.TiltResult.load(out).scene.n_sliders == 10
+    assert sliders.Result.load(out).scene.n_sliders == 10
     assert leftovers(disk) == []
 
 
@@ -361,7 +361,7 @@ def test_signal_stops_tilt_cli_and_saves_finished_events(tmp_path, sig):
     assert code == 128 + sig, err
     assert elapsed < STOP_WITHIN, f"stopped after {elapsed:.2f} s"
     assert "Traceback" not in err
-    result = sliders.TiltResult.load(out)
+    result = sliders.Result.load(out)
     assert result.status == "interrupted" and result.n_events > 0
     assert np.all(np.diff(result.alpha) >= 0)
     assert leftovers(tmp_path) == []
@@ -400,7 +400,7 @@ kind, reference = sys.argv[1], sys.argv[2]
 
 def content(path):
     if kind == "tilt":
-        r = sliders.TiltResult.load(path)
+        r = sliders.Result.load(path)
         arrays = dict(r.events)
         arrays.update({"ptr": r.displacement.ptr, "index": r.displacement.index,
                        "value": r.displacement.value})
@@ -532,9 +532,9 @@ def test_damaged_ensemble_refuses_resume_in_one_line(tmp_path, reference):
 
 def test_write_then_read_keeps_checksums_valid(tmp_path, tilt_file):
     """No false alarm: a saved run and a finished ensemble load without a word."""
-    r = sliders.TiltResult.load(tilt_file)
+    r = sliders.Result.load(tilt_file)
     r.save(tmp_path / "again.h5")
-    assert sliders.TiltResult.load(tmp_path / "again.h5").n_events == r.n_events
+    assert sliders.Result.load(tmp_path / "again.h5").n_events == r.n_events
 
 
 def test_script_loop_without_handler_is_not_swallowed(tmp_path):

@@ -103,7 +103,7 @@ def test_speed_modes_are_ordered_in_accuracy():
     for mode in ("explore", "statistics", "trajectory"):
         run = sliders.tilt(base.replace(mode=mode))
         assert run.n_events == ref.n_events > 15
-        errors[mode] = np.abs(run.events["alpha"] - ref.events["alpha"]).max()
+        errors[mode] = np.abs(run.events["drive"] - ref.events["drive"]).max()
     assert errors["trajectory"] < 2e-6
     ratio = (SPEED_MODES["explore"]["dt"] / SPEED_MODES["trajectory"]["dt"]) ** 2
     assert errors["explore"] / errors["trajectory"] > 0.3 * ratio
@@ -179,7 +179,7 @@ def test_numpy_scalars_are_accepted_and_saved_as_plain_numbers(tmp_path):
     assert Scene.from_dict(json.loads(json.dumps(plain))) == scene
     out = tmp_path / "r.h5"
     sliders.tilt(scene.replace(max_events=5)).save(out)
-    assert sliders.TiltResult.load(out).scene == scene.replace(max_events=5)
+    assert sliders.Result.load(out).scene == scene.replace(max_events=5)
 
 
 def test_scene_beyond_available_memory_is_refused_up_front(monkeypatch):
@@ -253,7 +253,7 @@ def test_command_line_runs_and_writes_a_loadable_file(tmp_path):
                 "--out", str(out))
     assert proc.returncode == 0, proc.stderr
     assert "avalanche: alpha_c=" in proc.stdout
-    result = sliders.TiltResult.load(out)
+    result = sliders.Result.load(out)
     direct = run(Scene(n_sliders=4, seed=4, dt=0.004), "numpy")
     assert result.alpha_c == direct.alpha_c
     assert (result.alpha == direct.alpha).all()

@@ -23,7 +23,7 @@ def test_the_loop_runs_the_realisations_in_order():
     assert [r for r, _ in runs] == [1, 2]
     alone = sliders.tilt(realisation_scene(scene, 2))
     assert runs[1][1].alpha_c == alone.alpha_c
-    assert np.array_equal(runs[1][1].events["alpha"], alone.events["alpha"])
+    assert np.array_equal(runs[1][1].events["drive"], alone.events["drive"])
 
 
 def test_figures_ensemble_uses_the_loop():

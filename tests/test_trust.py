@@ -324,7 +324,7 @@ def test_tilt_out_symlink_to_a_new_file_writes_through(tmp_path):
     res = tilt_cli(*TINY, "--out", tmp_path / "link.h5", "--quiet")
     assert res.returncode == 0, res.stderr
     assert (tmp_path / "link.h5").is_symlink()
-    assert sliders.TiltResult.load(tmp_path / "target.h5").n_events > 0
+    assert sliders.Result.load(tmp_path / "target.h5").n_events > 0
 
 
 def test_overwrite_and_save_write_through_a_symlink(tmp_path, tilt_file):
@@ -334,10 +334,10 @@ def test_overwrite_and_save_write_through_a_symlink(tmp_path, tilt_file):
     res = tilt_cli(*TINY, "--out", tmp_path / "link.h5", "--overwrite", "--quiet")
     assert res.returncode == 0, res.stderr
     assert (tmp_path / "link.h5").is_symlink() and target.read_bytes()[:6] != b"old"
-    result = sliders.TiltResult.load(tilt_file)
+    result = sliders.Result.load(tilt_file)
     result.save(tmp_path / "link.h5")
     assert (tmp_path / "link.h5").is_symlink()
-    assert sliders.TiltResult.load(target).n_events == result.n_events
+    assert sliders.Result.load(target).n_events == result.n_events
     assert temporaries(tmp_path) == []
 
 
@@ -414,7 +414,7 @@ def test_killed_save_leaves_a_temporary_the_next_save_removes(tmp_path, tilt_fil
     assert res.returncode == 0 and "removed 1 temporary file" in res.stderr, res.stderr
     leftover.write_bytes(b"\0" * 1000)
     with pytest.warns(UserWarning, match="removed 1 temporary file"):
-        sliders.TiltResult.load(tilt_file).save(out)
+        sliders.Result.load(tilt_file).save(out)
     assert temporaries(tmp_path) == []
 
 
@@ -447,7 +447,7 @@ def test_newer_tilt_file_is_refused_naming_the_versions(tmp_path, tilt_file):
     path.write_bytes(tilt_file.read_bytes())
     bump_version(path)
     with pytest.raises(ValueError, match="format_version 99.*reads format_version 1"):
-        sliders.TiltResult.load(path)
+        sliders.Result.load(path)
 
 
 def test_newer_ensemble_is_refused_by_readers_and_resume(chunks, capsys):
@@ -491,7 +491,7 @@ def test_a_file_of_another_kind_is_named_not_damaged(tilt_file, chunks):
         storage.read_realisations(tilt_file)
     assert "tilt file (one run" in str(info.value) and "damaged" not in str(info.value)
     with pytest.raises(ValueError) as info:
-        sliders.TiltResult.load(chunks / "c0.h5")
+        sliders.Result.load(chunks / "c0.h5")
     assert "ensemble file" in str(info.value) and "damaged" not in str(info.value)
 
 

@@ -238,12 +238,12 @@ def test_every_file_opens_as_a_tree_with_named_dimensions_and_no_warning(files, 
 @pytest.mark.two_cores  # its fixture writes files on 2 ranks
 def test_tilt_events_have_the_drive_as_coordinate_and_the_recipe_gives_dense_displacements(
         files, tmp_path, monkeypatch):
-    result = sliders.TiltResult.load(files["tilt"])
+    result = sliders.Result.load(files["tilt"])
     tree = xr.open_datatree(files["tilt"], engine="h5netcdf")
     events = tree["events"].to_dataset()
     assert "drive" in events.coords and events.coords["drive"].dims == ("event",)
     assert np.array_equal(events.n_moved.sel(event=events.drive < 0.3).values,
-                          result.events["n_moved"][result.events["alpha"] < 0.3])
+                          result.events["n_moved"][result.events["drive"] < 0.3])
     monkeypatch.chdir(tmp_path)
     Path("run.h5").symlink_to(files["tilt"])
     namespace = {"xr": xr, "np": np}

@@ -6,9 +6,8 @@ public API:
 * ``Scene``: one configured run (validated on construction), composed of its
   friction law (``Coulomb``) and its loading (``Tilt``, ``PushedEnd``);
 * ``run(scene, backend="fortran"|"numpy")``: drive the loading to the run's
-  end, returns a ``Result`` (save/load in HDF5); ``tilt`` and ``TiltResult``
-  are their aliases here, the paper's names (the same function and class;
-  inside the package they are ``run`` and ``Result``);
+  end, returns a ``Result`` (save/load in HDF5); ``tilt`` is its alias
+  here, the paper's name (the same function; inside the package it is ``run``);
 * ``prepare(scene)``: the prepared chain at alpha = 0;
 * ``analysis``, ``figures``, ``runs``: the layers above (docs/architecture.md).
 """
@@ -31,9 +30,8 @@ _PUBLIC = {
     "EventSparse": ("result", "EventSparse"),
     "Result": ("result", "Result"),
     "Scene": ("scene", "Scene"),
-    # the paper's names (its loading is the tilt; they run and hold any loading alike)
+    # the paper's name (its loading is the tilt; it runs any loading alike)
     "tilt": ("driver", "run"),
-    "TiltResult": ("result", "Result"),
 }
 
 __all__ = sorted([*_PUBLIC, "__version__"])

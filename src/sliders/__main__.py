@@ -33,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     p = sub.add_parser("tilt", prog="python -m sliders tilt", help="run one scene and write its HDF5 file",
                        description="Run one scene to the avalanche and write an HDF5 file "
-                                   "(load it with sliders.TiltResult.load).")
+                                   "(load it with sliders.Result.load).")
     add_scene_arguments(p)
     p.add_argument("--backend", choices=BACKENDS, default="fortran",
                    help=f"tilt backend, one of {{{', '.join(BACKENDS)}}} (default fortran)")
@@ -98,7 +98,7 @@ def _run(args, scene) -> int:
         except OSError as exc:
             fail(f"cannot write {describe_os_error(exc, args.out)}", code=1)
     if not scene.loading.drive_is_angle:  # the run ends at a driver position, not an angle
-        last = f"{result.events['alpha'][-1]:.5f}" if result.n_events else "n/a"
+        last = f"{result.drive[-1]:.5f}" if result.n_events else "n/a"
         reached = f"last drive D={last}"
     else:
         reached = "alpha_c=" + ("n/a" if math.isnan(result.alpha_c) else f"{result.alpha_c:.5f}")

@@ -54,13 +54,13 @@ class EventSparse:
 
 @dataclass
 class Result:
-    """Everything a run recorded (``sliders.TiltResult`` is its alias at the
-    package's top, the paper's name).
+    """Everything a run recorded, tilt or pushed end.
 
     ``drive`` is the drive of every completed rearrangement (increasing): the
     tilt angle alpha, or for the pushed end the driver position D
-    (``scene.loading.drive_label``); ``alpha`` is the same array (the name
-    of the event column in files); ``alpha_c`` the avalanche angle (NaN if the run ended otherwise, see
+    (``scene.loading.drive_label``); ``alpha`` is the incline's angle at
+    each (the drive itself for the tilt, the fixed incline for the pushed
+    end); ``alpha_c`` the avalanche angle (NaN if the run ended otherwise, see
     ``status``).  Per-event scalars: ``n_moved``, ``n_stops``, ``n_steps``,
     ``slider_steps``, ``duration`` (tau), ``work_gravity``, ``elastic_change``
     and ``dissipation``.  ``displacement`` holds the displacement of each
@@ -85,7 +85,7 @@ class Result:
         Avalanche angle, radians (NaN unless ``status == "avalanche"``).
     events : dict of str to ndarray
         Per-event arrays of length K, also readable as attributes:
-        ``alpha`` (the drive: radians, or D in g tau^2), ``n_moved``, ``n_stops``, ``n_steps``,
+        ``drive`` (radians, or D in g tau^2), ``n_moved``, ``n_stops``, ``n_steps``,
         ``slider_steps``, ``duration`` (tau), ``work_gravity``,
         ``elastic_change``, ``dissipation`` (m g x g tau^2).
     displacement : EventSparse or None
@@ -104,7 +104,7 @@ class Result:
     --------
     >>> import sliders
     >>> sliders.tilt(sliders.Scene(n_sliders=10, seed=3))
-    <TiltResult Scene(n_sliders=10, seed=3): avalanche, alpha_c=0.5163 rad, 31 events, recorded displacements, backend fortran>
+    <Result Scene(n_sliders=10, seed=3): avalanche, alpha_c=0.5163 rad, 31 events, recorded displacements, backend fortran>
     """
 
     scene: Scene
@@ -122,13 +122,12 @@ class Result:
 
     def __repr__(self) -> str:
         """One line: the scene, how the run ended, alpha_c or the last drive, the events
-        and what was recorded (named ``TiltResult`` for the tilt, ``Result`` otherwise)."""
+        and what was recorded."""
         load = self.scene.loading
         end = (f"alpha_c={self.alpha_c:.4f} rad" if math.isfinite(self.alpha_c)
                else f"last event at {load.drive_label}={self.drive[-1]:.4f} {load.drive_unit}"
                if self.n_events else "no event")
-        kind = "TiltResult" if load.drive_is_angle else "Result"
-        return (f"<{kind} {self.scene!r}: {self.status}, {end}, {self.n_events} events, "
+        return (f"<Result {self.scene!r}: {self.status}, {end}, {self.n_events} events, "
                 f"recorded {self.scene.record}, backend {self.backend}>")
 
     def __getattr__(self, name):
@@ -140,13 +139,19 @@ class Result:
     @property
     def drive(self) -> np.ndarray:
         """The drive of every completed rearrangement: the tilt angle alpha (rad), or the
-        driver position D (g tau^2) of the pushed end; the event column ``alpha``."""
-        return self.events["alpha"]
+        driver position D (g tau^2) of the pushed end; the event column ``drive``."""
+        return self.events["drive"]
+
+    @property
+    def alpha(self) -> np.ndarray:
+        """The incline's angle (rad) at every completed rearrangement: the drive itself
+        for the tilt, the fixed incline for the pushed end (a run file's ``events/alpha``)."""
+        return self.scene.loading.incline_at(self.drive)
 
     @property
     def n_events(self) -> int:
         """Number of completed rearrangements (the avalanche event is not one)."""
-        return int(self.events["alpha"].size)
+        return int(self.events["drive"].size)
 
     @property
     def total_slider_steps(self) -> int:
@@ -181,11 +186,11 @@ class Result:
     def tangential_force(self) -> np.ndarray:
         """(K, N) tangential force F_t of every slider just after each event."""
         du = self.displacement_after()
-        return self._forces(self.alpha, du)
+        return self._forces(self.drive, du)
 
     def events_before(self, alphas) -> np.ndarray:
-        """For each angle, how many rearrangements happened at or below it."""
-        return np.searchsorted(self.alpha, np.asarray(alphas, dtype=float), side="right")
+        """For each angle (each drive), how many rearrangements happened at or below it."""
+        return np.searchsorted(self.drive, np.asarray(alphas, dtype=float), side="right")
 
     def displacement_at(self, alphas) -> np.ndarray:
         """(G, N) displacement since preparation of the chain at rest at each angle."""

@@ -57,7 +57,7 @@ LATTICE_HEADROOM = 1e6
 # value) and the number of events of a run to its avalanche (about 2.4 N,
 # measured for N = 100 to 1000).
 BYTES_PER_SLIDER = 400
-BYTES_PER_EVENT = len(("alpha", "n_moved", "n_stops", "n_steps", "slider_steps", "duration",
+BYTES_PER_EVENT = len(("drive", "n_moved", "n_stops", "n_steps", "slider_steps", "duration",
                        "work_gravity", "elastic_change", "dissipation")) * 8
 BYTES_PER_SPARSE_ENTRY = 16
 EVENTS_PER_SLIDER = 3.0

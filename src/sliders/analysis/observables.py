@@ -1,7 +1,7 @@
 """Observables of tilt runs, per run and over an ensemble of realisations.
 
 Every quantity of the paper's figures and statements is computed here from
-what a run recorded (``TiltResult``); the figures and the reproduction report
+what a run recorded (``Result``); the figures and the reproduction report
 only draw or compare.  Two layers:
 
 * **per run**: ``displacement_map``, ``force_history``, ``force_histogram``,

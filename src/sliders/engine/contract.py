@@ -34,15 +34,16 @@ INTERRUPTED_MESSAGE = "interrupted by the user"
 
 # name, dtype, meaning.  Order: the columns of each type in the kernel's buffers.
 EVENT_SCHEMA = (
-    ("alpha", np.float64, "drive at which the rearrangement happened: the tilt, or the "
-                          "driver's position D for loading='pushed_end'"),
+    ("drive", np.float64, "drive at which the rearrangement happened: the tilt's angle, or "
+                          "the driver's position D for loading='pushed_end'"),
     ("n_moved", np.int64, "distinct sliders that moved"),
     ("n_stops", np.int64, "stops (velocity zero crossings) during the event"),
     ("n_steps", np.int64, "accepted integration steps"),
     ("slider_steps", np.int64, "sum over steps of the number of moving sliders"),
     ("duration", np.float64, "in tau"),
-    ("work_gravity", np.float64, "work of the loading: sin(tilt) * sum of displacements, plus "
-                                 "the driver's spring on slider 1 for loading='pushed_end'"),
+    ("work_gravity", np.float64, "work of the loading: sin(incline angle) * sum of "
+                                 "displacements, plus the driver's spring on slider 1 for "
+                                 "loading='pushed_end'"),
     ("elastic_change", np.float64, "change of elastic energy (springs + cantilevers)"),
     ("dissipation", np.float64, "mu_d cos(alpha) * path length"),
 )
@@ -51,27 +52,23 @@ EVENT_DTYPES = {name: dtype for name, dtype, _ in EVENT_SCHEMA}
 REAL_FIELDS = tuple(name for name, dtype, _ in EVENT_SCHEMA if dtype == np.float64)
 INT_FIELDS = tuple(name for name, dtype, _ in EVENT_SCHEMA if dtype == np.int64)
 
-# The packed parameters of a kernel call, in order (1-based in Fortran).
+# The packed parameters of a kernel call, in order (1-based in Fortran): the
+# scene's fields, the parts' flat keys, and "drive", the drive the call starts at.
 REAL_PARAMETERS = ("xi", "mu_d", "mu_s_mean", "sigma_mu", "dt", "refine_tol",
-                   "max_event_duration", "alpha_max", "force_tol", "alpha",
-                   "tilt", "drive_stiffness", "drive_max")
+                   "max_event_duration", "alpha_max", "force_tol", "drive",
+                   "incline", "driver_stiffness", "drive_max")
 INT_PARAMETERS = ("walls", "seed", "record_sparse", "relax_only", "max_events", "loading")
-# The packed slots whose kernel name is not the flat key that fills them: the
-# kernel's "tilt" slot (par_tilt) holds the pushed end's fixed incline, its
-# "drive_stiffness" slot the driver spring's stiffness.
-KERNEL_SLOTS = {"tilt": "incline", "drive_stiffness": "driver_stiffness"}
 # The loading protocols' codes in the int parameter "loading" (sliders_contract:
 # loading_tilt, loading_pushed_end), declared by each loading (``Loading.code``).
 LOADING_CODES = {name: cls.code for name, cls in LOADINGS.items()}
 
 
-def pack_parameters(scene, alpha: float, record_sparse: bool, relax_only: bool,
+def pack_parameters(scene, drive: float, record_sparse: bool, relax_only: bool,
                     max_events: int) -> tuple[np.ndarray, np.ndarray]:
-    """The kernel's two parameter arrays (float64, int64) for one call."""
-    calls = {"alpha": alpha, "walls": int(scene.walls), "record_sparse": int(record_sparse),
+    """The kernel's two parameter arrays (float64, int64) for one call from ``drive``."""
+    calls = {"drive": drive, "walls": int(scene.walls), "record_sparse": int(record_sparse),
              "relax_only": int(relax_only), "max_events": max_events,
              **scene.friction.packed(), **scene.loading.packed()}
-    calls.update({slot: calls.pop(key) for slot, key in KERNEL_SLOTS.items() if key in calls})
     real = np.array([float(calls[k]) if k in calls else float(getattr(scene, k))
                      for k in REAL_PARAMETERS], dtype=np.float64)
     ints = np.array([int(calls[k]) if k in calls else int(getattr(scene, k))
@@ -79,9 +76,9 @@ def pack_parameters(scene, alpha: float, record_sparse: bool, relax_only: bool,
     return real, ints
 
 
-def refine_limit_message(scene, alpha: float) -> str:
+def refine_limit_message(scene, drive: float) -> str:
     """What a run ended by the bisection bound says (both backends)."""
-    return (f"crossing refinement at alpha={alpha:.6f}: bracket still wider than "
+    return (f"crossing refinement at {scene.loading.drive_label}={drive:.6f}: bracket still wider than "
             f"refine_tol={scene.refine_tol} tau after {MAX_HALVINGS} halvings of dt={scene.dt} "
             f"(below double precision; use a larger refine_tol)")
 
@@ -113,7 +110,7 @@ class Chunk:
     @property
     def n_events(self) -> int:
         """Number of events in this chunk."""
-        return len(self.events["alpha"])
+        return len(self.events["drive"])
 
 
 def join_chunks(pieces: list[Chunk], status: int, alpha_c: float = math.nan, message: str = "",

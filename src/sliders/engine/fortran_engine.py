@@ -18,7 +18,7 @@ the calling thread waits in short waits, so Ctrl-C reaches it at once.  On
 the kernel (it reads the flag every 1e5 slider-steps, well under a
 millisecond) and returns a ``Chunk`` with status ``INTERRUPTED``: the events
 completed in the call, the event in progress undone entirely (displacements,
-draws, stop counts, alpha), exactly as ``reference.NumpyEngine`` does.  Any
+draws, stop counts, drive), exactly as ``reference.NumpyEngine`` does.  Any
 other exception arriving while it waits also stops the kernel first (the
 state is then consistent) and is raised again.
 """
@@ -108,7 +108,7 @@ class FortranEngine:
         real_params, int_params = pack_parameters(sc, float(state.drive), self._record_sparse,
                                                   relax_only, max_events)
         chain0 = np.concatenate([e0, w0, t0]).astype(np.float64)  # the kernel's packed layout
-        (alpha, n_events, n_sparse, code, alpha_c, event_time, final_steps, final_slider_steps,
+        (drive, n_events, n_sparse, code, alpha_c, event_time, final_steps, final_slider_steps,
          detail) = self._interruptible(
             real_params, int_params, chain0, mu, stops, du,
             self._event_real, self._event_int, self._sparse_ptr,
@@ -121,7 +121,7 @@ class FortranEngine:
         state.mu_s[:] = mu
         state.n_stops[:] = stops
         state.displacement[:] = du
-        state.drive = float(alpha)
+        state.drive = float(drive)
 
         k = int(n_events)
         if code == status.SPARSE_FULL and k == 0:
@@ -209,19 +209,19 @@ def _final_event(duration: float, n_steps: int, slider_steps: int) -> dict:
     return {"duration": duration, "n_steps": n_steps, "slider_steps": slider_steps}
 
 
-def _message(sc: Scene, code: int, detail: int, alpha: float, event_time: float) -> str:
+def _message(sc: Scene, code: int, detail: int, drive: float, event_time: float) -> str:
     """The reference's messages for the error statuses."""
     if code == status.NON_FINITE:
         if detail == _DETAIL_RESTING:
             return "non-finite force in the resting chain"
-        return f"non-finite state at alpha={alpha}"
+        return f"non-finite state at {sc.loading.drive_label}={drive}"
     if code == status.EVENT_DURATION_CAP:
-        return (f"rearrangement at alpha={alpha:.6f} still moving after "
+        return (f"rearrangement at {sc.loading.drive_label}={drive:.6f} still moving after "
                 f"{event_time:.1f} tau (max_event_duration={sc.max_event_duration} tau)")
     if code == status.INTERRUPTED:
         return INTERRUPTED_MESSAGE
     if code == status.REFINE_LIMIT:
-        return refine_limit_message(sc, alpha)
+        return refine_limit_message(sc, drive)
     if code == status.RANDOM_FAILURE:
         return (f"static coefficient: no draw above mu_d={sc.mu_d} in "
                 f"{keyed_random.MAX_ATTEMPTS} attempts "

@@ -92,8 +92,8 @@ class NumpyEngine:
                 done = self._one_event(state, max_events, relax_only, records, ptr, index,
                                        disp, chunk)
             except KeyboardInterrupt:
-                alpha, du, mu, stops, n_records, n_ptr, n_index = undo
-                state.drive = alpha
+                drive, du, mu, stops, n_records, n_ptr, n_index = undo
+                state.drive = drive
                 state.displacement[:], state.mu_s[:], state.n_stops[:] = du, mu, stops
                 del records[n_records:], ptr[n_ptr:], index[n_index:], disp[n_index:]
                 return chunk(status.INTERRUPTED, message=INTERRUPTED_MESSAGE)
@@ -153,7 +153,7 @@ class NumpyEngine:
                 return event.unfinished(status.REFINE_LIMIT, refine_limit_message(sc, state.drive))
             if not (np.isfinite(trial[0]).all() and np.isfinite(trial[1]).all()):
                 event.count_step(trial)
-                return event.unfinished(status.NON_FINITE, f"non-finite state at alpha={state.drive}")
+                return event.unfinished(status.NON_FINITE, f"non-finite state at {sc.loading.drive_label}={state.drive}")
             event.accept(trial)
             try:
                 event.stop_and_start()
@@ -162,7 +162,7 @@ class NumpyEngine:
             if event.t > sc.max_event_duration:
                 return event.unfinished(
                     status.EVENT_DURATION_CAP,
-                    f"rearrangement at alpha={state.drive:.6f} still moving after "
+                    f"rearrangement at {sc.loading.drive_label}={state.drive:.6f} still moving after "
                     f"{event.t:.1f} tau (max_event_duration={sc.max_event_duration} tau)",
                 )
             if self.loading.runaway(event.moving, event.direction, event.weight, event.friction,
@@ -304,7 +304,7 @@ class _Rearrangement:
         sc, state, du = self.scene, self.state, self.du
         step = du - self.du_start
         record = {
-            "alpha": state.drive,
+            "drive": state.drive,
             "n_moved": int(self.moved.sum()),
             "n_stops": self.n_stops,
             "n_steps": self.n_steps,

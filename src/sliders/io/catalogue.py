@@ -85,7 +85,7 @@ class Catalogue:
 
     @classmethod
     def from_result(cls, result) -> "Catalogue":
-        """The catalogue of a ``TiltResult`` (its completed events; the run's last tilt as ``tilt_now``).
+        """The catalogue of a ``Result`` (its completed events; the run's last tilt as ``tilt_now``).
 
         The total displacement of an event is its work of gravity over
         sin(alpha) (``work_gravity = sin(alpha) * sum of displacements``); the
@@ -93,7 +93,7 @@ class Catalogue:
         (``record="displacements"`` or ``"forces"``), else they are -1.
         """
         ev = result.events
-        alpha = np.asarray(ev["alpha"], dtype=np.float64)
+        alpha = np.asarray(ev["drive"], dtype=np.float64)
         with np.errstate(divide="ignore", invalid="ignore"):
             disp = np.where(alpha > 0, ev["work_gravity"] / np.sin(alpha), 0.0)
         first = np.full(alpha.size, -1, dtype=np.int64)

@@ -56,7 +56,7 @@ class Variable:
 
 
 # ---------------------------------------------------------------------------
-# tilt result file (TiltResult.save)
+# tilt result file (Result.save)
 # ---------------------------------------------------------------------------
 TILT_EVENT_VARIABLES = {
     "alpha": ("rad", "tilt angle at which the rearrangement happened"),
@@ -336,7 +336,7 @@ def add_provenance(h5file, title: str, scene: dict | None) -> None:
 
 
 def describe_tilt_file(h5file, result) -> None:
-    """Describe a tilt result file (called by ``TiltResult.save`` on its open file)."""
+    """Describe a tilt result file (called by ``Result.save`` on its open file)."""
     s = result.scene
     describe(h5file, tilt_variables(h5file), tilt_coordinates(h5file),
              f"sliders tilt run: N = {s.n_sliders}, xi = {s.xi:g}, seed = {s.seed} "

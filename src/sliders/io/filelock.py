@@ -26,7 +26,7 @@ locks its files (``HDF5_USE_FILE_LOCKING=FALSE``).  Such locks and HDF5's
 (``bind``) as soon as it exists.  The sidecar is opened without following a symlink
 (``O_NOFOLLOW``) and must be a regular file: a planted ``OUT.lock`` link
 never makes a run truncate the file it points to.  Within one process a
-claim is re-entrant (``tilt --out`` holds it while ``TiltResult.save``, which
+claim is re-entrant (``tilt --out`` holds it while ``Result.save``, which
 claims too, writes).  Whoever takes a claim removes the temporary files an
 earlier, killed writer of the same path left (``leftovers``: reported by the
 caller).

@@ -17,7 +17,7 @@ STUDY = "sliders.study"        # R realisations at every point of a sweep (study
 PRIOR = "sliders.prior"        # R realisations drawn from a prior, with catalogues (prior_file)
 KIND_NAMES = {TILT: "tilt file (one run)", ENSEMBLE: "ensemble file", STUDY: "study file",
               PRIOR: "prior ensemble file"}
-READ_WITH = {TILT: "sliders.TiltResult.load", ENSEMBLE: "sliders.io.storage.read_realisations",
+READ_WITH = {TILT: "sliders.Result.load", ENSEMBLE: "sliders.io.storage.read_realisations",
              STUDY: "sliders.analysis.study_analysis.load_study_file",
              PRIOR: "sliders.io.prior_file.read_prior_ensemble"}
 

@@ -77,11 +77,11 @@ def run_file_bytes(result) -> bytes:
         f.attrs["relaxation"] = json.dumps(result.relaxation)
         f.attrs["final_event"] = json.dumps(result.final_event)
         ev = f.create_group("events")
-        drive = result.events["alpha"]  # the kernel's column of the drive
+        drive = result.events["drive"]
         dataset(ev, "drive", drive)
         dataset(ev, "alpha", result.scene.loading.incline_at(drive))
         for name, values in result.events.items():
-            if name != "alpha":
+            if name != "drive":
                 dataset(ev, name, values)
         if result.displacement is not None:
             g = f.create_group("displacement")
@@ -150,7 +150,9 @@ def read_datasets_checked(path):
             scene = Scene.from_stored(json.loads(f.attrs["scene"]))
             events = {name: safeio.read_checked(ds, where) for name, ds in f["events"].items()}
             if int(f.attrs["format_version"]) >= 2:  # the drive in its own column; alpha,
-                events["alpha"] = events.pop("drive")  # the incline's angle, follows from it
+                events.pop("alpha")  # the incline's angle, follows from it
+            else:  # format 1 held the drive under the tilt's name
+                events["drive"] = events.pop("alpha")
             disp = None
             if "displacement" in f:
                 g = f["displacement"]

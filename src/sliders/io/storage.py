@@ -657,7 +657,7 @@ def check_ensemble_file(path) -> None:
     """Raise ``EnsembleInputError`` unless ``path`` is an HDF5 ensemble file.
 
     Tells apart a missing file, a file that is not HDF5, a single-run file
-    (``TiltResult.save``: read it with ``TiltResult.load``) and an HDF5 file
+    (``Result.save``: read it with ``Result.load``) and an HDF5 file
     of another kind.
     """
     p = os.fspath(path)
@@ -675,7 +675,7 @@ def check_ensemble_file(path) -> None:
         raise EnsembleInputError(f"{p!r} is not a readable HDF5 file ({probe.reason})")
     if probe.format == formats.TILT:
         raise EnsembleInputError(f"{p!r} holds a single run, not an ensemble: read it with "
-                                 f"sliders.TiltResult.load({p!r}); --ensemble needs the file "
+                                 f"sliders.Result.load({p!r}); --ensemble needs the file "
                                  "written by python -m sliders.ensemble")
     if not probe.ensemble_rows:
         raise EnsembleInputError(f"{p!r} is an HDF5 file but not a sliders ensemble file "

@@ -34,9 +34,9 @@ from .command import (DEFAULT_BACKEND, CommandParser, RunCommand, RunPlan, Usage
                       resume_header, check_run_options, input_command_parser, open_output,
                       run_planned)
 from .prior_spec import Prior, check_plan_memory, load_prior
-from .rows import status_code, tilt_interruptibly
+from .rows import run_interruptibly, status_code
 from .scheduler import serve_rows
-from ..driver import run as plain
+from ..driver import run
 from ..io.catalogue import Catalogue
 from ..io.prior_file import (HANDLERS, PARAMETERS, catalogue_events, prior_attributes,
                              prior_layout, read_prior_header, write_view)
@@ -56,19 +56,19 @@ def smallest_distances(distance: np.ndarray, k: int) -> np.ndarray:
 
 
 def run_with_ceiling(scene, grid: np.ndarray, k: int, backend: str = "fortran", progress=None,
-                     tilt=None):
+                     run_piece=None):
     """Tilt ``scene`` to its end, cut at every angle of ``grid``: the catalogue, the ceiling, the pieces.
 
     Returns ``(catalogue, ceiling, pieces)``: the events (the same as one
     uninterrupted tilt), the (G, k) smallest distances ``mu_s,n cos(alpha) -
     |F_n|`` at each grid angle (NaN at and past the end of the run) and the
-    ``TiltResult`` of every piece (the last one has the run's status and
-    alpha_c).  ``tilt(scene, backend, progress, state=...)`` runs a piece
+    ``Result`` of every piece (the last one has the run's status and
+    alpha_c).  ``run_piece(scene, backend, progress, state=...)`` runs a piece
     (default: ``sliders.driver.run``).
     """
-    if tilt is None:
-        def tilt(sc, be, pr, state=None):
-            return plain(sc, be, state=state, progress=pr)
+    if run_piece is None:
+        def run_piece(sc, be, pr, state=None):
+            return run(sc, be, state=state, progress=pr)
 
     ceiling = np.full((grid.size, k), np.nan)
     pieces = []
@@ -76,7 +76,7 @@ def run_with_ceiling(scene, grid: np.ndarray, k: int, backend: str = "fortran", 
     for j, g in enumerate(grid):
         if g >= scene.alpha_max:
             break
-        piece = tilt(scene.replace(alpha_max=float(g)), backend, progress, state=state)
+        piece = run_piece(scene.replace(alpha_max=float(g)), backend, progress, state=state)
         pieces.append(piece)
         if piece.status != "alpha_max":
             break
@@ -84,7 +84,7 @@ def run_with_ceiling(scene, grid: np.ndarray, k: int, backend: str = "fortran", 
         ceiling[j] = smallest_distances(piece.final.mu_s * math.cos(g) - np.abs(force), k)
         state = piece.final
     if not pieces or pieces[-1].status == "alpha_max" and pieces[-1].scene.alpha_max < scene.alpha_max:
-        pieces.append(tilt(scene, backend, progress, state=state))
+        pieces.append(run_piece(scene, backend, progress, state=state))
     cats = [Catalogue.from_result(p) for p in pieces]
     cat = Catalogue(*(np.concatenate([getattr(c, name) for c in cats])
                       for name in ("alpha", "size", "displacement", "first", "last")))
@@ -97,7 +97,7 @@ def compute_prior_row(prior: Prior, r: int, backend: str, grid: np.ndarray, prog
     scene = prior.scene(r)
 
     def piece(sc, be, pr, state=None):
-        return tilt_interruptibly(sc, be, pr, state=state)
+        return run_interruptibly(sc, be, pr, state=state)
 
     cat, ceiling, pieces = run_with_ceiling(scene, grid, prior.ceiling_k, backend, progress, piece)
     last = pieces[-1]

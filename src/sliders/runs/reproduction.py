@@ -33,7 +33,7 @@ from ..scene import Scene
 
 def run_many(n_sliders: int, xi: float, runs: int, base_seed: int, backend: str, log=None,
              label: str = ""):
-    """Tilt ``runs`` realisations of the paper's chain (seeds ``realisation_seed(base_seed, r)``); returns the TiltResults."""
+    """Tilt ``runs`` realisations of the paper's chain (seeds ``realisation_seed(base_seed, r)``); returns the Results."""
     out = []
     scene = Scene(n_sliders=n_sliders, xi=xi, seed=base_seed, record="displacements")
     runs_started = time.perf_counter()

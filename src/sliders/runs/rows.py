@@ -29,9 +29,9 @@ def status_code(status: str) -> int:
     return STATUS_CODES.get(status, UNKNOWN_STATUS)
 
 
-def tilt_interruptibly(scene, backend: str, progress, **options):
-    """``tilt`` with ``StopFlag.computing`` set except inside the progress callback
-    (``options``: more of ``tilt``'s keywords, such as ``state``)."""
+def run_interruptibly(scene, backend: str, progress, **options):
+    """``run`` with ``StopFlag.computing`` set except inside the progress callback
+    (``options``: more of ``run``'s keywords, such as ``state``)."""
 
     def callback(p):
         StopFlag.computing = False
@@ -60,7 +60,7 @@ def compute_row(scene, r: int, backend: str, grids, progress=None,
     scene (base columns + statistics/<key>).  ``extra_statistics(result)`` -> {key: value}
     adds statistics of the caller's own (a study's burst periods and synchronisation)."""
     started = time.perf_counter()
-    result = tilt_interruptibly(realisation_scene(scene, first + r), backend, progress)
+    result = run_interruptibly(realisation_scene(scene, first + r), backend, progress)
     stats = {} if scene.record == "summary" else realisation_statistics(result, grids)
     if extra_statistics is not None:
         stats.update(extra_statistics(result))

@@ -2,7 +2,7 @@
 
 * ``StopFlag``: the run commands' flag (``runs.command``, ``runs.scheduler``):
   the signal is remembered and acted on at the next safe point, or interrupts
-  local work at once (``interruptible``; a row's tilt: ``rows.tilt_interruptibly``);
+  local work at once (``interruptible``; a row's tilt: ``rows.run_interruptibly``);
 * ``Interrupted``: raised at a safe point once a run has to stop;
 * ``Received``: the signals of ``python -m sliders tilt``: they stop the tilt
   (the events so far are kept), then wait while its file is written;

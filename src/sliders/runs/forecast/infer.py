@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from ...driver import run as tilt_to
+from ...driver import run
 from ...io.catalogue import Catalogue
 from ...io.forecast_files import ForecastInputError, angle_option, parse_angle, tilt_in_range
 from ...io.forecast_model import default_posterior_path
@@ -245,7 +245,7 @@ def simulate_piles(base_scene, material: dict, tilt: float, measurement: Measure
                 changes[name] = float(material[name][j])
         if "n_sliders" in material:
             changes["n_sliders"] = int(material["n_sliders"][j])
-        result = tilt_to(base_scene.replace(**changes), DEFAULT_BACKEND)
+        result = run(base_scene.replace(**changes), DEFAULT_BACKEND)
         sim = Catalogue.from_result(result)
         sim = Catalogue(sim.alpha, sim.size, sim.displacement, sim.first, sim.last,
                         tilt_now=max(float(tilt), float(sim.tilt_now)))
