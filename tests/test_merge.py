@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
 
@@ -102,3 +104,20 @@ def test_merge_refuses_what_is_not_one_ensemble(chunks, tmp_path):
                                             ("0/8", "use K <= R")])
 def test_bad_chunk_is_one_line(tmp_path, chunk, message):
     assert message in one_error_line(run_ensemble(tmp_path / "x.h5", "--chunk", chunk))
+
+
+def test_a_merge_stopped_by_sigterm_exits_143_and_leaves_nothing(chunks, tmp_path, monkeypatch,
+                                                                   capsys):
+    """SIGTERM while the rows are copied stops the merge as every command stops: 128 + 15,
+    no output and no temporary file beside it."""
+    read_rows = merge.read_rows
+
+    def read_then_stopped(path):
+        os.kill(os.getpid(), signal.SIGTERM)  # a batch system's stop, mid-merge
+        return read_rows(path)
+
+    monkeypatch.setattr(merge, "read_rows", read_then_stopped)
+    out = tmp_path / "merged.h5"
+    assert merge.main([str(out), *map(str, chunks)]) == 128 + signal.SIGTERM
+    assert "interrupted" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

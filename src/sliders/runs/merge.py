@@ -20,7 +20,6 @@ import argparse
 import json
 import os
 import sys
-import signal
 import tempfile
 
 import numpy as np
@@ -28,6 +27,7 @@ import numpy as np
 from ..analysis.observables import StatisticsGrids, statistic_conventions, statistics_layout
 from .command import error_line
 from .rows import realisation_seeds
+from .signals import stop_signal, stopped_by_sigterm
 from ..io import safeio
 from ..io.conventions import describe_ensemble_file
 from ..io.filelock import ClaimError, OutputClaim
@@ -271,23 +271,18 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     notes: list[str] = []
 
-    def stop(signum, frame):
-        raise KeyboardInterrupt
-
-    old = signal.signal(signal.SIGTERM, stop)  # a batch system's stop: as Ctrl-C, cleanly
     try:
-        counts = merge(args.out, args.inputs, overwrite=args.overwrite, notes=notes)
+        with stopped_by_sigterm():  # a batch system's stop: as Ctrl-C, cleanly
+            counts = merge(args.out, args.inputs, overwrite=args.overwrite, notes=notes)
     except (MergeError, OSError, ValueError, RuntimeError) as exc:
         for note in notes:
             sys.stderr.write(f"merge: note: {note}\n")
         sys.stderr.write(error_line(str(exc)) + "\n")
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         sys.stderr.write(f"merge: interrupted; {args.out} is unchanged and no temporary file is "
                          "left\n")
-        return 130
-    finally:
-        signal.signal(signal.SIGTERM, old)
+        return 128 + stop_signal(exc)
     for note in notes:
         sys.stderr.write(f"merge: note: {note}\n")
     sys.stderr.write(f"merge: {counts['inputs']} files, {counts['done']}/{counts['realisations']} "

@@ -7,7 +7,8 @@
 * ``Received``: the signals of ``python -m sliders tilt``: they stop the tilt
   (the events so far are kept), then wait while its file is written;
 * ``Stopped``, ``stopped_by_sigterm``: SIGTERM raises as Ctrl-C does, with its
-  number (``python -m sliders.forecast``: nothing half-written is published).
+  number (``python -m sliders.forecast`` and ``python -m sliders.merge``: nothing
+  half-written is published; the exit status is 128 + ``stop_signal``).
 """
 
 from __future__ import annotations
