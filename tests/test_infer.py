@@ -262,7 +262,7 @@ def test_the_verdict_fails_when_either_predictive_test_fails_and_says_which():
     from sliders.runs.forecast.infer import check_text, combined_verdict
 
     posterior_ok = {"reproduced": True, "p_values": {"onset": 0.4, "stands_to_tilt": 0.5},
-                    "simulated": 24, "alpha": 0.01}
+                    "simulated": 24, "significance_level": 0.01}
     both_ok = combined_verdict(posterior_ok, True, "")
     assert both_ok["reproduced"] is True and both_ok["reasons"] == []
     assert both_ok["tests"] == {"prior_predictive": True, "posterior_predictive": True}
@@ -290,7 +290,7 @@ def test_the_json_verdict_names_the_failed_test_of_a_pile_prepared_outside_the_p
     check = inference.to_dict()["check"]  # what infer --json prints
     assert check["reproduced"] is False and check["tests"]["prior_predictive"] is False
     assert "prior_predictive" in [r["test"] for r in check["reasons"]]
-    assert {"p_values", "simulated", "alpha", "avalanched_before"} <= set(check)
+    assert {"p_values", "simulated", "significance_level", "avalanched_before"} <= set(check)
     assert "prior predictive check failed" in str(inference)
 
 

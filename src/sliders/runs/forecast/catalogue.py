@@ -20,14 +20,16 @@ from __future__ import annotations
 
 import io
 import math
+import numbers
 import os
 
 import numpy as np
 
 from ...analysis.forecast.measurement import Measurement
 from ...io.catalogue import Catalogue, CatalogueSet
-from ...io.forecast_files import (ForecastInputError, angle_option, parse_angle,
-                                  read_catalogue_file, read_catalogue_stream)
+from ...io.forecast_files import (CatalogueRead, ForecastInputError, angle_option, parse_angle,
+                                  read_catalogue_columns, read_catalogue_file,
+                                  read_catalogue_stream)
 from ...io.prior_file import read_prior_ensemble
 from ...io.safeio import describe_os_error, publish_bytes
 from ...io.storage import StorageError
@@ -44,40 +46,29 @@ def load_set(path: str, what: str = "--data") -> CatalogueSet:
         raise ForecastInputError(f"{what}: {describe_os_error(exc, path)}") from None
 
 
-def read_source(source, where: str = "catalogue") -> tuple[Catalogue, float, str]:
-    """The events of ``source``, the radians per unit of its angles and that unit's name.
+def read_source(source, where: str = "catalogue", angle_resolution: float = 0.0):
+    """The events of ``source``, the radians per unit of its angles and that unit's name
+    (``io.forecast_files.CatalogueRead``: with ``reordered``, the rows sorted).
 
     ``source``: a CSV file's path (``-``: standard input); the CSV's bytes (``where`` names
     them in a refusal); a mapping or a pandas-like DataFrame whose keys are the CSV header's
-    names (``"angle [deg]"`` or ``"angle [rad]"``, ``"size"``, ...), each a column of values;
-    or a ``Catalogue`` (radians).  Every form is read by the CSV reader, with its checks and
-    its one-line refusals naming the row and the column.
+    names (``"angle [deg]"`` or ``"angle [rad]"``, ``"size"``, ...), each a column of values,
+    every cell checked as the CSV reader checks a field (``read_catalogue_columns``); or a
+    ``Catalogue`` (radians).  Every refusal is one line naming the row and the column.
+    ``angle_resolution`` (radians): the angles' error; rows in time order whose angles go back
+    by less than ``ANGLE_TOLERANCE_RESOLUTIONS`` of it are sorted by angle, as the training's
+    noisy catalogues are.
     """
     if isinstance(source, Catalogue):
-        return source, 1.0, "rad"
+        return CatalogueRead(source, 1.0, "rad")
     if isinstance(source, (bytes, bytearray)):
-        return read_catalogue_stream(io.BytesIO(bytes(source)), where)
+        return read_catalogue_stream(io.BytesIO(bytes(source)), where, angle_resolution)
     if isinstance(source, (str, os.PathLike)):
-        return read_catalogue_file(os.fspath(source))
+        return read_catalogue_file(os.fspath(source), angle_resolution)
     if hasattr(source, "keys") and hasattr(source, "__getitem__"):
-        return read_catalogue_stream(io.BytesIO(mapping_csv(source).encode()), where)
+        return read_catalogue_columns(source, where, angle_resolution)
     raise ForecastInputError(f"catalogue: a {type(source).__name__}; give a CSV file's path, or "
                              "a mapping or DataFrame of the CSV's columns")
-
-
-def mapping_csv(columns) -> str:
-    """A mapping (or DataFrame) of columns as the CSV text its keys head."""
-    names = [str(k) for k in columns.keys()]
-    values = [np.asarray(columns[k], dtype=object).ravel() for k in columns.keys()]
-    if len({len(v) for v in values}) > 1:
-        raise ForecastInputError("catalogue: its columns differ in length ("
-                                 + ", ".join(f"{n}: {len(v)}" for n, v in zip(names, values)) + ")")
-
-    def field(v):
-        return v if isinstance(v, str) else repr(float(v))
-
-    rows = (",".join(field(v) for v in row) for row in zip(*values))
-    return ",".join(names) + "\n" + "".join(r + "\n" for r in rows)
 
 
 def angles_and_sizes(cat: Catalogue) -> tuple[Catalogue, bool]:
@@ -93,12 +84,31 @@ def angles_and_sizes(cat: Catalogue) -> tuple[Catalogue, bool]:
 def measurement_from(angle_resolution, min_size=1.0, missed_fraction=0.0, size_unit="sliders",
                      sliders=None) -> Measurement:
     """The ``Measurement`` of the ``predict`` flags' values (one line naming a bad flag);
-    ``angle_resolution``: ``"0.3deg"``, ``"0.005rad"`` or a bare number of degrees."""
+    ``angle_resolution``: ``"0.3deg"``, ``"0.005rad"`` or a bare number of degrees;
+    ``sliders``: a whole number (any integer, NumPy's too, or a float such as 100.0)."""
     res = angle_option(angle_resolution, "--angle-resolution")
+    n_sliders = sliders_option(sliders)
     try:
-        return Measurement(res, float(min_size), float(missed_fraction), size_unit, sliders)
+        return Measurement(res, float(min_size), float(missed_fraction), size_unit, n_sliders)
     except (TypeError, ValueError) as exc:
         raise ForecastInputError(f"measurement flags: {exc}") from None
+
+
+def sliders_option(sliders) -> int | None:
+    """The number of sliders of ``--sliders`` (``sliders=``) as an int, or one line naming it."""
+    if sliders is None:
+        return None
+    whole = None
+    if isinstance(sliders, (bool, np.bool_)):
+        pass
+    elif isinstance(sliders, numbers.Integral):
+        whole = int(sliders)
+    elif isinstance(sliders, numbers.Real) and math.isfinite(sliders) and sliders == int(sliders):
+        whole = int(sliders)
+    if whole is None or whole < 1:
+        raise ForecastInputError(f"--sliders {sliders}: the number of sliders of the pile must "
+                                 "be a whole number of at least 1")
+    return whole
 
 
 def measurement_of(args):

@@ -3,7 +3,7 @@
     python -m sliders.forecast infer CATALOGUE.csv [--tilt-now ANGLE] [--json] [--plot FILE.png]
 
 The catalogue and its measurement flags are read as ``predict`` reads them
-(``catalogue.read_source``, ``predict.at_tilt``, ``predict.measurement_options``).
+(``catalogue.read_source``, ``predict.prepared``, ``catalogue.measurement_of``).
 The posterior file (default: the one shipped in the package,
 ``sliders/data/default_posterior.zip``, checked by its digest) is a model
 file of one entry, ``"posterior"``, a fitted
@@ -48,13 +48,18 @@ from ...analysis.forecast.posterior_check import (CHECK_ALPHA, SURVIVAL, check_s
                                                   survival_p_value)
 from ..command import DEFAULT_BACKEND
 from ..prior_spec import parse_prior
-from .catalogue import angles_and_sizes, measurement_as_json, measurement_from, read_source
+from .catalogue import (angles_and_sizes, measurement_as_json, measurement_from, measurement_of,
+                        read_source)
 from .common import CHECK_DRAWS, jsonable
-from .predict import (ForecastModel, at_tilt, load_model, measurement_options,
-                      read_model_file)
+from .predict import ForecastModel, check_plot_target, load_model, prepared, read_model_file
 
 #: the most piles the predictive check may simulate
 MAX_CHECK_DRAWS = 1000
+#: the least p-value the check's text states as a number: each is a normal tail fitted to the
+#: ``CHECK_DRAWS`` (24) simulated piles, whose spread is known to about 1/sqrt(2 (24 - 1)), 15 %;
+#: at p = 0.001 (z = 3.3) that moves p by a factor of about 3, and below it the number says no
+#: more than "beyond the Bonferroni level" (0.01 over 9 statistics, 0.0011)
+P_VALUE_FLOOR = 0.001
 #: the parameters' names in the text output
 LABELS = {"mu_d": "mu_d", "mu_s_minus_mu_d": "mu_s - mu_d", "sigma_mu": "sigma_mu", "xi": "xi",
           "n_sliders": "N (sliders)"}
@@ -63,9 +68,13 @@ LABELS = {"mu_d": "mu_d", "mu_s_minus_mu_d": "mu_s - mu_d", "sigma_mu": "sigma_m
 def infer(args, argv=None) -> int:
     """The posterior of a measured catalogue: the text (or ``--json``), the corner plot."""
     check_infer_options(args)
+    # the catalogue read and checked before the posterior's seconds of loading
+    measurement = measurement_of(args)
+    cat, notes = prepared(read_source(args.catalogue, angle_resolution=measurement.angle_resolution),
+                          args.tilt_now, measurement)
     model = load_posterior(args.posterior)
-    result = model.infer(args.catalogue, tilt_now=args.tilt_now, **measurement_options(args),
-                         check=not args.no_check, check_draws=args.check_draws, seed=args.seed)
+    result = model.infer_catalogue(cat, measurement, not args.no_check, args.check_draws,
+                                   args.seed, notes)
     print(json.dumps(result.to_dict()) if args.json else str(result))
     if args.plot:
         result.plot(args.plot)
@@ -84,6 +93,10 @@ def check_infer_options(args) -> None:
                                  f"[3, {MAX_CHECK_DRAWS}]")
     if not 0 <= args.seed < 2**32:
         raise ForecastInputError(f"--seed {args.seed}: must lie in [0, 2^32)")
+    check_plot_target(args.plot, {
+        "the catalogue": args.catalogue,
+        "the posterior file": (args.posterior if args.posterior is not None
+                               else default_posterior_path())})
 
 
 def load_posterior(path=None) -> "PosteriorModel":
@@ -146,9 +159,8 @@ class PosteriorModel:
         """
         measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
                                        sliders)
-        cat, scale, unit = read_source(catalogue)
-        notes = []
-        cat = at_tilt(cat, tilt_now, scale, unit, measurement.angle_resolution, notes)
+        cat, notes = prepared(read_source(catalogue, angle_resolution=measurement.angle_resolution),
+                              tilt_now, measurement)
         return self.infer_catalogue(cat, measurement, check, check_draws, seed, notes)
 
     def infer_catalogue(self, cat: Catalogue, measurement: Measurement, check: bool = True,
@@ -193,7 +205,7 @@ class PosteriorModel:
         p[SURVIVAL] = survival_p_value(avalanche_angles, cat.tilt_now)
         return {"reproduced": reproduced(p), "p_values": p, "simulated": draws,
                 "avalanched_before": int(np.sum(np.isfinite(avalanche_angles))),
-                "alpha": CHECK_ALPHA}
+                "significance_level": CHECK_ALPHA}
 
     def prior_scene(self):
         """The base scene of the prior the posterior was fitted on."""
@@ -216,7 +228,8 @@ def combined_verdict(check: dict, in_domain: bool, domain_reason: str) -> dict:
         n = sum(v is not None for v in check["p_values"].values())
         reasons.append({"test": "posterior_predictive",
                         "detail": f"{check['simulated']} piles simulated at posterior draws "
-                                  f"differ in {name} (p = {p:.2g}, below {check['alpha']:g} "
+                                  f"differ in {name} (p {p_value_text(p)}, below "
+                                  f"{check['significance_level']:g} "
                                   f"over the {n} statistics)"})
     return {**check, "reproduced": not reasons, "reasons": reasons,
             "tests": {"prior_predictive": in_domain, "posterior_predictive": check["reproduced"]}}
@@ -299,7 +312,7 @@ class Inference:
         for name, p in d["parameters"].items():
             c = d["contraction"][name]
             out.append(f"  {LABELS.get(name, name)}: {parameter_text(name, p)} "
-                       + ("(fixed by the prior)" if c is None else f"(contraction {c:.2f})"))
+                       f"({contraction_text(c)})")
         out.append(check_text(d["check"]))
         out.append(f"posterior: {d['posterior']['path']} ({d['posterior'].get('rows', '?')} "
                    f"training rows, {d['posterior'].get('created', '?')})")
@@ -310,10 +323,12 @@ class Inference:
         return "\n".join(self.lines())
 
     def figure(self):
-        """The corner plot (``figures.posterior.corner_figure``): a matplotlib Figure."""
+        """The corner plot (``figures.posterior.corner_figure``): a matplotlib Figure, the
+        predictive check's verdict on it."""
         from ...figures.posterior import corner_figure
 
-        return corner_figure(self.draws, self.prior_range, self._report["parameters"])
+        return corner_figure(self.draws, self.prior_range, self._report["parameters"],
+                             check=self._report["check"] or "skipped")
 
     def plot(self, path) -> None:
         """Write the corner plot to ``path`` (PNG), whole or not at all."""
@@ -346,6 +361,20 @@ def parameter_text(name: str, p: dict) -> str:
     return text
 
 
+def contraction_text(c) -> str:
+    """A parameter's contraction in words: "fixed by the prior" (None), "none" (the posterior
+    no narrower than the prior: below 0 is the draws' noise), else to two decimals."""
+    if c is None:
+        return "fixed by the prior"
+    return "contraction none" if c <= 0 else f"contraction {c:.2f}"
+
+
+def p_value_text(p: float) -> str:
+    """A p-value of the check as the text gives it: ``= 0.023``, or ``< 0.001`` below
+    ``P_VALUE_FLOOR``."""
+    return f"< {P_VALUE_FLOOR:g}" if p < P_VALUE_FLOOR else f"= {p:.2g}"
+
+
 def check_text(check) -> str:
     """The predictive check in a line."""
     if check is None:
@@ -354,7 +383,7 @@ def check_text(check) -> str:
     if check["reproduced"]:
         return (f"predictive check: the prior's piles make catalogues like this one, and "
                 f"{check['simulated']} piles simulated at posterior draws reproduce it "
-                f"(smallest p-value {p:.2g}, {name})")
+                f"(smallest p-value {p_value_text(p)}, {name})")
     failed = "; ".join(f"{r['test'].replace('_', ' ')} check failed: {r['detail']}"
                        for r in check["reasons"])
     return (f"predictive check: the model does not reproduce this catalogue ({failed}); its "

@@ -23,10 +23,12 @@ import numpy as np
 from ...analysis.forecast.features import Cuts
 from ...analysis.forecast.registry import fallback_of
 from ...io.catalogue import Catalogue
-from ...io.forecast_files import ForecastInputError, angle_option, parse_angle, tilt_in_range
+from ...io.forecast_files import (ANGLE_TOLERANCE_RESOLUTIONS, ForecastInputError, angle_option,
+                                  check_output_target, parse_angle, tilt_in_range)
 from ...io.forecast_model import ModelFileError, default_model_path, load_forecasters
-from ...io.safeio import publish_bytes
-from .catalogue import angles_and_sizes, measurement_as_json, measurement_from, read_source
+from ...io.safeio import check_output_name, publish_bytes, resolve_target
+from .catalogue import (angles_and_sizes, measurement_as_json, measurement_from, measurement_of,
+                        read_source)
 from .common import ALARM_DELTA_DEG, PREDICT_METHODS, jsonable
 
 #: why a method of the displacements gave no forecast of its own on a catalogue without them
@@ -44,9 +46,12 @@ def predict(args, argv=None) -> int:
     """Forecast a measured catalogue: every method asked, the domain, the model's provenance
     (``--follow`` runs ``follow.follow_command`` instead)."""
     check_predict_options(args)
+    # the catalogue read and checked before the model's seconds of loading
+    measurement = measurement_of(args)
+    cat, notes = prepared(read_source(args.catalogue, angle_resolution=measurement.angle_resolution),
+                          args.tilt_now, measurement)
     model = load_model(args.model)
-    pred = model.predict(args.catalogue, tilt_now=args.tilt_now, within=args.within,
-                         **measurement_options(args), method=args.method)
+    pred = model.forecast(cat, measurement, within_option(args.within), args.method, notes)
     report, lines = pred.to_dict(), pred.lines(verbose=args.verbose)
     if getattr(args, "alarm_threshold", None) is not None:
         from .alarm import single_alarm
@@ -57,13 +62,6 @@ def predict(args, argv=None) -> int:
     if getattr(args, "plot", None):
         pred.plot(args.plot)
     return 0
-
-
-def measurement_options(args) -> dict:
-    """The measurement flags of ``predict`` as ``ForecastModel.predict``'s keywords."""
-    return {"angle_resolution": args.angle_resolution, "min_size": args.min_size,
-            "missed_fraction": args.missed_fraction, "size_unit": args.size_unit,
-            "sliders": args.sliders}
 
 
 def load_model(path=None) -> "ForecastModel":
@@ -163,16 +161,14 @@ class ForecastModel:
             raise ForecastInputError(f"--method {method}: one of {', '.join(PREDICT_METHODS)}")
         measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
                                        sliders)
-        return self.predict_read(read_source(catalogue), tilt_now, measurement,
-                                 within_option(within), method)
+        read = read_source(catalogue, angle_resolution=measurement.angle_resolution)
+        return self.predict_read(read, tilt_now, measurement, within_option(within), method)
 
     def predict_read(self, read, tilt_now, measurement, within: float,
                      method: str = "learned") -> "Prediction":
         """``predict`` of a catalogue already read (``catalogue.read_source``'s triple), its
         measurement a ``Measurement``, the alarm's horizon ``within`` in radians."""
-        cat, scale, unit = read
-        notes = []
-        cat = at_tilt(cat, tilt_now, scale, unit, measurement.angle_resolution, notes)
+        cat, notes = prepared(read, tilt_now, measurement)
         return self.forecast(cat, measurement, within, method, notes)
 
     def forecast(self, catalogue, measurement, within: float, method: str = "learned",
@@ -208,10 +204,18 @@ class ForecastModel:
         methods = {}
         for m, f, fc in forecasts:
             why = fallback_reason(m, fc, complete)
+            if m == "learned" and fc.fallback:  # nothing fell back: the interval was widened
+                why = widened_reason(learned, fc)
+            bounds = probability_bounds(fc)
+            raw = fc.probability_within(within)
             methods[m] = fc.as_dict(within) | {
                 "label": f.label, "fallback_reason": why,
                 "calibrated": bool(in_domain and why is None),
-                "probability_bounds": list(probability_bounds(fc)),
+                # bounded as the text bounds it ("< 0.05" is 0.05 here), the distribution's own
+                # value, extrapolated beyond the levels it resolves, beside it
+                "probability_within": clipped_probability(raw, bounds),
+                "probability_within_raw": raw,
+                "probability_bounds": list(bounds),
                 "typical_accuracy": typical_accuracy(f, fc) if in_domain else None,
                 "typical_accuracy_line": typical_accuracy_line(f, fc) if in_domain else None}
         warnings = disjoint_intervals(methods)
@@ -221,8 +225,25 @@ class ForecastModel:
                   "measurement": measurement_as_json(measurement),
                   "model": {"path": str(path), **prov}, "methods": methods}
         first = forecasts[0][0]
-        top_level = {k: methods[first][k] for k in forecasts[0][2].as_dict(within)}
+        top_level = {k: methods[first][k] for k in (*forecasts[0][2].as_dict(within),
+                                                    "probability_within_raw")}
         return Prediction(jsonable(top_level | report), forecasts, cat, complete, measurement)
+
+
+def interval_name(method_dict: dict, method: str) -> str:
+    """What a method's interval is, in the words every output uses (``predict``'s lines,
+    ``--follow``'s update line, the picture): ``method_dict`` is the method's entry of
+    ``to_dict()["methods"]``."""
+    from ...analysis.forecast.base import NOMINAL_COVERAGE
+
+    if method_dict["calibrated"]:
+        return f"{NOMINAL_COVERAGE * 100:.0f} % interval"
+    fallback = method_dict.get("fallback", False)
+    if fallback and method != "learned":
+        return "climatology's 10-90 % range, uncalibrated"
+    if fallback:  # the learned forecaster out of its domain
+        return "widened interval, uncalibrated"
+    return "interval, uncalibrated"
 
 
 def within_option(within) -> float:
@@ -232,6 +253,20 @@ def within_option(within) -> float:
         raise ForecastInputError(f"--within {within}: the alarm's horizon must lie in (0, 90) "
                                  "degrees")
     return delta
+
+
+def prepared(read, tilt_now, measurement) -> tuple[Catalogue, list[str]]:
+    """The catalogue read (``catalogue.read_source``'s triple) at the tilt reached ``tilt_now``
+    (``at_tilt``) and the notes on what was done to it: its rows sorted by angle where they
+    went back within the angle error (``io.forecast_files.ANGLE_TOLERANCE_RESOLUTIONS``)."""
+    cat, scale, unit = read
+    notes = []
+    if reordered := getattr(read, "reordered", 0):
+        notes.append(f"{reordered} of {len(cat)} rows lay below an earlier row's angle, within "
+                     f"{ANGLE_TOLERANCE_RESOLUTIONS:g} × the angle resolution "
+                     f"({math.degrees(measurement.angle_resolution):g}°): the rows are sorted by "
+                     "angle, each keeping its size, as the training's noisy catalogues are")
+    return at_tilt(cat, tilt_now, scale, unit, measurement.angle_resolution, notes), notes
 
 
 def at_tilt(cat, tilt_now, scale: float, unit: str, resolution: float, notes: list):
@@ -261,6 +296,27 @@ def at_tilt(cat, tilt_now, scale: float, unit: str, resolution: float, notes: li
     return Catalogue(cat.alpha, cat.size, cat.displacement, cat.first, cat.last, tilt_now=tilt)
 
 
+def widened_reason(learned, forecast) -> str:
+    """What the learned forecaster gave out of its domain, in words that match it: the interval
+    widened to hold the conditioned climatology's and the training piles' remaining angles, and
+    the median the greatest of the three medians (``learned.Learned._quantiles``), named."""
+    from ...analysis.forecast.base import MEDIAN
+    from ...analysis.forecast.baselines import conditioned_quantiles
+
+    t = np.array([forecast.tilt_now])
+    medians = {"the conditioned climatology's":
+               float(conditioned_quantiles(learned.climatology_.alpha_c_, t)[0][0, MEDIAN]),
+               "the tilt reached plus the training piles' median remaining angle":
+               float(forecast.tilt_now + learned.remaining_quantiles_[MEDIAN])}
+    point = forecast.point
+    whose = next((name for name, m in medians.items()
+                  if abs(min(max(m, forecast.tilt_now), math.pi / 2) - point) < 1e-9),
+                 "the learned forecaster's own")
+    return ("out of the training domain: the interval is widened to hold the conditioned "
+            "climatology's and the training piles' remaining angles too, and the median given "
+            f"is {whose} ({math.degrees(point):.2f}°), the greatest of the three medians")
+
+
 def probability_bounds(forecast) -> tuple[float, float]:
     """The least and the greatest probability the forecast's distribution resolves: its lowest
     and highest quantile levels (below and above them the tails are extrapolated, not
@@ -271,14 +327,28 @@ def probability_bounds(forecast) -> tuple[float, float]:
     return float(lv[0]), float(lv[-1])
 
 
-def probability_text(p: float, bounds) -> str:
-    """``p`` to two decimals, or ``< lo`` / ``> hi`` beyond what the forecast resolves."""
+def probability_limits(bounds) -> tuple[float, float]:
+    """The least and the greatest probability the text states as a number, from the forecast's
+    ``probability_bounds`` (two decimals, within [0.01, 0.99]): beyond them it gives a bound."""
     lo, hi = max(bounds[0], 0.01), min(bounds[1], 0.99)
-    if p < lo:
-        return f"< {math.ceil(lo * 100 - 1e-9) / 100:.2f}"
-    if p > hi:
-        return f"> {math.floor(hi * 100 + 1e-9) / 100:.2f}"
+    return math.ceil(lo * 100 - 1e-9) / 100, math.floor(hi * 100 + 1e-9) / 100
+
+
+def probability_text(p: float, bounds) -> str:
+    """``p`` to two decimals, or ``< lo`` / ``> hi`` beyond what the forecast resolves
+    (``probability_limits``; a probability clipped to a limit, as JSON's, reads as the bound)."""
+    lo, hi = probability_limits(bounds)
+    if p <= lo:
+        return f"< {lo:.2f}"
+    if p >= hi:
+        return f"> {hi:.2f}"
     return f"= {p:.2f}"
+
+
+def clipped_probability(p: float, bounds) -> float:
+    """``p`` within the limits the text states it by (``probability_limits``)."""
+    lo, hi = probability_limits(bounds)
+    return min(max(p, lo), hi)
 
 
 def alarm_threshold(forecaster) -> float:
@@ -341,7 +411,8 @@ class Prediction:
     @property
     def alarm(self) -> bool:
         """P(within) of the first method at or above its alarm threshold."""
-        return self._report["probability_within"] >= self._report["alarm_threshold"]
+        d = self._report
+        return d.get("probability_within_raw", d["probability_within"]) >= d["alarm_threshold"]
 
     def measurement_line(self) -> str:
         """The measurement assumed, in one line."""
@@ -354,19 +425,10 @@ class Prediction:
 
     def method_line(self, method: str, forecaster, forecast) -> str:
         """One method's forecast: the point, the interval (called what it is), P(within)."""
-        from ...analysis.forecast.base import NOMINAL_COVERAGE
-
         d = self._report["methods"][method]
         deg = math.degrees
         lo, hi = forecast.interval
-        if d["calibrated"]:
-            name = f"{NOMINAL_COVERAGE * 100:.0f} % interval"
-        elif d["fallback"] and method != "learned":
-            name = "climatology's 10-90 % range, uncalibrated"
-        elif method == "learned":
-            name = "widened interval, uncalibrated"
-        else:
-            name = "interval, uncalibrated"
+        name = interval_name(d, method)
         within = deg(d["within"])
         p = probability_text(d["probability_within"], d["probability_bounds"])
         return (f"{method} ({forecaster.label}): avalanche angle {forecast.point:.4f} rad "
@@ -388,8 +450,8 @@ class Prediction:
         for method, f, fc in self.forecasts:
             out.append(self.method_line(method, f, fc))
             why = d["methods"][method]["fallback_reason"]
-            if why:
-                out.append(f"  fallback: {why}")
+            if why:  # the learned forecaster out of its domain widens; it falls back on nothing
+                out.append(f"  {why}" if method == "learned" else f"  fallback: {why}")
             elif acc := d["methods"][method]["typical_accuracy_line"]:
                 out.append(f"  expected accuracy: {acc}")
         out += [f"WARNING: {w}" for w in d["warnings"]]
@@ -445,6 +507,9 @@ def check_predict_options(args) -> None:
         tilt_in_range(parse_angle(args.tilt_now, math.pi / 180.0), f"--tilt-now {args.tilt_now}")
     within_option(args.within)
     angle_option(args.angle_resolution, "--angle-resolution")
+    check_plot_target(getattr(args, "plot", None), {
+        "the catalogue": args.catalogue,
+        "the model file": args.model if args.model is not None else default_model_path()})
     for option in ("until",):
         if getattr(args, option, None) is not None:
             tilt_in_range(parse_angle(getattr(args, option), math.pi / 180.0),
@@ -452,3 +517,17 @@ def check_predict_options(args) -> None:
     from .alarm import check_alarm_options
 
     check_alarm_options(args)
+
+
+def check_plot_target(plot, inputs: dict) -> None:
+    """``--plot``'s file, before anything is read or computed: a name a file can have, a
+    regular file or none yet, in a folder that exists, and none of ``inputs`` (``{what: path}``;
+    ``-``, standard input, is no file), whatever link leads to it (one line naming the option)."""
+    if plot is None:
+        return
+    try:
+        check_output_name(plot)
+    except ValueError as exc:
+        raise ForecastInputError(f"--plot: {exc}") from None
+    check_output_target(plot, {what: resolve_target(path) for what, path in inputs.items()
+                               if path is not None and str(path) != "-"}, "--plot")
