@@ -52,6 +52,7 @@ def predict(args, argv=None) -> int:
                           args.tilt_now, measurement)
     model = load_model(args.model)
     pred = model.forecast(cat, measurement, within_option(args.within), args.method, notes)
+    pred.size_label = getattr(args, "size_label", None)
     report, lines = pred.to_dict(), pred.lines(verbose=args.verbose)
     if getattr(args, "alarm_threshold", None) is not None:
         from .alarm import single_alarm
@@ -131,7 +132,7 @@ class ForecastModel:
 
     def predict(self, catalogue, tilt_now=None, *, within=ALARM_DELTA_DEG, angle_resolution=0.0,
                 min_size=1.0, missed_fraction=0.0, size_unit="sliders", sliders=None,
-                method="learned") -> "Prediction":
+                method="learned", size_label=None) -> "Prediction":
         """The forecast of ``catalogue`` at the tilt ``tilt_now``, measured as the keywords say.
 
         Parameters
@@ -151,6 +152,9 @@ class ForecastModel:
             (``angle_resolution``: an angle, a bare number in degrees).
         method : str
             ``"learned"``, a method of ``common.PREDICT_METHODS``, or ``"all"``.
+        size_label : str, optional
+            The sizes' unit as the picture's axis names it (``"mm²"``, ``"grains"``), as
+            ``predict --size-label``; default: "sliders", or "CSV's unit" for arbitrary sizes.
 
         Returns
         -------
@@ -162,14 +166,54 @@ class ForecastModel:
         measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
                                        sliders)
         read = read_source(catalogue, angle_resolution=measurement.angle_resolution)
-        return self.predict_read(read, tilt_now, measurement, within_option(within), method)
+        return self.predict_read(read, tilt_now, measurement, within_option(within), method,
+                                 size_label=size_label)
 
     def predict_read(self, read, tilt_now, measurement, within: float,
-                     method: str = "learned") -> "Prediction":
+                     method: str = "learned", size_label=None) -> "Prediction":
         """``predict`` of a catalogue already read (``catalogue.read_source``'s triple), its
         measurement a ``Measurement``, the alarm's horizon ``within`` in radians."""
         cat, notes = prepared(read, tilt_now, measurement)
-        return self.forecast(cat, measurement, within, method, notes)
+        pred = self.forecast(cat, measurement, within, method, notes)
+        pred.size_label = size_label
+        return pred
+
+    def follow(self, source, *, tilt_now=None, tilt_rate=None, until=None,
+               within=ALARM_DELTA_DEG, angle_resolution=0.0, min_size=1.0, missed_fraction=0.0,
+               size_unit="sliders", sliders=None, method="learned", alarm_threshold=None,
+               alarm_release=None, on_alarm=None, plot=None, say=None):
+        """Follow the catalogue ``source`` while an acquisition appends to it: a
+        ``follower.Follower``, whose iteration yields one ``Update`` per new state (the
+        ``predict --follow`` command prints them) until ``# avalanche``, ``until``, SIGINT or
+        SIGTERM (``stopped`` says which).
+
+        Parameters
+        ----------
+        source : str or os.PathLike
+            The CSV file (``"-"``: standard input); refused at once if it does not exist.
+        tilt_now, tilt_rate, until : str or float, optional
+            The tilt reached at the start, its rate (``"0.1deg/s"``) and the tilt at which to
+            stop, as ``predict --follow``'s options.
+        within, angle_resolution, min_size, missed_fraction, size_unit, sliders, method
+            As ``predict``.
+        alarm_threshold, alarm_release, on_alarm : optional
+            The alarm's threshold, its release level and the command it runs, as
+            ``--alarm-threshold``, ``--alarm-release`` and ``--on-alarm``.
+        plot : str or os.PathLike, optional
+            The picture, replaced at each update.
+        say : callable, optional
+            ``say(line)`` for the notices (a bad row, a file read again); default stderr.
+        """
+        from .follower import Follower
+
+        if method not in PREDICT_METHODS:
+            raise ForecastInputError(f"--method {method}: one of {', '.join(PREDICT_METHODS)}")
+        measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
+                                       sliders)
+        return Follower(self, source, tilt_now=tilt_now, tilt_rate=tilt_rate, until=until,
+                        within=within_option(within), measurement=measurement, method=method,
+                        alarm_threshold=alarm_threshold, alarm_release=alarm_release,
+                        on_alarm=on_alarm, plot=plot, say=say)
 
     def forecast(self, catalogue, measurement, within: float, method: str = "learned",
                  notes=()) -> "Prediction":
