@@ -52,7 +52,6 @@ def predict(args, argv=None) -> int:
                           args.tilt_now, measurement)
     model = load_model(args.model)
     pred = model.forecast(cat, measurement, within_option(args.within), args.method, notes)
-    pred.size_label = getattr(args, "size_label", None)
     report, lines = pred.to_dict(), pred.lines(verbose=args.verbose)
     if getattr(args, "alarm_threshold", None) is not None:
         from .alarm import single_alarm
@@ -132,7 +131,7 @@ class ForecastModel:
 
     def predict(self, catalogue, tilt_now=None, *, within=ALARM_DELTA_DEG, angle_resolution=0.0,
                 min_size=1.0, missed_fraction=0.0, size_unit="sliders", sliders=None,
-                method="learned", size_label=None) -> "Prediction":
+                method="learned") -> "Prediction":
         """The forecast of ``catalogue`` at the tilt ``tilt_now``, measured as the keywords say.
 
         Parameters
@@ -152,9 +151,6 @@ class ForecastModel:
             (``angle_resolution``: an angle, a bare number in degrees).
         method : str
             ``"learned"``, a method of ``common.PREDICT_METHODS``, or ``"all"``.
-        size_label : str, optional
-            The sizes' unit as the picture's axis names it (``"mm²"``, ``"grains"``), as
-            ``predict --size-label``; default: "sliders", or "CSV's unit" for arbitrary sizes.
 
         Returns
         -------
@@ -166,17 +162,14 @@ class ForecastModel:
         measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
                                        sliders)
         read = read_source(catalogue, angle_resolution=measurement.angle_resolution)
-        return self.predict_read(read, tilt_now, measurement, within_option(within), method,
-                                 size_label=size_label)
+        return self.predict_read(read, tilt_now, measurement, within_option(within), method)
 
     def predict_read(self, read, tilt_now, measurement, within: float,
-                     method: str = "learned", size_label=None) -> "Prediction":
+                     method: str = "learned") -> "Prediction":
         """``predict`` of a catalogue already read (``catalogue.read_source``'s triple), its
         measurement a ``Measurement``, the alarm's horizon ``within`` in radians."""
         cat, notes = prepared(read, tilt_now, measurement)
-        pred = self.forecast(cat, measurement, within, method, notes)
-        pred.size_label = size_label
-        return pred
+        return self.forecast(cat, measurement, within, method, notes)
 
     def follow(self, source, *, tilt_now=None, tilt_rate=None, until=None,
                within=ALARM_DELTA_DEG, angle_resolution=0.0, min_size=1.0, missed_fraction=0.0,
