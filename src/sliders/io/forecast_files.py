@@ -318,8 +318,8 @@ def _checked(x: float, s: str, k: int, n: str, path: str) -> float:
 #: angles with independent errors of standard deviation s spreads as s*sqrt(2): 6 s is 4.2 of
 #: those spreads, a chance of 1e-5 a pair.  Measured against the greatest angle before (the
 #: error of the highest of the nearby rows), noise of s on the angles of 200 rows over 200 s
-#: of tilt (29 % of consecutive rows going backwards) is refused 2 times in 1000, on 1000 rows
-#: over 200 s 12 times in 1000; 5 s refuses 1 % and 12 %, 4 s 17 % and 98 %.
+#: of tilt (29 % of consecutive rows going backwards) is refused at most 2 times in 1000, on
+#: 1000 rows over 200 s about 13 times in 1000; 5 s refuses 2 % and 29 %, 4 s 18 % and 98 %.
 ANGLE_TOLERANCE_RESOLUTIONS = 6.0
 
 

@@ -337,17 +337,17 @@ def widened_reason(learned, forecast) -> str:
     """What the learned forecaster gave out of its domain, in words that match it: the interval
     widened to hold the conditioned climatology's and the training piles' remaining angles, and
     the median the greatest of the three medians (``learned.Learned._quantiles``), named."""
-    from ...analysis.forecast.base import MEDIAN
-    from ...analysis.forecast.baselines import conditioned_quantiles
+    t = forecast.tilt_now
 
-    t = np.array([forecast.tilt_now])
+    def median(quantiles) -> float:  # read as a forecast at the tilt reached reads it
+        return type(forecast)(quantiles, t, "").point
+
     medians = {"the conditioned climatology's":
-               float(conditioned_quantiles(learned.climatology_.alpha_c_, t)[0][0, MEDIAN]),
+               median(learned.climatology_.conditioned(np.array([t]))[0]),
                "the tilt reached plus the training piles' median remaining angle":
-               float(forecast.tilt_now + learned.remaining_quantiles_[MEDIAN])}
+               median(t + learned.remaining_quantiles_)}
     point = forecast.point
-    whose = next((name for name, m in medians.items()
-                  if abs(min(max(m, forecast.tilt_now), math.pi / 2) - point) < 1e-9),
+    whose = next((name for name, m in medians.items() if abs(m - point) < 1e-9),
                  "the learned forecaster's own")
     return ("out of the training domain: the interval is widened to hold the conditioned "
             "climatology's and the training piles' remaining angles too, and the median given "
