@@ -4,7 +4,11 @@
   the format: ``angle [deg]`` or ``angle [rad]``, ``size``, optional
   ``displacement``, ``first``, ``last``); every refusal is one line naming the
   row and the column.  It streams the file within stated bounds
-  (``MAX_CATALOGUE_BYTES``, ``MAX_EVENTS``, ``MAX_LINE_BYTES``).
+  (``MAX_CATALOGUE_BYTES``, ``MAX_EVENTS``, ``MAX_LINE_BYTES``).  With an angle
+  error given, rows in time order whose angles go back by less than
+  ``ANGLE_TOLERANCE_RESOLUTIONS`` of it are sorted by angle, as the training
+  sorts its noisy catalogues.  ``read_catalogue_columns`` reads the Python
+  API's mapping of columns with the same checks, cell by cell.
 * ``claim_folder``, ``OutputSet``, ``complete_publication``: a run's output
   files claimed, compared with its inputs by identity, staged whole and
   published as one set (docs/reliability.md, "The forecast commands").

@@ -2,7 +2,8 @@
 (``predict``), and a simulated row written as one (``python -m sliders.forecast catalogue``).
 
 ``predict`` reads a CSV file with a header, one event per row, columns
-``angle [deg]`` or ``angle [rad]`` (increasing), ``size`` (sliders or grains
+``angle [deg]`` or ``angle [rad]`` (increasing, within the angle error: a noisy
+catalogue in time order is sorted), ``size`` (sliders or grains
 moved, >= 1), optionally ``displacement``, ``first`` and ``last`` (0-based
 positions of the first and last mover); bad input gets one line naming the row
 and the column (``io.forecast_files.read_catalogue_csv``).  How it was measured

@@ -148,7 +148,9 @@ class ForecastModel:
             The alarm's horizon, ``"1deg"``, ``"0.02rad"`` or a bare number of degrees.
         angle_resolution, min_size, missed_fraction, size_unit, sliders
             How the catalogue was measured, as ``predict``'s flags of those names
-            (``angle_resolution``: an angle, a bare number in degrees).
+            (``angle_resolution``: an angle, a bare number in degrees; with it, rows in time
+            order whose angles go back by less than 6 of it are sorted by angle; ``sliders``:
+            any whole number).
         method : str
             ``"learned"``, a method of ``common.PREDICT_METHODS``, or ``"all"``.
 
