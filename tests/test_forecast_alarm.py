@@ -359,3 +359,17 @@ def test_a_single_forecast_says_whether_its_alarm_sounds():
     alarm = Alarm(0.1, release=0.02, say=Lines())
     alarm.update(prediction(0.2), 1)
     assert alarm.update(clipped, 2)["released"]
+
+
+def test_a_stop_signal_lets_the_drawing_child_finish_its_picture(tmp_path):
+    import os
+    import signal
+
+    log = tmp_path / "draws.log"
+    picture = LatestPicture(tmp_path / "live.png", draw=SlowDraw(0.4, log), fork=True)
+    picture.show("u0", {"rows": 1})
+    wait_until(lambda: log.exists() and picture.child is not None)
+    os.kill(picture.child, signal.SIGINT)  # as the terminal's Ctrl-C reaches the whole group
+    picture.close()
+    assert (tmp_path / "live.png").read_bytes() == b"u0"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["draws.log", "live.png"]

@@ -36,6 +36,7 @@ import math
 import os
 import shlex
 import shutil
+import signal
 import subprocess
 import threading
 
@@ -458,6 +459,7 @@ class LatestPicture:
         self.fork = hasattr(os, "fork") if fork is None else bool(fork)
         self.drawn = 0  # pictures written
         self.shown = 0  # predictions handed over
+        self.child: int | None = None  # the process drawing a picture, while it does
         self._cond = threading.Condition()
         self._pending = None
         self._busy = False
@@ -532,6 +534,10 @@ class LatestPicture:
         if pid == 0:  # the child: draw, write, and leave without the parent's exit handlers
             code, message = 0, ""
             try:
+                # a Ctrl-C or SIGTERM of the follow reaches this child too: the picture is
+                # finished (a second or two), never left half-written beside the PNG
+                for signum in (signal.SIGINT, signal.SIGTERM):
+                    signal.signal(signum, signal.SIG_IGN)
                 gc.disable()  # a collection would touch (and copy) the whole shared heap
                 os.close(read_end)
                 try:
@@ -547,10 +553,12 @@ class LatestPicture:
                 if code:
                     os.write(write_end, message.encode("utf-8", "replace")[:4000])
                 os._exit(code)
+        self.child = pid
         os.close(write_end)
         with os.fdopen(read_end, "rb") as fh:
             message = fh.read().decode("utf-8", "replace")
         code = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+        self.child = None
         if code == 0:
             return None
         if code == 2:
