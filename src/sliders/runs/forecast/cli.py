@@ -118,13 +118,14 @@ def add_predict_arguments(pr: argparse.ArgumentParser) -> None:
                          "(default: sliders, or \"CSV's unit\" with --size-unit arbitrary); "
                          "a label only: the sizes are read as --size-unit says")
     pr.add_argument("--follow", action="store_true",
-                    help="keep following the file as the acquisition appends to it, and "
-                         "forecast again when rows arrive or the tilt advances; stops on "
-                         "Ctrl-C, SIGTERM, --until or a '# avalanche' line")
+                    help="keep following the file (-: standard input) as the acquisition "
+                         "appends to it, and forecast again when rows arrive or the tilt "
+                         "advances (a bad row is named and skipped); stops at a '# avalanche' "
+                         "line or --until (status 0), on Ctrl-C (130) or SIGTERM (143)")
     pr.add_argument("--tilt-rate", default=None, metavar="RATE",
                     help="with --follow: the tilt advances at RATE (0.1deg/s, 0.002rad/s, or "
-                         "a bare number of degrees per second) from --tilt-now or the last "
-                         "'# tilt-now ANGLE' line of the file")
+                         "a bare number of degrees per second) from the latest of --tilt-now, "
+                         "a '# tilt-now ANGLE' line and an event, from when it was read")
     pr.add_argument("--until", default=None, metavar="ANGLE",
                     help="with --follow: stop once the tilt reaches ANGLE (27deg, 0.47rad, or "
                          "a bare number of degrees)")
