@@ -65,7 +65,6 @@ from ...io.forecast_files import (MAX_CATALOGUE_BYTES, MAX_LINE_BYTES, ForecastI
                                   angle_option, parse_angle, read_catalogue_stream,
                                   tilt_in_range)
 from ..signals import Stopped, handled, stop_signal
-from .alarm import Alarm, LatestPicture, RunScore
 
 #: a file is polled this often, seconds (idle: a stat and an empty read each time)
 POLL_SECONDS = 0.15
@@ -456,13 +455,16 @@ class Follower:
         How the catalogue is measured.
     method : str
         The forecaster.
-    alarm_threshold, alarm_release : float, optional
-        P(within) at which the alarm rises (default: the forecaster's), and below which it
-        falls again (``alarm.Alarm``).
-    on_alarm : str, optional
-        A command run once per alarm raised (``alarm.Alarm``).
-    plot : str or os.PathLike, optional
-        The picture, replaced at each update.
+    alarm
+        The alarm (``alarm.Alarm``): ``update(prediction, rows) -> {"alarm", "raised",
+        "released"}`` at each update, ``levels(prediction)``; the lines it says while an update
+        is made are that update's (``Update.alarm_lines``), the others notices.
+    score
+        The run's score (``alarm.RunScore``): ``add(update_dict)`` at each update,
+        ``summary(avalanche_angle)`` at ``# avalanche``.
+    picture : optional
+        The picture (``alarm.LatestPicture``): ``show(prediction, status)`` at each update,
+        ``close()`` at the end.
     say : callable, optional
         ``say(line)`` for the notices (a bad row, a file read again, a marker's angle);
         default: stderr.
@@ -471,9 +473,8 @@ class Follower:
     """
 
     def __init__(self, model, source, *, tilt_now=None, tilt_rate=None, until=None,
-                 within: float, measurement, method: str = "learned", alarm_threshold=None,
-                 alarm_release=None, on_alarm=None, plot=None, say=None,
-                 poll_seconds: float = POLL_SECONDS):
+                 within: float, measurement, method: str = "learned", alarm, score,
+                 picture=None, say=None, poll_seconds: float = POLL_SECONDS):
         self.model = model
         self.where = check_source(source)
         self.say = say or _say_on_stderr
@@ -487,10 +488,8 @@ class Follower:
         self.tilt_now = None if tilt_now is None else (tilt_now if isinstance(tilt_now, str)
                                                        else repr(tilt_now))
         self.within, self.measurement, self.method = within, measurement, method
-        self.alarm = Alarm(alarm_threshold, alarm_release, hook=on_alarm, say=self._alarm_say,
-                           catalogue=self.where)
-        self.score = RunScore()
-        self.picture = None if plot is None else LatestPicture(plot)
+        self.alarm, self.score, self.picture = alarm, score, picture
+        alarm.say = self._alarm_say  # an update's alarm lines are the update's
         self.poll_seconds = poll_seconds
         self.clock = time.monotonic  # the wall clock the tilt advances by (seconds)
         self.reader = line_reader(self.where)

@@ -30,6 +30,7 @@ from ...io.safeio import check_output_name, publish_bytes, resolve_target
 from .catalogue import (angles_and_sizes, measurement_as_json, measurement_from, measurement_of,
                         read_source)
 from .common import ALARM_DELTA_DEG, PREDICT_METHODS, jsonable
+from .follower import Follower, check_source
 
 #: why a method of the displacements gave no forecast of its own on a catalogue without them
 NO_DISPLACEMENT = ("the catalogue has no displacement column: the conditioned climatology is "
@@ -199,16 +200,19 @@ class ForecastModel:
         say : callable, optional
             ``say(line)`` for the notices (a bad row, a file read again); default stderr.
         """
-        from .follower import Follower
+        from .alarm import Alarm, LatestPicture, RunScore
 
         if method not in PREDICT_METHODS:
             raise ForecastInputError(f"--method {method}: one of {', '.join(PREDICT_METHODS)}")
         measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
                                        sliders)
-        return Follower(self, source, tilt_now=tilt_now, tilt_rate=tilt_rate, until=until,
+        where = check_source(source)
+        return Follower(self, where, tilt_now=tilt_now, tilt_rate=tilt_rate, until=until,
                         within=within_option(within), measurement=measurement, method=method,
-                        alarm_threshold=alarm_threshold, alarm_release=alarm_release,
-                        on_alarm=on_alarm, plot=plot, say=say)
+                        alarm=Alarm(alarm_threshold, alarm_release, hook=on_alarm,
+                                    catalogue=where),
+                        score=RunScore(), picture=None if plot is None else LatestPicture(plot),
+                        say=say)
 
     def forecast(self, catalogue, measurement, within: float, method: str = "learned",
                  notes=()) -> "Prediction":
