@@ -364,3 +364,38 @@ def slurm():
         alive = {d: p for d, p in cluster.pids.items() if not _stopped(p)}
         shutil.rmtree(directory, ignore_errors=True)
         assert not alive, f"daemons still running after stop: {alive}"
+
+
+# ---------------------------------------------------------------------------
+# fixtures several test modules use (their plain helpers: tests/helpers.py)
+# ---------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def tilt_file(tmp_path_factory):
+    """A saved run of 20 sliders (a module's own ``tilt_file`` fixture takes precedence)."""
+    path = tmp_path_factory.mktemp("tiltfile") / "t.h5"
+    sliders.tilt(sliders.Scene(n_sliders=20, seed=1, mode="explore")).save(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    """The shipped model, loaded once."""
+    from sliders.io.forecast_model import default_model_path, load_forecasters
+
+    return load_forecasters(default_model_path())
+
+
+@pytest.fixture(scope="module")
+def reduced(shipped):
+    """The shipped model's conditioned, ffm_ml_events and learned_blind forecasters, each
+    boosted regressor cut to its first ``ITERATIONS`` trees: fast to write and read."""
+    import copy
+
+    from helpers import ITERATIONS
+
+    models, prov = shipped
+    blind = copy.deepcopy(models["learned_blind"])
+    for m in blind.models_:
+        m._predictors = m._predictors[:ITERATIONS]
+    return {"conditioned": models["conditioned"], "ffm_ml_events": models["ffm_ml_events"],
+            "learned_blind": blind}, {"rows": prov["rows"], "prior": "the shipped prior"}

@@ -33,8 +33,6 @@ validated range) to keep this file to about a minute.
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import math
 import re
 from pathlib import Path
@@ -44,66 +42,19 @@ import pytest
 
 import sliders
 from conftest import run
-from sliders import Scene, keyed_random, prepare, status, tilt
+from sliders import Scene, prepare, status, tilt
 from sliders.engine import fortran_engine
 from sliders.chain import elastic_energy
 from sliders.engine.fortran_engine import FortranEngine
 from sliders.engine.contract import EVENT_FIELDS
 from sliders.engine.reference import NumpyEngine
-from sliders.parts import loading
 from sliders.parts.loading import next_instability
+from helpers import assert_bit_for_bit, assert_same_run, libm_reference
 
 ROOT = Path(__file__).resolve().parents[1]
 
-ALPHA_TOL = 1e-9
-DISPLACEMENT_TOL = 1e-7
-ENERGY_TOL = 1e-9  # relative to max(1, |work of gravity|) of the event (see assert_same_run)
-
 
 # ------------------------------------------------------------------ helpers
-def assert_same_run(f: sliders.Result, n: sliders.Result) -> None:
-    """The Fortran result f reproduces the NumPy result n, event by event."""
-    assert (f.status, f.message) == (n.status, n.message)
-    assert f.n_events == n.n_events
-    for field in EVENT_FIELDS:
-        assert f.events[field].dtype == n.events[field].dtype, field
-    np.testing.assert_allclose(f.alpha, n.alpha, rtol=0, atol=ALPHA_TOL)
-    np.testing.assert_array_equal(f.n_moved, n.n_moved)
-    np.testing.assert_array_equal(f.events["n_stops"], n.events["n_stops"])
-    # a crossing within rounding of a step boundary may add one (tiny) step
-    np.testing.assert_allclose(f.n_steps, n.n_steps, rtol=0, atol=1)
-    np.testing.assert_allclose(f.duration, n.duration, rtol=0, atol=f.scene.dt)
-    # the unfinished last event (avalanche, cap): reported by both; a long
-    # avalanche event amplifies last-bit differences, so only roughly equal
-    assert f.final_event.keys() == n.final_event.keys()
-    for key, value in f.final_event.items():
-        np.testing.assert_allclose(value, n.final_event[key], rtol=0.05, err_msg=key)
-    drift = np.zeros(f.n_events)
-    if f.scene.record != "summary":
-        np.testing.assert_array_equal(np.diff(f.displacement.ptr), f.n_moved)
-        dense = np.abs(f.displacement.dense() - n.displacement.dense())
-        assert dense.max(initial=0.0) <= DISPLACEMENT_TOL
-        drift = dense.max(axis=1, initial=0.0)
-    # energies: 1e-9 relative to the event's scale, plus what the (allowed)
-    # displacement drift of the event implies: work = sin(alpha) sum du, the
-    # elastic change ~ sum T du with tensions T of a few units, the path
-    scale = np.maximum(1.0, np.abs(n.events["work_gravity"]))
-    allowed = ENERGY_TOL * scale + 10.0 * n.n_moved * drift
-    for field in ("work_gravity", "elastic_change", "dissipation"):
-        err = np.abs(f.events[field] - n.events[field])
-        assert np.all(err <= allowed), (field, (err / allowed).max())
-    for which in ("initial", "final"):
-        a, b = getattr(f, which), getattr(n, which)
-        np.testing.assert_array_equal(a.n_stops, b.n_stops)
-        # the draws agree to the last bit or two (NumPy's log/cos vs glibc's)
-        np.testing.assert_allclose(a.mu_s, b.mu_s, rtol=1e-15, atol=0)
-        np.testing.assert_allclose(a.displacement, b.displacement, rtol=0, atol=DISPLACEMENT_TOL)
-        assert a.drive == pytest.approx(b.drive, abs=ALPHA_TOL)
-    assert f.relaxation == n.relaxation
-    if n.status == "avalanche":
-        assert f.alpha_c == pytest.approx(n.alpha_c, abs=ALPHA_TOL)
-    else:
-        assert math.isnan(f.alpha_c) and math.isnan(n.alpha_c)
 
 
 def first_big_event(scene: Scene) -> int:
@@ -112,49 +63,6 @@ def first_big_event(scene: Scene) -> int:
     big = np.flatnonzero(result.n_moved > scene.n_sliders // 2)
     assert big.size, "no event moved half the chain"
     return int(big[0]) + 1
-
-
-def assert_bit_for_bit(f: sliders.Result, n: sliders.Result) -> None:
-    """Same events and states to the last bit (energies: other sums, 1e-12)."""
-    assert (f.status, f.n_events) == (n.status, n.n_events)
-    assert f.alpha_c == n.alpha_c or (math.isnan(f.alpha_c) and math.isnan(n.alpha_c))
-    for field in ("drive", "n_moved", "n_stops", "n_steps", "slider_steps", "duration"):
-        np.testing.assert_array_equal(f.events[field], n.events[field], err_msg=field)
-    np.testing.assert_array_equal(f.displacement.ptr, n.displacement.ptr)
-    np.testing.assert_array_equal(f.displacement.index, n.displacement.index)
-    np.testing.assert_array_equal(f.displacement.value, n.displacement.value)
-    for which in ("initial", "final"):
-        a, b = getattr(f, which), getattr(n, which)
-        np.testing.assert_array_equal(a.displacement, b.displacement)
-        np.testing.assert_array_equal(a.mu_s, b.mu_s)
-        np.testing.assert_array_equal(a.n_stops, b.n_stops)
-    for field in ("work_gravity", "elastic_change", "dissipation"):
-        np.testing.assert_allclose(f.events[field], n.events[field], rtol=1e-12, atol=1e-13)
-
-
-def libm_reference(monkeypatch):
-    """The reference with glibc's transcendentals (those the kernel calls).
-
-    NumPy's own SIMD arcsin/arctan/hypot/log differ from glibc's in the last
-    bit now and then (and Python's math.hypot is not glibc's either); with
-    glibc's everywhere, the reference and the kernel do the same operations.
-    """
-    libm_path = ctypes.util.find_library("m")
-    if libm_path is None:  # pragma: no cover - every Linux has it
-        pytest.skip("no C math library found")
-    libm = ctypes.CDLL(libm_path)
-    funcs = {}
-    for name, nargs in (("asin", 1), ("atan", 1), ("hypot", 2), ("log", 1), ("cos", 1)):
-        f = getattr(libm, name)
-        f.restype = ctypes.c_double
-        f.argtypes = [ctypes.c_double] * nargs
-        ufunc = np.frompyfunc(f, nargs, 1)
-        funcs[name] = lambda *a, u=ufunc: np.asarray(u(*a), dtype=np.float64)
-
-    for name in ("asin", "atan", "hypot"):
-        monkeypatch.setitem(loading.TRANSCENDENTALS, name, funcs[name])
-    for name in ("log", "cos"):
-        monkeypatch.setitem(keyed_random.TRANSCENDENTALS, name, funcs[name])
 
 
 # ------------------------------------------------------------ the kernel API

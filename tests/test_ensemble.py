@@ -7,18 +7,12 @@ whole if it outlives its timeout, so that nothing can hang the suite.
 
 from __future__ import annotations
 
-import atexit
 import json
 import math
 import os
-import queue
 import shutil
 import signal
 import subprocess
-import sys
-import threading
-import time
-from pathlib import Path
 
 import h5py
 import numpy as np
@@ -29,93 +23,16 @@ from sliders.io.storage import read_realisations
 from sliders.analysis.summary import load_summary
 from sliders.runs.rows import compute_row
 from sliders.runs.parallel import SerialComm
-from sliders.io import h5tools, storage
+from sliders.io import storage
 from sliders.keyed_random import realisation_seed
 from sliders.analysis.observables import default_grids, realisation_statistics, statistics_layout
+from helpers import (BACKEND, PY, R, SCENE_OPTS, _env, _Run, assert_same_file, ensemble_args,
+                     one_error_line, progress_lines, rank_pids, run)
 
 # MPI ensembles under mpirun, kills and resumes (the few serial tests cost little beside them)
 pytestmark = [pytest.mark.slow, pytest.mark.two_cores]
 
-# The tests pick the backend explicitly (no skipping).  "fortran" is the
-# production kernel; the lead makes sure it is built in the final set-up.
-BACKEND = "fortran"  # the production kernel (numpy works too, about 50x slower here)
-MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
-PY = sys.executable
-TIMEOUT = 180  # seconds for any single run; nothing should get close
-
-# A tiny, fast scene: N = 10, the paper's parameters otherwise.
-SCENE_OPTS = ["--n-sliders", "10", "--seed", "7"]
-SCENE = sliders.Scene(n_sliders=10, seed=7)
-R = 10
-# per-row values that depend on the run (the checksums cover the wall time)
-RESULTS_IGNORED = {"wall_time", "row_crc32"}
-# differ per run (the attributes' checksum covers the creation date)
-ATTRS_IGNORED = {"created", "attrs_crc32", "date_created", "date_modified", "history"}
-
-
-# tests/hooks/sitecustomize.py: the test hooks (SLIDERS_ENSEMBLE_TEST_DELAY, ..._TEST_FAIL,
-# ..._STOP_AFTER), installed in every rank of a command started with this environment
-HOOKS = Path(__file__).parent / "hooks"
-
-
-def _env(**extra):
-    env = dict(os.environ)
-    env.pop("SLIDERS_ENSEMBLE_STOP_AFTER", None)
-    env.pop("SLIDERS_ENSEMBLE_TEST_DELAY", None)
-    env.pop("SLIDERS_ENSEMBLE_TEST_FAIL", None)
-    env["PYTHONUNBUFFERED"] = "1"
-    env["PYTHONPATH"] = os.pathsep.join([str(HOOKS)] + [p for p in [env.get("PYTHONPATH")] if p])
-    env.update({k: str(v) for k, v in extra.items()})
-    return env
-
-
-def command(args, n=None, module="sliders.ensemble"):
-    """The command line of ``python -m module``: plain python (n None) or mpirun -n n."""
-    base = [PY, "-m", module]
-    if n is not None:
-        assert MPIRUN, "mpirun not found (install Debian mpich: scripts/setup.sh)"
-        base = [MPIRUN, "-n", str(n)] + base
-    return base + [str(a) for a in args]
-
-
-def _children(pid: int) -> list[int]:
-    out = []
-    for p in Path("/proc").iterdir():
-        if p.name.isdigit():
-            try:
-                stat = (p / "stat").read_text()
-            except OSError:
-                continue
-            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
-                out.append(int(p.name))
-    return out
-
-
-def kill_tree(pid: int) -> None:
-    """SIGKILL a process started here and all its descendants (mpirun puts its proxy
-    and the ranks in process groups of their own, so killpg is not enough)."""
-    todo, seen = [pid], []
-    while todo:
-        p = todo.pop()
-        seen.append(p)
-        todo += _children(p)
-    for p in seen:
-        try:
-            os.kill(p, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-
-
-_LIVE: "set[int]" = set()  # process trees started here and maybe still running
-
-
-@atexit.register
-def _kill_live() -> None:
-    """The runs live in sessions of their own (so that a kill reaches the whole tree):
-    a Ctrl-C or SIGTERM of the test run must take them down with it."""
-    for pid in sorted(_LIVE):
-        kill_tree(pid)
-    _LIVE.clear()
+SCENE = sliders.Scene(n_sliders=10, seed=7)  # the scene of SCENE_OPTS
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -130,142 +47,6 @@ def _sigterm_ends_the_tests_like_ctrl_c():
         yield
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
-class _Run:
-    """A started run whose stderr is read by a thread (so that waits can time out)."""
-
-    def __init__(self, args, n, env, module="sliders.ensemble"):
-        self.cmd = command(args, n, module)
-        self.proc = subprocess.Popen(self.cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     text=True, env=env or _env(), start_new_session=True)
-        _LIVE.add(self.proc.pid)
-        self.lines: "queue.Queue[str | None]" = queue.Queue()
-        self.err: list[str] = []
-        self.out: list[str] = []
-        threading.Thread(target=self._pump, args=(self.proc.stderr, self.lines), daemon=True).start()
-        threading.Thread(target=self._drain, args=(self.proc.stdout, self.out), daemon=True).start()
-
-    @staticmethod
-    def _pump(stream, q):
-        for line in stream:
-            q.put(line)
-        q.put(None)
-
-    @staticmethod
-    def _drain(stream, sink):
-        for line in stream:
-            sink.append(line)
-
-    def wait_for(self, predicate, timeout=TIMEOUT) -> None:
-        """Collect stderr lines until predicate(lines) holds; fail (and kill) otherwise."""
-        deadline = time.monotonic() + timeout
-        while not predicate(self.err):
-            try:
-                line = self.lines.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                self.kill()
-                pytest.fail(f"timed out waiting on {self.cmd}:\n{''.join(self.err)}")
-            if line is None:
-                pytest.fail(f"run ended early: {self.cmd}:\n{''.join(self.err)}")
-            self.err.append(line)
-
-    def finish(self, timeout=TIMEOUT) -> subprocess.CompletedProcess:
-        try:
-            self.proc.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            self.kill()
-            pytest.fail(f"run did not finish within {timeout} s (hang?): {self.cmd}\n"
-                        f"{''.join(self.err)}")
-        except KeyboardInterrupt:
-            self.kill()
-            raise
-        _LIVE.discard(self.proc.pid)
-        while True:
-            try:
-                line = self.lines.get(timeout=10)
-            except queue.Empty:  # a stray descendant still holds the pipe
-                break
-            if line is None:
-                break
-            self.err.append(line)
-        return subprocess.CompletedProcess(self.cmd, self.proc.returncode, "".join(self.out),
-                                           "".join(self.err))
-
-    def kill(self) -> None:
-        kill_tree(self.proc.pid)
-        _LIVE.discard(self.proc.pid)
-
-
-def run(args, n=None, env=None, timeout=TIMEOUT, module="sliders.ensemble"):
-    """Run to completion (or kill the whole process tree after ``timeout``)."""
-    return _Run(args, n, env, module).finish(timeout)
-
-
-def ensemble_args(out, r=R, backend=BACKEND, extra=()):
-    return SCENE_OPTS + ["--realisations", r, "--out", out, "--backend", backend,
-                         "--progress-interval", "0", *extra]
-
-
-def rank_pids(mpirun_pid: int) -> list[int]:
-    """PIDs of the rank processes below an mpirun (children of its hydra proxy), in rank order."""
-    ranks = []
-    for proxy in _children(mpirun_pid):
-        for pid in _children(proxy):
-            try:
-                env = Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
-            except OSError:
-                continue
-            rank = next((int(e.split(b"=", 1)[1]) for e in env if e.startswith(b"PMI_RANK=")), None)
-            if rank is not None:
-                ranks.append((rank, pid))
-    return [pid for _, pid in sorted(ranks)]
-
-
-def progress_lines(k):
-    return lambda lines: sum("ETA" in ln for ln in lines) >= k
-
-
-# ---------------------------------------------------------------------------
-# comparisons
-# ---------------------------------------------------------------------------
-def read_all(path):
-    """{dataset path: array} and root attributes of a file."""
-    data = {}
-    with h5py.File(path, "r") as f:
-        f.visititems(lambda n, o: data.__setitem__(n, o[()]) if isinstance(o, h5py.Dataset) else None)
-        attrs = {k: h5tools.plain_value(v) for k, v in f.attrs.items()}
-    return data, attrs
-
-
-def assert_same_file(a, b, rows=None):
-    """Same datasets (bitwise, wall times aside) and attributes (creation date aside).
-
-    ``rows``: compare only these realisation rows of /realisations (default all).
-    """
-    da, aa = read_all(a)
-    db, ab = read_all(b)
-    assert sorted(da) == sorted(db)
-    for k in da:
-        if k.rsplit("/", 1)[-1] in RESULTS_IGNORED:
-            continue
-        x, y = da[k], db[k]
-        if rows is not None and k.startswith("realisations/"):
-            x, y = x[rows], y[rows]
-        assert x.dtype == y.dtype, k
-        assert x.shape == y.shape, k
-        assert x.tobytes() == y.tobytes(), f"{k} differs between {a} and {b}"
-    assert {k: v for k, v in aa.items() if k not in ATTRS_IGNORED} == \
-        {k: v for k, v in ab.items() if k not in ATTRS_IGNORED}
-
-
-def one_error_line(res):
-    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
-    assert res.returncode != 0, res.stderr
-    assert "Traceback" not in res.stderr, res.stderr
-    assert len(lines) == 1, f"expected one line, got:\n{res.stderr}"
-    assert lines[0].startswith("error: "), lines[0]
-    return lines[0]
 
 
 # ---------------------------------------------------------------------------

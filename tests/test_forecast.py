@@ -17,33 +17,7 @@ from sliders.analysis.forecast.evaluation import split_rows
 from sliders.analysis.forecast.learned import Learned
 from sliders.analysis.forecast.physics import ModelBased, PaperRule, transition_angle
 from sliders.io.catalogue import Catalogue, CatalogueSet
-
-
-def rate_law_catalogue(alpha_c, rate_a, tilt, displacement=0.01):
-    """Events whose count grows as A log(alpha_c / (alpha_c - alpha)): rate A / (alpha_c - alpha)."""
-    i = np.arange(1, 100000)
-    alpha = alpha_c * (1.0 - np.exp(-i / rate_a))
-    alpha = alpha[alpha <= tilt]
-    n = alpha.size
-    return Catalogue(alpha, np.ones(n), np.full(n, displacement), -np.ones(n), -np.ones(n),
-                     tilt_now=tilt)
-
-
-def synthetic_set(n_rows, seed=0):
-    """Rows with rate-law catalogues (random alpha_c, rate and noise): fast training data."""
-    rng = np.random.default_rng(seed)
-    cats, ac = [], []
-    for _ in range(n_rows):
-        a_c = rng.uniform(0.3, 0.6)
-        i = np.arange(1, 3000)
-        alpha = a_c * (1.0 - np.exp(-(i + rng.uniform(0, 1, i.size)) / rng.uniform(30, 80)))
-        alpha = np.sort(alpha[alpha < a_c])
-        n = alpha.size
-        cats.append(Catalogue(alpha, rng.integers(1, 5, n), rng.exponential(0.01, n),
-                              -np.ones(n), -np.ones(n)))
-        ac.append(a_c)
-    return CatalogueSet.from_catalogues(cats, {"mu_d": np.tan(np.array(ac)) - 0.003}, ac,
-                                        ["avalanche"] * n_rows)
+from helpers import rate_law_catalogue, synthetic_set
 
 
 @pytest.mark.parametrize("forecaster", [LinearInverseRate("events"), PointProcessInverseRate("events"),

@@ -21,18 +21,10 @@ from sliders.analysis.forecast.evaluation import accuracy_table
 from sliders.io.forecast_files import ForecastInputError
 from sliders.runs.forecast.cli import build_parser
 from sliders.runs.forecast.predict import disjoint_intervals, probability_text
+from helpers import SMALL_CATALOGUE, accelerating
 
 # one xdist worker loads the shipped forecasters (the module's fixture) for all these tests
 pytestmark = pytest.mark.xdist_group("forecast-api")
-
-SMALL = "# three events\nangle [deg],size\n1.21,1\n2.03,1\n2.87,3\n"
-
-
-def accelerating(n: int = 150, seed: int = 7) -> tuple[np.ndarray, np.ndarray]:
-    """Angles (degrees) of ``n`` events accelerating towards 31° and their sizes."""
-    rng = np.random.default_rng(seed)
-    alpha = 31.0 - 31.0 * np.exp(-3.0 * np.sort(rng.random(n)))
-    return np.round(alpha, 4), np.maximum(1, np.round(rng.pareto(1.5, n) + 1)).astype(int)
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +35,7 @@ def model():
 @pytest.fixture
 def small(tmp_path):
     p = tmp_path / "small.csv"
-    p.write_text(SMALL)
+    p.write_text(SMALL_CATALOGUE)
     return p
 
 

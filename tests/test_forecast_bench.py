@@ -9,7 +9,7 @@ import pytest
 
 import sliders.forecast as sf
 
-from test_forecast_api import SMALL, accelerating
+from helpers import SMALL_CATALOGUE, accelerating
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +44,7 @@ def test_the_picture_shows_catalogue_forecast_tilt_and_verdict(model, tmp_path):
 
 def test_out_of_the_domain_the_picture_says_so(model, tmp_path):
     p = tmp_path / "small.csv"
-    p.write_text(SMALL)
+    p.write_text(SMALL_CATALOGUE)
     fig = model.predict(p, tilt_now="27.5deg").figure()
     assert "OUT OF THE TRAINING DOMAIN" in fig.axes[0].get_title(loc="left")
     assert "widened interval, uncalibrated" in fig._suptitle.get_text()

@@ -20,7 +20,7 @@ from sliders.io.forecast_model import ModelFileError, load_forecasters, save_for
 from sliders.runs.forecast import cli
 from sliders.runs.forecast.evaluate import MODEL_NAME
 
-from test_forecast import synthetic_set
+from helpers import synthetic_set
 
 pytestmark = pytest.mark.slow  # the forecast commands, each a process loading scikit-learn
 

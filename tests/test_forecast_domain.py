@@ -12,7 +12,7 @@ from sliders.analysis.forecast.learned import Learned
 from sliders.analysis.forecast.measurement import degrade_cuts
 from sliders.io.catalogue import Catalogue
 
-from test_forecast import synthetic_set
+from helpers import synthetic_set
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ from sliders.io.prior_file import read_prior_ensemble
 from sliders.io.forecast_model import (MODEL_FORMAT, ModelFileError, default_model_path,
                                        load_forecasters, save_forecasters)
 
-from test_forecast import rate_law_catalogue, synthetic_set
+from helpers import rate_law_catalogue, synthetic_set
 
 pytestmark = pytest.mark.slow  # forecasters trained on prior files
 

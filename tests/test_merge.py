@@ -14,7 +14,7 @@ import pytest
 from sliders.runs import merge
 from sliders.io.storage import read_realisations
 from sliders.analysis.summary import load_summary
-from test_ensemble import assert_same_file, one_error_line
+from helpers import assert_same_file, one_error_line
 
 pytestmark = pytest.mark.slow  # ensembles run and merged as commands
 

@@ -20,32 +20,17 @@ import pytest
 from scipy import stats
 
 import sliders
-from sliders.io.catalogue import EVENT_COLUMNS, Catalogue, CatalogueSet
+from sliders.io.catalogue import EVENT_COLUMNS, Catalogue
 from sliders.io.prior_file import read_prior_ensemble, read_prior_row
 from sliders.runs import prior as prior_run
 from sliders.runs import prior_spec
-from test_ensemble import _env
+from helpers import SMALL_PRIOR, _env, assert_same_sets
 
 pytestmark = pytest.mark.slow  # prior ensembles under mpirun
 
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
 PY = sys.executable
 TIMEOUT = 180
-
-SMALL = """
-[prior]
-realisations = {R}
-design = "{design}"
-seed = 3
-[scene]
-mode = "explore"
-[parameters]
-mu_d = {{ uniform = [0.3, 0.8] }}
-mu_s_minus_mu_d = {{ loguniform = [0.02, 0.12] }}
-sigma_mu = {{ uniform = [0.005, 0.03] }}
-xi = {{ loguniform = [1e-4, 1e-2], zero = 0.5 }}
-n_sliders = {{ choice = [20, 30, 40] }}
-"""
 
 
 def _command(args, n=None):
@@ -64,7 +49,7 @@ def run(args, n=None, env=None):
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
     path = tmp_path_factory.mktemp("prior") / "small.toml"
-    path.write_text(SMALL.format(R=12, design="sobol"))
+    path.write_text(SMALL_PRIOR.format(R=12, design="sobol"))
     return path
 
 
@@ -77,20 +62,6 @@ def reference(small):
     return out
 
 
-def assert_same_sets(a: CatalogueSet, b: CatalogueSet) -> None:
-    """Every event, parameter, alpha_c, status and ceiling value equal, bit for bit."""
-    assert np.array_equal(a.offsets, b.offsets)
-    for c in EVENT_COLUMNS:
-        assert np.array_equal(a.columns[c], b.columns[c]), c
-    assert sorted(a.parameters) == sorted(b.parameters)
-    for k in a.parameters:
-        assert np.array_equal(a.parameters[k], b.parameters[k]), k
-    assert np.array_equal(a.alpha_c, b.alpha_c, equal_nan=True)
-    assert np.array_equal(a.status, b.status)
-    assert np.array_equal(a.ceiling_alpha, b.ceiling_alpha)
-    assert np.array_equal(a.ceiling_distance, b.ceiling_distance, equal_nan=True)
-
-
 # ---------------------------------------------------------------------------
 # the design
 # ---------------------------------------------------------------------------
@@ -98,7 +69,7 @@ def assert_same_sets(a: CatalogueSet, b: CatalogueSet) -> None:
 def test_drawn_parameters_follow_the_prior(tmp_path, design):
     """Kolmogorov-Smirnov on 4000 draws of each marginal (no simulation), and the choices' shares."""
     path = tmp_path / "p.toml"
-    path.write_text(SMALL.format(R=4000, design=design))
+    path.write_text(SMALL_PRIOR.format(R=4000, design=design))
     prior = prior_spec.load_prior(path)
     v = prior.values()
     assert stats.kstest(v["mu_d"], stats.uniform(0.3, 0.5).cdf).pvalue > 1e-3
@@ -121,7 +92,7 @@ def test_drawn_parameters_follow_the_prior(tmp_path, design):
 def test_weighted_choices_are_drawn_in_their_shares(tmp_path):
     """``choice = [..], weights = [..]``: each choice in its share of 4000 Sobol draws."""
     path = tmp_path / "p.toml"
-    path.write_text(SMALL.format(R=4000, design="sobol").replace(
+    path.write_text(SMALL_PRIOR.format(R=4000, design="sobol").replace(
         "choice = [20, 30, 40] }", "choice = [20, 30, 40], weights = [6, 3, 1] }"))
     n = prior_spec.load_prior(path).values()["n_sliders"]
     shares = np.array([np.mean(n == k) for k in (20, 30, 40)])

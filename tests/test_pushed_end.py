@@ -16,7 +16,7 @@ from sliders.chain import elastic_force
 from sliders.driver import make_engine
 from sliders.parts.checks import SceneError
 from conftest import run
-from test_backends import assert_bit_for_bit, assert_same_run, libm_reference
+from helpers import assert_bit_for_bit, assert_same_run, libm_reference
 
 PUSHED = Scene(n_sliders=8, seed=5, loading="pushed_end", incline=0.2, driver_stiffness=2.0,
                mode="explore", xi=0.001)

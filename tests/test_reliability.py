@@ -34,8 +34,8 @@ from sliders.io.storage import read_realisations
 from sliders.analysis.summary import load_summary
 from sliders.io import storage
 from sliders.io.filelock import OutputClaim
-from test_ensemble import (BACKEND, PY, R, SCENE_OPTS, _env, _Run, assert_same_file,
-                           ensemble_args, one_error_line, progress_lines, rank_pids, run)
+from helpers import (BACKEND, PY, R, SCENE_OPTS, _env, _Run, assert_same_file, ensemble_args,
+                     one_error_line, progress_lines, rank_pids, run)
 
 pytestmark = pytest.mark.slow  # faults injected into running commands
 
@@ -465,13 +465,6 @@ def _data_offsets(path):
                      if isinstance(o, h5py.Dataset) and o.id.get_offset() is not None
                      and o.size else None)
     return out
-
-
-@pytest.fixture(scope="module")
-def tilt_file(tmp_path_factory):
-    path = tmp_path_factory.mktemp("tiltfile") / "t.h5"
-    sliders.tilt(sliders.Scene(n_sliders=20, seed=1, mode="explore")).save(path)
-    return path
 
 
 @pytest.mark.parametrize("kind", ["tilt", "ensemble"])

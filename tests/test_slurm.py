@@ -21,7 +21,7 @@ import h5py
 import numpy as np
 import pytest
 from sliders.io.storage import read_realisations
-from test_ensemble import assert_same_file
+from helpers import assert_same_file
 
 pytestmark = [pytest.mark.slow, pytest.mark.two_cores]  # jobs on the session's SLURM cluster
 

@@ -15,7 +15,7 @@ import h5py
 import numpy as np
 import pytest
 
-from test_ensemble import _env
+from helpers import _env
 
 pytestmark = pytest.mark.slow  # parameter studies under mpirun
 

@@ -27,23 +27,11 @@ from sliders.io.filelock import ClaimError, OutputClaim
 from sliders.runs import ensemble, merge
 from sliders.parts.checks import SceneError
 from sliders.scene import available_memory, check_memory
-from test_ensemble import (PY, SCENE_OPTS, _env, _Run, assert_same_file,
-                           ensemble_args, one_error_line, run)
-from test_reliability import tilt_file  # noqa: F401 - a saved run (fixture)
+from helpers import (PY, SCENE_OPTS, STUDY_TEXT, _env, _Run, assert_same_file, ensemble_args,
+                     one_error_line, run)
 
 TINY = ["--n-sliders", "10", "--seed", "3", "--mode", "explore"]
 R_TINY = 6
-STUDY_TEXT = """
-[study]
-realisations = 2
-[scene]
-n_sliders = 10
-mode = "explore"
-seed = 5
-mu_d = 0.5
-[axes]
-xi = [0.0, 0.001]
-"""
 # the same study written differently: keys reordered, 0 for 0.0, a default written out
 STUDY_SAME = """
 [axes]

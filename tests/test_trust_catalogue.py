@@ -17,8 +17,7 @@ from sliders.analysis.forecast import Measurement
 from sliders.analysis.forecast.base import Forecast, ForecastError
 from sliders.io.catalogue import Catalogue
 
-from test_forecast import rate_law_catalogue
-from test_trust_model_file import reduced, shipped, write_model  # noqa: F401 - fixtures
+from helpers import rate_law_catalogue, write_model
 
 # one xdist worker writes the reduced model file (the module's fixture) for all these tests
 pytestmark = pytest.mark.xdist_group("trust-catalogue")

@@ -15,12 +15,12 @@ from pathlib import Path
 
 import pytest
 
-from test_prior import SMALL
+from helpers import SMALL_PRIOR
 
 pytestmark = pytest.mark.slow  # commands interrupted under mpirun
 
 MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
-PRIOR = SMALL.format(R=4000, design="sobol")  # rows of 20-40 sliders: minutes in all
+PRIOR = SMALL_PRIOR.format(R=4000, design="sobol")  # rows of 20-40 sliders: minutes in all
 
 
 def _reading(fifo) -> int:

@@ -25,20 +25,17 @@ import zipfile
 import numpy as np
 import pytest
 
-from sliders.io.forecast_model import (DIGEST_SUFFIX, MODEL_FORMAT, ModelFileError,
+from sliders.io.forecast_model import (DIGEST_SUFFIX, ModelFileError,
                                        check_archive, check_forecasters, default_model_path,
                                        load_forecasters, read_model_bytes)
 
-from marker_class import archive_as_is
-from test_forecast import rate_law_catalogue
+from helpers import rate_law_catalogue, write_model
 
 pytestmark = pytest.mark.slow  # corrupted model files forecast in processes
 
 PREDICT = [sys.executable, "-m", "sliders.forecast", "predict"]
 #: a crash shows as a negative status, a hang as this timeout
 TIMEOUT = 90
-#: iterations of each boosted regressor kept in the reduced copy of the shipped model
-ITERATIONS = 3
 
 
 def _limit_memory():
@@ -54,30 +51,6 @@ def run_predict(args, timeout=TIMEOUT):
     except subprocess.TimeoutExpired:
         pytest.fail(f"predict {' '.join(map(str, args))} hung for {timeout} s")
     return res.returncode, res.stdout, res.stderr
-
-
-def write_model(path, forecasters, provenance):
-    """A model file of ``forecasters`` as an adversary writes it: no check."""
-    return archive_as_is(path, {"format": MODEL_FORMAT, "forecasters": forecasters,
-                                "provenance": provenance})
-
-
-@pytest.fixture(scope="module")
-def shipped():
-    """The shipped model, loaded once."""
-    return load_forecasters(default_model_path())
-
-
-@pytest.fixture(scope="module")
-def reduced(shipped):
-    """The shipped model's conditioned, ffm_ml_events and learned_blind forecasters, each
-    boosted regressor cut to its first ``ITERATIONS`` trees: fast to write and read."""
-    models, prov = shipped
-    blind = copy.deepcopy(models["learned_blind"])
-    for m in blind.models_:
-        m._predictors = m._predictors[:ITERATIONS]
-    return {"conditioned": models["conditioned"], "ffm_ml_events": models["ffm_ml_events"],
-            "learned_blind": blind}, {"rows": prov["rows"], "prior": "the shipped prior"}
 
 
 @pytest.fixture(scope="module")

@@ -26,10 +26,8 @@ import pytest
 from sliders.io.prior_file import read_prior_ensemble, read_prior_header
 from sliders.runs import prior as prior_run
 from sliders.runs import prior_spec
-from test_ensemble import (PY, RESULTS_IGNORED, _children, _env, _Run, assert_same_file,
-                           kill_tree, one_error_line, rank_pids, read_all, run)
-from test_prior import assert_same_sets
-from test_trust import STUDY_TEXT
+from helpers import (PY, RESULTS_IGNORED, STUDY_TEXT, _children, _env, _Run, assert_same_file,
+                     assert_same_sets, kill_tree, one_error_line, rank_pids, read_all, run)
 
 pytestmark = pytest.mark.slow  # attacks on the run commands under mpirun
 
