@@ -90,6 +90,21 @@ def test_a_bad_row_is_said_once_and_skipped_and_the_next_rows_are_forecast(model
     assert f.score.updates[-1]["alpha_c"] == pytest.approx(batch["alpha_c"], abs=1e-12)
 
 
+def test_a_row_the_measurement_refuses_is_skipped_too(model, pile):
+    """A size of 0.5 sliders is read by the CSV reader but refused by the forecast (below the
+    smallest size detected): its row is named and skipped, and the follow forecasts on."""
+    path, alpha, size = pile
+    said = []
+    f = following(model, path, said)
+    assert f.step().rows == 40
+    append(path, f"{alpha[-1] + 0.1:.4f},0.5\n{alpha[-1] + 0.2:.4f},2\n")
+    u = f.step()
+    assert u.rows == 41 and u["tilt_now"] == pytest.approx(math.radians(alpha[-1] + 0.2))
+    assert len(said) == 1 and "pile.csv: row 42: " in said[0] and "size 0.5" in said[0], said
+    append(path, f"{alpha[-1] + 0.3:.4f},1\n")
+    assert f.step().rows == 42 and len(said) == 1
+
+
 def test_a_bad_header_is_said_once_and_a_rewritten_file_is_read(model, tmp_path):
     path = tmp_path / "pile.csv"
     path.write_text("angle,size\n1.0,1\n")

@@ -535,6 +535,7 @@ class Follower:
         self.pending_markers: list[tuple[int, str]] = []
         self.avalanche = None  # (row, angle text or None) once the marker is read
         self.reading += 1
+        self.new_from = 0  # where the lines of the last poll start in ``kept``
 
     def _note(self, line: str) -> None:
         """Say ``line`` once per reading of the file."""
@@ -568,6 +569,7 @@ class Follower:
         """Add complete lines (none after ``# avalanche``), read the catalogue, and move the
         anchor to the last event or ``# tilt-now`` among them."""
         start, row0 = len(self.kept), self.kept.count(b"\n") + 1
+        self.new_from = start
         for j, line in enumerate(lines):
             m = marker(line)
             if m is not None and m[0] == "avalanche":
@@ -689,22 +691,23 @@ class Follower:
         return update
 
     def _forecast(self, now: float) -> Update | None:
-        tilt = self.tilt(now)
-        if tilt is None:
-            return None
+        while True:
+            tilt = self.tilt(now)
+            if tilt is None:
+                return None
+            state = (self.reading, len(self.read[0]), self.anchors)
+            if state == self._last and (tilt == self._last_tilt or not self.rate
+                                        or now - self._last_time < CLOCK_SECONDS):
+                return None  # nothing new (the clock: at most every CLOCK_SECONDS)
+            self._last, self._last_tilt, self._last_time = state, tilt, now
+            try:
+                pred = self._predict(self.read, tilt)
+                break
+            except ForecastInputError as exc:  # a row the measurement cannot have made?
+                if not self._skip_refused_row(exc):
+                    self._note(str(exc))
+                    return None
         events = len(self.read[0])
-        state = (self.reading, events, self.anchors)
-        if state == self._last and (tilt == self._last_tilt or not self.rate
-                                    or now - self._last_time < CLOCK_SECONDS):
-            return None  # nothing new (the clock: at most every CLOCK_SECONDS)
-        self._last, self._last_tilt, self._last_time = state, tilt, now
-        cat, scale, unit = self.read
-        try:
-            pred = self.model.predict_read((cat, 1.0, "rad"), tilt, self.measurement,
-                                           self.within, self.method)
-        except ForecastInputError as exc:
-            self._note(str(exc))
-            return None
         self._captured = []
         try:
             alarm = self.alarm.update(pred, events)
@@ -722,6 +725,50 @@ class Follower:
             self.stop("until", f"the tilt reached {math.degrees(tilt):.2f}° (--until "
                                f"{self.until_text}): stopped")
         return update
+
+    def _predict(self, read, tilt: float):
+        return self.model.predict_read((read[0], 1.0, "rad"), tilt, self.measurement,
+                                       self.within, self.method)
+
+    def _skip_refused_row(self, exc) -> bool:
+        """After the forecast refused the catalogue (a size the measurement cannot have
+        recorded): the first row of the last poll with which it is refused is named (with the
+        refusal) and skipped, and the rest read again; False if the catalogue is refused
+        without any of them (nothing to skip)."""
+        rows = [(off, line) for off, line in self._lines_from(self.new_from)
+                if self._is_event(off, line)]
+
+        def refusal(j: int):  # the refusal of the catalogue up to new row j (-1: none of them)
+            end = rows[j][0] + len(rows[j][1]) if j >= 0 else self.new_from
+            try:
+                read = read_catalogue_stream(io.BytesIO(bytes(self.kept[:end])), self.where,
+                                             self.measurement.angle_resolution)
+            except ForecastInputError:
+                return None  # no event yet
+            try:
+                self._predict(read, float(read[0].alpha[-1]))
+            except ForecastInputError as err:
+                return err
+            return None
+
+        if not rows or refusal(-1) is not None:
+            return False
+        lo, hi, err = -1, len(rows) - 1, exc  # refusal(lo) is None, the whole state refused
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            found = refusal(mid)
+            lo, hi, err = (lo, mid, found) if found is not None else (mid, hi, err)
+        off, line = rows[hi]
+        row = self.kept.count(b"\n", 0, off) + 1
+        self._note(f"{self.where}: row {row}: {err}")
+        self.kept[off:off + len(line) - 1] = b" " * (len(line) - 1)
+        self.read = None
+        self._read_rows(self.new_from)
+        if self.anchor is not None and self.anchor.event and self.anchor.row == row:
+            self._set_anchor(Anchor(None, float(self.read[0].alpha[-1]), self.anchor.when, None,
+                                    event=True) if self.read is not None else None)
+        self._last = None
+        return True
 
     def _stop_at_avalanche(self) -> None:
         row, text = self.avalanche
