@@ -506,7 +506,6 @@ class Follower:
         self.reading = 0  # readings of the file from its start
         self._restart()
 
-
     # -- the stop conditions ---------------------------------------------------
     @property
     def proceed(self) -> bool:
@@ -532,7 +531,6 @@ class Follower:
         self.header_bad = False
         self.read = None  # (Catalogue, scale, unit) of ``kept``
         self.reported: set[str] = set()
-        self.pending_markers: list[tuple[int, str]] = []
         self.avalanche = None  # (row, angle text or None) once the marker is read
         self.reading += 1
         self.new_from = 0  # where the lines of the last poll start in ``kept``
