@@ -150,10 +150,16 @@ def test_unbounded_and_missing_sources_are_one_line(tmp_path):
 
 
 def test_a_picture_that_cannot_be_written_is_one_line(tmp_path):
-    """The --plot file replaced by a folder during the follow: one line naming it, exit 2, no
-    temporary file named or left."""
+    """A --plot FIFO with no reader is refused at once; the --plot file replaced by a folder
+    during the follow: one line naming it, exit 2, no temporary file named or left."""
     path = tmp_path / "pile.csv"
     path.write_text(catalogue_text(40))
+    fifo = tmp_path / "live.fifo"
+    os.mkfifo(fifo)
+    out = subprocess.run([sys.executable, "-m", "sliders.forecast", "predict", str(path),
+                          "--follow", "--plot", str(fifo)], capture_output=True, text=True,
+                         timeout=60)
+    assert out.returncode == 2 and out.stderr.count("\n") == 1 and "--plot" in out.stderr
     png = tmp_path / "live.png"
     proc = start(str(path), "--plot", str(png))
     try:
