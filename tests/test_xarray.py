@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shlex
 import subprocess
 import sys
 import tomllib
@@ -91,8 +92,9 @@ def test_tilt_file_provenance(tilt_file):
     assert a["source"].startswith(f"sliders {sliders.__version__}")
     assert f"N = {result.scene.n_sliders}" in a["title"]
     # the history names the process that wrote the file: this test's (pytest, or an xdist worker)
-    command = os.path.basename(sys.argv[0]) if sys.argv[0] != "-c" else "-c"
-    assert re.match(r"\d{4}-\d\d-\d\dT", a["history"]) and command in a["history"]
+    # (its arguments as the interpreter got them: "-m pytest ..." or an xdist worker's "-c ...")
+    command = shlex.join(sys.orig_argv[1:])
+    assert re.match(r"\d{4}-\d\d-\d\dT", a["history"]) and a["history"].endswith(command)
     assert a["hdf5_version"] == h5py.version.hdf5_version and a["numpy_version"] == np.__version__
     assert a["python_version"] == sys.version.split()[0] and a["h5py_version"] == h5py.__version__
     scene = sliders.Scene.from_dict(tomllib.loads(a["scene_toml"])["scene"])
