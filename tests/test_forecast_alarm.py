@@ -373,3 +373,23 @@ def test_a_stop_signal_lets_the_drawing_child_finish_its_picture(tmp_path):
     picture.close()
     assert (tmp_path / "live.png").read_bytes() == b"u0"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["draws.log", "live.png"]
+
+
+@pytest.mark.slow
+def test_the_live_picture_of_a_real_forecast_carries_its_status(tmp_path):
+    import numpy as np
+
+    import sliders.forecast as sf
+    from sliders.runs.forecast.alarm import png_bytes
+
+    u = np.sort(np.random.default_rng(3).random(120))
+    alpha, size = 31.0 - 31.0 * np.exp(-3.0 * u), np.ones(120, dtype=int)
+    pred = sf.load().predict({"angle [deg]": alpha, "size": size}, tilt_now="30deg")
+    status = {"alarm": True, "alarm_threshold": 0.4, "rows": 120, "file": "pile.csv",
+              "time": "2026-11-28T03:40:00"}
+    bare, with_status = png_bytes(pred), png_bytes(pred, status)
+    assert bare[:8] == with_status[:8] == b"\x89PNG\r\n\x1a\n" and bare != with_status
+    picture = LatestPicture(tmp_path / "live.png", fork=True)
+    picture.show(pred, status)
+    picture.close()
+    assert (tmp_path / "live.png").read_bytes() == with_status
