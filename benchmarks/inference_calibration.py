@@ -66,6 +66,7 @@ import numpy as np
 from scipy.stats import kstest
 
 from sliders.analysis.forecast.features import Cuts
+from sliders.figures.style import save_figure
 from sliders.analysis.forecast.measurement import PERFECT
 from sliders.analysis.forecast.posterior import angles_sizes_only
 from sliders.io.prior_file import another_draw, read_prior_ensemble
@@ -295,6 +296,13 @@ def timings(cset, rows, runs: int) -> dict:
     return out
 
 
+def save_png(fig, path: str) -> None:
+    """``fig`` as the PNG ``path``, at the gallery's 300 dpi in a 256-colour palette."""
+    folder, name = os.path.split(path)
+    save_figure(fig, folder or ".", os.path.splitext(name)[0], formats=("png",),
+                palette_png=True)
+
+
 def figure(results: dict, path: str) -> None:
     """Rank histograms (both kinds of catalogue) and the coverage of every parameter."""
     from matplotlib.figure import Figure
@@ -338,7 +346,7 @@ def figure(results: dict, path: str) -> None:
                   " expected by chance)")
     fig.suptitle(title, fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.96 if not over else 0.93))
-    fig.savefig(path, dpi=110)
+    save_png(fig, path)
 
 
 def corner_of_row(model, cset, row: int, path: str) -> dict:
@@ -350,10 +358,11 @@ def corner_of_row(model, cset, row: int, path: str) -> dict:
     inference = model.infer_catalogue(cat, PERFECT, check=True)
     truth = {p: float(np.asarray(cset.parameters[p])[row]) for p in model.posterior.parameters_}
     fig = corner_figure(inference.draws, inference.prior_range, inference["parameters"], truth,
+                        check=inference["check"],
                         title=f"row {row} of the prior file (held out), {len(cat)} events, 3° "
-                              "before its avalanche: posterior (shaded: the prior's range; red: "
-                              "the true values)")
-    fig.savefig(path, dpi=90)
+                              "before its avalanche: posterior (grey: the prior's range, "
+                              "hatched: beyond it; red: the true values)")
+    save_png(fig, path)
     print(str(inference))
     print("true:", json.dumps(truth))
     return inference.to_dict()

@@ -77,7 +77,7 @@ def _size_axis_ticks(axis, low: float, high: float) -> None:
     """Log ticks of the size axis that do not overlap: 1-2-5 within a decade and a half,
     1-3 up to three decades, every decade beyond (the numbers plain, never 10^k)."""
     decades = math.log10(max(high / low, 1.0))
-    subs = (1.0, 2.0, 5.0) if decades < 1.5 else (1.0, 3.0) if decades < 3.0 else (1.0,)
+    subs = (1.0, 2.0, 5.0) if decades < 1.3 else (1.0, 3.0) if decades < 3.0 else (1.0,)
     axis.set_major_locator(LogLocator(base=10.0, subs=subs, numticks=12))
     axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     axis.set_minor_locator(LogLocator(base=10.0, subs=np.arange(2, 10), numticks=12))
