@@ -53,6 +53,7 @@ def predict(args, argv=None) -> int:
                           args.tilt_now, measurement)
     model = load_model(args.model)
     pred = model.forecast(cat, measurement, within_option(args.within), args.method, notes)
+    pred.size_label = getattr(args, "size_label", None)
     report, lines = pred.to_dict(), pred.lines(verbose=args.verbose)
     if getattr(args, "alarm_threshold", None) is not None:
         from .alarm import single_alarm
@@ -132,7 +133,7 @@ class ForecastModel:
 
     def predict(self, catalogue, tilt_now=None, *, within=ALARM_DELTA_DEG, angle_resolution=0.0,
                 min_size=1.0, missed_fraction=0.0, size_unit="sliders", sliders=None,
-                method="learned") -> "Prediction":
+                method="learned", size_label=None) -> "Prediction":
         """The forecast of ``catalogue`` at the tilt ``tilt_now``, measured as the keywords say.
 
         Parameters
@@ -154,6 +155,9 @@ class ForecastModel:
             any whole number).
         method : str
             ``"learned"``, a method of ``common.PREDICT_METHODS``, or ``"all"``.
+        size_label : str, optional
+            The sizes' unit as the picture's axis names it (``"mm²"``, ``"grains"``), as
+            ``predict --size-label``; default: "sliders", or "CSV's unit" for arbitrary sizes.
 
         Returns
         -------
@@ -165,14 +169,17 @@ class ForecastModel:
         measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
                                        sliders)
         read = read_source(catalogue, angle_resolution=measurement.angle_resolution)
-        return self.predict_read(read, tilt_now, measurement, within_option(within), method)
+        return self.predict_read(read, tilt_now, measurement, within_option(within), method,
+                                 size_label=size_label)
 
     def predict_read(self, read, tilt_now, measurement, within: float,
-                     method: str = "learned") -> "Prediction":
+                     method: str = "learned", size_label=None) -> "Prediction":
         """``predict`` of a catalogue already read (``catalogue.read_source``'s triple), its
         measurement a ``Measurement``, the alarm's horizon ``within`` in radians."""
         cat, notes = prepared(read, tilt_now, measurement)
-        return self.forecast(cat, measurement, within, method, notes)
+        pred = self.forecast(cat, measurement, within, method, notes)
+        pred.size_label = size_label
+        return pred
 
     def follow(self, source, *, tilt_now=None, tilt_rate=None, until=None,
                within=ALARM_DELTA_DEG, angle_resolution=0.0, min_size=1.0, missed_fraction=0.0,
