@@ -304,6 +304,21 @@ def _read(path, with_events: bool = True) -> dict[str, Any]:
             "events": events, "choices": choices, "order": order}
 
 
+#: the set's attribute of ``read_prior_ensemble`` holding each row's fingerprint
+FINGERPRINTS = "row_fingerprints"
+
+
+def _fingerprints(d: dict, rows) -> np.ndarray:
+    """(n, 4) what identifies each of ``rows`` as a pile, from what the file records (no
+    event is hashed again): its scene seed, its number of events, the CRC-32 of its events and
+    its avalanche angle's bits.  Two rows of one fingerprint are one pile, simulated twice or
+    copied; piles of independent draws differ in their seeds and their events."""
+    r = d["rows"]
+    alpha_c = np.ascontiguousarray(r["alpha_c"][rows], dtype=np.float64)
+    return np.column_stack([r["seed"][rows].astype(np.uint64), r["n_events"][rows].astype(np.uint64),
+                            r["event_crc32"][rows].astype(np.uint64), alpha_c.view(np.uint64)])
+
+
 def read_prior_header(path) -> dict[str, Any]:
     """Root attributes, the done mask (rows and their events verified) and the damaged rows."""
     d = _read(path)
@@ -364,7 +379,8 @@ def read_prior_ensemble(path, unfinished: bool = False) -> CatalogueSet:
         Events, parameters (plus the row's ``seed``), ``alpha_c``, status,
         ``ceiling_alpha`` (G,), ``ceiling_distance`` (R, G, K); ``attrs``:
         the file's root attributes plus ``rows`` (the rows' indices in the
-        file) and ``done``.
+        file), ``done`` and ``row_fingerprints`` (``FINGERPRINTS``: what
+        identifies each row's pile, to find the same piles in two files).
     """
     d = _read(path)
     done = d["done"]
@@ -379,7 +395,7 @@ def read_prior_ensemble(path, unfinished: bool = False) -> CatalogueSet:
     ceiling[~done[rows]] = np.nan
     alpha_c = np.where(done[rows], d["rows"]["alpha_c"][rows], np.nan)
     attrs = dict(d["attrs"])
-    attrs.update({"rows": rows, "done": done[rows]})
+    attrs.update({"rows": rows, "done": done[rows], FINGERPRINTS: _fingerprints(d, rows)})
     return CatalogueSet.from_catalogues(catalogues, params, alpha_c, names, d["grid"], ceiling,
                                         attrs)
 
@@ -463,6 +479,32 @@ def prior_seed(attrs: dict) -> int | None:
     """The seed a prior file's rows were drawn with (its attributes), None if it names none."""
     seed = json.loads(str(attrs.get("prior", "{}"))).get("prior", {}).get("seed")
     return None if seed is None else int(seed)
+
+
+def same_draw(reference: dict, other: dict) -> bool:
+    """Whether two prior files (their attributes) are one draw: the same prior (parameters
+    and scene) and the same seed, so that their rows are the same piles (a copy, or the same
+    prior run again)."""
+    a, b = (json.loads(str(c.get("prior", "{}"))) for c in (reference, other))
+    seed = prior_seed(reference)
+    return (seed is not None and seed == prior_seed(other)
+            and all(a.get(k) == b.get(k) for k in ("parameters", "scene")))
+
+
+def shared_piles(reference: dict, other: dict) -> int:
+    """How many of the done rows of the set of attributes ``other`` are piles of
+    ``reference``'s (their fingerprints, ``FINGERPRINTS``, recorded by ``read_prior_ensemble``:
+    seed, events' CRC-32, events, avalanche angle); 0 where either records none."""
+    a, b = reference.get(FINGERPRINTS), other.get(FINGERPRINTS)
+    if a is None or b is None or not len(a) or not len(b):
+        return 0
+    a, b = (np.ascontiguousarray(x, dtype=np.uint64) for x in (a, b))
+    if "done" in reference:
+        a = a[np.asarray(reference["done"], dtype=bool)]
+    if "done" in other:
+        b = b[np.asarray(other["done"], dtype=bool)]
+    kind = np.dtype((np.void, 8 * a.shape[1]))
+    return int(np.isin(b.view(kind).ravel(), a.view(kind).ravel()).sum())
 
 
 def another_draw(reference: dict, other: dict, taken=()) -> str | None:

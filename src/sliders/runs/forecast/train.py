@@ -30,9 +30,10 @@ from ...analysis.forecast.evaluation import measure_expected_accuracy
 from ...analysis.forecast.posterior import ParameterPosterior
 from ...analysis.forecast.fitting import fit_methods
 from ...io.catalogue import CatalogueSet
-from ...io.forecast_files import ForecastInputError
+from ...io.forecast_files import ForecastInputError, check_output_target
 from ...io.forecast_model import save_forecasters
-from ...io.prior_file import another_draw, prior_seed
+from ...io.prior_file import another_draw, prior_seed, same_draw, shared_piles
+from ...io.safeio import resolve_target
 from .catalogue import load_set
 from .common import POSTERIOR_MAX_ITER, TRAIN_MAX_ITER, progress_log, provenance
 
@@ -65,16 +66,19 @@ def train(args, argv) -> int:
     folder = os.path.dirname(os.path.abspath(args.out))
     if not os.path.isdir(folder):
         raise ForecastInputError(f"--out {args.out}: the folder {folder} does not exist")
+    if args.prior is not None and not os.path.isfile(args.prior):
+        raise ForecastInputError(f"--prior {args.prior}: no such file")
+    check_outputs(args)
     t0 = time.time()
     paths = args.data
     if args.prior is not None:
-        if not os.path.isfile(args.prior):
-            raise ForecastInputError(f"--prior {args.prior}: no such file")
         paths = [args.out + ".prior.h5"]
         run_prior(args, paths[0], log)
     t_sim = time.time() - t0
-    data = CatalogueSet.joined([load_set(p, "--data" if args.data else "the prior ensemble")
-                                for p in paths])
+    what = "--data" if args.data else "the prior ensemble"
+    sets = [(f"{what} {p}", resolve_target(p), load_set(p, what)) for p in paths]
+    check_disjoint(sets)
+    data = CatalogueSet.joined([s for _, _, s in sets])
     data_path = " + ".join(paths)
     ok = np.isfinite(np.asarray(data.alpha_c, dtype=float))
     if ok.sum() < 20:
@@ -84,7 +88,7 @@ def train(args, argv) -> int:
         raise ForecastInputError(f"--hold-out {args.hold_out:g}: must lie in [0, 0.9)")
     held = np.random.default_rng([args.seed, 7]).random(len(data)) < args.hold_out
     train_set = data.subset(np.flatnonzero(ok & ~held))
-    calibration, calibration_seeds = calibration_sets(args, data)
+    calibration, calibration_seeds = calibration_sets(args, data, sets)
     if args.fit == "posterior":
         models = {"posterior": ParameterPosterior(max_iter=args.max_iter,
                                                   random_state=args.seed).fit(
@@ -107,24 +111,66 @@ def train(args, argv) -> int:
     return 0
 
 
-def calibration_sets(args, data) -> tuple[CatalogueSet | None, list]:
+def calibration_sets(args, data, sets) -> tuple[CatalogueSet | None, list]:
     """The rows of ``--calibration-data`` and the seeds of its files, each file checked to draw
-    the training prior with a seed of its own."""
+    the training prior with a seed of its own (none of the data files', none of another
+    calibration file's), and to share no file and no pile with any other input
+    (``check_disjoint``); ``sets``: the data files' ``(label, target, set)``."""
     if args.calibration_data is None:
         return None, []
     if args.fit != "posterior":
         raise ForecastInputError("--calibration-data: only with --fit posterior (the forecasters "
                                  "calibrate on a share of --data)")
+    inputs = list(sets)
+    taken = [seed for seed in (prior_seed(s.attrs) for _, _, s in sets) if seed is not None]
     parts, seeds = [], []
     for path in args.calibration_data:
         part = load_set(path, "--calibration-data")
-        why = another_draw(data.attrs, part.attrs, seeds)
+        why = another_draw(data.attrs, part.attrs, taken + seeds)
         if why is not None:
             raise ForecastInputError(f"--calibration-data {path}: {why}: it must draw the "
                                      "training prior with another seed")
+        inputs.append((f"--calibration-data {path}", resolve_target(path), part))
         parts.append(part)
         seeds.append(prior_seed(part.attrs))
+    check_disjoint(inputs)
     return CatalogueSet.joined(parts), seeds
+
+
+def check_outputs(args) -> None:
+    """Every output of ``train`` (the model file; with ``--prior``, the prior ensemble it runs
+    beside it) is none of its inputs, by device and inode (symlinks and hard links included),
+    before anything is run or fitted: an output never replaces an input."""
+    inputs = [("--prior", args.prior)] if args.prior is not None else []
+    inputs += [("--data", p) for p in args.data or ()]
+    inputs += [("--calibration-data", p) for p in args.calibration_data or ()]
+    outputs = [args.out]
+    if args.prior is not None:
+        outputs.append(args.out + ".prior.h5")  # written by the prior run, read by the fit
+        check_output_target(args.out, {"the prior ensemble it runs": resolve_target(outputs[1])})
+    for out in outputs:
+        for what, path in inputs:
+            check_output_target(out, {what: resolve_target(path)})
+
+
+def check_disjoint(inputs) -> None:
+    """Training inputs (``(label, FileTarget, CatalogueSet)``) that share no pile: no two are
+    the same file (device and inode), the same draw (the same prior and seed: a copy, or the
+    prior run again), or hold a pile in common (the rows' seeds and events' CRC-32s,
+    ``prior_file.shared_piles``).  A pile given twice would be fitted twice, or held out and
+    fitted, and the calibration and the expected accuracy would be measured in-sample."""
+    for j, (label, target, cset) in enumerate(inputs):
+        for other, other_target, other_set in inputs[:j]:
+            if target.same_file(other_target):
+                why = "the same file as"
+            elif same_draw(other_set.attrs, cset.attrs):
+                why = f"the same draw (the same prior, seed {prior_seed(cset.attrs)}) as"
+            elif n := shared_piles(other_set.attrs, cset.attrs):
+                why = f"{n} of its piles are piles of"
+            else:
+                continue
+            raise ForecastInputError(f"{label}: {why} {other}; training inputs must not "
+                                     "overlap (a pile fitted twice, or held out and fitted)")
 
 
 def portable_path(path: str) -> str:
