@@ -22,8 +22,8 @@ follower's JSON Lines as they arrive:
 * forecasts made from a half-written row (aim: none);
 * with ``--plot``: the pictures written (the PNG replaced, seen by its inode)
   and how long after the last update the last picture was on disk;
-* the follower's exit status at the ``# avalanche`` line, and its last JSON
-  line when that is the run's summary.
+* the follower's exit status at the ``# avalanche`` line, and the run's summary
+  (its last JSON line; without ``--plot`` it scores the ``--big`` rows too).
 
 Without ``--plot`` also: the follower's CPU while the file is idle (``--idle``
 seconds; aim below 2 % of a core) and its resident memory before and after
@@ -249,7 +249,7 @@ def follow_pass(args, rows: list[str], avalanche: float, tmp: str, plot: bool) -
             out["exit_status_at_avalanche"] = None
         updates.join(timeout=5)
         last = updates.lines[-1][1] if updates.lines else {}
-        out["summary"] = last if "rows" not in last else None
+        out["summary"] = last.get("summary")
         out["alarm_lines"] = sum(1 for line in errors.lines if line.startswith("ALARM"))
     finally:
         if follower.poll() is None:

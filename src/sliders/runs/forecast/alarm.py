@@ -1,6 +1,6 @@
 """The live forecast's alarm, the run scored at its end, and the live picture drawn aside.
 
-Three pieces of ``predict --follow`` (``follow.py``), each usable alone:
+Three pieces of ``predict --follow`` (``follower.py``), each usable alone:
 
 ``Alarm``
     P(avalanche within the horizon) of each update's first method against a
@@ -30,7 +30,6 @@ Three pieces of ``predict --follow`` (``follow.py``), each usable alone:
 from __future__ import annotations
 
 import gc
-import inspect
 import io
 import math
 import os
@@ -348,7 +347,7 @@ class RunScore:
             a, source = u[-1]["tilt_now"], "last tilt reached"
         else:
             a, source = None, None
-        out = {"summary": "run", "avalanche_angle": a, "avalanche_angle_source": source,
+        out = {"avalanche_angle": a, "avalanche_angle_source": source,
                "updates": len(u), "alarms_raised": 0, "first_alarm": None,
                "last_forecast": None, "interval_held": None, "interval_held_share": None}
         if not u:
@@ -404,23 +403,15 @@ class RunScore:
         return out
 
 
-def _accepts(function, keyword: str) -> bool:
-    try:
-        return keyword in inspect.signature(function).parameters
-    except (TypeError, ValueError):
-        return False
-
-
 def png_bytes(prediction, status: dict | None = None) -> bytes:
     """The bench picture of ``prediction`` as PNG bytes, drawn on an Agg canvas of its own (no
-    pyplot: safe in a thread); ``status`` (the alarm, the time, the rows, the file) goes to the
-    figure where it takes one."""
+    pyplot: safe in a thread); ``status`` (``"alarm"``, ``"alarm_threshold"``, ``"time"``,
+    ``"rows"``, ``"file"``) the live picture's banner (``figures.bench.bench_figure``)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     from ...figures.bench import save_png
 
-    fig = (prediction.figure(status=status) if status is not None
-           and _accepts(prediction.figure, "status") else prediction.figure())
+    fig = prediction.figure(status=status)
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
     save_png(fig, buf)
