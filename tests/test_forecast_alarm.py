@@ -393,3 +393,43 @@ def test_the_live_picture_of_a_real_forecast_carries_its_status(tmp_path):
     picture.show(pred, status)
     picture.close()
     assert (tmp_path / "live.png").read_bytes() == with_status
+
+
+#: a pile of prior_format1.h5 (row 0) to 0.05° before its avalanche at 19.937°: angle° and size
+SMALL_PILE = ("0.1824:1 4.0529:2 4.7686:2 6.8907:2 6.9814:1 7.7756:1 9.1642:3 9.2035:1 10.7131:1 "
+              "10.8201:1 12.6662:1 13.3822:1 13.4918:1 14.4720:2 14.9675:1 15.0398:2 15.0862:9 "
+              "15.1412:4 17.0682:9 18.0061:3 18.6709:29 19.2287:1 19.5475:2 19.8138:2")
+
+
+@pytest.mark.slow
+def test_the_command_runs_the_hook_once_and_scores_the_run_at_the_avalanche(tmp_path, hook):
+    import subprocess
+
+    import sliders.forecast as sf
+    from sliders.runs.forecast.alarm import probability_within
+
+    rows = [r.split(":") for r in SMALL_PILE.split()]
+    path = tmp_path / "pile.csv"
+    path.write_text("angle [deg],size\n" + "".join(f"{a},{s}\n" for a, s in rows)
+                    + "# avalanche 19.937deg\n")
+    p = probability_within(sf.load().predict(path).to_dict())
+    assert p > 0.08  # the threshold below it is one the option takes
+    threshold = f"{max(0.06, min(0.95, p - 0.02)):.3f}"
+    text, runs = hook
+    done = subprocess.run([sys.executable, "-m", "sliders.forecast", "predict", str(path),
+                           "--follow", "--json", "--alarm-threshold", threshold,
+                           "--on-alarm", text], capture_output=True, text=True, timeout=240)
+    assert done.returncode == 0, done.stderr
+    lines = [json.loads(line) for line in done.stdout.splitlines()]
+    *updates, last = lines
+    assert updates and all(u["alarm"] is True for u in updates)
+    summary = last["summary"]
+    assert summary["avalanche_angle"] == pytest.approx(rad(19.937))
+    assert summary["avalanche_angle_source"] == "given"
+    assert summary["first_alarm"]["rows"] == 24 and summary["alarms_raised"] == 1
+    alarm_lines = [line for line in done.stderr.splitlines() if line.startswith("ALARM")]
+    assert len(alarm_lines) == 1 and f"threshold {float(threshold):g}" in alarm_lines[0]
+    wait_until(lambda: runs.exists() and runs.read_text().endswith("\n"), timeout=30)
+    got = [json.loads(line) for line in runs.read_text().splitlines()]
+    assert len(got) == 1 and got[0]["SLIDERS_ROWS"] == "24"
+    assert got[0]["SLIDERS_CATALOGUE"] == str(path) and got[0]["argv"] == ["two words", "plain"]
