@@ -304,9 +304,70 @@ def printable_tree(value):
     return value
 
 
+#: the columns of a forecaster's expected-accuracy table (``expected_accuracy_``, written by
+#: ``analysis.forecast.evaluation.accuracy_table``, printed by ``predict``): one value per bin
+#: of ``lead_edges_deg``, and the same over every held-out cut in ``overall`` (with ``rows``)
+ACCURACY_COLUMNS = ("median_abs_deg", "coverage", "n")
+#: the most bins of lead an expected-accuracy table may hold
+MAX_ACCURACY_BINS = 1000
+
+
+def check_accuracy_table(table) -> None:
+    """A forecaster's expected-accuracy table (None or empty: it holds none) as ``predict``
+    reads it, else ``ValueError`` saying what is wrong: every column present, one value per
+    lead bin, the lead edges finite, from 0 up and increasing, the errors finite degrees in
+    [0, 90], the coverages shares in [0, 1], the counts whole numbers from 0."""
+    if table is None or (isinstance(table, dict) and not table):
+        return
+    if not isinstance(table, dict):
+        raise ValueError(f"a {type(table).__name__}, not a table of columns")
+    overall = table.get("overall")
+    missing = [c for c in ("lead_edges_deg", *ACCURACY_COLUMNS) if c not in table]
+    missing += [] if isinstance(overall, dict) else ["overall"]
+    missing += [f"overall {c}" for c in (*ACCURACY_COLUMNS, "rows")
+                if isinstance(overall, dict) and c not in overall]
+    if missing:
+        raise ValueError(f"no column {', '.join(missing)}")
+    edges = _numbers(table["lead_edges_deg"], "lead_edges_deg")
+    if not 1 <= edges.size <= MAX_ACCURACY_BINS or edges[0] < 0 or (np.diff(edges) <= 0).any():
+        raise ValueError(f"lead_edges_deg: {edges.size} edges, not 1 to {MAX_ACCURACY_BINS} "
+                         "increasing from 0 up")
+    for c in ACCURACY_COLUMNS:
+        v = _numbers(table[c], c)
+        if v.shape != edges.shape:
+            raise ValueError(f"{c}: {v.size} values for {edges.size} lead bins")
+        _in_range(v, c, c)
+    for c in (*ACCURACY_COLUMNS, "rows"):
+        _in_range(_numbers([overall[c]], f"overall {c}"), f"overall {c}", c)
+
+
+def _numbers(values, what: str) -> np.ndarray:
+    """``values`` (a list of plain numbers, or a 1-D array) as finite floats."""
+    ok = isinstance(values, (list, tuple)) and all(
+        isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+        for v in values)
+    ok = ok or (isinstance(values, np.ndarray) and values.ndim == 1 and values.dtype.kind in "iuf")
+    if not ok:
+        raise ValueError(f"{what}: not a list of numbers")
+    v = np.asarray(values, dtype=float)
+    if not np.isfinite(v).all():
+        raise ValueError(f"{what}: NaN or infinite values")
+    return v
+
+
+def _in_range(v: np.ndarray, what: str, column: str) -> None:
+    """The values ``v`` of ``column`` in its range (degrees, a share, a count)."""
+    lo, hi = {"median_abs_deg": (0.0, 90.0), "coverage": (0.0, 1.0)}.get(column, (0.0, np.inf))
+    if (v < lo).any() or (v > hi).any():
+        raise ValueError(f"{what}: values outside [{lo:g}, {hi:g}]" if np.isfinite(hi)
+                         else f"{what}: negative values")
+    if column in ("n", "rows") and (v != np.round(v)).any():
+        raise ValueError(f"{what}: counts that are not whole numbers")
+
+
 def check_forecasters(forecasters: dict, where, version="?") -> None:
-    """Every forecaster's ``check_fitted`` (every part a forecast reads), in one line on the
-    first that fails."""
+    """Every forecaster's ``check_fitted`` (every part a forecast reads) and its expected-accuracy
+    table (``check_accuracy_table``), in one line on the first that fails."""
     where = printable(where)
     for method, f in forecasters.items():
         check = getattr(f, "check_fitted", None)
@@ -321,6 +382,11 @@ def check_forecasters(forecasters: dict, where, version="?") -> None:
                     if isinstance(exc, AttributeError) else " ".join(str(exc).split()))
             raise ModelFileError(f"{where}: forecaster {printable(method)!r}: "
                                  f"{printable(what)}; refused") from None
+        try:
+            check_accuracy_table(getattr(f, "expected_accuracy_", None))
+        except ValueError as exc:
+            raise ModelFileError(f"{where}: forecaster {printable(method)!r}: its expected-"
+                                 f"accuracy table: {printable(str(exc))}; refused") from None
 
 
 def load_forecasters(path) -> tuple[dict, dict]:

@@ -109,6 +109,14 @@ RECALIBRATION_ROUNDS = 8
 ATOM_WIDTH = 1e-9
 #: the central intervals whose share of the truths ``pit_is_off`` tests
 CENTRAL_INTERVALS = (0.5, 0.8, 0.95)
+#: the physical range of each parameter a posterior file may hold, in its own units: the friction
+#: coefficients positive (mu_d > 0; mu_s - mu_d and sigma_mu, learned as log10, are positive
+#: wherever they are finite), xi >= 0 (its zero coded below its range), and none so large
+#: that a pile of it means nothing (a friction coefficient of 1000 is a tilt of 89.94 degrees)
+PHYSICAL_RANGES = {"mu_d": (0.0, 1e3), "mu_s_minus_mu_d": (0.0, 1e3), "sigma_mu": (0.0, 1e3),
+                   "xi": (0.0, 1e6), "n_sliders": (2.0, 1e12)}
+#: the fewest decades below 1 a parameter learned as log10 may reach (10**-300 is a number)
+LOG_FLOOR = -300.0
 
 
 def pit_is_off(u) -> bool:
@@ -663,6 +671,34 @@ class ParameterPosterior(BaseEstimator):
         return json.loads(self.prior_)
 
     # -- the file's checks ----------------------------------------------------------------
+    def _check_range(self, name: str, low: float, high: float) -> None:
+        """The prior range [low, high] (learned scale) of parameter ``name`` within its
+        ``PHYSICAL_RANGES`` (mu_d > 0, the others' log10 finite, above ``LOG_FLOOR``), its ends
+        named in a refusal."""
+        lo, hi = PHYSICAL_RANGES[name]
+        if name in LOG_PARAMETERS:
+            floor = math.log10(lo) if lo > 0 else LOG_FLOOR
+            ok, shown = floor - 1e-12 <= low and high <= math.log10(hi) + 1e-12, \
+                f"10^{low:.6g} to 10^{high:.6g}"
+        else:
+            ok, shown = lo < low and high <= hi, f"{low:.6g} to {high:.6g}"
+        limits = f"{lo:g} to {hi:g}" if lo > 0 else f"above {lo:g}, at most {hi:g}"
+        require(ok, f"posterior: the prior range of {name}, {shown}, lies outside its physical "
+                    f"range ({limits})")
+
+    def _check_numbers_of_sliders(self, n: np.ndarray) -> None:
+        """The prior's numbers of sliders: whole numbers from 2 on, each once, whose log10 ends
+        are the prior range of n_sliders."""
+        lo, hi = PHYSICAL_RANGES["n_sliders"]
+        require(bool((n == np.round(n)).all()) and n.min() >= lo and n.max() <= hi,
+                f"posterior: the numbers of sliders ({', '.join(f'{v:g}' for v in n[:4])}"
+                f"{', ...' if n.size > 4 else ''}) are not whole numbers from {lo:g} to {hi:g}")
+        require(bool((np.diff(n) > 0).all()), "posterior: a number of sliders is repeated")
+        p = self.parameters_.index("n_sliders")
+        ends = np.log10([n[0], n[-1]])
+        require(np.allclose([self.low_[p], self.high_[p]], ends, rtol=0.0, atol=1e-9),
+                "posterior: the prior range of n_sliders is not that of its numbers of sliders")
+
     def check_fitted(self) -> None:
         """Every part an inference reads, of the form ``fit`` writes (``integrity``)."""
         require(isinstance(self.parameters_, tuple) and 1 <= len(self.parameters_)
@@ -680,18 +716,38 @@ class ParameterPosterior(BaseEstimator):
         check_array(self.low_, "posterior: prior low ends", shape=(n_p,))
         check_array(self.high_, "posterior: prior high ends", shape=(n_p,))
         require((self.low_ <= self.high_).all(), "posterior: a prior range is reversed")
+        for p, name in enumerate(self.parameters_):
+            self._check_range(name, float(self.low_[p]), float(self.high_[p]))
         check_array(self.prior_variance_, "posterior: prior variances", shape=(n_p,), lo=1e-300)
         check_array(self.shifts_, "posterior: conformal shifts",
                     shape=(len(CATALOGUE_CLASSES), n_p, n_l), lo=-1e3, hi=1e3)
         check_array(self.recalibration_, "posterior: recalibration",
                     shape=(len(RECALIBRATION_GROUPS), n_p, REPORTED_LEVELS.size),
                     lo=0.0, hi=1.0, increasing=True)
-        check_array(self.n_sliders_values_, "posterior: numbers of sliders", lo=1.0,
-                    increasing=True, min_size=1)
+        n = check_array(self.n_sliders_values_, "posterior: numbers of sliders", lo=1.0,
+                        increasing=True, min_size=1)
+        if "n_sliders" in self.parameters_:
+            self._check_numbers_of_sliders(n)
         check_number(self.mu_d_reference_, "posterior: mu_d's reference", -1e3, 1e3)
+        if "mu_d" in self.parameters_:
+            p = self.parameters_.index("mu_d")
+            require(self.low_[p] <= self.mu_d_reference_ <= self.high_[p],
+                    f"posterior: mu_d's reference {self.mu_d_reference_:g} lies outside its "
+                    f"prior range [{self.low_[p]:g}, {self.high_[p]:g}]")
         if "xi" in self.parameters_:
-            check_number(self.xi_zero_code_, "posterior: xi's zero", -300.0, 300.0)
+            check_number(self.xi_zero_code_, "posterior: xi's zero", LOG_FLOOR, 300.0)
+            low = float(self.low_[self.parameters_.index("xi")])
+            require(self.xi_zero_code_ - 1e-9 <= low <= self.xi_zero_code_ + XI_ZERO_GAP + 1e-9,
+                    f"posterior: xi's zero code {self.xi_zero_code_:g} is not {XI_ZERO_GAP:g} "
+                    f"decades below its smallest positive value (the range starts at {low:g})")
         require(isinstance(self.prior_, str), "posterior: the prior is not a text")
+        try:
+            prior = json.loads(self.prior_)
+        except ValueError:
+            raise IntegrityError("posterior: the stored prior is not JSON") from None
+        require(isinstance(prior, dict) and isinstance(prior.get("parameters"), dict)
+                and isinstance(prior.get("scene", {}), dict),
+                "posterior: the stored prior is not a prior's tables (parameters, scene)")
         c = check_array(self.copula_, "posterior: copula", shape=(n_p, n_p), lo=-1.0, hi=1.0)
         require(np.allclose(c, c.T) and np.allclose(np.diag(c), 1.0),
                 "posterior: the copula is not a correlation matrix")

@@ -10,6 +10,7 @@ predictive test passes (``reproduced``) when the survival p-value is at least
 ``CHECK_ALPHA`` and no statistic's p-value falls below ``CHECK_ALPHA`` divided
 by their number (Bonferroni); the command's verdict also needs the prior
 predictive test, the posterior's domain check (``infer.combined_verdict``).
+A pile of the check is run with its preparation stoppable by a signal (``simulate_pile``).
 No scikit-learn here: the command's module imports this one at its top.
 """
 
@@ -19,7 +20,11 @@ import math
 
 import numpy as np
 
+from ... import status
+from ...driver import run
 from ...io.catalogue import Catalogue
+from ...preparation import prepare
+from ...scene import Scene, check_memory
 
 #: the summary statistics compared; those counting sliders are left out for sizes in an
 #: arbitrary unit
@@ -33,6 +38,25 @@ CHECK_ALPHA = 0.01
 SURVIVAL = "stands_to_tilt"
 #: the least spread of the simulated avalanche angles the survival p-value assumes (0.25°)
 SURVIVAL_SPREAD = math.radians(0.25)
+
+
+def simulate_pile(scene: Scene, backend: str):
+    """The run of one pile of the check (``driver.run``), stopped at once by Ctrl-C or SIGTERM.
+
+    The run's memory is checked first (``scene.check_memory``), then the chain is prepared
+    here, outside the run: ``run`` finishes a preparation a signal interrupts (the milliseconds
+    of Python around its engine), which for a pile of millions of sliders is half a minute
+    and more; here the signal's exception goes on up at once.  The same state, so the same
+    run as ``run(scene)``.  A history preparation (``initial_forces = "history"``), whose
+    engine answers a signal by ending its tilt as interrupted, stops as interrupted too."""
+    check_memory(scene)
+    try:
+        state = prepare(scene)
+    except RuntimeError as exc:
+        if f"'{status.NAMES[status.INTERRUPTED]}'" in str(exc):
+            raise KeyboardInterrupt from None
+        raise
+    return run(scene, backend, state=state)
 
 
 def check_statistics(cat: Catalogue, arbitrary_size: bool = False, complete: bool = True) -> dict:

@@ -36,16 +36,16 @@ import math
 
 import numpy as np
 
-from ...driver import run
 from ...io.catalogue import Catalogue
 from ...io.forecast_files import ForecastInputError, angle_option, parse_angle, tilt_in_range
 from ...io.forecast_model import default_posterior_path
 from ...io.safeio import publish_bytes
+from ...scene import check_memory
 from ...analysis.forecast.features import Cuts
 from ...analysis.forecast.measurement import Measurement, degrade
 from ...analysis.forecast.posterior_check import (CHECK_ALPHA, SURVIVAL, check_statistics,
                                                   predictive_p_values, reproduced,
-                                                  survival_p_value)
+                                                  simulate_pile, survival_p_value)
 from ..command import DEFAULT_BACKEND
 from ..prior_spec import parse_prior
 from .catalogue import (angles_and_sizes, measurement_as_json, measurement_from, measurement_of,
@@ -109,7 +109,9 @@ def load_posterior(path=None) -> "PosteriorModel":
     if type(posterior).__name__ != "ParameterPosterior":
         raise ForecastInputError(f"{path}: not a posterior file (written by train --fit "
                                  "posterior): it holds " + ", ".join(map(str, models)))
-    return PosteriorModel(path, posterior, prov)
+    model = PosteriorModel(path, posterior, prov)
+    model.prior_scene(checked=True)
+    return model
 
 
 class PosteriorModel:
@@ -207,9 +209,21 @@ class PosteriorModel:
                 "avalanched_before": int(np.sum(np.isfinite(avalanche_angles))),
                 "significance_level": CHECK_ALPHA}
 
-    def prior_scene(self):
-        """The base scene of the prior the posterior was fitted on."""
-        return parse_prior(self.posterior.prior_spec(), "the posterior's prior").base_scene
+    def prior_scene(self, checked: bool = False):
+        """The base scene of the prior the posterior was fitted on; ``checked``: the stored
+        prior refused in one line naming the file unless it reads as a prior and a pile of its
+        most sliders fits in the memory available (``scene.check_memory``, as an ensemble's)."""
+        if not checked:
+            return parse_prior(self.posterior.prior_spec(), "the posterior's prior").base_scene
+        post = self.posterior
+        try:
+            scene = self.prior_scene()
+            if "n_sliders" in post.parameters_:
+                check_memory(scene.replace(n_sliders=int(post.n_sliders_values_[-1])))
+        except (ValueError, TypeError, AttributeError, KeyError) as exc:
+            raise ForecastInputError(f"{self.path}: the stored prior: "
+                                     f"{' '.join(str(exc).split())}; refused") from None
+        return scene
 
 
 def combined_verdict(check: dict, in_domain: bool, domain_reason: str) -> dict:
@@ -258,7 +272,7 @@ def simulate_piles(base_scene, material: dict, tilt: float, measurement: Measure
                 changes[name] = float(material[name][j])
         if "n_sliders" in material:
             changes["n_sliders"] = int(material["n_sliders"][j])
-        result = run(base_scene.replace(**changes), DEFAULT_BACKEND)
+        result = simulate_pile(base_scene.replace(**changes), DEFAULT_BACKEND)
         sim = Catalogue.from_result(result)
         sim = Catalogue(sim.alpha, sim.size, sim.displacement, sim.first, sim.last,
                         tilt_now=max(float(tilt), float(sim.tilt_now)))
