@@ -184,7 +184,8 @@ class Alarm:
     Parameters
     ----------
     threshold : float or None
-        P(avalanche within the horizon) at or above which the alarm rises, in (0, 1);
+        P(avalanche within the horizon) at or above which the alarm rises, above the least
+        probability a forecast resolves and at most the greatest (``threshold_option``);
         None: each prediction's own ``alarm_threshold`` (the forecaster's).
     release : float, optional
         P below which a raised alarm falls, in [0, threshold); default
@@ -210,7 +211,7 @@ class Alarm:
         self.catalogue = catalogue
         self.on = False
         self.raised_count = 0
-        self.hooks: list[subprocess.Popen] = []  # the hooks started, newest last
+        self.hooks: list[subprocess.Popen] = []  # the hooks started and not seen to end
         self._waiters: list[threading.Thread] = []
 
     def levels(self, prediction) -> tuple[float, float]:
@@ -291,7 +292,7 @@ class Alarm:
             self.say(f"--on-alarm {self.hook}: could not start: {exc.strerror or exc}; the "
                      "follow goes on")
             return
-        self.hooks.append(proc)
+        self.hooks = [h for h in self.hooks if h.returncode is None] + [proc]
         waiter = threading.Thread(target=self._watch, args=(proc,), daemon=True,
                                   name="sliders-alarm-hook")
         waiter.start()
@@ -309,10 +310,6 @@ class Alarm:
         for w in list(self._waiters):
             w.join(timeout)
         return not any(w.is_alive() for w in self._waiters)
-
-
-def _deg(x):
-    return None if x is None else round(math.degrees(x), 4)
 
 
 class RunScore:
