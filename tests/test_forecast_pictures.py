@@ -83,9 +83,11 @@ def test_the_size_axis_names_the_users_unit_and_its_labels_do_not_overlap():
     assert "mm²" in middle.get_ylabel() and "size unit" not in middle.get_ylabel()
     assert "CSV's unit" in picture(mm2, fc, size_unit="arbitrary").axes[1].get_ylabel()
     assert "sliders" in picture(cat, fc).axes[1].get_ylabel()
-    # sizes within a decade (the sparse catalogue's 1-3) and over two: no label on another
-    for c in (SPARSE[0], mm2):
-        ax = picture(c, fc if c is not SPARSE[0] else SPARSE[1], draw=True).axes[1]
+    # one size, sizes within a decade (the sparse catalogue's 1-3) and over two: at least two
+    # labels, none on another
+    one = catalogue([5.0], [2], 10.0)
+    for c in (one, SPARSE[0], mm2):
+        ax = picture(c, fc if c is mm2 else SPARSE[1], draw=True).axes[1]
         boxes = [t.get_window_extent() for t in ax.get_yticklabels()
                  if t.get_visible() and t.get_text()]
         boxes += [t.get_window_extent() for t in ax.yaxis.get_minorticklabels()

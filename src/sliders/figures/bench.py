@@ -41,6 +41,9 @@ BANNER_HEIGHT = 0.5
 STATUS_FILE_CHARS = 60
 #: how far below the lowest panel the legend starts (points: under its ticks and label)
 LEGEND_DROP = 30.0
+#: the least ratio of the size axis's top to its bottom: a 1-2-5 sequence's widest gap is a
+#: factor 2.5, so the axis holds two of its ticks (with fewer, matplotlib ticks it linearly)
+SIZE_AXIS_RATIO = 6.5
 #: the narrowest bin of the forecast density, as a share of the angle axis
 MIN_BIN_SHARE = 0.015
 
@@ -194,6 +197,9 @@ def bench_figure(catalogue, forecast, *, label: str, calibrated: bool, in_domain
         middle.vlines(alpha, 0, size, color="#1f78b4", lw=0.8)
         middle.plot(alpha, size, "o", ms=2.5, color="#1f78b4")
         low, high = 0.7 * size.min(), 1.5 * size.max()
+        if high / low < SIZE_AXIS_RATIO:  # two 1-2-5 ticks at least (fewer: linear ones)
+            widen = math.sqrt(SIZE_AXIS_RATIO * low / high)
+            low, high = low / widen, high * widen
         middle.set_ylim(low, high)
         _size_axis_ticks(middle.yaxis, low, high)
     middle.set_ylabel(f"event size\n({unit})")
