@@ -138,7 +138,8 @@ def test_a_calibration_file_among_the_data_files_is_refused(priors, capsys):
     its own and its piles were fitted and calibrated on."""
     refused(capsys, POSTERIOR + ["--data", priors / "a.h5", priors / "b.h5",
                                  "--calibration-data", priors / "b.h5", "--out",
-                                 priors / "m.zip"], "--calibration-data", "seed 4")
+                                 priors / "m.zip"], "--calibration-data", "seed 4",
+            f"already used by --data {priors / 'b.h5'}")
     refused(capsys, POSTERIOR + ["--data", priors / "a.h5", priors / "b.h5",
                                  "--calibration-data", priors / "b_copy.h5", "--out",
                                  priors / "m.zip"], "b_copy.h5", "seed 4")

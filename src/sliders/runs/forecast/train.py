@@ -122,15 +122,19 @@ def calibration_sets(args, data, sets) -> tuple[CatalogueSet | None, list]:
         raise ForecastInputError("--calibration-data: only with --fit posterior (the forecasters "
                                  "calibrate on a share of --data)")
     inputs = list(sets)
-    taken = [seed for seed in (prior_seed(s.attrs) for _, _, s in sets) if seed is not None]
+    owners = {prior_seed(s.attrs): label for label, _, s in reversed(sets)}  # seed: first user
     parts, seeds = [], []
     for path in args.calibration_data:
         part = load_set(path, "--calibration-data")
-        why = another_draw(data.attrs, part.attrs, taken + seeds)
+        why = another_draw(data.attrs, part.attrs, [k for k in owners if k is not None])
         if why is not None:
-            raise ForecastInputError(f"--calibration-data {path}: {why}: it must draw the "
+            owner = owners.get(prior_seed(part.attrs)) if "already used" in why else None
+            raise ForecastInputError(f"--calibration-data {path}: {why}"
+                                     f"{f' by {owner}' if owner else ''}: it must draw the "
                                      "training prior with another seed")
-        inputs.append((f"--calibration-data {path}", resolve_target(path), part))
+        label = f"--calibration-data {path}"
+        owners.setdefault(prior_seed(part.attrs), label)
+        inputs.append((label, resolve_target(path), part))
         parts.append(part)
         seeds.append(prior_seed(part.attrs))
     check_disjoint(inputs)
