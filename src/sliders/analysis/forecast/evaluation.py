@@ -257,7 +257,9 @@ def accuracy_table(q: np.ndarray, tilt_now: np.ndarray, truth: np.ndarray, rows:
     ``median_abs_deg`` (the median of ``abs(point - truth)``), ``coverage`` (of the 80 %
     interval) and ``n`` (cuts); a bin of fewer than ``ACCURACY_MIN_CUTS``
     cuts holds the overall numbers (its ``n`` still its own).  ``overall``:
-    the same over every cut.
+    the same over every cut.  A model file's table is checked in this form when the file is
+    loaded (``io.forecast_model.check_accuracy_table``), so that ``typical_accuracy`` reads
+    only finite errors in degrees and coverages in [0, 1].
     """
     q, truth = np.asarray(q, dtype=float), np.asarray(truth, dtype=float)
     if not truth.size:
