@@ -26,8 +26,9 @@ import pytest
 
 from sliders.analysis.forecast.posterior_check import simulate_pile
 from sliders.io.forecast_files import ForecastInputError
-from sliders.io.forecast_model import check_accuracy_table, default_posterior_path, load_forecasters
+from sliders.io.forecast_model import check_accuracy_table
 from sliders.runs.forecast import cli
+from sliders.runs.forecast.infer import load_posterior
 from sliders.scene import Scene
 
 from helpers import write_model
@@ -98,9 +99,9 @@ def test_predict_refuses_a_model_whose_expected_accuracy_is_out_of_range(reduced
 # -- the posterior's tables and its prior --------------------------------------------------
 @pytest.fixture(scope="module")
 def posterior():
-    """The shipped posterior and its provenance, loaded once."""
-    models, prov = load_forecasters(default_posterior_path())
-    return models["posterior"], prov
+    """The shipped posterior and its provenance, loaded once (as ``infer`` loads it)."""
+    model = load_posterior()
+    return model.posterior, dict(model.provenance)
 
 
 def crafted(posterior, tmp_path, change, name="posterior.zip"):
@@ -161,7 +162,6 @@ def test_numbers_of_sliders_beyond_the_memory_are_refused_on_load(posterior, tmp
     the memory available (here made 4 GB), before anything is simulated, also with
     --no-check; 800 sliders (the shipped prior's most) fit."""
     import sliders.scene
-    from sliders.runs.forecast.infer import load_posterior
 
     monkeypatch.setattr(sliders.scene, "available_memory", lambda: 4 * 10**9)
     load_posterior(crafted(posterior, tmp_path, lambda p: None, "fits.zip"))
