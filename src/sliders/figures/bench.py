@@ -124,7 +124,7 @@ def status_lines(status: dict) -> tuple[list[str], list[str], bool]:
 def bench_figure(catalogue, forecast, *, label: str, calibrated: bool, in_domain: bool,
                  domain_reason: str | None, probability: str, within: float,
                  size_unit: str = "sliders", size_label: str | None = None,
-                 status: dict | None = None):
+                 status: dict | None = None, interval_name: str | None = None):
     """The bench picture of ``forecast`` (a ``Forecast``) made from ``catalogue``.
 
     Parameters
@@ -152,6 +152,9 @@ def bench_figure(catalogue, forecast, *, label: str, calibrated: bool, in_domain
         A live picture's state, drawn as a banner above the panels (red when the alarm is
         raised): ``"alarm"`` (bool), ``"alarm_threshold"`` (float), ``"time"`` (a datetime
         or ISO text), ``"rows"`` (int), ``"file"`` (text), each optional.
+    interval_name : str, optional
+        What the interval is called, as the text output calls it (default: "80 % interval"
+        when ``calibrated``, else "interval, uncalibrated").
 
     Returns
     -------
@@ -180,39 +183,11 @@ def bench_figure(catalogue, forecast, *, label: str, calibrated: bool, in_domain
     left = 0.0
     edges, dens = _density(forecast.quantiles, levels, MIN_BIN_SHARE * (right - left))
 
-    # the catalogue: cumulative events above, each event's size below it
-    count = np.arange(1, alpha.size + 1)
-    top.step(np.concatenate([[0.0], alpha, [tilt]]),
-             np.concatenate([[0], count, [count[-1] if count.size else 0]]), where="post",
-             color="0.2", lw=1.2)
-    top.set_ylabel("events so far")
-    top.set_ylim(0, max(1, alpha.size) * 1.06)
-    top.yaxis.set_major_locator(MaxNLocator(nbins=6, integer=True, min_n_ticks=2))
-    if size_label:
-        unit = size_label
-    else:
-        unit = "sliders" if size_unit == "sliders" else "CSV's unit"
-    middle.set_yscale("log")
-    if alpha.size:
-        middle.vlines(alpha, 0, size, color="#1f78b4", lw=0.8)
-        middle.plot(alpha, size, "o", ms=2.5, color="#1f78b4")
-        low, high = 0.7 * size.min(), 1.5 * size.max()
-        if high / low < SIZE_AXIS_RATIO:  # two 1-2-5 ticks at least (fewer: linear ones)
-            widen = math.sqrt(SIZE_AXIS_RATIO * low / high)
-            low, high = low / widen, high * widen
-        middle.set_ylim(low, high)
-        _size_axis_ticks(middle.yaxis, low, high)
-    middle.set_ylabel(f"event size\n({unit})")
-    # the forecast: density from the quantiles, the interval, the median
-    if dens.size:
-        bottom.stairs(dens, edges, fill=True, color=FORECAST_COLOUR, alpha=0.35, lw=0)
-        bottom.stairs(dens, edges, color=FORECAST_COLOUR, lw=1.2)
-    # each quantile (5 %, 10 % ... 95 %) as a tick on the axis: read where the probability
-    # lies even where the density is too low to see
-    bottom.plot(deg(np.asarray(forecast.quantiles, dtype=float)),
-                np.zeros(np.size(forecast.quantiles)), "|", color=FORECAST_COLOUR, ms=9,
-                mew=1.0, clip_on=False, zorder=5)
-    interval_name = "80 % interval" if calibrated else "widened interval, uncalibrated"
+    _catalogue_panels(top, middle, alpha, size, tilt, size_label or (
+        "sliders" if size_unit == "sliders" else "CSV's unit"))
+    _forecast_panel(bottom, forecast, edges, dens)
+    if interval_name is None:
+        interval_name = "80 % interval" if calibrated else "interval, uncalibrated"
     for ax in (top, middle, bottom):
         ax.axvspan(lo, hi, color=FORECAST_COLOUR, alpha=0.12, lw=0,
                    label=f"{interval_name} {lo:.2f}-{hi:.2f}°" if ax is bottom else None)
@@ -227,16 +202,7 @@ def bench_figure(catalogue, forecast, *, label: str, calibrated: bool, in_domain
     bottom.set_ylim(0, 1.08 * float(dens.max()) if dens.size and dens.max() > 0 else 1.0)
     bottom.set_xlabel("tilt of the plane (°)")
     bottom.set_xlim(left, right + 0.04 * (right - left))
-    # one legend under the panels' axis label, never on the data
-    handles, labels = [], []
-    for ax in (top, bottom):
-        h, lab = ax.get_legend_handles_labels()
-        handles += h
-        labels += lab
-    bottom.legend(handles, labels, loc="upper center", ncol=2, fontsize=8, frameon=False,
-                  bbox_to_anchor=(0.5, 0.0), borderaxespad=0.0,
-                  bbox_transform=offset_copy(bottom.transAxes, fig=fig, y=-LEGEND_DROP,
-                                             units="points"))
+    _legend_below(fig, top, bottom)
 
     verdict = ("in the training domain" if in_domain else
                "OUT OF THE TRAINING DOMAIN: " + (domain_reason or "?"))
@@ -248,6 +214,55 @@ def bench_figure(catalogue, forecast, *, label: str, calibrated: bool, in_domain
     if status is not None:
         _banner(fig.add_subplot(grid[0]), status)
     return fig
+
+
+def _catalogue_panels(top, middle, alpha, size, tilt: float, unit: str) -> None:
+    """The catalogue: the cumulative count of events (``top``), each event's size below it
+    (``middle``, log), in ``unit``."""
+    count = np.arange(1, alpha.size + 1)
+    top.step(np.concatenate([[0.0], alpha, [tilt]]),
+             np.concatenate([[0], count, [count[-1] if count.size else 0]]), where="post",
+             color="0.2", lw=1.2)
+    top.set_ylabel("events so far")
+    top.set_ylim(0, max(1, alpha.size) * 1.06)
+    top.yaxis.set_major_locator(MaxNLocator(nbins=6, integer=True, min_n_ticks=2))
+    middle.set_yscale("log")
+    if alpha.size:
+        middle.vlines(alpha, 0, size, color="#1f78b4", lw=0.8)
+        middle.plot(alpha, size, "o", ms=2.5, color="#1f78b4")
+        low, high = 0.7 * size.min(), 1.5 * size.max()
+        if high / low < SIZE_AXIS_RATIO:  # two 1-2-5 ticks at least (fewer: linear ones)
+            widen = math.sqrt(SIZE_AXIS_RATIO * low / high)
+            low, high = low / widen, high * widen
+        middle.set_ylim(low, high)
+        _size_axis_ticks(middle.yaxis, low, high)
+    middle.set_ylabel(f"event size\n({unit})")
+
+
+def _forecast_panel(bottom, forecast, edges, dens) -> None:
+    """The forecast: its density from the quantiles, and each quantile (5 %, 10 % ... 95 %) as
+    a tick on the axis, to read where the probability lies even where the density is too low
+    to see."""
+    if dens.size:
+        bottom.stairs(dens, edges, fill=True, color=FORECAST_COLOUR, alpha=0.35, lw=0)
+        bottom.stairs(dens, edges, color=FORECAST_COLOUR, lw=1.2)
+    bottom.plot(np.degrees(np.asarray(forecast.quantiles, dtype=float)),
+                np.zeros(np.size(forecast.quantiles)), "|", color=FORECAST_COLOUR, ms=9,
+                mew=1.0, clip_on=False, zorder=5)
+
+
+def _legend_below(fig, top, bottom) -> None:
+    """One legend of the top and bottom panels' entries, under the bottom panel's axis label,
+    never on the data."""
+    handles, labels = [], []
+    for ax in (top, bottom):
+        h, lab = ax.get_legend_handles_labels()
+        handles += h
+        labels += lab
+    bottom.legend(handles, labels, loc="upper center", ncol=2, fontsize=8, frameon=False,
+                  bbox_to_anchor=(0.5, 0.0), borderaxespad=0.0,
+                  bbox_transform=offset_copy(bottom.transAxes, fig=fig, y=-LEGEND_DROP,
+                                             units="points"))
 
 
 def _banner(ax, status: dict) -> None:

@@ -536,7 +536,8 @@ class Prediction:
                             probability=probability_text(m["probability_within"],
                                                          m["probability_bounds"]),
                             within=d["within"], size_unit=self.measurement.size_unit,
-                            size_label=self.size_label, status=status)
+                            size_label=self.size_label, status=status,
+                            interval_name=interval_name(m, method))
 
     def plot(self, path, status: dict | None = None) -> None:
         """Write the bench picture to ``path`` (PNG), whole or not at all (a temporary file
