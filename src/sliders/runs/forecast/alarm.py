@@ -41,7 +41,7 @@ import threading
 
 from ...io.forecast_files import ForecastInputError
 from ...io.safeio import publish_bytes
-from .predict import probability_text
+from .common import probability_text
 
 #: the release level's gap below the threshold (``default_release``)
 RELEASE_GAP = 0.1
@@ -401,15 +401,13 @@ class RunScore:
 
 
 def png_bytes(prediction, status: dict | None = None) -> bytes:
-    """The bench picture of ``prediction`` as PNG bytes, drawn on an Agg canvas of its own (no
-    pyplot: safe in a thread); ``status`` (``"alarm"``, ``"alarm_threshold"``, ``"time"``,
-    ``"rows"``, ``"file"``) the live picture's banner (``figures.bench.bench_figure``)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
+    """The bench picture of ``prediction`` as PNG bytes, drawn as a Figure of its own (no
+    pyplot, so safe in a thread: saving it as PNG draws it on an Agg canvas); ``status``
+    (``"alarm"``, ``"alarm_threshold"``, ``"time"``, ``"rows"``, ``"file"``) the live picture's
+    banner (``figures.bench.bench_figure``)."""
     from ...figures.bench import save_png
 
     fig = prediction.figure(status=status)
-    FigureCanvasAgg(fig)
     buf = io.BytesIO()
     save_png(fig, buf)
     return buf.getvalue()

@@ -69,3 +69,27 @@ def jsonable(x):
     if isinstance(x, float):
         return x if math.isfinite(x) else None
     return x
+
+
+def probability_limits(bounds) -> tuple[float, float]:
+    """The least and the greatest probability the text states as a number, from the forecast's
+    ``probability_bounds`` (two decimals, within [0.01, 0.99]): beyond them it gives a bound."""
+    lo, hi = max(bounds[0], 0.01), min(bounds[1], 0.99)
+    return math.ceil(lo * 100 - 1e-9) / 100, math.floor(hi * 100 + 1e-9) / 100
+
+
+def probability_text(p: float, bounds) -> str:
+    """``p`` to two decimals, or ``< lo`` / ``> hi`` beyond what the forecast resolves
+    (``probability_limits``; a probability clipped to a limit, as JSON's, reads as the bound)."""
+    lo, hi = probability_limits(bounds)
+    if p <= lo:
+        return f"< {lo:.2f}"
+    if p >= hi:
+        return f"> {hi:.2f}"
+    return f"= {p:.2f}"
+
+
+def clipped_probability(p: float, bounds) -> float:
+    """``p`` within the limits the text states it by (``probability_limits``)."""
+    lo, hi = probability_limits(bounds)
+    return min(max(p, lo), hi)

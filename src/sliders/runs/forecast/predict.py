@@ -29,7 +29,9 @@ from ...io.forecast_model import ModelFileError, default_model_path, load_foreca
 from ...io.safeio import check_output_name, publish_bytes, resolve_target
 from .catalogue import (angles_and_sizes, measurement_as_json, measurement_from, measurement_of,
                         read_source)
-from .common import ALARM_DELTA_DEG, PREDICT_METHODS, jsonable
+from .alarm import Alarm, LatestPicture, RunScore, check_alarm_options, single_alarm
+from .common import (ALARM_DELTA_DEG, PREDICT_METHODS, clipped_probability, jsonable,
+                     probability_text)
 from .follower import Follower, check_source
 
 #: why a method of the displacements gave no forecast of its own on a catalogue without them
@@ -56,8 +58,6 @@ def predict(args, argv=None) -> int:
     pred.size_label = getattr(args, "size_label", None)
     report, lines = pred.to_dict(), pred.lines(verbose=args.verbose)
     if getattr(args, "alarm_threshold", None) is not None:
-        from .alarm import single_alarm
-
         report, line = single_alarm(report, args.alarm_threshold)
         lines.append(line)
     print(json.dumps(report) if args.json else "\n".join(lines))
@@ -207,8 +207,6 @@ class ForecastModel:
         say : callable, optional
             ``say(line)`` for the notices (a bad row, a file read again); default stderr.
         """
-        from .alarm import Alarm, LatestPicture, RunScore
-
         if method not in PREDICT_METHODS:
             raise ForecastInputError(f"--method {method}: one of {', '.join(PREDICT_METHODS)}")
         measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
@@ -377,30 +375,6 @@ def probability_bounds(forecast) -> tuple[float, float]:
     return float(lv[0]), float(lv[-1])
 
 
-def probability_limits(bounds) -> tuple[float, float]:
-    """The least and the greatest probability the text states as a number, from the forecast's
-    ``probability_bounds`` (two decimals, within [0.01, 0.99]): beyond them it gives a bound."""
-    lo, hi = max(bounds[0], 0.01), min(bounds[1], 0.99)
-    return math.ceil(lo * 100 - 1e-9) / 100, math.floor(hi * 100 + 1e-9) / 100
-
-
-def probability_text(p: float, bounds) -> str:
-    """``p`` to two decimals, or ``< lo`` / ``> hi`` beyond what the forecast resolves
-    (``probability_limits``; a probability clipped to a limit, as JSON's, reads as the bound)."""
-    lo, hi = probability_limits(bounds)
-    if p <= lo:
-        return f"< {lo:.2f}"
-    if p >= hi:
-        return f"> {hi:.2f}"
-    return f"= {p:.2f}"
-
-
-def clipped_probability(p: float, bounds) -> float:
-    """``p`` within the limits the text states it by (``probability_limits``)."""
-    lo, hi = probability_limits(bounds)
-    return min(max(p, lo), hi)
-
-
 def alarm_threshold(forecaster) -> float:
     """The probability at which ``forecaster``'s alarm sounds (its own, or the default)."""
     return float(getattr(forecaster, "alarm_threshold_", DEFAULT_ALARM_THRESHOLD))
@@ -565,8 +539,6 @@ def check_predict_options(args) -> None:
         if getattr(args, option, None) is not None:
             tilt_in_range(parse_angle(getattr(args, option), math.pi / 180.0),
                           f"--{option} {getattr(args, option)}")
-    from .alarm import check_alarm_options
-
     check_alarm_options(args)
 
 
