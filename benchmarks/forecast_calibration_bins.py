@@ -26,7 +26,7 @@ from sliders.analysis.forecast.evaluation import cuts_at_leads  # noqa: E402
 from sliders.analysis.forecast.features import training_cuts  # noqa: E402
 from sliders.analysis.forecast import learned  # noqa: E402
 from sliders.analysis.forecast.learned import with_design  # noqa: E402
-from sliders.io.forecast_model import load_forecasters  # noqa: E402
+from sliders.analysis.forecast.model_file import load_forecasters  # noqa: E402
 from sliders.runs.forecast.catalogue import load_set  # noqa: E402
 
 model, which = sys.argv[1], sys.argv[2]

@@ -1,20 +1,23 @@
 """Cost of a cold ``predict``: a fresh interpreter forecasting a 150-event catalogue, against a
-fresh interpreter importing scikit-learn's ensembles; and of ``predict --help``, against one
-importing numpy and argparse.
+fresh interpreter importing NumPy and SciPy; and of ``predict --help``, against one importing
+numpy and argparse.
 
     .venv/bin/python benchmarks/forecast_cold_call.py --runs 7
 
 A bench forecast is typed, or called by an acquisition script, in a fresh
-process: its cost is mostly imports and the model's load.  The reference is
-``python -c "import sklearn.ensemble"`` (the learned forecasters are
-gradient-boosted trees: no forecast can cost less than that import), run
-interleaved with the forecast (reference, forecast, reference, forecast...) so
-that both meet the same load of the machine; the medians of the wall clock and
-of the CPU time (user + system of the child) are compared.  The target: the
-forecast at most ``TARGET_RATIO`` times the import.  The catalogue is 150
-events of a simulated pile (200 sliders, ``EXAMPLE`` below: deterministic, no
-simulation needed).  ``predict --help`` is timed the same way against ``python -c "import
-numpy, argparse"`` (the parser needs no more; target: a ratio of at most 1).  Prints one JSON line and writes it to
+process: its cost is mostly imports and the model's load.  The model file is
+plain arrays evaluated with NumPy (no scikit-learn), so the reference is
+``python -c "import numpy, scipy"``, run interleaved with the forecast
+(reference, forecast, reference, forecast...) so that both meet the same load
+of the machine; the medians of the wall clock and of the CPU time (user +
+system of the child) are compared, and their difference.  The target: the
+forecast at most ``TARGET_EXTRA_S`` seconds more than the import.  The
+catalogue is 150 events accelerating towards an avalanche near 31°
+(deterministic, no simulation needed).  ``predict --help`` is timed the same
+way against ``python -c "import numpy, argparse"`` (the parser needs no more;
+target: a ratio of at most 1).  Every process writes and reads its bytecode in
+a folder of this run's (a first, uncounted run of each fills it), as an
+installed package's would be.  Prints one JSON line and writes it to
 benchmarks/results/forecast_cold_call.json.
 """
 
@@ -33,7 +36,8 @@ import time
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-TARGET_RATIO = 1.5
+#: the forecast at most this many seconds (wall clock, median) more than importing numpy and scipy
+TARGET_EXTRA_S = 0.5
 #: ``predict --help`` at most the import of numpy and argparse
 HELP_TARGET_RATIO = 1.0
 
@@ -83,14 +87,15 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=7, help="runs of each, interleaved")
     ap.add_argument("--out", default=os.path.join(HERE, "results", "forecast_cold_call.json"))
     args = ap.parse_args(argv)
-    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="0")
     with tempfile.TemporaryDirectory() as tmp:
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+        env["PYTHONPYCACHEPREFIX"] = os.path.join(tmp, "pycache")
         cat = os.path.join(tmp, "c150.csv")
         tilt = example_csv(cat)
         forecast = [sys.executable, "-m", "sliders.forecast", "predict", cat,
                     "--tilt-now", f"{tilt:.4f}deg", "--json"]
         commands = {"forecast": forecast,
-                    "import_sklearn_ensemble": [sys.executable, "-c", "import sklearn.ensemble"],
+                    "import_numpy_scipy": [sys.executable, "-c", "import numpy, scipy"],
                     "help": [sys.executable, "-m", "sliders.forecast", "predict", "--help"],
                     "import_numpy_argparse": [sys.executable, "-c", "import numpy, argparse"]}
         for cmd in commands.values():
@@ -101,11 +106,12 @@ def main(argv=None) -> int:
                 times[k].append(timed(cmd, env))
     med = {k: {"wall_s": statistics.median(w for w, _ in v),
                "cpu_s": statistics.median(c for _, c in v)} for k, v in times.items()}
-    ratio = {k: med["forecast"][k] / med["import_sklearn_ensemble"][k] for k in ("wall_s", "cpu_s")}
+    ratio = {k: med["forecast"][k] / med["import_numpy_scipy"][k] for k in ("wall_s", "cpu_s")}
+    extra = {k: med["forecast"][k] - med["import_numpy_scipy"][k] for k in ("wall_s", "cpu_s")}
     help_ratio = {k: med["help"][k] / med["import_numpy_argparse"][k] for k in ("wall_s", "cpu_s")}
     out = {"benchmark": "forecast_cold_call", "events": 150, "runs": args.runs,
-           "median": med, "ratio": ratio, "target_ratio": TARGET_RATIO,
-           "within_target": bool(ratio["wall_s"] <= TARGET_RATIO),
+           "median": med, "extra_s": extra, "ratio": ratio, "target_extra_s": TARGET_EXTRA_S,
+           "within_target": bool(extra["wall_s"] <= TARGET_EXTRA_S),
            "help_ratio": help_ratio, "help_target_ratio": HELP_TARGET_RATIO,
            "help_within_target": bool(help_ratio["wall_s"] <= HELP_TARGET_RATIO),
            "load_average": os.getloadavg()[0], "cpus": os.cpu_count(),

@@ -43,7 +43,7 @@ from sliders.analysis.forecast.features import training_cuts
 from sliders.analysis.forecast.measurement import degrade_cuts
 from sliders.analysis.forecast.reliability import coverage_report
 from sliders.io.catalogue import CatalogueSet
-from sliders.io.forecast_model import load_forecasters
+from sliders.analysis.forecast.model_file import load_forecasters
 from sliders.runs.forecast.catalogue import load_set
 
 LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0)

@@ -380,7 +380,8 @@ def tilt_file(tmp_path_factory):
 @pytest.fixture(scope="module")
 def shipped():
     """The shipped model, loaded once."""
-    from sliders.io.forecast_model import default_model_path, load_forecasters
+    from sliders.analysis.forecast.model_file import load_forecasters
+    from sliders.io.forecast_model import default_model_path
 
     return load_forecasters(default_model_path())
 
@@ -395,7 +396,6 @@ def reduced(shipped):
 
     models, prov = shipped
     blind = copy.deepcopy(models["learned_blind"])
-    for m in blind.models_:
-        m._predictors = m._predictors[:ITERATIONS]
+    blind.models_ = [m.first(ITERATIONS) for m in blind.models_]
     return {"conditioned": models["conditioned"], "ffm_ml_events": models["ffm_ml_events"],
             "learned_blind": blind}, {"rows": prov["rows"], "prior": "the shipped prior"}

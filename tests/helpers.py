@@ -442,10 +442,22 @@ def assert_same_sets(a: CatalogueSet, b: CatalogueSet) -> None:
     assert np.array_equal(a.ceiling_distance, b.ceiling_distance, equal_nan=True)
 
 
-def write_model(path, forecasters, provenance):
-    """A model file of ``forecasters`` as an adversary writes it: no check."""
-    from marker_class import archive_as_is
-    from sliders.io.forecast_model import MODEL_FORMAT
+def write_model(path, forecasters, provenance, references=None):
+    """A model file of ``forecasters`` as an adversary writes it: no check.  ``references``:
+    the reference forecasts it carries (default: those ``forecasters`` give, or none if they
+    give none)."""
+    from sliders.analysis.forecast import arrays
+    from sliders.io.model_arrays import model_arrays_bytes
 
-    return archive_as_is(path, {"format": MODEL_FORMAT, "forecasters": forecasters,
-                                "provenance": provenance})
+    content, parts = arrays.to_arrays(forecasters)
+    cases = arrays.reference_catalogues()
+    if references is None:
+        try:
+            references = arrays.reference_outputs(forecasters, arrays.reference_cuts(cases))
+        except Exception:  # noqa: BLE001 (a broken model: it carries no reference forecasts)
+            references = {}
+    parts.update({f"reference.{k}": np.asarray(v) for k, v in
+                  {**arrays.catalogue_arrays(cases), **references}.items()})
+    Path(path).write_bytes(model_arrays_bytes({"content": content, "provenance": provenance},
+                                              parts))
+    return path

@@ -2,9 +2,13 @@
 file would make a loader run), and model files written as-is, naming anything, checked by
 nothing."""
 
+import io
+import json
 import pathlib
+import pickle
+import zipfile
 
-from sliders.io import model_archive
+import numpy as np
 
 
 class MarkerOnLoad:
@@ -18,15 +22,29 @@ class MarkerOnLoad:
         self.__dict__.update(state)
 
 
-class Anything:
-    """An allow-list holding every name."""
-
-    def __contains__(self, name) -> bool:
-        return True
-
-
-def archive_as_is(path, contents):
-    """``contents`` written at ``path`` in the model files' archive format, whatever classes
-    it names and whatever they hold (no check on writing); returns ``path``."""
-    pathlib.Path(path).write_bytes(model_archive.dumps(contents, Anything()))
+def archive_as_is(path, header, members=None):
+    """A zip at ``path`` of ``header`` (any JSON, as header.json) and ``members`` (``{name:
+    bytes}``), whatever they hold (no check on writing); returns ``path``."""
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("header.json", json.dumps(header))
+        for name, blob in (members or {}).items():
+            z.writestr(name, blob)
     return path
+
+
+def pickled_npy(obj) -> bytes:
+    """A .npy member of an object array holding ``obj``: its data a pickle."""
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, np.array([obj, None], dtype=object), allow_pickle=True)
+    return buf.getvalue()
+
+
+def marker_file(path, marker) -> pathlib.Path:
+    """A model file whose header names ``MarkerOnLoad`` as an estimator and whose one array is
+    a pickle of a ``MarkerOnLoad`` writing ``marker``: read as data, neither runs."""
+    pickle.dumps(MarkerOnLoad(str(marker)))  # the class pickles (the member is a real pickle)
+    header = {"format": "sliders-model-arrays-1", "provenance": {},
+              "arrays": {"x": {"dtype": "|O", "shape": [2]}},
+              "content": {"learned_blind": {"object": "marker_class.MarkerOnLoad",
+                                            "state": {"path": {"array": "x"}}}}}
+    return archive_as_is(path, header, {"x.npy": pickled_npy(MarkerOnLoad(str(marker)))})

@@ -16,7 +16,8 @@ from sliders.analysis.forecast import evaluation as ev
 from sliders.analysis.forecast.learned import Learned
 from sliders.analysis.forecast.registry import METHODS, method_of
 from sliders.io.forecast_files import ForecastInputError, read_catalogue_csv
-from sliders.io.forecast_model import ModelFileError, load_forecasters, save_forecasters
+from sliders.analysis.forecast.model_file import load_forecasters, save_forecasters
+from sliders.io.forecast_model import ModelFileError
 from sliders.runs.forecast import cli
 from sliders.runs.forecast.evaluate import MODEL_NAME
 
@@ -85,10 +86,10 @@ def test_predict_command_prints_the_forecast_and_json(tmp_path):
     bad = subprocess.run(run[:4] + [write(tmp_path, "angle,size\n1,1\n", "b.csv"), "--model", path],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
-    # a byte flipped inside the archive's tree: its CRC-32 fails before anything is built
+    # a byte flipped inside the archive's header: its CRC-32 fails before anything is built
     damaged = tmp_path / "damaged.zip"
     raw = bytearray(open(path, "rb").read())
-    tree = zipfile.ZipFile(path).getinfo("tree.json")
+    tree = zipfile.ZipFile(path).getinfo("header.json")
     raw[tree.header_offset + 30 + len(tree.filename) + tree.compress_size // 2] ^= 0xFF
     damaged.write_bytes(bytes(raw))
     with pytest.raises(ModelFileError, match="damaged model file"):

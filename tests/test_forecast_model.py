@@ -21,8 +21,8 @@ from sliders.analysis.forecast.fitting import fit_methods
 from sliders.analysis.forecast.registry import FORECASTERS, make_forecasters
 from sliders.io.catalogue import Catalogue
 from sliders.io.prior_file import read_prior_ensemble
-from sliders.io.forecast_model import (MODEL_FORMAT, ModelFileError, default_model_path,
-                                       load_forecasters, save_forecasters)
+from sliders.analysis.forecast.model_file import load_forecasters, save_forecasters
+from sliders.io.forecast_model import ModelFileError, default_model_path
 
 from helpers import rate_law_catalogue, synthetic_set
 
@@ -96,15 +96,16 @@ def test_a_crafted_pickle_is_refused_and_never_run(tmp_path):
 
 
 def test_a_model_file_naming_an_unlisted_type_is_refused(tmp_path, predict):
-    """A model archive whose loading would build a class that writes a file: refused by its
-    names before anything is imported or built."""
-    from marker_class import MarkerOnLoad, archive_as_is
+    """A model file whose header names a class that writes a file when built: refused by the
+    closed table of the package's estimators, nothing imported or built."""
+    from marker_class import archive_as_is
 
     marker = tmp_path / "ran"
     crafted = archive_as_is(tmp_path / "crafted.zip", {
-        "format": MODEL_FORMAT, "forecasters": {"learned_blind": MarkerOnLoad(str(marker))},
-        "provenance": {}})
-    with pytest.raises(ModelFileError, match="refused.*marker_class.MarkerOnLoad"):
+        "format": "sliders-model-arrays-1", "arrays": {}, "provenance": {},
+        "content": {"learned_blind": {"object": "marker_class.MarkerOnLoad",
+                                      "state": {"path": str(marker)}}}})
+    with pytest.raises(ModelFileError, match="marker_class.MarkerOnLoad.*no estimator"):
         load_forecasters(str(crafted))
     assert not marker.exists()
     catalogue = tmp_path / "c.csv"
@@ -114,13 +115,18 @@ def test_a_model_file_naming_an_unlisted_type_is_refused(tmp_path, predict):
 
 
 def test_a_model_file_holding_something_else_is_one_line(tmp_path, predict):
-    path = tmp_path / "wrong.zip"
-    save_forecasters(str(path), {"learned_blind": np.arange(3)}, {"rows": 1})
+    from marker_class import archive_as_is
+
+    path = archive_as_is(tmp_path / "wrong.zip", {
+        "format": "sliders-model-arrays-1", "arrays": {}, "provenance": {"rows": 1},
+        "content": {"learned_blind": [1, 2, 3]}})
+    with pytest.raises(ModelFileError, match="not written"):
+        save_forecasters(str(tmp_path / "not.zip"), {"learned_blind": np.arange(3)}, {"rows": 1})
     catalogue = tmp_path / "c.csv"
     catalogue.write_text("angle [deg],size\n1,1\n2,1\n")
     out = predict([str(catalogue), "--model", str(path)])
     assert out.returncode == 2 and out.stderr.count("\n") == 1
-    assert "not the fitted forecasters" in out.stderr and "'learned_blind'" in out.stderr
+    assert "holds no estimator" in out.stderr and "'learned_blind'" in out.stderr
 
 
 def test_a_model_file_of_another_format_asks_to_be_trained_again(tmp_path):

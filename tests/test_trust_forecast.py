@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 
 from sliders.io import safeio
-from sliders.io.forecast_model import MODEL_FORMAT
+from sliders.io.model_arrays import MODEL_ARRAYS_FORMAT as MODEL_FORMAT
 from sliders.runs import ensemble, study
 from sliders.io.forecast_files import ForecastInputError, read_catalogue_csv
 from sliders.runs.forecast import cli as forecast_cli
@@ -503,37 +503,33 @@ def test_pickle_model_file_is_refused_unread(tmp_path, catalogue, capsys):
     assert "a pickle is never loaded" in one_line(code, err) and not marker.exists()
 
 
-def test_model_naming_a_class_this_version_lacks_is_one_line(tmp_path, catalogue, capsys,
-                                                              monkeypatch):
-    import sliders.analysis.forecast.learned as learned
-
-    Vanished.__module__, Vanished.__qualname__ = learned.__name__, "Vanished"
-    monkeypatch.setattr(learned, "Vanished", Vanished, raising=False)
-    path = archive_as_is(tmp_path / "m.zip", {"format": MODEL_FORMAT, "provenance": {},
-                                                   "forecasters": {"learned_blind": Vanished()}})
-    monkeypatch.delattr(learned, "Vanished")
+def test_model_naming_a_class_this_version_lacks_is_one_line(tmp_path, catalogue, capsys):
+    path = archive_as_is(tmp_path / "m.zip", {
+        "format": MODEL_FORMAT, "provenance": {}, "arrays": {},
+        "content": {"learned_blind": {"object": Vanished.__name__, "state": {}}}})
     code, err = forecast_main(capsys, "predict", catalogue, "--model", path)
-    assert "learned.Vanished" in one_line(code, err) and "refused" in err
+    assert "'Vanished'" in one_line(code, err) and "refused" in err
 
 
 def test_model_of_a_forecaster_lacking_what_this_version_reads_is_one_line(
         tmp_path, previous, catalogue, capsys):
-    """A forecaster of an allowed class whose fitted state differs (another version's)."""
-    from sliders.io.forecast_model import load_forecasters, save_forecasters
+    """A forecaster of a known class whose fitted state differs (another version's)."""
+    from sliders.analysis.forecast.model_file import load_forecasters
+
+    from helpers import write_model
 
     models, prov = load_forecasters(previous / MODEL)
     del models["learned_blind"].domain_
-    path = tmp_path / "m.zip"
-    save_forecasters(str(path), models, prov | {"sliders": "0.0.1"})
+    path = write_model(tmp_path / "m.zip", models, prov | {"sliders": "0.0.1"})
     code, err = forecast_main(capsys, "predict", catalogue, "--model", path)
     assert "sliders 0.0.1" in one_line(code, err) and "train it again" in err
 
 
 @pytest.mark.parametrize("contents, words", [
     ([1, 2, 3], "not a sliders model file of format"),
-    ({"format": MODEL_FORMAT, "provenance": {},
-      "forecasters": {"learned_blind": "not a forecaster"}}, "not the fitted forecasters"),
-    ({"format": MODEL_FORMAT, "provenance": {}, "forecasters": {}},
+    ({"format": MODEL_FORMAT, "provenance": {}, "arrays": {},
+      "content": {"learned_blind": "not a forecaster"}}, "'learned_blind' holds no estimator"),
+    ({"format": MODEL_FORMAT, "provenance": {}, "arrays": {}, "content": {}},
      "no forecaster of angles and sizes"),
 ])
 def test_model_holding_the_wrong_contents_is_one_line(tmp_path, catalogue, capsys, contents,

@@ -1,8 +1,8 @@
 """A model file is data the package checks, never a program the libraries run.
 
-Each attack writes a model file of the allow-listed types whose contents are
-wrong (a tree whose child points past its nodes or back to itself, NaN leaves,
-a zip member that inflates to hundreds of MB, malformed calibration tables,
+Each attack writes a model file of plain arrays whose contents are wrong (a
+tree whose child points past its nodes or back to itself, NaN leaves, a zip
+member that inflates to hundreds of MB, malformed calibration tables,
 provenance holding terminal control sequences) and runs ``predict --model`` in
 a subprocess with a timeout, so that a crash or a hang is seen as one: every
 outcome must be one line naming the file and exit status 2.  The fuzz test
@@ -25,9 +25,10 @@ import zipfile
 import numpy as np
 import pytest
 
-from sliders.io.forecast_model import (DIGEST_SUFFIX, ModelFileError,
-                                       check_archive, check_forecasters, default_model_path,
-                                       load_forecasters, read_model_bytes)
+import sliders.analysis.forecast.model_file as model_file
+from sliders.analysis.forecast.model_file import load_forecasters
+from sliders.io.forecast_model import DIGEST_SUFFIX, ModelFileError, default_model_path
+from sliders.io.model_arrays import read_model_arrays
 
 from helpers import rate_law_catalogue, write_model
 
@@ -89,7 +90,8 @@ def assert_refused(code, out, err, path, *words):
 
 
 def first_tree(models):
-    return models["learned_blind"].models_[0]._predictors[0][0]
+    """The first quantile regressor's trees (``evaluators.QuantileTrees``)."""
+    return models["learned_blind"].models_[0]
 
 
 def test_reduced_model_forecasts_like_a_model(reference):
@@ -99,8 +101,8 @@ def test_reduced_model_forecasts_like_a_model(reference):
 
 def test_a_child_index_past_the_nodes_is_refused_not_a_segfault(reduced, catalogue_csv, tmp_path):
     def change(models, prov):
-        nodes = first_tree(models).nodes
-        nodes["left"][0] = nodes.size + 100_000
+        trees = first_tree(models)
+        trees.left[0] = trees.left.size + 100_000
 
     path = attacked(reduced, tmp_path, change)
     assert_refused(*run_predict([catalogue_csv, "--model", path]), path, "child index")
@@ -108,7 +110,7 @@ def test_a_child_index_past_the_nodes_is_refused_not_a_segfault(reduced, catalog
 
 def test_a_root_that_is_its_own_child_is_refused_not_a_hang(reduced, catalogue_csv, tmp_path):
     def change(models, prov):
-        first_tree(models).nodes["left"][0] = 0
+        first_tree(models).left[0] = 0
 
     path = attacked(reduced, tmp_path, change)
     assert_refused(*run_predict([catalogue_csv, "--model", path], timeout=60), path, "child index")
@@ -117,8 +119,7 @@ def test_a_root_that_is_its_own_child_is_refused_not_a_hang(reduced, catalogue_c
 def test_nan_leaves_are_refused(reduced, catalogue_csv, tmp_path):
     def change(models, prov):
         for m in models["learned_blind"].models_:
-            nodes = m._predictors[0][0].nodes
-            nodes["value"][nodes["is_leaf"] == 1] = np.nan
+            m.value[m.leaf] = np.nan
 
     path = attacked(reduced, tmp_path, change)
     assert_refused(*run_predict([catalogue_csv, "--model", path]), path, "leaf value")
@@ -148,7 +149,7 @@ def test_a_model_file_above_the_size_bound_is_refused(catalogue_csv, tmp_path):
 
 
 def test_a_member_that_lies_about_its_array_is_refused(reduced, tmp_path):
-    """An .npy member whose header declares more data than the member holds."""
+    """An .npy member holding less data than its header (and the file's) declares."""
     good = attacked(reduced, tmp_path, lambda m, p: None, name="good.zip")
     bad = tmp_path / "lying.zip"
     with zipfile.ZipFile(good) as src, zipfile.ZipFile(bad, "w") as dst:
@@ -157,7 +158,7 @@ def test_a_member_that_lies_about_its_array_is_refused(reduced, tmp_path):
             if info.filename.endswith(".npy") and i == 1:
                 data = data[:-8]
             dst.writestr(info.filename, data)
-    with pytest.raises(ModelFileError, match="declares an array"):
+    with pytest.raises(ModelFileError, match="array '.*'.*holds .* bytes"):
         load_forecasters(bad)
 
 
@@ -171,8 +172,7 @@ def test_right_types_malformed_contents_are_one_line_naming_the_file(
         elif what == "edges":
             f.calibration_edges_ = np.linspace(0.1, 0.6, 7)
         elif what == "bins":
-            f.calibration_.binned_alphas = (f.calibration_.binned_alphas[0] + 1000,
-                                            f.calibration_.binned_alphas[1])
+            f.calibration_.bins = f.calibration_.bins + 1000
         elif what == "percentiles":
             f.percentiles_ = np.array([50.0, 250.0, 900.0])
         else:
@@ -210,11 +210,12 @@ def test_the_shipped_model_matches_its_recorded_digest():
     assert hashlib.sha256(path.read_bytes()).hexdigest() == recorded
 
 
-def test_the_shipped_archive_passes_the_check_its_digest_stands_for(tmp_path):
-    """Loaded from the package, the shipped model is checked by its digest instead of member
-    by member: these bytes pass the member-by-member check, and so does a copy loaded from
-    elsewhere, in full."""
-    check_archive(read_model_bytes(default_model_path()), "the shipped model")
+def test_the_shipped_archive_passes_the_checks_beside_its_digest(tmp_path):
+    """Loaded from the package, the shipped model is checked by its digest and as any file:
+    its arrays' form, and a copy loaded from elsewhere, in full."""
+    header, arrays = read_model_arrays(default_model_path())
+    assert set(arrays) == set(header["arrays"]) and "learned_blind" in header["content"]
+    assert all(a.dtype.str in ("|b1", "<i8", "<f8") for a in arrays.values())
     copy_path = tmp_path / "copy.zip"
     shutil.copyfile(default_model_path(), copy_path)
     models, _ = load_forecasters(copy_path)
@@ -230,9 +231,9 @@ def test_a_changed_shipped_model_is_refused_by_its_digest(tmp_path, monkeypatch)
     with open(copy_path, "r+b") as fh:  # one byte of the zip's comment area: still a zip
         fh.seek(0, 2)
         fh.write(b"\0")
-    monkeypatch.setattr(fm, "default_model_path", lambda: copy_path)
+    monkeypatch.setattr(model_file, "default_model_path", lambda: copy_path)
     with pytest.raises(ModelFileError, match="SHA-256"):
-        fm.load_forecasters(copy_path)
+        model_file.load_forecasters(copy_path)
 
 
 # ---------------------------------------------------------------------------
@@ -242,19 +243,18 @@ FUZZ_CASES = 30
 
 
 def _arrays(f):
-    """(name, getter, setter) of arrays of a learned forecaster that a forecast reads or carries."""
+    """(name, holder, attribute) of the arrays of a learned forecaster that a forecast reads."""
     out = []
     for i, m in enumerate(f.models_):
-        for j, (tree,) in enumerate(m._predictors):
-            for field in ("left", "right", "feature_idx", "value", "num_threshold", "is_leaf",
-                          "is_categorical", "missing_go_to_left", "gain", "count"):
-                out.append((f"tree {i}.{j} {field}", tree.nodes, field))
+        for field in ("left", "right", "feature", "value", "threshold", "leaf", "missing_left",
+                      "tree_start"):
+            out.append((f"regressor {i} {field}", m, field))
     det = next(d for d in f.domain_.detectors_ if d is not None)
-    lof = det.steps[-1][1]
     out += [("climatology", f.climatology_, "alpha_c_"), ("remaining", f, "remaining_quantiles_"),
             ("edges", f, "calibration_edges_"), ("percentiles", f, "percentiles_"),
-            ("lof points", lof, "_fit_X"), ("lof densities", lof, "_lrd"),
-            ("scaler", det.steps[1][1], "scale_")]
+            ("residuals", f.calibration_, "residuals"), ("calibration bins", f.calibration_, "bins"),
+            ("lof points", det, "points"), ("lof densities", det, "density"),
+            ("lof distances", det, "k_distance"), ("scaler", det, "scale")]
     return out
 
 
@@ -263,25 +263,23 @@ def corrupt(models, seed: int) -> str:
     rng = np.random.default_rng(seed)
     f = models["learned_blind"]
     name, holder, key = _arrays(f)[rng.integers(len(_arrays(f)))]
-    a = holder[key] if isinstance(holder, np.ndarray) else getattr(holder, key)
-    a = np.array(a)
+    a = np.array(getattr(holder, key))
     k = tuple(rng.integers(0, s) for s in a.shape)
     kind = rng.choice(["nan", "inf", "huge", "negative", "past_end", "self", "truncate"])
     flat = a.reshape(-1)
     idx = int(np.ravel_multi_index(k, a.shape)) if a.ndim else 0
-    if kind == "truncate" and not isinstance(holder, np.ndarray):
+    if kind == "truncate":
         a = a[:-1]
+    elif a.dtype.kind == "b":
+        flat[idx] = not flat[idx]
     elif a.dtype.kind == "f":
         flat[idx] = {"nan": np.nan, "inf": np.inf, "huge": 1e300, "negative": -1e300,
-                     "past_end": np.nan, "self": -np.inf, "truncate": np.nan}[kind]
+                     "past_end": np.nan, "self": -np.inf}[kind]
     else:
         info = np.iinfo(a.dtype)
         flat[idx] = {"nan": info.max, "inf": info.max, "huge": info.max, "self": idx,
-                     "negative": info.min, "past_end": a.size + 7, "truncate": info.max}[kind]
-    if isinstance(holder, np.ndarray):
-        holder[key] = a
-    else:
-        setattr(holder, key, a)
+                     "negative": info.min, "past_end": a.size + 7}[kind]
+    setattr(holder, key, a)
     return f"{kind} in {name}"
 
 
@@ -308,16 +306,23 @@ def test_fuzz_every_corruption_is_the_forecast_or_a_refusal(reduced, reference, 
     """Each of ``FUZZ_CASES`` seeded corruptions is refused by the check in one line, or (the
     corruption touched nothing a forecast reads) gives the uncorrupted forecast itself, read
     in a process of its own: never a crash, a hang or a NaN."""
-    written = {}
+    written, refused = {}, 0
+    clean = str(reference[0])
+    _, parts = read_model_arrays(clean)
+    recorded = {k[len("reference."):]: a for k, a in parts.items()
+                if k.startswith("reference.") and not k.startswith("reference.catalogue.")}
     for seed in range(FUZZ_CASES):
         models, prov = copy.deepcopy(reduced)
         what = corrupt(models, seed)
+        path = write_model(tmp_path / f"fuzz{seed}.zip", models, prov, references=recorded)
         try:
-            check_forecasters(copy.deepcopy(models), "corrupted")
+            load_forecasters(path)
         except ModelFileError as exc:
-            assert "\n" not in str(exc) and str(exc).startswith("corrupted: forecaster"), what
+            assert "\n" not in str(exc) and str(exc).startswith(str(path)), what
+            refused += 1
             continue
-        written[str(write_model(tmp_path / f"fuzz{seed}.zip", models, prov))] = what
+        written[str(path)] = what
+    assert refused, "no corruption was refused"
     assert written, "every corruption was refused by the check: none reached a forecast"
     try:
         res = subprocess.run([sys.executable, "-c", FORECAST_EACH, str(catalogue_csv), *written],
@@ -327,7 +332,7 @@ def test_fuzz_every_corruption_is_the_forecast_or_a_refusal(reduced, reference, 
         done = (exc.stdout or b"").decode().count("\n")
         pytest.fail(f"hung on {list(written.values())[done]}")
     lines = [json.loads(line) for line in res.stdout.splitlines()]
-    print(f"{FUZZ_CASES - len(written)} refused by the check, {len(written)} read and forecast")
+    print(f"{refused} refused by the check, {len(written)} read and forecast")
     assert len(lines) == len(written), (f"crashed ({res.returncode}) on "
                                         f"{list(written.values())[len(lines)]}: {res.stderr[-2000:]}")
     ref = reference[1]

@@ -24,6 +24,7 @@ import json
 import math
 import re
 import zipfile
+import zlib
 
 import numpy as np
 
@@ -37,6 +38,11 @@ HEADER = "header.json"
 DTYPES = ("|b1", "<i8", "<f8")
 #: a name of an array: letters, digits, '_' and '.'
 NAME = re.compile(r"[A-Za-z0-9_.]{1,200}")
+#: the header of a .npy member as NumPy writes it for a C-ordered array of ``DTYPES``
+NPY_HEADER = re.compile(rb"\x93NUMPY\x01\x00..\{'descr': '(?P<descr><f8|<i8|\|b1)', "
+                        rb"'fortran_order': False, 'shape': \((?P<shape>(?:\d{1,10}, ?)*\d{0,10}),?\), \}"
+                        rb" *\n", re.DOTALL)
+NPY_HEADER_MAX = 4096
 
 
 def model_arrays_bytes(header: dict, arrays: dict) -> bytes:
@@ -86,6 +92,11 @@ def read_model_arrays(path, blob: bytes | None = None) -> tuple[dict, dict]:
         refuse("refused: not a sliders model file (a zip of arrays; a pickle is never loaded)")
     if len(infos) > MAX_MEMBERS:
         refuse(f"{len(infos)} members; a model file holds at most {MAX_MEMBERS}")
+    big = max(infos, key=lambda i: i.file_size, default=None)
+    if big is not None and big.file_size > MAX_MEMBER_BYTES:
+        refuse(f"member {printable(big.filename)[:80]!r} inflates to "
+               f"{big.file_size / 2**20:.0f} MB; a member holds at most "
+               f"{MAX_MEMBER_BYTES // 2**20} MB")
     if sum(i.file_size for i in infos) > MAX_INFLATED_BYTES:
         refuse(f"its members inflate to more than {MAX_INFLATED_BYTES // 2**20} MB")
     by_name = {i.filename: i for i in infos}
@@ -98,8 +109,9 @@ def read_model_arrays(path, blob: bytes | None = None) -> tuple[dict, dict]:
     if head.file_size > MAX_TREE_BYTES:
         refuse(f"its header inflates to {head.file_size / 2**20:.0f} MB; at most "
                f"{MAX_TREE_BYTES // 2**20} MB")
+    text = _member(archive, head, where)
     try:
-        header = json.loads(_member(archive, head, where))
+        header = json.loads(text)
     except (ValueError, RecursionError):
         refuse(f"{HEADER} is not JSON")
     if not isinstance(header, dict) or header.get("format") != MODEL_ARRAYS_FORMAT:
@@ -126,31 +138,42 @@ def read_model_arrays(path, blob: bytes | None = None) -> tuple[dict, dict]:
         if info is None:
             refuse(f"{what} is missing")
         dtype, shape = np.dtype(spec["dtype"]), tuple(spec["shape"])
-        if info.file_size > MAX_MEMBER_BYTES or info.file_size < dtype.itemsize * math.prod(shape):
+        if info.file_size < dtype.itemsize * math.prod(shape):
             refuse(f"{what}: its member holds {info.file_size} bytes, not an array of shape "
                    f"{shape}")
-        raw = io.BytesIO(_member(archive, info, where))
-        try:
-            version = np.lib.format.read_magic(raw)
-            found_shape, fortran, found = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                                           else np.lib.format.read_array_header_2_0)(raw)
-        except Exception:  # noqa: BLE001 (a damaged member, a header NumPy cannot read)
-            refuse(f"{what} is not a NumPy array")
-        if found.str != dtype.str or found_shape != shape or fortran:
-            refuse(f"{what} holds {found} {found_shape}, not the {dtype} {shape} the header "
-                   "declares")
-        if raw.tell() + dtype.itemsize * math.prod(shape) != info.file_size:
-            refuse(f"{what}: its member holds another number of bytes than its shape")
-        raw.seek(0)
-        arrays[name] = np.lib.format.read_array(raw, allow_pickle=False)
+        arrays[name] = _array(_member(archive, info, where), dtype, shape, what, where)
     return header, arrays
+
+
+def _array(raw: bytes, dtype: np.dtype, shape: tuple, what: str, where) -> np.ndarray:
+    """The array of a ``.npy`` member: its header exactly the one ``write_array`` writes for
+    ``dtype`` and ``shape`` (version 1.0, C order), its data exactly the bytes they need.
+    Parsed here (no ``ast.literal_eval``, no object dtype: nothing a pickle could hide in)."""
+    m = NPY_HEADER.fullmatch(raw[:NPY_HEADER_MAX].split(b"\n", 1)[0] + b"\n") \
+        if raw[:8] == b"\x93NUMPY\x01\x00" else None
+    if m is None:
+        raise ModelFileError(f"{where}: {what} is not a NumPy array of this format's (version "
+                             "1.0, C order, booleans or 64-bit numbers)")
+    dims = tuple(int(d) for d in m["shape"].split(b",") if d.strip())
+    if m["descr"].decode() != dtype.str or dims != shape:
+        raise ModelFileError(f"{where}: {what} holds {m['descr'].decode()} {dims}, not the "
+                             f"{dtype} {shape} the header declares")
+    body = raw[m.end():]
+    if len(body) != dtype.itemsize * math.prod(shape):
+        raise ModelFileError(f"{where}: {what}: its member holds {len(body)} bytes of data, not "
+                             f"the {dtype.itemsize * math.prod(shape)} of its shape")
+    return np.frombuffer(body, dtype=dtype).reshape(shape).copy()
 
 
 def _member(archive: zipfile.ZipFile, info: zipfile.ZipInfo, where) -> bytes:
     """A member's bytes, at most those it declares (a damaged member: ``ModelFileError``)."""
     try:
         with archive.open(info) as fh:
-            return fh.read(info.file_size + 1)[:info.file_size + 1]
+            data = fh.read(info.file_size + 1)
+        if len(data) != info.file_size or zlib.crc32(data) != info.CRC:
+            raise zipfile.BadZipFile(f"member {printable(info.filename)[:80]!r} is not the "
+                                     "bytes its size and CRC-32 declare")
+        return data
     except (zipfile.BadZipFile, OSError, EOFError, ValueError, NotImplementedError) as exc:
         raise ModelFileError(f"{where}: damaged model file ({printable(str(exc))[:80]})") \
             from None

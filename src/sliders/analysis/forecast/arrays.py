@@ -24,9 +24,18 @@ import re
 
 import numpy as np
 
+from ...io.catalogue import Catalogue
+from .base import Forecaster
+from .baselines import Climatology, ConditionedClimatology
+from .domain import DomainCheck
 from .estimator import param_names
 from .evaluators import NoveltyDetector, QuantileTrees, ResidualTable
-from .integrity import IntegrityError, require
+from .features import Cuts
+from .integrity import IntegrityError, check_array, require
+from .inverse_rate import LinearInverseRate, PointProcessInverseRate
+from .learned import Learned
+from .measurement import Measurement
+from .physics import ModelBased
 
 #: the kinds of fitted part kept as the arrays of an evaluator, by the tree's key
 EVALUATORS = {"trees": QuantileTrees, "residuals": ResidualTable, "detector": NoveltyDetector}
@@ -47,18 +56,16 @@ class ConversionError(ValueError):
     """A fitted object with no array form (one line naming it)."""
 
 
-def classes() -> dict:
-    """``{name: class}`` of every estimator a model file holds (the only classes it may name)."""
-    from .baselines import Climatology, ConditionedClimatology
-    from .domain import DomainCheck
-    from .inverse_rate import LinearInverseRate, PointProcessInverseRate
-    from .learned import Learned
-    from .physics import ModelBased
-    from .posterior import ParameterPosterior
+def classes(posterior: bool = True) -> dict:
+    """``{name: class}`` of every estimator a model file holds (the only classes it may name);
+    the posterior's only if ``posterior`` (its module imports scipy.stats, a second)."""
+    known = [Climatology, ConditionedClimatology, DomainCheck, LinearInverseRate,
+             PointProcessInverseRate, Learned, ModelBased]
+    if posterior:
+        from .posterior import ParameterPosterior
 
-    return {c.__name__: c for c in (Climatology, ConditionedClimatology, DomainCheck,
-                                     LinearInverseRate, PointProcessInverseRate, Learned,
-                                     ModelBased, ParameterPosterior)}
+        known.append(ParameterPosterior)
+    return {c.__name__: c for c in known}
 
 
 def to_arrays(estimators: dict) -> tuple[dict, dict]:
@@ -66,6 +73,11 @@ def to_arrays(estimators: dict) -> tuple[dict, dict]:
     parameters and fitted state, whose arrays (``{name: array}``) it names."""
     arrays: dict = {}
     known = classes()
+    wrong = next((m for m, e in estimators.items() if known.get(type(e).__name__) is not type(e)),
+                 None)
+    if wrong is not None:
+        raise ConversionError(f"{wrong!r} holds a {type(estimators[wrong]).__name__}, not an "
+                              "estimator of this package")
     tree = {m: _encode(e, _name(m), arrays, known) for m, e in estimators.items()}
     return tree, arrays
 
@@ -139,8 +151,9 @@ def from_arrays(tree: dict, arrays: dict) -> dict:
     """``{method: estimator}`` built from ``to_arrays``'s tree and arrays, every part checked
     (``integrity.IntegrityError`` on the first that is not of the form the converter writes,
     naming it); every array must be read by a part."""
-    require(isinstance(tree, dict) and tree, "no estimators")
-    known = classes()
+    require(isinstance(tree, dict), "no table of estimators")
+    known = classes(any(isinstance(n, dict) and n.get("object") == "ParameterPosterior"
+                        for n in tree.values()))
     used: set = set()
     out = {}
     for method, node in tree.items():
@@ -213,9 +226,6 @@ def reference_catalogues() -> list:
     missed; 40 events early in the tilt, sizes in an arbitrary unit; and a pile
     of 50 sliders, told, at 12° with 6 events.
     """
-    from ...io.catalogue import Catalogue
-    from .measurement import Measurement
-
     rng = np.random.default_rng(20261128)
     u = np.sort(rng.random(150))
     alpha = np.radians(31.0 - 31.0 * np.exp(-3.0 * u))
@@ -242,8 +252,6 @@ def reference_catalogues() -> list:
 def reference_cuts(cases=None):
     """The ``features.Cuts`` of ``cases`` (default: ``reference_catalogues``), each measured as
     it was."""
-    from .features import Cuts
-
     cases = reference_catalogues() if cases is None else cases
     return Cuts([c for c, _ in cases], np.full(len(cases), -1, dtype=np.int64),
                 measurement=[m for _, m in cases])
@@ -251,10 +259,9 @@ def reference_cuts(cases=None):
 
 def reference_outputs(estimators: dict, cuts=None) -> dict:
     """``{name: array}`` of what each estimator gives for the reference catalogues: a
-    forecaster's quantiles, fallbacks and levels (and its domain verdicts if it has a domain
-    check); the posterior's quantiles and domain verdicts."""
-    from .base import Forecaster
-
+    forecaster's quantiles, fallbacks and levels (a learned one's regressors' outputs too, and
+    its domain verdicts if it has a domain check); the posterior's quantiles and domain
+    verdicts."""
     cuts = reference_cuts() if cuts is None else cuts
     out = {}
     for method, e in estimators.items():
@@ -262,6 +269,8 @@ def reference_outputs(estimators: dict, cuts=None) -> dict:
             q, fb, lv = e.quantiles(cuts, levels=True)
             out.update({f"{method}.quantiles": q, f"{method}.fallback": fb,
                         f"{method}.levels": lv})
+            if hasattr(e, "_raw_log_remaining"):  # every regressor's, not only those forecasts read
+                out[f"{method}.raw"] = e._raw_log_remaining(cuts)
         else:
             out[f"{method}.quantiles"] = np.asarray(e.quantiles(cuts), dtype=np.float64)
         if hasattr(e, "domain"):
@@ -307,10 +316,6 @@ def catalogue_arrays(cases) -> dict:
 def catalogues_of(arrays: dict) -> list:
     """The ``[(Catalogue, Measurement)]`` of ``catalogue_arrays`` (checked: finite, within the
     events, each catalogue's angles increasing and below its tilt reached)."""
-    from ...io.catalogue import Catalogue
-    from .integrity import check_array
-    from .measurement import Measurement
-
     start = check_array(arrays.get("catalogue.start"), "reference catalogue starts", kind="i",
                         lo=0, min_size=2)
     n = int(start[-1])
@@ -363,6 +368,8 @@ def estimators_of(header: dict, arrays: dict) -> dict:
             e.check_fitted()
         except IntegrityError as exc:
             raise IntegrityError(f"{method}: {exc}") from None
+    if not estimators:  # nothing to forecast with: no reference forecasts to make again
+        return estimators
     cases = catalogues_of({k: v for k, v in refs.items() if k.startswith("catalogue.")})
     check_references(estimators, {k: v for k, v in refs.items()
                                   if not k.startswith("catalogue.")}, reference_cuts(cases))

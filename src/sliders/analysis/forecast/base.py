@@ -12,10 +12,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from sklearn.base import BaseEstimator
-from sklearn.utils.metadata_routing import UNUSED
-
 from ...io.forecast_files import ForecastInputError
+from .estimator import Estimator
 from .features import Cuts
 from .integrity import IntegrityError
 
@@ -210,8 +208,9 @@ def pinball_crps(quantiles: np.ndarray, truth: np.ndarray,
     return 2.0 * loss.mean(axis=1)
 
 
-class Forecaster(BaseEstimator):
-    """A forecaster of ``alpha_c``: a scikit-learn estimator, ``fit`` on training realisations.
+class Forecaster(Estimator):
+    """A forecaster of ``alpha_c``: a scikit-learn estimator (``estimator.Estimator``), ``fit`` on
+    training realisations.
 
     The scikit-learn rules hold: every parameter is an argument of
     ``__init__`` stored under its own name (``get_params``, ``clone``),
@@ -227,11 +226,6 @@ class Forecaster(BaseEstimator):
     name = "forecaster"
     label = "forecaster"
     needs: tuple[str, ...] = ()
-    # the arguments of fit and predict are data, not metadata to route through a meta-estimator:
-    # no set_fit_request / set_predict_request
-    __metadata_request__fit = {"train": UNUSED, "validation": UNUSED, "cuts": UNUSED,
-                               "validation_cuts": UNUSED}
-    __metadata_request__predict = {"catalogue": UNUSED, "measurement": UNUSED}
 
     def fit(self, train, y=None, **fit_params) -> "Forecaster":
         """Learn from a training ``CatalogueSet`` (default: nothing to learn).

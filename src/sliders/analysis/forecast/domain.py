@@ -29,11 +29,11 @@ training cuts.
 from __future__ import annotations
 
 import numpy as np
-from sklearn.base import BaseEstimator
-from sklearn.utils.metadata_routing import UNUSED
 
+from .estimator import Estimator
+from .evaluators import NoveltyDetector, check_novelty_detector
 from .features import n_sliders_estimate
-from .integrity import check_array, check_novelty_detector, check_number, require
+from .integrity import check_array, check_number, require
 
 #: events at least this large (sliders) are recorded by every training measurement's
 #: detection threshold (``measurement.MEASUREMENT_RANGES["min_size"]`` goes up to 5)
@@ -110,7 +110,7 @@ def measurement_class(cuts) -> np.ndarray:
                      and m.min_size <= 1 else 1 for m in cuts.measurements()], dtype=int)
 
 
-class DomainCheck(BaseEstimator):
+class DomainCheck(Estimator):
     """The training domain of a forecaster: the top tilt and a novelty detector per measurement.
 
     Parameters
@@ -127,7 +127,7 @@ class DomainCheck(BaseEstimator):
         distances for every training cut it keeps).
     max_samples : int
         Training cuts each detector learns from (a random subset: the model
-        file keeps them, with the neighbour tree and each one's neighbours).
+        file keeps them, with each one's distance to its k-th neighbour and its density).
     random_state : int
         Seeds the subset (unless ``fit`` is given an order).
 
@@ -135,8 +135,9 @@ class DomainCheck(BaseEstimator):
     ----------
     detectors_ : list
         Per ``MEASUREMENT_CLASSES``: a fitted pipeline (imputer, standard scaler,
-        local outlier factor), or None with fewer than ``MIN_CLASS_CUTS`` training cuts
-        of that class.
+        local outlier factor; read from a model file, its arrays as
+        ``evaluators.NoveltyDetector``), or None with fewer than ``MIN_CLASS_CUTS``
+        training cuts of that class.
     top_tilt_ : float
         The highest tilt reached inside the domain, radians.
     n_sliders_range_ : numpy.ndarray or None
@@ -144,11 +145,6 @@ class DomainCheck(BaseEstimator):
         to ``fit``): a catalogue whose measurement names its pile's number of
         sliders outside them is out of the domain.
     """
-
-    # the arguments of fit are data, not metadata to route through a meta-estimator:
-    # no set_fit_request
-    __metadata_request__fit = {"cuts": UNUSED, "alpha_c": UNUSED, "order": UNUSED,
-                               "n_sliders": UNUSED}
 
     def __init__(self, features: tuple = DOMAIN_FEATURES, tilt_quantile: float = 0.995,
                  contamination: float = 0.03, n_neighbors: int = 35, max_samples: int = 1000,
@@ -198,8 +194,11 @@ class DomainCheck(BaseEstimator):
             scores = np.sort(det.score_samples(x[rows][:, self._columns(label)]))
             j = int(np.floor(level * (rows.size + 1))) - 1
             # flagged: a score below the offset; the j+1 lowest calibration scores are flagged
-            det.steps[-1][1].offset_ = float(np.nextafter(scores[j], np.inf)) if j >= 0 \
-                else float(scores[0])
+            offset = float(np.nextafter(scores[j], np.inf)) if j >= 0 else float(scores[0])
+            if isinstance(det, NoveltyDetector):  # read from a model file
+                det.offset = offset
+            else:
+                det.steps[-1][1].offset_ = offset
         return self
 
     def _columns(self, label) -> list:
@@ -251,8 +250,8 @@ class DomainCheck(BaseEstimator):
 
     def check_fitted(self, what: str = "domain check") -> None:
         """Known features, one detector (or None) per class of measurement, each of the width of
-        its features (``integrity.check_novelty_detector``: its neighbour tree rebuilt from the
-        checked points), a top tilt in (0, 90°], a range of sliders with 1 <= lo <= hi."""
+        its features (``integrity.check_novelty_detector``: the arrays of
+        ``evaluators.NoveltyDetector``), a top tilt in (0, 90°], a range of sliders with 1 <= lo <= hi."""
         require(isinstance(self.features, tuple) and len(set(self.features)) == len(self.features)
                 and set(self.features) <= set(WITH_POSITIONS), f"{what}: unknown features")
         require(isinstance(self.detectors_, list)

@@ -11,6 +11,7 @@ one, which a forecast can import without scikit-learn (two seconds).
 
 from __future__ import annotations
 
+import functools
 import inspect
 
 
@@ -47,10 +48,11 @@ def _same(a, b) -> bool:
         return a is b
 
 
-def param_names(cls) -> list[str]:
+@functools.cache
+def param_names(cls) -> tuple[str, ...]:
     """The parameters of an estimator class: the arguments of its ``__init__``, sorted."""
     init = cls.__init__
     if init is object.__init__:
-        return []
-    return sorted(p.name for p in inspect.signature(init).parameters.values()
-                  if p.name != "self" and p.kind != p.VAR_KEYWORD)
+        return ()
+    return tuple(sorted(p.name for p in inspect.signature(init).parameters.values()
+                        if p.name != "self" and p.kind != p.VAR_KEYWORD))

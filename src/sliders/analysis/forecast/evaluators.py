@@ -97,12 +97,19 @@ class QuantileTrees:
 
     @classmethod
     def from_arrays(cls, a: dict, what: str = "trees") -> "QuantileTrees":
-        """Back from ``arrays`` (checked: ``check``)."""
+        """Back from ``arrays`` (checked: ``check``, naming ``what``)."""
         trees = cls(_one(a, "baseline", "f", what), a["tree_start"], a["feature"], a["threshold"],
                     a["left"], a["right"], a["missing_left"], a["leaf"], a["value"],
                     _one(a, "shape", "i", what), _one(a, "quantile", "f", what))
         trees.check(what)
         return trees
+
+    def first(self, n: int) -> "QuantileTrees":
+        """The regressor of the first ``n`` trees (the boosting stopped after ``n`` iterations)."""
+        end = int(self.tree_start[n])
+        return QuantileTrees(self.baseline, self.tree_start[:n + 1].copy(),
+                             *(getattr(self, k)[:end].copy() for k in TREE_ARRAYS[2:]),
+                             self.n_features_in_, self.quantile)
 
     def check(self, what: str = "trees") -> None:
         """Every array as ``predict`` walks it: children after their parent and within the
@@ -119,8 +126,10 @@ class QuantileTrees:
                 f"{what}: tree starts are not 1 to {MAX_TREES} trees of 1 to {MAX_NODES} nodes")
         for name, kind in (("feature", "i"), ("left", "i"), ("right", "i"), ("threshold", "f"),
                            ("value", "f"), ("missing_left", "b"), ("leaf", "b")):
-            check_array(getattr(self, name), f"{what}: {name}", shape=(n,), kind=kind,
-                        finite=False)
+            a = getattr(self, name)  # NaN and infinities: judged below, where a walk reads them
+            require(isinstance(a, np.ndarray) and a.dtype.kind == kind,
+                    f"{what}: {name} has dtype {getattr(a, 'dtype', type(a).__name__)}")
+            require(a.shape == (n,), f"{what}: {name} has shape {a.shape}, not ({n},)")
         sizes = np.diff(start)
         first = np.repeat(start[:-1], sizes)
         index = np.arange(n) - first
@@ -155,7 +164,7 @@ class QuantileTrees:
         rows = np.arange(x.shape[0])[:, None]
         node = np.broadcast_to(self.tree_start[:-1], (x.shape[0], self.tree_start.size - 1)).copy()
         base = self.tree_start[:-1][None, :]
-        while True:
+        for _ in range(int(np.diff(self.tree_start).max(initial=0)) + 1):  # a walk's most steps
             walking = ~self.leaf[node]
             if not walking.any():
                 break
@@ -163,6 +172,8 @@ class QuantileTrees:
             left = np.where(np.isnan(v), self.missing_left[node], v <= self.threshold[node])
             step = base + np.where(left, self.left[node], self.right[node])
             node = np.where(walking, step, node)
+        else:
+            raise ValueError("a tree walk that does not end (a model file's trees unchecked)")
         leaves = self.value[node]
         out = np.zeros(x.shape[0]) + self.baseline
         for t in range(leaves.shape[1]):  # tree after tree, as the boosting adds them
@@ -197,10 +208,12 @@ class ResidualTable:
                    np.concatenate([np.asarray(a, dtype=np.float64) for a in alphas]))
 
     def arrays(self) -> dict:
+        """``{name: array}`` of the table (``from_arrays``)."""
         return {"bins": self.bins, "start": self.start, "residuals": self.residuals}
 
     @classmethod
     def from_arrays(cls, a: dict, what: str = "calibration") -> "ResidualTable":
+        """Back from ``arrays`` (checked: ``check``, naming ``what``)."""
         table = cls(a["bins"], a["start"], a["residuals"])
         table.check(what)
         return table
@@ -279,6 +292,7 @@ class NoveltyDetector:
                    float(lof.offset_))
 
     def arrays(self) -> dict:
+        """``{name: array}`` of the detector and its two numbers (``from_arrays``)."""
         return {"medians": self.medians, "mean": self.mean, "scale": self.scale,
                 "points": self.points, "k_distance": self.k_distance, "density": self.density,
                 "n_neighbors": np.array([self.n_neighbors], dtype=np.int64),
@@ -286,14 +300,11 @@ class NoveltyDetector:
 
     @classmethod
     def from_arrays(cls, a: dict, what: str = "detector") -> "NoveltyDetector":
+        """Back from ``arrays`` (checked: ``check``, naming ``what``)."""
         det = cls(a["medians"], a["mean"], a["scale"], a["points"], a["k_distance"], a["density"],
                   _one(a, "n_neighbors", "i", what), _one(a, "offset", "f", what))
         det.check(what)
         return det
-
-    @property
-    def n_features(self) -> int:
-        return self.points.shape[1] if getattr(self.points, "ndim", 0) == 2 else -1
 
     def check(self, what: str = "detector", n_features: int | None = None) -> None:
         """Finite arrays of matching shapes, positive scales, 2 to ``MAX_NEIGHBOUR_POINTS``
@@ -311,8 +322,9 @@ class NoveltyDetector:
         check_array(self.density, f"{what}: reachability densities", shape=(m,), lo=0.0)
         check_number(self.offset, f"{what}: offset", -1e300, 1e300)
 
-    def score(self, x) -> np.ndarray:
-        """(n,) the local outlier factor's score of each row of ``x`` (higher: more usual)."""
+    def score_samples(self, x) -> np.ndarray:
+        """(n,) the local outlier factor's score of each row of ``x`` (higher: more usual), as
+        the pipeline's ``score_samples``."""
         x = np.array(x, dtype=np.float64)
         x = np.where(np.isnan(x), self.medians[None, :], x)
         x = (x - self.mean) / self.scale
@@ -330,8 +342,25 @@ class NoveltyDetector:
     def predict(self, x) -> np.ndarray:
         """(n,) -1 where a row is novel (its score below the offset), else 1."""
         out = np.ones(len(x), dtype=int)
-        out[self.score(x) - self.offset < 0] = -1
+        out[self.score_samples(x) - self.offset < 0] = -1
         return out
+
+
+def check_boosting(model, n_features: int, what: str) -> None:
+    """A quantile regressor as a model file holds it (``evaluators.QuantileTrees``): reading
+    ``n_features`` inputs, every tree checked (``QuantileTrees.check``)."""
+    require(type(model) is QuantileTrees,
+            f"{what} is a {type(model).__name__}, not the trees of a quantile regressor")
+    check_int(model.n_features_in_, f"{what}: features", n_features, n_features)
+    model.check(what)
+
+
+def check_novelty_detector(det, n_features: int, what: str) -> None:
+    """A domain check's detector as a model file holds it (``evaluators.NoveltyDetector``:
+    imputer, standard scaler, local outlier factor) on ``n_features``, every array checked."""
+    require(type(det) is NoveltyDetector,
+            f"{what} is a {type(det).__name__}, not a novelty detector's arrays")
+    det.check(what, n_features)
 
 
 def _one(a: dict, name: str, kind: str, what: str):

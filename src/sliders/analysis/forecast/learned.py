@@ -9,7 +9,8 @@ by a measurement drawn from ``measurement.MEASUREMENT_RANGES`` (the
 measurement is a feature, so ``predict`` told how a catalogue was measured
 forecasts it as one of its kind).
 
-Three layers beside the regressors, each a scikit-learn or crepes object:
+Three layers beside the regressors, each a scikit-learn or crepes object when fitted
+(read from a model file, each is the arrays its ``predict`` reads: ``evaluators``):
 
 * the calibration: a Mondrian conformal predictive system
   (``crepes.ConformalPredictiveSystem``), normalised by the predicted spread
@@ -53,7 +54,8 @@ from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import Cuts, SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
 from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, degrade_cuts
-from .integrity import check_array, check_boosting, check_choice, require
+from .evaluators import ResidualTable, check_boosting
+from .integrity import check_array, check_choice, require
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
@@ -457,8 +459,6 @@ class Learned(Forecaster):
         options, the feature columns (those of ``design``), one quantile regressor per level of
         ``TRAINED_LEVELS`` (every tree), the climatology, the domain check, and the conformal
         calibration's edges, bins and residuals."""
-        from crepes import ConformalPredictiveSystem
-
         check_choice(self.inputs, "inputs", INPUTS)
         check_choice(self.interval, "interval", INTERVALS)
         check_choice(self.calibration, "calibration", CALIBRATIONS)
@@ -503,38 +503,25 @@ class Learned(Forecaster):
         require((np.diff(pct) > 0).all() and np.isin(pct, CPS_PERCENTILES).all(),
                 "the percentiles read are not the calibration's")
         cps = self.calibration_
-        # the residuals are normalised before crepes sees them (kept to RESIDUAL_STEP)
-        require(type(cps) is ConformalPredictiveSystem and cps.mondrian is True
-                and cps.normalized is False and cps.fitted is True,
-                "the calibration is not a fitted Mondrian predictive system of normalised "
-                "residuals (a model of an older form: train it again)")
-        require(isinstance(cps.binned_alphas, tuple) and len(cps.binned_alphas) == 2,
-                "the calibration's residuals are not binned")
-        values, residuals = cps.binned_alphas
-        values = check_array(values, "calibration bins", kind="iu", lo=0, hi=cells - 1,
-                             min_size=1)
-        require((np.diff(values) > 0).all() and isinstance(residuals, list)
-                and len(residuals) == values.size, "calibration bins of another form")
-        for b, r in zip(values, residuals):
-            check_array(r, f"calibration residuals of bin {b}", min_size=1, increasing=True,
-                        lo=-1e6, hi=1e6)
-            require(b < counts.size and r.size == counts[b],
-                    f"calibration bin {b} holds another number of residuals than counted")
+        # the residuals were normalised before crepes saw them (kept to RESIDUAL_STEP)
+        require(isinstance(cps, ResidualTable), "the calibration is not the residual table of a "
+                "Mondrian predictive system of normalised residuals")
+        cps.check("calibration")
+        values = check_array(cps.bins, "calibration bins", kind="i", lo=0, hi=cells - 1)
+        wrong = (values >= counts.size) | (cps.counts() != counts[np.minimum(values, counts.size - 1)])
+        require(not wrong.any(), "a calibration bin holds another number of residuals than "
+                                 "counted")
 
     def _quantiles(self, cuts):
         x, _ = self.design(cuts)
         z = self._raw_log_remaining(cuts, x)
         centre, spread = self._centre_spread(z)
         bins = self._calibration_bin(cuts, centre)
-        if self.calibration_.normalized:  # a file whose calibration holds the spreads itself
-            grid = self.calibration_.predict(centre, sigmas=spread, bins=bins,
-                                             lower_percentiles=self.percentiles_)
-            grid = np.asarray(grid, dtype=float).reshape(len(cuts), self.percentiles_.size)
-        else:  # the normalised residuals' percentiles, scaled by each cut's spread
-            unit = self.calibration_.predict(np.zeros(len(cuts)), bins=bins,
-                                             lower_percentiles=self.percentiles_)
-            unit = np.asarray(unit, dtype=float).reshape(len(cuts), self.percentiles_.size)
-            grid = centre[:, None] + spread[:, None] * unit
+        # the normalised residuals' percentiles, scaled by each cut's spread
+        unit = self.calibration_.predict(np.zeros(len(cuts)), bins=bins,
+                                         lower_percentiles=self.percentiles_)
+        unit = np.asarray(unit, dtype=float).reshape(len(cuts), self.percentiles_.size)
+        grid = centre[:, None] + spread[:, None] * unit
         grid = np.sort(np.clip(grid, -20.0, 2.0), axis=1)
         percent = self._percentiles(grid)
         zc = np.array([np.interp(lv, self.percentiles_, g) for lv, g in

@@ -54,15 +54,13 @@ import math
 import numpy as np
 from scipy.special import ndtr, ndtri
 from scipy.stats import binomtest, kstest
-from sklearn.base import BaseEstimator
-from sklearn.utils.metadata_routing import UNUSED
-from sklearn.ensemble import HistGradientBoostingRegressor
-from threadpoolctl import threadpool_limits
 
 from ...io.catalogue import Catalogue, CatalogueSet
 from .domain import DOMAIN_FEATURES, DomainCheck
+from .estimator import Estimator
 from .features import Cuts, coupled_lone_slips, feature_matrix, training_cuts
-from .integrity import IntegrityError, check_array, check_boosting, check_number, require
+from .evaluators import check_boosting
+from .integrity import IntegrityError, check_array, check_number, require
 from .measurement import MEASUREMENT_FEATURES, PERFECT, degrade_cuts
 
 #: the material parameters inferred, in order
@@ -221,7 +219,7 @@ def design_names() -> list[str]:
             + ["complete", "lone_slider_mu_d"])
 
 
-class ParameterPosterior(BaseEstimator):
+class ParameterPosterior(Estimator):
     """Conditional quantiles of the material parameters given a catalogue, conformally calibrated.
 
     Parameters
@@ -314,10 +312,6 @@ class ParameterPosterior(BaseEstimator):
         return np.column_stack([learned_scale(p, np.asarray(cset.parameters[p])[rows],
                                               self.xi_zero_code_) for p in self.parameters_])
 
-    # the training set is data, not metadata to route through a meta-estimator: no
-    # set_fit_request (whose scikit-learn docstring the API pages would carry)
-    __metadata_request__fit = {"train": UNUSED, "calibration": UNUSED}
-
     def fit(self, train, y=None, calibration=None):
         """Fit the regressors on ``train`` (a ``CatalogueSet`` with its parameters), calibrate on
         its held-out realisations, and fit the domain check.
@@ -325,6 +319,8 @@ class ParameterPosterior(BaseEstimator):
         ``calibration``, a ``CatalogueSet`` of the same prior drawn with another seed, joins
         the held-out realisations (none of its rows is fitted): the recalibration's map is
         an empirical CDF of theirs, and its noise falls as the square root of their number."""
+        from threadpoolctl import threadpool_limits  # scikit-learn's, as the fit is
+
         # the trees' OpenMP threads on a shared machine wait for each other (20 s a fit, not 0.3)
         with threadpool_limits(limits=1, user_api="openmp"):
             return self._fit(train, calibration)
@@ -372,7 +368,9 @@ class ParameterPosterior(BaseEstimator):
         self.n_training_cuts_, self.n_calibration_cuts_ = len(cuts), len(cal)
         return self
 
-    def _regressor(self, level: float) -> HistGradientBoostingRegressor:
+    def _regressor(self, level: float):
+        from sklearn.ensemble import HistGradientBoostingRegressor
+
         return HistGradientBoostingRegressor(
             loss="quantile", quantile=float(level), max_iter=self.max_iter,
             learning_rate=self.learning_rate, max_leaf_nodes=self.max_leaf_nodes,
@@ -466,9 +464,10 @@ class ParameterPosterior(BaseEstimator):
         return off
 
     def _raw_quantiles(self, x) -> np.ndarray:
-        with threadpool_limits(limits=1, user_api="openmp"):
-            q = np.stack([np.column_stack([m.predict(x) for m in models])
-                          for models in self.models_], axis=1)
+        # read from a model file: NumPy's trees (``evaluators.QuantileTrees``); while fitting,
+        # scikit-learn's, under the fit's limit of its threads
+        q = np.stack([np.column_stack([m.predict(x) for m in models])
+                      for models in self.models_], axis=1)
         return np.sort(q + self._offsets(x)[:, :, None], axis=2)
 
     def _spread(self, q) -> np.ndarray:

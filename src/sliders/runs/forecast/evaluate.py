@@ -29,11 +29,11 @@ import numpy as np
 from ...analysis.forecast import Cuts
 from ...analysis.forecast import evaluation as ev
 from ...analysis.forecast.fitting import fit_sharing_cuts
+from ...analysis.forecast.model_file import forecasters_bytes
 from ...analysis.forecast.registry import make_forecasters, method_of, names_where
 from ...io.catalogue import CatalogueSet
 from ...io.forecast_files import (ForecastInputError, OutputSet, check_output_target,
                                   claim_folder, complete_publication)
-from ...io.forecast_model import forecasters_bytes
 from ...io.safeio import (check_output_name, leftovers_note, os_reason, remove_leftovers,
                           resolve_target)
 from .catalogue import load_set

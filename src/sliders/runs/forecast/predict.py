@@ -21,11 +21,12 @@ import math
 import numpy as np
 
 from ...analysis.forecast.features import Cuts
+from ...analysis.forecast.model_file import load_forecasters
 from ...analysis.forecast.registry import fallback_of
 from ...io.catalogue import Catalogue
 from ...io.forecast_files import (ANGLE_TOLERANCE_RESOLUTIONS, ForecastInputError, angle_option,
                                   check_output_target, parse_angle, tilt_in_range)
-from ...io.forecast_model import ModelFileError, default_model_path, load_forecasters
+from ...io.forecast_model import ModelFileError, default_model_path
 from ...io.safeio import check_output_name, publish_bytes, resolve_target
 from .catalogue import (angles_and_sizes, measurement_as_json, measurement_from, measurement_of,
                         read_source)
@@ -223,22 +224,17 @@ class ForecastModel:
                  notes=()) -> "Prediction":
         """The ``Prediction`` of a ``Catalogue`` (its ``tilt_now`` is the tilt reached) measured
         as ``measurement``, the alarm's horizon ``within`` in radians."""
-        from threadpoolctl import threadpool_limits
-
         from ...analysis.forecast.evaluation import typical_accuracy, typical_accuracy_line
 
         cat, complete = angles_and_sizes(catalogue)
         models, prov, path = self.models, self.provenance, self.path
         learned = models["learned"] if complete and "learned" in models else models["learned_blind"]
         try:
-            # one catalogue: the trees' OpenMP threads only wait for each other (on a busy
-            # machine a cold forecast took 25 s of wall clock with them, 0.1 s without)
-            with threadpool_limits(limits=1, user_api="openmp"):
-                inside, reasons = learned.domain(Cuts.from_catalogues([cat], measurement))
-                chosen = {m: learned if m == "learned" else models[m] for m in
-                          (PREDICT_METHODS[:-1] if method == "all" else (method,))
-                          if m == "learned" or m in models}
-                forecasts = [(m, f, f.predict(cat, measurement)) for m, f in chosen.items()]
+            inside, reasons = learned.domain(Cuts.from_catalogues([cat], measurement))
+            chosen = {m: learned if m == "learned" else models[m] for m in
+                      (PREDICT_METHODS[:-1] if method == "all" else (method,))
+                      if m == "learned" or m in models}
+            forecasts = [(m, f, f.predict(cat, measurement)) for m, f in chosen.items()]
         except AttributeError:  # a forecaster of another version lacks what this one reads
             raise ForecastInputError(f"{path}: written by sliders {prov.get('sliders', '?')}, "
                                      "whose forecasters this version cannot use; train it "

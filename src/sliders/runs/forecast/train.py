@@ -29,9 +29,9 @@ import numpy as np
 from ...analysis.forecast.evaluation import measure_expected_accuracy
 from ...analysis.forecast.posterior import ParameterPosterior
 from ...analysis.forecast.fitting import fit_methods
+from ...analysis.forecast.model_file import save_forecasters
 from ...io.catalogue import CatalogueSet
 from ...io.forecast_files import ForecastInputError, check_output_target
-from ...io.forecast_model import save_forecasters
 from ...io.prior_file import another_draw, prior_seed, same_draw, shared_piles
 from ...io.safeio import resolve_target
 from .catalogue import load_set

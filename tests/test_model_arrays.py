@@ -1,0 +1,412 @@
+"""The model file of plain arrays: the shipped forecasts as they were, without scikit-learn.
+
+``tests/data/forecasts_before_arrays.npz`` and ``.json`` hold what the shipped
+forecaster and posterior gave when they were still read as scikit-learn's and
+crepes's fitted objects (before their conversion to arrays): for the docs'
+examples (the bench's three events, the cold-call benchmark's 150) and for
+cuts of held-out rows of both training priors, each simulated by the kernel,
+under four measurements; every forecaster's quantiles, fallbacks and levels,
+the learned ones' raw regressor outputs and domain verdicts, the posterior's
+quantiles and verdicts.  The converted files must give them again to 1e-12
+(they give them bit for bit), also in a process where scikit-learn and crepes
+cannot be imported.  Crafted files are refused in one line naming the file
+and the array.
+"""
+
+from __future__ import annotations
+
+import copy
+import io
+import json
+import pathlib
+import subprocess
+import sys
+import zipfile
+
+import numpy as np
+import pytest
+
+from sliders.analysis.forecast.arrays import catalogues_of
+from sliders.analysis.forecast.evaluators import NoveltyDetector, QuantileTrees, ResidualTable
+from sliders.analysis.forecast.features import Cuts
+from sliders.analysis.forecast.model_file import load_forecasters
+from sliders.io.forecast_model import ModelFileError, default_model_path, default_posterior_path
+from sliders.io.model_arrays import model_arrays_bytes, read_model_arrays
+
+DATA = pathlib.Path(__file__).parent / "data"
+TOLERANCE = 1e-12
+
+
+def before() -> dict:
+    with np.load(DATA / "forecasts_before_arrays.npz", allow_pickle=False) as z:
+        return dict(z)
+
+
+def cases_and_blind(ref):
+    """The recorded catalogues with their measurements, and the same kept to angles and sizes."""
+    from sliders.runs.forecast.catalogue import angles_and_sizes
+
+    cases = catalogues_of({k[len("case."):]: v for k, v in ref.items() if k.startswith("case.")})
+    return cases, [(angles_and_sizes(c)[0], m) for c, m in cases]
+
+
+def cuts_of(cases):
+    return Cuts([c for c, _ in cases], np.full(len(cases), -1, dtype=np.int64),
+                measurement=[m for _, m in cases])
+
+
+def assert_close(now, then, what):
+    now, then = np.asarray(now), np.asarray(then)
+    assert now.shape == then.shape, what
+    if then.dtype.kind == "f":
+        assert np.array_equal(np.isnan(now), np.isnan(then)), what
+        gap = np.abs(np.where(np.isnan(then), 0.0, now - then))
+        assert (gap <= TOLERANCE * np.maximum(1.0, np.abs(np.nan_to_num(then)))).all(), \
+            (what, float(gap.max()))
+    else:
+        assert np.array_equal(now, then), what
+
+
+def outputs(forecasters, posterior, cases, blind) -> dict:
+    """What ``before()`` records, recomputed."""
+    out = {}
+    for kind, cs in (("full", cases), ("blind", blind)):
+        cuts = cuts_of(cs)
+        for name, f in forecasters.items():
+            q, fb, lv = f.quantiles(cuts, levels=True)
+            out |= {f"{kind}.{name}.quantiles": q, f"{kind}.{name}.fallback": fb,
+                    f"{kind}.{name}.levels": lv}
+            if hasattr(f, "_raw_log_remaining"):
+                out[f"{kind}.{name}.raw"] = f._raw_log_remaining(cuts)
+                out[f"{kind}.{name}.inside"] = f.domain(cuts)[0]
+        out[f"{kind}.posterior.quantiles"] = posterior.quantiles(cuts)
+        out[f"{kind}.posterior.inside"] = posterior.domain(cuts)[0]
+    return out
+
+
+def test_the_shipped_forecasts_are_todays_on_held_out_rows_and_the_docs_examples(shipped):
+    ref = before()
+    cases, blind = cases_and_blind(ref)
+    assert len(cases) == 56 and sum(len(c) for c, _ in cases) > 1000
+    post = load_forecasters(default_posterior_path())[0]["posterior"]
+    now = outputs(shipped[0], post, cases, blind)
+    recorded = {k for k in ref if not k.startswith("case.")}
+    assert set(now) == recorded
+    for k in sorted(recorded):
+        assert_close(now[k], ref[k], k)
+    # not a vacuous comparison: both domains' verdicts and the learned forecasters' widening
+    assert ref["full.learned.inside"].any() and not ref["full.learned.inside"].all()
+    assert ref["blind.learned_blind.fallback"].any()
+
+
+#: a process where scikit-learn and crepes cannot be imported forecasts and infers the recorded
+#: cases (the Python API and the commands), printing what it found as JSON
+BLOCKED = r"""
+import contextlib, io, json, math, sys
+import numpy as np
+
+class Blocked:
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] in ("sklearn", "crepes", "threadpoolctl"):
+            raise ImportError(f"{name} is blocked")
+
+sys.meta_path.insert(0, Blocked())
+sys.path.insert(0, sys.argv[1])
+import test_model_arrays as t
+from sliders.runs.forecast.predict import load_model
+from sliders.runs.forecast.infer import load_posterior
+from sliders.runs.forecast.cli import main
+
+ref = t.before()
+cases, blind = t.cases_and_blind(ref)
+fm, pm = load_model(), load_posterior()
+now = t.outputs(fm.models, pm.posterior, cases, blind)
+worst = max(float(np.nanmax(np.abs(np.asarray(now[k], float) - ref[k]), initial=0.0))
+            for k in now)
+e2e = {"forecast": [fm.forecast(c, m, math.radians(0.5), method="all").to_dict()
+                    for c, m in cases[:8]],
+       "infer": [pm.infer_catalogue(c, m, check=False).to_dict() for c, m in cases[:8]]}
+codes = []
+for args in (["predict", sys.argv[2], "--tilt-now", "27.5deg", "--method", "all", "--json"],
+             ["infer", sys.argv[2], "--tilt-now", "27.5deg", "--no-check", "--json"]):
+    with contextlib.redirect_stdout(io.StringIO()) as out:
+        codes.append((main(args), json.loads(out.getvalue())["in_domain"]))
+with open(sys.argv[2], "a") as fh:  # followed to its avalanche: the loop stops there
+    fh.write("# avalanche 28deg\n")
+with contextlib.redirect_stdout(io.StringIO()) as out:
+    codes.append((main(["predict", sys.argv[2], "--follow", "--tilt-now", "27.5deg"]),
+                  "run scored at the avalanche" in out.getvalue()))
+print(json.dumps({"worst": worst, "e2e": e2e, "codes": codes,
+                  "sklearn": sorted(m for m in sys.modules
+                                    if m.split(".")[0] in ("sklearn", "crepes", "threadpoolctl"))}))
+"""
+
+
+@pytest.mark.slow
+def test_predict_follow_and_infer_give_todays_forecasts_with_scikit_learn_unimportable(tmp_path):
+    csv = tmp_path / "pile.csv"
+    csv.write_text("# the bench example of docs/forecasting.md\nangle [deg],size\n"
+                   "1.21,1\n2.03,1\n2.87,3\n")
+    res = subprocess.run([sys.executable, "-c", BLOCKED, str(pathlib.Path(__file__).parent),
+                          str(csv)], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr[-3000:]
+    got = json.loads(res.stdout.splitlines()[-1])
+    assert got["sklearn"] == [] and got["worst"] <= TOLERANCE
+    assert [c for c, _ in got["codes"]] == [0, 0, 0] and got["codes"][2][1]
+    then = json.loads((DATA / "forecasts_before_arrays.json").read_text())
+    for kind, drop in (("forecast", "model"), ("infer", "posterior")):
+        for now, old in zip(got["e2e"][kind], then[kind], strict=True):
+            now.pop(drop)
+            assert json.dumps(now, sort_keys=True) == json.dumps(old, sort_keys=True), kind
+
+
+def test_a_scikit_learn_import_fails_in_the_blocked_process():
+    """The blocker of the test above does block: importing scikit-learn behind it fails."""
+    code = BLOCKED.split("sys.meta_path.insert(0, Blocked())")[0] + \
+        "sys.meta_path.insert(0, Blocked())\nimport sklearn.ensemble\n"
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=60)
+    assert res.returncode != 0 and "sklearn is blocked" in res.stderr
+
+
+# ---------------------------------------------------------------------------
+# the evaluators against scikit-learn's and crepes's fitted objects
+# ---------------------------------------------------------------------------
+
+def test_the_evaluators_answer_as_the_fitted_objects_bit_for_bit():
+    from crepes import ConformalPredictiveSystem
+    from sklearn.ensemble import HistGradientBoostingRegressor
+    from sklearn.impute import SimpleImputer
+    from sklearn.neighbors import LocalOutlierFactor
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(600, 4))
+    x[rng.random(x.shape) < 0.1] = np.nan
+    y = np.nan_to_num(x[:, 0]) * 2 + rng.normal(size=600)
+    model = HistGradientBoostingRegressor(loss="quantile", quantile=0.3, max_iter=30,
+                                          early_stopping=False).fit(x, y)
+    probe = rng.normal(size=(300, 4)) * 2
+    probe[rng.random(probe.shape) < 0.2] = np.nan
+    probe[:5, 1] = np.inf
+    assert np.array_equal(QuantileTrees.of(model).predict(probe), model.predict(probe))
+
+    bins = rng.integers(0, 4, 600)
+    cps = ConformalPredictiveSystem().fit(rng.normal(size=600), bins=bins)
+    at = rng.integers(0, 5, 50)  # bin 4 holds no residual: crepes gives 0
+    pct = np.r_[0.1, 1.0, 50.0, 99.0]
+    with pytest.warns(UserWarning, match="too small"):  # 0.1 %: below every bin's first
+        then = cps.predict(np.zeros(50), bins=at, lower_percentiles=pct)
+    now = ResidualTable.of(cps).predict(np.zeros(50), bins=at, lower_percentiles=pct)
+    assert np.array_equal(now, then) and np.isneginf(now[:, 0]).any() and (now[at == 4] == 0).all()
+
+    pipe = make_pipeline(SimpleImputer(strategy="median", keep_empty_features=True),
+                         StandardScaler(), LocalOutlierFactor(n_neighbors=20, novelty=True))
+    pipe.fit(x)
+    det = NoveltyDetector.of(pipe)
+    probe = probe[np.isfinite(probe).all(axis=1) | np.isnan(probe).any(axis=1)]
+    probe = np.where(np.isinf(probe), 0.0, probe)
+    assert np.array_equal(det.score_samples(probe), pipe.score_samples(probe))
+    assert np.array_equal(det.predict(probe), pipe.predict(probe))
+
+
+def test_a_tree_walk_that_never_ends_stops():
+    rng = np.random.default_rng(0)
+    from sklearn.ensemble import HistGradientBoostingRegressor
+
+    model = HistGradientBoostingRegressor(loss="quantile", quantile=0.5, max_iter=2).fit(
+        rng.normal(size=(200, 2)), rng.normal(size=200))
+    trees = QuantileTrees.of(model)
+    trees.left[0] = 0  # the root its own child: refused by the check, and never walked forever
+    with pytest.raises(ValueError, match="does not end"):
+        trees.predict(np.zeros((3, 2)))
+
+
+# ---------------------------------------------------------------------------
+# crafted files
+# ---------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def shipped_parts():
+    return read_model_arrays(default_model_path())
+
+
+def crafted(tmp_path, parts, change, name="crafted.zip"):
+    """The shipped forecaster's header and arrays changed by ``change(header, arrays)``,
+    written as a model file (the file's form itself sound)."""
+    header, arrays = copy.deepcopy(parts)
+    change(header, arrays)
+    path = tmp_path / name
+    path.write_bytes(model_arrays_bytes({k: v for k, v in header.items() if k != "arrays"},
+                                        arrays))
+    return path
+
+
+def refused(path, *words):
+    with pytest.raises(ModelFileError) as info:
+        load_forecasters(path)
+    line = str(info.value)
+    assert "\n" not in line and line.startswith(str(path)), line
+    for w in words:
+        assert w in line, line
+    return line
+
+
+TREE = "learned_blind.models_.3"
+
+
+def split_of(arrays):
+    """The index of the first split node of the tree ``TREE``'s first tree."""
+    return int(np.flatnonzero(~arrays[f"{TREE}.leaf"])[0])
+
+
+def test_the_shipped_parts_load_as_written(tmp_path, shipped_parts):
+    path = crafted(tmp_path, shipped_parts, lambda h, a: None)
+    models, prov = load_forecasters(path)
+    assert set(models) == set(shipped_parts[0]["content"]) and prov["rows"] >= 500
+
+
+@pytest.mark.parametrize("attack, words", [
+    ("child past the nodes", (TREE, "child index")),
+    ("cycle", (TREE, "child index")),
+    ("two parents", (TREE, "one tree")),
+    ("nan threshold", (TREE, "NaN threshold")),
+    ("feature past the inputs", (TREE, "feature outside")),
+    ("wrong dtype", (TREE, "left has dtype float64")),
+    ("missing array", (f"{TREE}.value", "missing")),
+    ("reference no longer matches", ("reference forecast", "learned_blind", "not reproduced")),
+    ("levels not increasing", ("learned_blind", "percentiles")),
+    ("unread array", ("stray", "read by no part")),
+])
+def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shipped_parts, attack,
+                                                                  words):
+    def change(header, a):
+        s = split_of(a)
+        if attack == "child past the nodes":
+            a[f"{TREE}.left"][s] = 10**6
+        elif attack == "cycle":
+            a[f"{TREE}.right"][a[f"{TREE}.left"][s]] = s  # a child's child its parent
+            a[f"{TREE}.leaf"][a[f"{TREE}.left"][s]] = False
+        elif attack == "two parents":
+            a[f"{TREE}.right"][s] = a[f"{TREE}.left"][s]
+        elif attack == "nan threshold":
+            a[f"{TREE}.threshold"][s] = np.nan
+        elif attack == "feature past the inputs":
+            a[f"{TREE}.feature"][s] = 10_000
+        elif attack == "wrong dtype":
+            a[f"{TREE}.left"] = a[f"{TREE}.left"].astype(np.float64)
+        elif attack == "missing array":
+            del a[f"{TREE}.value"]
+        elif attack == "reference no longer matches":
+            a[f"{TREE}.baseline"] = a[f"{TREE}.baseline"] + 1e-3  # a valid model, another one
+        elif attack == "levels not increasing":
+            a["learned_blind.percentiles_"] = a["learned_blind.percentiles_"][::-1].copy()
+        else:
+            a["stray"] = np.zeros(3)
+
+    refused(crafted(tmp_path, shipped_parts, change), *words)
+
+
+def test_a_model_file_is_read_before_a_member_is_trusted(tmp_path, shipped_parts):
+    """A member the header does not list, a header declaring another shape, a truncated
+    file, another kind of file: one line each."""
+    good = crafted(tmp_path, shipped_parts, lambda h, a: None, "good.zip")
+    blob = good.read_bytes()
+    cut = tmp_path / "truncated.zip"
+    cut.write_bytes(blob[: len(blob) // 2])
+    refused(cut, "not a sliders model file")
+    png = tmp_path / "figure.zip"
+    png.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(100))
+    refused(png, "not a sliders model file")
+    extra, shape = tmp_path / "extra.zip", tmp_path / "shape.zip"
+    with zipfile.ZipFile(good) as src, zipfile.ZipFile(extra, "w") as a, \
+            zipfile.ZipFile(shape, "w") as b:
+        for info in src.infolist():
+            data = src.read(info)
+            a.writestr(info.filename, data)
+            if info.filename == "header.json":
+                h = json.loads(data)
+                h["arrays"][f"{TREE}.left"]["shape"] = [3]
+                data = json.dumps(h).encode()
+            b.writestr(info.filename, data)
+        a.writestr("run_me.py", b"print('ran')")
+    refused(extra, "run_me.py", "no array")
+    refused(shape, f"{TREE}.left", "not the")
+
+
+def test_a_file_that_would_run_code_on_load_is_refused_and_never_runs(tmp_path):
+    """A header naming a class outside the package's estimators, an array that is a pickle of
+    an object whose unpickling writes a marker, a plain pickle: refused, the marker never
+    written."""
+    import pickle
+
+    sys.path.insert(0, str(pathlib.Path(__file__).parent))
+    from marker_class import MarkerOnLoad, marker_file
+
+    marker = tmp_path / "ran"
+    refused(marker_file(tmp_path / "m.zip", marker), "'x'", "dtype")
+    plain = tmp_path / "m.pkl"
+    plain.write_bytes(pickle.dumps({"learned_blind": MarkerOnLoad(str(marker))}))
+    refused(plain, "a pickle is never loaded")
+    header = json.loads(zipfile.ZipFile(marker_file(tmp_path / "n.zip", marker))
+                        .read("header.json"))
+    del header["arrays"]["x"]
+    header["content"]["learned_blind"]["state"] = {}
+    named = tmp_path / "named.zip"
+    with zipfile.ZipFile(named, "w") as z:
+        z.writestr("header.json", json.dumps(header))
+    refused(named, "marker_class.MarkerOnLoad", "no estimator of this package")
+    assert not marker.exists()
+
+
+def test_an_npy_header_of_another_form_is_refused(tmp_path, shipped_parts):
+    """A member whose .npy header is Fortran-ordered (or of another version): refused, as the
+    format writes one form only."""
+    good = crafted(tmp_path, shipped_parts, lambda h, a: None, "good.zip")
+    bad = tmp_path / "fortran.zip"
+    with zipfile.ZipFile(good) as src, zipfile.ZipFile(bad, "w") as dst:
+        for info in src.infolist():
+            data = src.read(info)
+            if info.filename == "learned_blind.columns_.npy":
+                buf = io.BytesIO()
+                np.lib.format.write_array(buf, np.asfortranarray(np.load(io.BytesIO(data))))
+                data = buf.getvalue().replace(b"'fortran_order': False", b"'fortran_order': True")
+            dst.writestr(info.filename, data)
+    refused(bad, "learned_blind.columns_", "not a NumPy array of this format")
+
+
+def test_a_header_of_more_than_16_mb_is_refused_before_it_is_parsed(tmp_path):
+    """20 MB of JSON deflated to a few kB: refused from its declared size."""
+    path = tmp_path / "wide.zip"
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("header.json", "[" + "0," * 10_000_000 + "0]")
+    assert path.stat().st_size < 2**20
+    refused(path, "header inflates to 19 MB")
+
+
+@pytest.mark.parametrize("header, words", [
+    ("[" * 5000 + "]" * 5000, "not JSON"),
+    ("{{{", "not JSON"),
+    ({"format": "sliders-model-arrays-1", "arrays": [], "content": {}}, "lists no arrays"),
+    ({"format": "sliders-model-arrays-1", "arrays": {"a": {"dtype": "|O", "shape": [2]}},
+      "content": {}}, "no dtype"),
+    ({"format": "sliders-model-arrays-1", "arrays": {"../a": {"dtype": "<f8", "shape": [2]}},
+      "content": {}}, "not a name of an array"),
+    ({"format": "sliders-model-arrays-1", "arrays": {}, "content": {}}, "no provenance"),
+    ({"format": "sliders-model-arrays-1", "arrays": {}, "provenance": {},
+      "content": {"learned_blind": {"object": "Learned", "state": {"__class__": 1}}}},
+     "neither a parameter nor a fitted part"),
+    ({"format": "sliders-model-arrays-1", "arrays": {}, "provenance": {},
+      "content": {"learned_blind": {"object": "Learned", "state": {"models_": {"array": "x"}}}}},
+     "array 'x' is missing"),
+    ({"format": "sliders-model-arrays-1", "arrays": {}, "provenance": {},
+      "content": {"learned_blind": {"object": "builtins.eval", "state": {}}}},
+     "no estimator of this package"),
+    ({"schema": "another format's"}, "not a sliders model file of format"),
+])
+def test_a_malformed_header_is_one_line_naming_the_file(tmp_path, header, words):
+    path = tmp_path / "bad.zip"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("header.json", header if isinstance(header, str) else json.dumps(header))
+    refused(path, words)
