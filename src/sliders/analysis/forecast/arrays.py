@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
 
 import numpy as np
 
@@ -30,7 +31,7 @@ from .baselines import Climatology, ConditionedClimatology
 from .domain import DomainCheck
 from .estimator import param_names
 from .evaluators import NoveltyDetector, QuantileTrees, ResidualTable
-from .features import Cuts
+from .features import Cuts, feature_matrix
 from .integrity import IntegrityError, check_array, require
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .learned import Learned
@@ -263,6 +264,8 @@ def reference_outputs(estimators: dict, cuts=None) -> dict:
     its domain verdicts if it has a domain check); the posterior's quantiles and domain
     verdicts."""
     cuts = reference_cuts() if cuts is None else cuts
+    if any(isinstance(e, Learned) for e in estimators.values()):  # their features, made once
+        cuts = replace(cuts, cache={**cuts.cache, "features": feature_matrix(cuts)})
     out = {}
     for method, e in estimators.items():
         if isinstance(e, Forecaster):
