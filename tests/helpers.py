@@ -461,3 +461,46 @@ def write_model(path, forecasters, provenance, references=None):
     Path(path).write_bytes(model_arrays_bytes({"content": content, "provenance": provenance},
                                               parts))
     return path
+
+
+# -- the shipped model's forecasts before its conversion to arrays ----------------------
+def forecasts_before_arrays() -> dict:
+    """What the shipped forecaster and posterior gave when read as scikit-learn's and crepes's
+    fitted objects (``tests/test_model_arrays.py``)."""
+    with np.load(Path(__file__).parent / "data" / "forecasts_before_arrays.npz",
+                 allow_pickle=False) as z:
+        return dict(z)
+
+
+def recorded_cases(ref):
+    """The recorded catalogues with their measurements, and the same kept to angles and sizes."""
+    from sliders.analysis.forecast.arrays import catalogues_of
+    from sliders.runs.forecast.catalogue import angles_and_sizes
+
+    cases = catalogues_of({k[len("case."):]: v for k, v in ref.items() if k.startswith("case.")})
+    return cases, [(angles_and_sizes(c)[0], m) for c, m in cases]
+
+
+def cuts_of_cases(cases):
+    """The ``Cuts`` of ``[(Catalogue, Measurement)]``, each measured as it was."""
+    from sliders.analysis.forecast.features import Cuts
+
+    return Cuts([c for c, _ in cases], np.full(len(cases), -1, dtype=np.int64),
+                measurement=[m for _, m in cases])
+
+
+def model_outputs(forecasters, posterior, cases, blind) -> dict:
+    """What ``forecasts_before_arrays`` records, computed again."""
+    out = {}
+    for kind, cs in (("full", cases), ("blind", blind)):
+        cuts = cuts_of_cases(cs)
+        for name, f in forecasters.items():
+            q, fb, lv = f.quantiles(cuts, levels=True)
+            out |= {f"{kind}.{name}.quantiles": q, f"{kind}.{name}.fallback": fb,
+                    f"{kind}.{name}.levels": lv}
+            if hasattr(f, "_raw_log_remaining"):
+                out[f"{kind}.{name}.raw"] = f._raw_log_remaining(cuts)
+                out[f"{kind}.{name}.inside"] = f.domain(cuts)[0]
+        out[f"{kind}.posterior.quantiles"] = posterior.quantiles(cuts)
+        out[f"{kind}.posterior.inside"] = posterior.domain(cuts)[0]
+    return out

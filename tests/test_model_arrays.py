@@ -26,33 +26,15 @@ import zipfile
 import numpy as np
 import pytest
 
-from sliders.analysis.forecast.arrays import catalogues_of
 from sliders.analysis.forecast.evaluators import NoveltyDetector, QuantileTrees, ResidualTable
-from sliders.analysis.forecast.features import Cuts
 from sliders.analysis.forecast.model_file import load_forecasters
 from sliders.io.forecast_model import ModelFileError, default_model_path, default_posterior_path
 from sliders.io.model_arrays import model_arrays_bytes, read_model_arrays
 
+from helpers import forecasts_before_arrays, model_outputs, recorded_cases
+
 DATA = pathlib.Path(__file__).parent / "data"
 TOLERANCE = 1e-12
-
-
-def before() -> dict:
-    with np.load(DATA / "forecasts_before_arrays.npz", allow_pickle=False) as z:
-        return dict(z)
-
-
-def cases_and_blind(ref):
-    """The recorded catalogues with their measurements, and the same kept to angles and sizes."""
-    from sliders.runs.forecast.catalogue import angles_and_sizes
-
-    cases = catalogues_of({k[len("case."):]: v for k, v in ref.items() if k.startswith("case.")})
-    return cases, [(angles_and_sizes(c)[0], m) for c, m in cases]
-
-
-def cuts_of(cases):
-    return Cuts([c for c, _ in cases], np.full(len(cases), -1, dtype=np.int64),
-                measurement=[m for _, m in cases])
 
 
 def assert_close(now, then, what):
@@ -67,29 +49,12 @@ def assert_close(now, then, what):
         assert np.array_equal(now, then), what
 
 
-def outputs(forecasters, posterior, cases, blind) -> dict:
-    """What ``before()`` records, recomputed."""
-    out = {}
-    for kind, cs in (("full", cases), ("blind", blind)):
-        cuts = cuts_of(cs)
-        for name, f in forecasters.items():
-            q, fb, lv = f.quantiles(cuts, levels=True)
-            out |= {f"{kind}.{name}.quantiles": q, f"{kind}.{name}.fallback": fb,
-                    f"{kind}.{name}.levels": lv}
-            if hasattr(f, "_raw_log_remaining"):
-                out[f"{kind}.{name}.raw"] = f._raw_log_remaining(cuts)
-                out[f"{kind}.{name}.inside"] = f.domain(cuts)[0]
-        out[f"{kind}.posterior.quantiles"] = posterior.quantiles(cuts)
-        out[f"{kind}.posterior.inside"] = posterior.domain(cuts)[0]
-    return out
-
-
 def test_the_shipped_forecasts_are_todays_on_held_out_rows_and_the_docs_examples(shipped):
-    ref = before()
-    cases, blind = cases_and_blind(ref)
+    ref = forecasts_before_arrays()
+    cases, blind = recorded_cases(ref)
     assert len(cases) == 56 and sum(len(c) for c, _ in cases) > 1000
     post = load_forecasters(default_posterior_path())[0]["posterior"]
-    now = outputs(shipped[0], post, cases, blind)
+    now = model_outputs(shipped[0], post, cases, blind)
     recorded = {k for k in ref if not k.startswith("case.")}
     assert set(now) == recorded
     for k in sorted(recorded):
@@ -112,15 +77,15 @@ class Blocked:
 
 sys.meta_path.insert(0, Blocked())
 sys.path.insert(0, sys.argv[1])
-import test_model_arrays as t
+from helpers import forecasts_before_arrays, model_outputs, recorded_cases
 from sliders.runs.forecast.predict import load_model
 from sliders.runs.forecast.infer import load_posterior
 from sliders.runs.forecast.cli import main
 
-ref = t.before()
-cases, blind = t.cases_and_blind(ref)
+ref = forecasts_before_arrays()
+cases, blind = recorded_cases(ref)
 fm, pm = load_model(), load_posterior()
-now = t.outputs(fm.models, pm.posterior, cases, blind)
+now = model_outputs(fm.models, pm.posterior, cases, blind)
 worst = max(float(np.nanmax(np.abs(np.asarray(now[k], float) - ref[k]), initial=0.0))
             for k in now)
 e2e = {"forecast": [fm.forecast(c, m, math.radians(0.5), method="all").to_dict()
