@@ -127,10 +127,10 @@ LAZY_IMPORTS = {
                        "the commands import them when a figure is drawn",
     "sklearn": "scikit-learn (2 s): the forecast parser and the run commands do not need it",
     "sklearn.ensemble": "scikit-learn (2 s), imported by the forecaster that fits with it",
-    "sliders.analysis.forecast": "the forecasters import scikit-learn (2 s): sliders.forecast, "
-                                 "the forecast parser and the picture import them when a "
-                                 "forecast is made",
-    "threadpoolctl": "the tree walk's threads, held to one when a forecast runs",
+    "sliders.analysis.forecast": "the forecasters and their features (a tenth of a second): "
+                                 "sliders.forecast, the forecast parser and the picture "
+                                 "import them when a forecast is made",
+    "threadpoolctl": "scikit-learn's threads, held to one while the posterior is fitted",
     "crepes": "the conformal calibration, imported by the learned forecaster that fits it",
     "mpi4py": "importing it starts MPI: a serial run never does",
     "importlib.metadata": "the installed distributions' versions (18 ms), read when a file's "

@@ -15,8 +15,9 @@ Pure computation on ``sliders.io.catalogue`` objects: no running, no plotting.
 * ``evaluation``: the split, the cuts at leads, the metrics with bootstrap intervals, the alarm.
 
 The names below are imported from their modules when first read (``__getattr__``):
-``registry`` is read by the command line's parser, and every forecaster's module
-imports scikit-learn (two seconds), which ``--help`` does not need.
+``registry`` is read by the command line's parser, which needs none of the
+forecasters' modules (a forecast reads them; fitting one imports scikit-learn, two
+seconds).
 """
 
 import importlib

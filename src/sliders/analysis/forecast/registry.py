@@ -8,8 +8,9 @@ list of names of their own.
 
 An entry names its class (``"module.Class"`` of this package) and its class is
 imported when the entry makes a forecaster: the command line reads the
-methods (``predict --method``) from here without importing scikit-learn, which
-every forecaster's module imports (two seconds).
+methods (``predict --method``) from here without importing the forecasters'
+modules (their features and evaluators), which ``--help`` does not need; fitting
+one imports scikit-learn (two seconds).
 """
 
 from __future__ import annotations
