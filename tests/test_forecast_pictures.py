@@ -178,6 +178,7 @@ def draws(mu_d_deg=30.0, mu_d_sd=0.03, n=1000, seed=1, names=("mu_d", "mu_s_minu
     return {k: every[k] for k in names}
 
 
+@pytest.mark.slow  # a corner plot drawn: 0.4-1.7 s
 def test_the_corner_plot_fits_the_atan_mu_d_axis_to_a_narrow_posterior():
     fig = corner_figure(draws(30.0, 0.03, names=("mu_d", "xi")), PRIOR)
     low, high = fig.axes[0].get_xlim()
@@ -194,6 +195,7 @@ def test_the_corner_plot_fits_the_atan_mu_d_axis_to_a_narrow_posterior():
     assert low < math.degrees(math.atan(0.2)) and high > math.degrees(math.atan(1.1))
 
 
+@pytest.mark.slow  # a corner plot drawn: 0.4-1.7 s
 def test_the_corner_plot_says_a_posterior_piled_at_the_priors_edge():
     edge = math.degrees(math.atan(1.1))
     d = draws()
@@ -208,6 +210,7 @@ def test_the_corner_plot_says_a_posterior_piled_at_the_priors_edge():
     assert "edge" not in corner_figure(draws(30.0, 0.5), PRIOR).axes[0].get_title()
 
 
+@pytest.mark.slow  # a corner plot drawn: 0.4-1.7 s
 @pytest.mark.parametrize("check, said", [
     ({"reproduced": True, "p_values": {"centre": 0.2}}, "REPRODUCED"),
     ({"reproduced": False, "reasons": [{"test": "posterior_predictive", "detail": "x"}]},
@@ -221,6 +224,7 @@ def test_the_corner_plot_carries_the_checks_verdict(check, said):
         assert "NOT REPRODUCED" not in shown
 
 
+@pytest.mark.slow  # a corner plot drawn: 0.4-1.7 s
 def test_infers_corner_plot_carries_its_own_verdict():
     from sliders.runs.forecast.infer import Inference
 
