@@ -119,7 +119,9 @@ class Stopped(KeyboardInterrupt):
         self.signum = signum
 
 
-def _raise_stopped(signum, frame):
+def raise_stopped(signum, frame):
+    """A handler: the signal ``signum`` raises ``Stopped`` (and is recorded), so that a call
+    blocked in the kernel is interrupted rather than retried."""
     Stopped.received = signum
     raise Stopped(signum)
 
@@ -128,7 +130,7 @@ def _raise_stopped(signum, frame):
 def stopped_by_sigterm():
     """Within: SIGTERM raises ``Stopped`` (Ctrl-C raises KeyboardInterrupt as always)."""
     Stopped.received = None
-    with handled(_raise_stopped, (signal.SIGTERM,)):
+    with handled(raise_stopped, (signal.SIGTERM,)):
         yield
 
 

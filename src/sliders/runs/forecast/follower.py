@@ -64,7 +64,7 @@ import time
 from ...io.forecast_files import (MAX_CATALOGUE_BYTES, MAX_LINE_BYTES, ForecastInputError,
                                   angle_option, parse_angle, read_catalogue_stream,
                                   tilt_in_range)
-from ..signals import Stopped, handled, stop_signal
+from ..signals import handled, raise_stopped, stop_signal
 
 #: a file is polled this often, seconds (idle: a stat and an empty read each time)
 POLL_SECONDS = 0.15
@@ -420,10 +420,6 @@ class Update:
     def json_line(self) -> str:
         """``to_dict()`` as one line of JSON."""
         return json.dumps(self.to_dict())
-
-
-def _raise_stopped(signum, frame):
-    raise Stopped(signum)
 
 
 def _say_on_stderr(line: str) -> None:
@@ -797,7 +793,7 @@ class Follower:
         """The updates, one per new state, until a stop; SIGINT and SIGTERM stop the loop
         (their handler raises while it runs: a call blocked in the kernel returns)."""
         main = threading.current_thread() is threading.main_thread()
-        with handled(_raise_stopped) if main else contextlib.nullcontext():
+        with handled(raise_stopped) if main else contextlib.nullcontext():
             finished = False
             try:
                 while self.proceed:
