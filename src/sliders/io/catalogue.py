@@ -10,7 +10,8 @@ column            dtype    meaning
 ``size``          int64    distinct sliders that moved (float64: a measured size in
                            an arbitrary unit, an area or a volume, when not whole)
 ``displacement``  float64  sum of the sliders' displacements, g tau^2
-``first``         int64    first (up-slope) slider that moved, 0-based (-1: unknown)
+``first``         int64    first (up-slope) slider that moved, 0-based (-1: unknown;
+                           float64: a camera's position, a fraction of the pile's length)
 ``last``          int64    last (down-slope) slider that moved, 0-based (-1: unknown)
 ================  =======  ==========================================================
 
@@ -30,6 +31,12 @@ import numpy as np
 EVENT_COLUMNS = ("alpha", "size", "displacement", "first", "last")
 EVENT_DTYPES = {"alpha": np.float64, "size": np.int64, "displacement": np.float64,
                 "first": np.int64, "last": np.int64}
+
+
+def _whole(values) -> bool:
+    """Whether a column holds whole numbers only (a size in sliders, a slider index)."""
+    v = np.asarray(values)
+    return v.dtype.kind in "iub" or bool(np.all(v == np.round(v)))
 
 
 @dataclass
@@ -53,10 +60,8 @@ class Catalogue:
     tilt_now: float | None = None
 
     def __post_init__(self):
-        size = np.asarray(self.size)
-        whole = size.dtype.kind in "iub" or bool(np.all(size == np.round(size)))
         for name in EVENT_COLUMNS:
-            dtype = np.float64 if name == "size" and not whole else EVENT_DTYPES[name]
+            dtype = EVENT_DTYPES[name] if _whole(getattr(self, name)) else np.float64
             setattr(self, name, np.asarray(getattr(self, name), dtype=dtype))
         n = self.alpha.size
         if any(getattr(self, c).shape != (n,) for c in EVENT_COLUMNS):

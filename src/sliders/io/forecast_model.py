@@ -154,6 +154,26 @@ def check_accuracy_table(table) -> None:
         _in_range(v, c, c)
     for c in (*ACCURACY_COLUMNS, "rows"):
         _in_range(_numbers([overall[c]], f"overall {c}"), f"overall {c}", c)
+    cells = table.get("by_width")
+    if cells is None:
+        return
+    if not isinstance(cells, dict) or any(c not in cells for c in ("width_edges_deg",
+                                                                    *ACCURACY_COLUMNS)):
+        raise ValueError("by_width: not a table of width edges and columns per lead bin")
+    for c in ("width_edges_deg", *ACCURACY_COLUMNS):
+        rows = cells[c]
+        if not isinstance(rows, (list, tuple)) or len(rows) != edges.size:
+            raise ValueError(f"by_width {c}: not one row per lead bin")
+        width = len(rows[0]) if rows and isinstance(rows[0], (list, tuple)) else 0
+        for row in rows:
+            v = _numbers(row, f"by_width {c}")
+            if v.size != (width if c == "width_edges_deg" else len(cells["width_edges_deg"][0]) + 1):
+                raise ValueError(f"by_width {c}: rows of unequal or wrong length")
+            if c == "width_edges_deg":
+                if (v < 0).any() or (np.diff(v) < 0).any():
+                    raise ValueError("by_width width_edges_deg: not increasing from 0 up")
+            else:
+                _in_range(v, f"by_width {c}", c)
 
 
 def _numbers(values, what: str) -> np.ndarray:

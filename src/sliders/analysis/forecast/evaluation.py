@@ -8,6 +8,7 @@ another test set of the same size.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -240,6 +241,8 @@ def alarm_probabilities(q: np.ndarray, cuts: Cuts, delta: float,
 ACCURACY_LEAD_EDGES_DEG = (0.0, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
 #: fewest held-out cuts a bin of the stored accuracy needs to speak for itself (else: overall)
 ACCURACY_MIN_CUTS = 30
+#: bins of the 80 % interval's width within each lead bin of the stored accuracy
+ACCURACY_WIDTH_BINS = 3
 
 
 def _lead_bin(forecast_lead_deg) -> np.ndarray:
@@ -271,12 +274,26 @@ def accuracy_table(q: np.ndarray, tilt_now: np.ndarray, truth: np.ndarray, rows:
                "n": float(truth.size), "rows": float(rows)}
     table = {"lead_edges_deg": [float(e) for e in ACCURACY_LEAD_EDGES_DEG],
              "median_abs_deg": [], "coverage": [], "n": [], "overall": overall}
+    width = np.degrees(q[:, UPPER] - q[:, LOWER])
+    cells = {"width_edges_deg": [], "median_abs_deg": [], "coverage": [], "n": []}
     for k in range(len(ACCURACY_LEAD_EDGES_DEG)):
         m = b == k
         own = m.sum() >= ACCURACY_MIN_CUTS
         table["median_abs_deg"].append(float(np.median(err[m])) if own else overall["median_abs_deg"])
         table["coverage"].append(float(inside[m].mean()) if own else overall["coverage"])
         table["n"].append(float(m.sum()))
+        # within the lead bin, bins of the interval's width (the forecaster's own uncertainty,
+        # which tells a small pile's forecast from a large one's): terciles of its cuts
+        edges = (np.quantile(width[m], [1 / 3, 2 / 3]) if m.sum() >= ACCURACY_WIDTH_BINS *
+                 ACCURACY_MIN_CUTS else np.array([np.inf, np.inf]))
+        w = np.searchsorted(edges, width[m], side="right")
+        cells["width_edges_deg"].append([float(e) if np.isfinite(e) else 90.0 for e in edges])
+        for c, values in (("median_abs_deg", err[m]), ("coverage", inside[m])):
+            cells[c].append([float(np.median(values[w == j]) if c == "median_abs_deg" else
+                                   values[w == j].mean()) if (w == j).sum() >= ACCURACY_MIN_CUTS
+                             else table[c][-1] for j in range(ACCURACY_WIDTH_BINS)])
+        cells["n"].append([float((w == j).sum()) for j in range(ACCURACY_WIDTH_BINS)])
+    table["by_width"] = cells
     return table
 
 
@@ -320,6 +337,14 @@ def typical_accuracy(forecaster, forecast) -> dict | None:
         return None
     edges = table["lead_edges_deg"]
     k = int(_lead_bin(np.degrees(forecast.point - forecast.tilt_now)))
+    cells = table.get("by_width")
+    if cells:  # the cell of the forecast's own interval width within its lead bin
+        width = math.degrees(float(forecast.quantiles[UPPER] - forecast.quantiles[LOWER]))
+        j = int(np.searchsorted(cells["width_edges_deg"][k], width, side="right"))
+        return {"median_abs_deg": float(cells["median_abs_deg"][k][j]),
+                "coverage": float(cells["coverage"][k][j]), "n": int(cells["n"][k][j]),
+                "lead_bin_deg": (float(edges[k]),
+                                 float(edges[k + 1]) if k + 1 < len(edges) else None)}
     return {"median_abs_deg": float(table["median_abs_deg"][k]),
             "coverage": float(table["coverage"][k]), "n": int(table["n"][k]),
             "lead_bin_deg": (float(edges[k]), float(edges[k + 1]) if k + 1 < len(edges) else None)}

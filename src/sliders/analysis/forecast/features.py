@@ -52,6 +52,9 @@ class Cuts:
         (n,) the true dynamic friction coefficient (simulation only).
     measurement : list of Measurement, optional
         How each cut was measured (default: a perfect record in sliders).
+    n_sliders : numpy.ndarray, optional
+        (n,) each cut's pile's number of sliders (simulation only: a camera's
+        positions are fractions of the pile's length).
     cache : dict
         Features computed once for several forecasters, filled by whoever
         builds the cuts (``learned.with_design``); forecasters read it and
@@ -64,6 +67,7 @@ class Cuts:
     ceiling: np.ndarray | None = None
     mu_d: np.ndarray | None = None
     measurement: list | None = None
+    n_sliders: np.ndarray | None = None
     cache: dict = field(default_factory=dict, repr=False)
 
     def measurements(self) -> list:
@@ -117,8 +121,11 @@ class Cuts:
             g = np.searchsorted(cset.ceiling_alpha, alpha_obs, side="right") - 1
             d = cset.ceiling_distance[rows, np.clip(g, 0, None), :CEILING_K]
             ceiling = np.where((g >= 0)[:, None], d, np.nan)
-        mu_d = np.asarray(cset.parameters["mu_d"], dtype=float)[rows] if "mu_d" in cset.parameters else None
-        return cls(cats, rows, np.asarray(cset.alpha_c, dtype=float)[rows], ceiling, mu_d)
+        par = cset.parameters
+        mu_d = np.asarray(par["mu_d"], dtype=float)[rows] if "mu_d" in par else None
+        n = np.asarray(par["n_sliders"], dtype=np.int64)[rows] if "n_sliders" in par else None
+        return cls(cats, rows, np.asarray(cset.alpha_c, dtype=float)[rows], ceiling, mu_d,
+                   n_sliders=n)
 
 
 def training_cuts(cset: CatalogueSet, draws_per_row: int, rng: np.random.Generator,
@@ -163,12 +170,18 @@ def size_one_delta_mu(cat: Catalogue) -> float:
     return float(np.median(cat.displacement[one] / np.cos(cat.alpha[one])))
 
 
+def _indices(cat: Catalogue) -> bool:
+    """The movers are given as slider indices (whole numbers), not as a camera's fractions of
+    the pile's length."""
+    return cat.first.dtype.kind in "iu" and cat.last.dtype.kind in "iu"
+
+
 def lone_slip_pairs(cat: Catalogue) -> list[tuple[int, int]]:
     """Every pair (j, i) of events in which one slider slipped alone, at j and again at i,
     while its neighbours stayed at rest in between; in the order of the second slip (empty
     without the moved sliders, ``first``/``last``)."""
     n = len(cat)
-    if n < 2 or cat.first[0] < 0 and cat.first.max() < 0:
+    if n < 2 or cat.first[0] < 0 and cat.first.max() < 0 or not _indices(cat):
         return []
     first, last, size = cat.first.tolist(), cat.last.tolist(), cat.size.tolist()
     width = max(last) + 3
@@ -273,7 +286,7 @@ def n_sliders_estimate(cat: Catalogue) -> float:
     the German-tank estimate, estimates N.
     """
     known = cat.last >= 0
-    if not known.any():
+    if not known.any() or not _indices(cat):
         return np.nan
     m = float(cat.last[known].max() + 1)
     k = int(np.unique(np.concatenate([cat.first[known], cat.last[known]])).size)
@@ -342,6 +355,89 @@ def catalogue_features(cat: Catalogue, arbitrary_size: bool = False) -> dict:
             if k in SIZE_IN_SLIDERS or k.startswith(("moves_", "delta_mu", "mu_s_early", "atan_mu")):
                 f[k] = np.nan
     return f
+
+
+#: the windows (radians of tilt before the cut) of a camera's displacement rates: from a fifth
+#: of a degree (a camera's angles carry errors of a tenth) to six degrees
+CAMERA_WINDOWS = (0.0035, 0.01, 0.02, 0.05, 0.1)
+
+
+def displacement_scale(cat: Catalogue) -> float:
+    """The catalogue's own unit of displacement: the median displacement per mover over its
+    events (NaN without a displaced event).  In the model's units a lone slip moves
+    ``(mu_s - mu_d) cos(alpha)``: a camera's catalogue divided by this reads the same in
+    pixels, millimetres or g tau^2."""
+    moved = (cat.displacement > 0) & (cat.size > 0)
+    if not moved.any():
+        return np.nan
+    return float(np.median(cat.displacement[moved] / cat.size[moved]))
+
+
+def positions_as_fractions(cat: Catalogue, measurement) -> tuple[np.ndarray, np.ndarray]:
+    """The movers' positions as fractions of the pile's length from its up-slope end (NaN:
+    unknown): as given (``position_unit`` "fraction"), or slider indices over the pile's
+    number of sliders (told, else estimated from the indices)."""
+    first, last = cat.first.astype(float), cat.last.astype(float)
+    unknown = (first < 0) | (last < 0)
+    if measurement.position_unit != "fraction":
+        n = measurement.n_sliders or n_sliders_estimate(cat)
+        first, last = (first + 0.5) / n, (last + 0.5) / n
+    return np.where(unknown, np.nan, first), np.where(unknown, np.nan, last)
+
+
+def camera_features(cat: Catalogue, measurement) -> dict:
+    """What a camera's displacements and positions say, free of their units.
+
+    Displacements are read in the catalogue's own unit (``displacement_scale``): their
+    rates over ``CAMERA_WINDOWS`` in that unit and over the catalogue's mean rate (the
+    rate grows by tens towards the avalanche), the recent displacement per mover over the
+    catalogue's, the displacement-weighted tilt since the events; positions as fractions
+    of the pile's length (``positions_as_fractions``): the extent of the recent events,
+    where they lie, and the number of sliders that sizes over extents give.  Unchanged,
+    to rounding, when every displacement is multiplied by one factor, or when positions
+    are given in another unit converted to the same fractions.
+    """
+    t = float(cat.tilt_now)
+    n = len(cat)
+    scale = displacement_scale(cat)
+    d = cat.displacement / scale if np.isfinite(scale) and scale > 0 else np.full(n, np.nan)
+    size = cat.size.astype(float)
+    onset = float(cat.alpha[0]) if n else t
+    mean_rate = float(np.sum(d)) / max(t - onset, SHORTEST_WINDOW)
+    f = {"disp_total_rel": float(np.sum(d)) / max(n, 1)}
+    sums = _window_sums(cat.alpha, d, t, CAMERA_WINDOWS)
+    moves = _window_sums(cat.alpha, size, t, CAMERA_WINDOWS)
+    for w, ds, m in zip(CAMERA_WINDOWS, sums, moves):
+        f[f"disp_rel_{w:g}"] = ds / w
+        f[f"disp_growth_{w:g}"] = ds / w / mean_rate if mean_rate > 0 else np.nan
+        f[f"disp_per_move_{w:g}"] = ds / m if m > 0 else np.nan
+    last = cat.alpha >= t - CAMERA_WINDOWS[-1]
+    weight = float(np.sum(d[last])) if n else 0.0
+    f["disp_weighted_since"] = (float(np.sum(d[last] * (t - cat.alpha[last]))) / weight
+                                if weight > 0 else np.nan)
+    first, end = positions_as_fractions(cat, measurement)
+    extent = end - first
+    recent = (cat.alpha >= t - 0.05) & np.isfinite(extent)
+    f["extent_max_recent"] = float(extent[recent].max()) if recent.any() else np.nan
+    f["extent_max"] = float(np.nanmax(extent)) if np.isfinite(extent).any() else np.nan
+    f["centre_recent"] = float(np.mean(0.5 * (first + end)[recent])) if recent.any() else np.nan
+    wide = (size >= 3) & (extent > 0)
+    f["log_n_from_extent"] = (float(np.log(np.median((size[wide] - 1.0) / extent[wide])))
+                              if wide.any() and measurement.size_unit == "sliders" else np.nan)
+    return f
+
+
+def camera_feature_names() -> list[str]:
+    """The names of ``camera_features``, in order."""
+    return list(camera_features(Catalogue([], [], [], [], []), PERFECT))
+
+
+def camera_feature_matrix(cuts: Cuts) -> tuple[np.ndarray, list[str]]:
+    """(n, F) ``camera_features`` of every cut, and their names."""
+    rows = [camera_features(c, m) for c, m in zip(cuts.catalogues, cuts.measurements())]
+    names = camera_feature_names()
+    x = np.array([[r[k] for k in names] for r in rows], dtype=float).reshape(len(rows), len(names))
+    return x, names
 
 
 def size_ratios(cat: Catalogue) -> dict:

@@ -1,6 +1,8 @@
 """Learned forecasters: gradient-boosted quantile regressors on catalogue features.
 
-The target is ``log(alpha_c - tilt_now)``, the remaining angle (quantiles are
+The target is ``log(alpha_c - edge)``, the remaining angle from the edge of the tilt
+reached (``edge``: the tilt reached less ``EDGE_RESOLUTIONS`` angle errors, so that
+the avalanche of a noisy catalogue may lie below its last, noisy, angle; quantiles are
 equivariant under this monotone map, and the forecast stays above the tilt
 reached).  One ``sklearn.ensemble.HistGradientBoostingRegressor`` with the
 quantile loss per level of ``TRAINED_LEVELS``.  Trained on ``training_cuts``:
@@ -52,21 +54,30 @@ from .baselines import Climatology, check_climatology, conditioned_quantiles
 from ...io.catalogue import Catalogue
 from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
-from .features import Cuts, SHORTEST_WINDOW, ceiling_features, feature_matrix, training_cuts
-from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, degrade_cuts
+from .features import (Cuts, camera_feature_names, SHORTEST_WINDOW, camera_feature_matrix, ceiling_features,
+                       feature_matrix, training_cuts)
+from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, RECORD_FEATURES, degrade_cuts
 from .evaluators import ResidualTable, check_boosting
 from .integrity import check_array, check_choice, require
 
+#: how far below the tilt reached a noisy catalogue's avalanche may lie, in angle errors (its
+#: last events' angles, which the tilt reached is at least, may each be this far too high)
+EDGE_RESOLUTIONS = 3.0
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
-#: what a learned forecaster sees: every feature, or only those of the angles and sizes of
-#: the events (no displacement, no slider positions: what any experiment records)
-INPUTS = ("all", "angles_sizes")
+#: what a learned forecaster sees: every feature, only those of the angles and sizes of the
+#: events (no displacement, no slider positions: what any experiment records), or those and a
+#: camera's displacements and positions in its own units (``features.camera_features``)
+INPUTS = ("all", "angles_sizes", "camera")
 #: where the conformal calibration's residuals come from when no validation set is given
 CALIBRATIONS = ("out_of_fold", "held_out")
 ANGLES_SIZES_FEATURES = ("tilt", "n_events", "last_event", "quiet", "first_event", "moves",
                          "max_size", "max_size_recent", "mean_size_recent", "since_largest",
                          "share_large", *MEASUREMENT_FEATURES)
+#: the displacement-rate fits' best log remaining angles, as the camera's forecaster names them
+CAMERA_FFM = ("ffm_disp_linear_log_remaining", "ffm_disp_ml_p_log_remaining")
+#: what the camera's forecaster reads beyond the angles and sizes (``features.camera_features``)
+CAMERA_FEATURES = (*CAMERA_FFM, *camera_feature_names())
 #: features of the last fraction of a degree (the recent gaps, the shortest window, the
 #: event-rate fits) that only the angles-and-sizes forecaster reads: the one of every feature
 #: leans on the lone-slider pairs and its error 3° before the avalanche was no smaller with them
@@ -122,10 +133,12 @@ def with_design(cuts, inputs: str = "all"):
     ``"angles_sizes"``.
     """
     cache = {**cuts.cache, "features": feature_matrix(cuts)}
-    if inputs == "all":
+    if inputs in ("all", "camera"):
         cache["inverse_rate"] = best_log_remaining(cuts, displacement_rate_fits())
-    else:
+    if inputs in ("angles_sizes", "camera"):
         cache["inverse_rate_events"] = best_log_remaining(cuts, event_rate_fits())
+    if inputs == "camera":
+        cache["camera"] = camera_feature_matrix(cuts)
     return replace(cuts, cache=cache)
 
 
@@ -194,13 +207,15 @@ class Learned(Forecaster):
 
     @property
     def name(self) -> str:
-        """``learned`` (every feature) or ``learned_blind`` (angles and sizes only)."""
-        return "learned" if self.inputs == "all" else "learned_blind"
+        """``learned`` (every feature), ``learned_blind`` (angles and sizes only) or
+        ``learned_camera`` (a camera's units)."""
+        return {"all": "learned", "camera": "learned_camera"}.get(self.inputs, "learned_blind")
 
     @property
     def label(self) -> str:
         """The forecaster's name in tables and legends."""
-        return "learned (boosting)" if self.inputs == "all" else "learned, angles + sizes only"
+        return {"all": "learned (boosting)", "camera": "learned, camera's units"}.get(
+            self.inputs, "learned, angles + sizes only")
 
     def _selected(self, x, names):
         """The columns this forecaster may see: all but the short-range ones
@@ -209,7 +224,8 @@ class Learned(Forecaster):
             keep = [i for i, n in enumerate(names) if not n.startswith(SHORT_RANGE_PREFIXES)
                     and not n.endswith(SHORT_RANGE_SUFFIX)]
             return x[:, keep], [names[i] for i in keep]
-        keep = [i for i, n in enumerate(names) if n in ANGLES_SIZES_FEATURES
+        camera = CAMERA_FEATURES if self.inputs == "camera" else ()
+        keep = [i for i, n in enumerate(names) if n in ANGLES_SIZES_FEATURES or n in camera
                 or n.startswith(("events_", "moves_", "size_ratio_", *SHORT_RANGE_PREFIXES))
                 and not n.startswith("moves_per_slider")]
         return x[:, keep], [names[i] for i in keep]
@@ -230,17 +246,27 @@ class Learned(Forecaster):
                    else best_log_remaining(cuts, displacement_rate_fits()))
             x = np.hstack([x, ffm])
             names = names + ["ffm_linear_disp_log_remaining", "ffm_ml_disp_p_log_remaining"]
-        else:
-            events = (cuts.cache["inverse_rate_events"] if "inverse_rate_events" in cuts.cache
-                      else best_log_remaining(cuts, event_rate_fits()))
-            x = np.hstack([x, events])
-            names = names + ["ffm_event_linear_log_remaining", "ffm_event_ml_p_log_remaining"]
+            return self._selected(x, names)
+        events = (cuts.cache["inverse_rate_events"] if "inverse_rate_events" in cuts.cache
+                  else best_log_remaining(cuts, event_rate_fits()))
+        x = np.hstack([x, events])
+        names = names + ["ffm_event_linear_log_remaining", "ffm_event_ml_p_log_remaining"]
+        if self.inputs == "camera":  # the displacement-rate fits need no unit (their weights
+            # are displacements over their mean)
+            ffm = (cuts.cache["inverse_rate"] if "inverse_rate" in cuts.cache
+                   else best_log_remaining(cuts, displacement_rate_fits()))
+            cam, cam_names = cuts.cache["camera"] if "camera" in cuts.cache else \
+                camera_feature_matrix(cuts)
+            x = np.hstack([x, ffm, cam])
+            names = names + list(CAMERA_FFM) + cam_names
         return self._selected(x, names)
 
     def training_cuts(self, train, rng):
         """Random cuts of ``train``, degraded if ``degrade``, with their features."""
         cuts = training_cuts(train, self.draws_per_row, rng)
-        return with_design(degrade_cuts(cuts, rng) if self.degrade else cuts, self.inputs)
+        if self.degrade:
+            cuts = degrade_cuts(cuts, rng, camera=self.inputs == "camera")
+        return with_design(cuts, self.inputs)
 
     def fit(self, train, y=None, validation=None, cuts=None, validation_cuts=None):
         """Fit the regressors, the domain and the conformal calibration.
@@ -273,13 +299,13 @@ class Learned(Forecaster):
         x, names = self.design(cuts)
         self.measurement_ranges_ = np.array([[np.nanmin(x[:, names.index(f)]),
                                                np.nanmax(x[:, names.index(f)])]
-                                              for f in MEASUREMENT_FEATURES])
+                                              for f in RECORD_FEATURES])
         self.columns_ = np.isfinite(x).any(axis=0)  # a feature never seen (e.g. no slider indices)
         self.feature_names_ = [n for n, k in zip(names, self.columns_) if k]
-        y_log = np.log(np.maximum(cuts.alpha_c - cuts.tilt_now, 1e-9))
+        y_log = np.log(np.maximum(cuts.alpha_c - edge(cuts), 1e-9))
         self.models_ = self._fit_regressors(x[:, self.columns_], y_log)
         self.climatology_ = Climatology().fit(train)
-        self.remaining_quantiles_ = np.quantile(cuts.alpha_c - cuts.tilt_now, LEVELS)
+        self.remaining_quantiles_ = np.quantile(np.maximum(cuts.alpha_c - cuts.tilt_now, 0.0), LEVELS)
         self._fit_domain(cuts, rng, train.parameters.get("n_sliders"))
         if held_out:
             self._fit_calibration(validation_cuts, self._raw_log_remaining(validation_cuts))
@@ -341,7 +367,7 @@ class Learned(Forecaster):
         """
         from crepes import ConformalPredictiveSystem
 
-        truth = np.log(np.maximum(vcuts.alpha_c - vcuts.tilt_now, 1e-9))
+        truth = np.log(np.maximum(vcuts.alpha_c - edge(vcuts), 1e-9))
         centre, spread = self._centre_spread(z)
         cells = len(vcuts) // MIN_PER_BIN
         tilt_bins = int(np.clip(cells, 1, self.calibration_bins))
@@ -428,7 +454,7 @@ class Learned(Forecaster):
         ranges = self.trained_measurement()
         for i, (cat, m) in enumerate(zip(cuts.catalogues, cuts.measurements())):
             why = [_outside(f, v, lo, hi) for f, v, (lo, hi)
-                   in zip(MEASUREMENT_FEATURES, m.as_features(cat), ranges)
+                   in zip(RECORD_FEATURES, m.as_features(cat), ranges)
                    if np.isfinite(v) and not lo - 1e-9 - 1e-6 * abs(lo) <= v <= hi + 1e-9 + 1e-6 * abs(hi)]
             if why:
                 inside[i] = False
@@ -436,7 +462,7 @@ class Learned(Forecaster):
         return inside, reasons
 
     def trained_measurement(self) -> np.ndarray:
-        """(len(MEASUREMENT_FEATURES), 2) the least and the largest value of each measurement
+        """(len(RECORD_FEATURES), 2) the least and the largest value of each record
         feature over the training cuts: a catalogue measured outside them is out of the domain
         (the trees would read it as the nearest training measurement).
 
@@ -476,7 +502,7 @@ class Learned(Forecaster):
             require(model.quantile == level, f"regressor of level {level:g} fits {model.quantile!r}")
         if getattr(self, "measurement_ranges_", None) is not None:
             ranges = check_array(self.measurement_ranges_, "training measurement ranges",
-                                 shape=(len(MEASUREMENT_FEATURES), 2), lo=0.0)
+                                 shape=(len(RECORD_FEATURES), 2), lo=0.0)
             require((ranges[:, 0] <= ranges[:, 1]).all(), "training measurement ranges reversed")
         check_array(self.remaining_quantiles_, "remaining angles", shape=LEVELS.shape, lo=0.0,
                     hi=np.pi / 2, increasing=True)
@@ -526,7 +552,7 @@ class Learned(Forecaster):
         percent = self._percentiles(grid)
         zc = np.array([np.interp(lv, self.percentiles_, g) for lv, g in
                        zip(percent, grid)]).reshape(len(cuts), LEVELS.size)
-        q = cuts.tilt_now[:, None] + np.exp(zc)
+        q = edge(cuts)[:, None] + np.exp(zc)
         levels = percent / 100.0
         inside, _ = self.domain(cuts)
         out = ~inside
@@ -542,6 +568,14 @@ class Learned(Forecaster):
             q[out] = np.where(half[None, :], lower, upper)
             levels[out] = LEVELS  # no distribution of its own: read at the nominal levels
         return q, out, levels
+
+
+def edge(cuts) -> np.ndarray:
+    """(n,) the least tilt each cut's avalanche may lie at: the tilt reached, less
+    ``EDGE_RESOLUTIONS`` of its measurement's angle errors (a noisy last event may lie above
+    the avalanche; the tilt reached itself without an angle error)."""
+    res = np.array([m.angle_resolution for m in cuts.measurements()], dtype=float)
+    return np.maximum(cuts.tilt_now - EDGE_RESOLUTIONS * res, 0.0)
 
 
 def _outside(feature: str, value: float, lo: float, hi: float) -> str:

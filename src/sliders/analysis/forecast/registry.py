@@ -117,6 +117,12 @@ FORECASTERS = (
                               "calibration_remaining_bins": 3},
           boosted=True, seeded=True, alarm=True, example=True, method="learned_blind",
           fallback=_LEARNED_FALLBACK, colour="#fdae61"),
+    # a camera's catalogue: its displacements in any unit, read relative to the catalogue's
+    # own (``features.camera_features``), trained on displacement units drawn over four decades
+    Entry("learned.Learned", {"inputs": "camera", "calibration_size_bins": 2,
+                              "calibration_remaining_bins": 3},
+          boosted=True, seeded=True, alarm=True, example=True, method="learned_camera",
+          fallback=_LEARNED_FALLBACK, colour="#e31a1c"),
     Entry("learned.Ceiling", {"degrade": False}, boosted=True, seeded=True, alarm=True,
           example=True, band=True, colour="#1f78b4"),
     Entry("learned.ToldMuD", {"degrade": False}, boosted=True, seeded=True, alarm=True,

@@ -1,0 +1,129 @@
+"""A camera's catalogue: displacements in any unit and positions as fractions of the pile's
+length read the same as the model's; the number of sliders told as a number or a range; the
+edge of a noisy tilt.  Small synthetic sets (fast)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from sliders.analysis.forecast.features import Cuts, camera_features, displacement_scale
+from sliders.analysis.forecast.learned import EDGE_RESOLUTIONS, Learned, edge
+from sliders.analysis.forecast.measurement import (Measurement, degrade, degrade_cuts,
+                                                   tell_sliders)
+from sliders.io.catalogue import Catalogue, CatalogueSet
+
+
+def piles(n_rows: int, seed: int = 0) -> CatalogueSet:
+    """Rows of accelerating catalogues with displacements growing towards the avalanche and
+    movers' indices on piles of 20-200 sliders."""
+    rng = np.random.default_rng(seed)
+    cats, ac, ns = [], [], []
+    for _ in range(n_rows):
+        a_c, n = rng.uniform(0.3, 0.6), int(rng.choice([20, 50, 200]))
+        i = np.arange(1, 1500)
+        alpha = np.sort(a_c * (1.0 - np.exp(-(i + rng.uniform(0, 1, i.size)) / rng.uniform(30, 80))))
+        alpha = alpha[alpha < a_c]
+        k = alpha.size
+        size = rng.integers(1, 5, k)
+        first = rng.integers(0, n - 4, k)
+        disp = size * 0.01 * (1.0 + 0.02 / (a_c - alpha + 0.002)) * rng.uniform(0.5, 1.5, k)
+        cats.append(Catalogue(alpha, size, disp, first, first + size - 1))
+        ac.append(a_c)
+        ns.append(n)
+    return CatalogueSet.from_catalogues(cats, {"mu_d": np.tan(np.array(ac)) - 0.003,
+                                               "n_sliders": np.array(ns)}, ac,
+                                        ["avalanche"] * n_rows)
+
+
+def in_camera_units(cat: Catalogue, n: int, scale: float, length_mm: float | None = None):
+    """``cat`` as a camera records it: displacements times ``scale``; positions as fractions
+    of the pile's length, or in mm along a pile ``length_mm`` long (then divided by it, as
+    ``--position-unit mm --pile-length`` does)."""
+    first, last = (cat.first + 0.5) / n, (cat.last + 0.5) / n
+    if length_mm is not None:
+        first, last = first * length_mm / length_mm, last * length_mm / length_mm
+    return Catalogue(cat.alpha, cat.size, cat.displacement * scale, first, last,
+                     tilt_now=cat.tilt_now)
+
+
+CAMERA = Measurement(displacement_unit="arbitrary", position_unit="fraction")
+
+
+def test_camera_features_do_not_depend_on_the_displacement_unit_or_the_position_unit():
+    cset = piles(1, seed=4)
+    cat = cset.catalogue(0).cut(0.9 * float(cset.alpha_c[0]))
+    n = int(cset.parameters["n_sliders"][0])
+    model = camera_features(cat, Measurement(n_sliders=n))
+    for scale, length in ((1e-3, None), (1.0, 850.0), (1e3, 0.37)):
+        other = camera_features(in_camera_units(cat, n, scale, length), CAMERA)
+        for key, v in model.items():
+            assert other[key] == pytest.approx(v, rel=1e-12, nan_ok=True), key
+    # the displacement's own scale is the median displacement per mover
+    assert displacement_scale(cat) == pytest.approx(np.median(cat.displacement / cat.size))
+
+
+def test_a_camera_forecast_is_the_same_in_any_unit():
+    train = piles(40, seed=1)
+    f = Learned(inputs="camera", draws_per_row=6, max_iter=15, random_state=0).fit(train)
+    assert f.name == "learned_camera"
+    test = piles(4, seed=2)
+    rows = np.arange(4)
+    base = [test.catalogue(r).cut(0.95 * float(test.alpha_c[r])) for r in rows]
+    n = np.asarray(test.parameters["n_sliders"])
+    qs = []
+    for scale, length in ((1e-3, None), (1.0, None), (1e3, 1200.0)):
+        cats = [in_camera_units(c, int(k), scale, length) for c, k in zip(base, n)]
+        qs.append(f.quantiles(Cuts.from_catalogues(cats, CAMERA))[0])
+    assert np.isfinite(qs[0]).all()
+    for q in qs[1:]:
+        np.testing.assert_allclose(q, qs[0], rtol=0, atol=1e-9)
+
+
+def test_a_cameras_training_catalogues_are_in_its_units():
+    cset = piles(6, seed=3)
+    rng = np.random.default_rng(0)
+    cuts = Cuts.from_set(cset, np.arange(6), 0.9 * np.asarray(cset.alpha_c))
+    cam = degrade_cuts(cuts, rng, camera=True)
+    for c, m, k in zip(cam.catalogues, cam.measurements(), cuts.n_sliders):
+        assert m.displacement_unit == "arbitrary" and m.position_unit == "fraction"
+        known = c.first >= 0
+        assert ((c.first[known] > 0) & (c.last[known] < 1)).all()
+        assert np.allclose(np.round(c.first[known] * k - 0.5), c.first[known] * k - 0.5)
+    scales = [displacement_scale(c) / displacement_scale(o) for c, o in
+              zip(cam.catalogues, cuts.catalogues)]
+    assert max(scales) / min(scales) > 3  # one unit per catalogue
+    with pytest.raises(ValueError, match="number of sliders"):
+        degrade_cuts(replace(cuts, n_sliders=None), rng, camera=True)
+
+
+def test_the_number_of_sliders_told_holds_the_truth_as_a_number_or_a_range():
+    rng = np.random.default_rng(1)
+    n = rng.choice([8, 50, 800], 400)
+    told = tell_sliders([Measurement()] * 400, n, rng)
+    low = np.array([m.n_sliders or 0 for m in told])
+    high = np.array([m.n_sliders_high or m.n_sliders or 0 for m in told])
+    some = low > 0
+    assert 0.4 < some.mean() < 0.6
+    assert ((low[some] <= n[some]) & (n[some] <= high[some])).all()
+    ranges = some & (high > low)
+    assert 0.4 < ranges[some].mean() < 0.8 and (high[ranges] / low[ranges] <= 16.5).all()
+    x = Measurement(n_sliders=100, n_sliders_high=300).as_features(Catalogue([], [], [], [], []))
+    assert x[-2:] == pytest.approx([math.log(100), math.log(300)])
+    with pytest.raises(ValueError, match="range"):
+        Measurement(n_sliders=300, n_sliders_high=100)
+
+
+def test_a_noisy_tilts_avalanche_may_lie_below_its_last_angle():
+    cat = piles(1, seed=5).catalogue(0).cut(0.5)
+    rng = np.random.default_rng(2)
+    noisy = Measurement(angle_resolution=math.radians(0.3))
+    seen = degrade(cat, noisy, rng)
+    assert seen.tilt_now >= seen.alpha[-1] and seen.tilt_now >= cat.tilt_now
+    cuts = Cuts.from_catalogues([seen, cat], noisy)
+    assert edge(cuts) == pytest.approx(np.array([seen.tilt_now, cat.tilt_now])
+                                       - EDGE_RESOLUTIONS * math.radians(0.3))
+    assert edge(Cuts.from_catalogues([cat]))[0] == cat.tilt_now
