@@ -289,7 +289,7 @@ def alarm_flicker(rows: list[str], start: int = 150,
     next, and the alarms raised at each threshold without a gap and with the default release
     level (``alarm.Alarm``)."""
     import sliders.forecast as sf
-    from sliders.runs.forecast.alarm import Alarm, default_release, probability_within
+    from sliders.forecasting.alarm import Alarm, default_release, probability_within
 
     angle = np.array([float(r.split(",")[0]) for r in rows])
     size = np.array([float(r.split(",")[1]) for r in rows])

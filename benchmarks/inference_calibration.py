@@ -70,8 +70,9 @@ from sliders.figures.style import save_figure
 from sliders.analysis.forecast.measurement import PERFECT
 from sliders.analysis.forecast.posterior import angles_sizes_only
 from sliders.io.prior_file import another_draw, read_prior_ensemble
-from sliders.runs.forecast.catalogue import catalogue_csv_text
-from sliders.runs.forecast.infer import load_posterior
+from sliders.forecasting.catalogue import catalogue_csv_text
+from sliders.forecasting.infer import load_posterior
+from sliders.runs.forecast.infer import CHECK_SIMULATION
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 COVERAGES = (0.5, 0.8, 0.95)
@@ -401,7 +402,7 @@ def main(argv=None) -> int:
     def log(*a):
         print(*a, flush=True)
 
-    model = load_posterior()
+    model = load_posterior(simulation=CHECK_SIMULATION)
     post = model.posterior
     cset = read_prior_ensemble(args.data)
     held = np.array(model.provenance["held_out_rows"], dtype=int)

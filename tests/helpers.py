@@ -475,7 +475,7 @@ def forecasts_before_arrays() -> dict:
 def recorded_cases(ref):
     """The recorded catalogues with their measurements, and the same kept to angles and sizes."""
     from sliders.analysis.forecast.arrays import catalogues_of
-    from sliders.runs.forecast.catalogue import angles_and_sizes
+    from sliders.forecasting.catalogue import angles_and_sizes
 
     cases = catalogues_of({k[len("case."):]: v for k, v in ref.items() if k.startswith("case.")})
     return cases, [(angles_and_sizes(c)[0], m) for c, m in cases]

@@ -12,7 +12,7 @@ import time
 import pytest
 
 from sliders.io.forecast_files import ForecastInputError
-from sliders.runs.forecast.alarm import (HOOK_ENVIRONMENT, Alarm, LatestPicture, RunScore,
+from sliders.forecasting.alarm import (HOOK_ENVIRONMENT, Alarm, LatestPicture, RunScore,
                                          check_hook, default_release)
 
 rad = math.radians
@@ -343,7 +343,7 @@ def test_the_alarm_options_are_refused_in_one_line_before_anything_is_read(tmp_p
 
 
 def test_a_single_forecast_says_whether_its_alarm_sounds():
-    from sliders.runs.forecast.alarm import single_alarm
+    from sliders.forecasting.alarm import single_alarm
 
     report = prediction(0.62, threshold=0.5)
     out, line = single_alarm(report, "0.6")
@@ -380,7 +380,7 @@ def test_the_live_picture_of_a_real_forecast_carries_its_status(tmp_path):
     import numpy as np
 
     import sliders.forecast as sf
-    from sliders.runs.forecast.alarm import png_bytes
+    from sliders.forecasting.alarm import png_bytes
 
     u = np.sort(np.random.default_rng(3).random(120))
     alpha, size = 31.0 - 31.0 * np.exp(-3.0 * u), np.ones(120, dtype=int)
@@ -406,7 +406,7 @@ def test_the_command_runs_the_hook_once_and_scores_the_run_at_the_avalanche(tmp_
     import subprocess
 
     import sliders.forecast as sf
-    from sliders.runs.forecast.alarm import probability_within
+    from sliders.forecasting.alarm import probability_within
 
     rows = [r.split(":") for r in SMALL_PILE.split()]
     path = tmp_path / "pile.csv"

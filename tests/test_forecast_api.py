@@ -20,7 +20,7 @@ from sliders.analysis.forecast.base import LEVELS
 from sliders.analysis.forecast.evaluation import accuracy_table
 from sliders.io.forecast_files import ForecastInputError
 from sliders.runs.forecast.cli import build_parser
-from sliders.runs.forecast.predict import disjoint_intervals, probability_text
+from sliders.forecasting.predict import disjoint_intervals, probability_text
 from helpers import SMALL_CATALOGUE, accelerating
 
 # one xdist worker loads the shipped forecasters (the module's fixture) for all these tests
@@ -186,5 +186,5 @@ def test_predict_help_imports_neither_numpy_nor_scikit_learn():
                           "--help"], capture_output=True, text=True)
     assert out.returncode == 0 and "--follow" in out.stdout and "--plot" in out.stdout
     imported = [ln.split("|")[-1].strip() for ln in out.stderr.splitlines() if "|" in ln]
-    assert "sliders.runs.forecast.common" in imported  # the parser's defaults, read
+    assert "sliders.forecasting.common" in imported  # the parser's defaults, read
     assert not [m for m in imported if m.split(".")[0] in ("sklearn", "matplotlib", "numpy")]

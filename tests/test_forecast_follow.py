@@ -18,8 +18,8 @@ import pytest
 
 import sliders.forecast as sf
 from sliders.io.forecast_files import ForecastInputError
-from sliders.runs.forecast import follower as live
-from sliders.runs.forecast.follower import LineBuffer, Tail, marker, rate_option
+from sliders.forecasting import follower as live
+from sliders.forecasting.follower import LineBuffer, Tail, marker, rate_option
 
 
 def accelerating(n: int = 150, seed: int = 7) -> tuple[np.ndarray, np.ndarray]:
@@ -344,7 +344,7 @@ def test_the_python_follow_prints_what_the_command_prints(tmp_path, model):
 
 
 def sf_lines(summary):
-    from sliders.runs.forecast.alarm import RunScore
+    from sliders.forecasting.alarm import RunScore
 
     return RunScore.lines(summary)
 

@@ -226,7 +226,7 @@ def test_the_corner_plot_carries_the_checks_verdict(check, said):
 
 @pytest.mark.slow  # a corner plot drawn: 0.4-1.7 s
 def test_infers_corner_plot_carries_its_own_verdict():
-    from sliders.runs.forecast.infer import Inference
+    from sliders.forecasting.infer import Inference
 
     report = {"parameters": {}, "check": {"reproduced": False, "reasons": [
         {"test": "prior_predictive", "detail": "far"}]}}

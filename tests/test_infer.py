@@ -31,8 +31,9 @@ from sliders.io.catalogue import Catalogue
 from sliders.io.forecast_files import ForecastInputError
 from sliders.io.forecast_model import default_posterior_path
 from sliders.runs.forecast import cli
-from sliders.runs.forecast.infer import load_posterior
-from sliders.runs.forecast.catalogue import catalogue_csv_text
+from sliders.forecasting.catalogue import catalogue_csv_text
+from sliders.forecasting.infer import load_posterior
+from sliders.runs.forecast.infer import CHECK_SIMULATION
 from sliders.runs.prior_spec import parse_prior
 
 SMALL_PILE = 50  # sliders: the held-out rows simulated here
@@ -41,7 +42,7 @@ N_PILES = 60
 
 @pytest.fixture(scope="module")
 def model():
-    return load_posterior()
+    return load_posterior(simulation=CHECK_SIMULATION)
 
 
 @pytest.fixture(scope="module")
@@ -204,7 +205,7 @@ def test_a_forecaster_file_is_not_a_posterior(tmp_path):
     from sliders.io.forecast_model import default_model_path
 
     with pytest.raises(ForecastInputError, match="not a posterior file"):
-        load_posterior(default_model_path())
+        load_posterior(default_model_path(), CHECK_SIMULATION)
 
 
 def test_the_estimator_follows_the_scikit_learn_rules():
@@ -235,7 +236,8 @@ def test_a_posterior_fitted_on_a_few_piles_round_trips_through_its_file(tmp_path
     post = ParameterPosterior(max_iter=5, draws_per_row=3, random_state=1).fit(train)
     path = tmp_path / "tiny.zip"
     save_forecasters(str(path), {"posterior": post}, {"command": "test"})
-    d = load_posterior(path).infer_catalogue(cats[0], PERFECT, check=False).to_dict()
+    d = load_posterior(path, CHECK_SIMULATION).infer_catalogue(cats[0], PERFECT,
+                                                  check=False).to_dict()
     assert set(d["parameters"]) == set(post.parameters_)
     assert d["parameters"]["n_sliders"]["median"] in post.n_sliders_values_
 
@@ -258,7 +260,8 @@ def test_the_shipped_posterior_passes_the_archive_check_beside_its_digest():
 
 
 def test_the_verdict_fails_when_either_predictive_test_fails_and_says_which():
-    from sliders.runs.forecast.infer import check_text, combined_verdict
+    from sliders.analysis.forecast.posterior_check import combined_verdict
+    from sliders.forecasting.infer import check_text
 
     posterior_ok = {"reproduced": True, "p_values": {"onset": 0.4, "stands_to_tilt": 0.5},
                     "simulated": 24, "significance_level": 0.01}

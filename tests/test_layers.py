@@ -32,6 +32,8 @@ LAYERS = [
     ("simulation", ["sliders.preparation", "sliders.driver", "sliders.result"]),
     ("analysis", ["sliders.analysis"]),
     ("figures", ["sliders.figures"]),
+    # the forecast and the posterior of a measured pile, the live follower: the commands' API
+    ("forecasting", ["sliders.forecasting"]),
     ("runs", ["sliders.runs"]),
     # the commands users type and the package's front door
     ("entry", ["sliders", "sliders.__main__", "sliders._forward", "sliders.ensemble",
@@ -196,3 +198,62 @@ def test_every_public_name_is_documented():
                             and ast.get_docstring(sub) is None):
                         missing.append(f"{m}.{node.name}.{sub.name}")
     assert not missing, "undocumented: " + ", ".join(missing)
+
+
+#: the modules that may import by name: the forwarding of the commands users type and of the
+#: package's front door (``sliders._forward``)
+IMPORT_BY_NAME = {"sliders._forward"}
+
+
+def imports_by_name(path: pathlib.Path, package: str) -> list[str]:
+    """The ``importlib.import_module(...)`` calls of a module of ``package`` whose target is
+    not a module of its own folder (an f-string ``{__package__}.NAME`` or ``{__name__}.NAME``,
+    one name deep, in a folder below the package's top), as source."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                and node.func.attr == "import_module" and node.args):
+            arg = node.args[0]
+            head = (arg.values[0].value.id if isinstance(arg, ast.JoinedStr) and arg.values
+                    and isinstance(arg.values[0], ast.FormattedValue)
+                    and isinstance(arg.values[0].value, ast.Name) else None)
+            rest = "".join(v.value for v in getattr(arg, "values", [])[1:]
+                           if isinstance(v, ast.Constant))
+            own = (head == "__name__" or (head == "__package__" and package != "sliders")) \
+                and rest.startswith(".") and rest.count(".") == 1
+            if not own:
+                out.append(ast.unparse(node))
+    return out
+
+
+def test_no_import_by_name_between_layers():
+    """A module imports another layer's modules with import statements, never by a name built
+    at run time: the import graph above sees every edge."""
+    found = [f"{m}: {call}" for m, path in modules().items() if m not in IMPORT_BY_NAME
+             for call in imports_by_name(path, m if path.name == "__init__.py"
+                                         else m.rsplit(".", 1)[0])]
+    assert not found, "\n".join(found)
+
+
+def test_the_rule_catches_an_import_by_name(tmp_path):
+    """The check itself can fail: a module reading another layer's module by its name, also
+    through ``__package__`` (the front door's ``sliders.forecast`` did so), but not its own
+    folder's."""
+    p = tmp_path / "m.py"
+    p.write_text("import importlib\n\ndef f(name):\n    return (importlib.import_module("
+                 "f'{__package__}.x'), importlib.import_module('sliders.runs.forecast.infer'), "
+                 "importlib.import_module(f'{__package__}.runs.forecast.{name}'))\n")
+    assert imports_by_name(p, "sliders.runs.forecast") == [
+        "importlib.import_module('sliders.runs.forecast.infer')",
+        "importlib.import_module(f'{__package__}.runs.forecast.{name}')"]
+    assert len(imports_by_name(p, "sliders")) == 3
+
+
+def test_the_forecast_front_door_imports_the_forecasting_layer():
+    """``sliders.forecast`` imports the forecasting layer with an import statement, and the
+    layer imports nothing of the commands (``sliders.runs``) nor of the front doors."""
+    graph = import_graph()
+    assert "sliders.forecasting" in graph["sliders.forecast"]
+    up = [f"{m} imports {t}" for m, ts in graph.items() if m.startswith("sliders.forecasting")
+          for t in ts if layer_of(t) > layer_of("sliders.forecasting")]
+    assert not up, "\n".join(up)

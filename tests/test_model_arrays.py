@@ -78,8 +78,8 @@ class Blocked:
 sys.meta_path.insert(0, Blocked())
 sys.path.insert(0, sys.argv[1])
 from helpers import forecasts_before_arrays, model_outputs, recorded_cases
-from sliders.runs.forecast.predict import load_model
-from sliders.runs.forecast.infer import load_posterior
+from sliders.forecasting.infer import load_posterior
+from sliders.forecasting.predict import load_model
 from sliders.runs.forecast.cli import main
 
 ref = forecasts_before_arrays()

@@ -37,7 +37,7 @@ def started(tmp_path, module: str, *argv: str) -> subprocess.CompletedProcess:
 
 @pytest.mark.parametrize("command, module, who", [
     ("sliders.forecast", "sliders.runs.forecast.cli", "sliders.forecast"),  # its parser's
-    ("sliders.forecast", "sliders.runs.forecast.common", "sliders.forecast"),  # its defaults
+    ("sliders.forecast", "sliders.forecasting.common", "sliders.forecast"),  # its defaults
     ("sliders.ensemble", "sliders.runs.ensemble", "ensemble"),
     ("sliders", "sliders.scene", "sliders"),
 ])

@@ -23,7 +23,8 @@ from sliders.io.forecast_files import (ANGLE_TOLERANCE_RESOLUTIONS, MAX_EVENTS,
                                        ForecastInputError)
 from sliders.runs.forecast import infer as infer_module
 from sliders.runs.forecast import predict as predict_module
-from sliders.runs.forecast.catalogue import measurement_from, read_source
+from sliders.forecasting import predict as forecasting_predict
+from sliders.forecasting.catalogue import measurement_from, read_source
 from sliders.runs.forecast.cli import build_parser
 
 pytestmark = pytest.mark.xdist_group("forecast-api")
@@ -268,7 +269,7 @@ def test_out_of_the_domain_the_text_says_what_was_done_and_whose_median_it_is(mo
 
 
 def test_one_name_for_an_interval_wherever_it_is_printed():
-    name = predict_module.interval_name
+    name = forecasting_predict.interval_name
     assert name({"calibrated": True, "fallback": False}, "learned") == "80 % interval"
     assert name({"calibrated": False, "fallback": True}, "learned") == \
         "widened interval, uncalibrated"
@@ -278,8 +279,8 @@ def test_one_name_for_an_interval_wherever_it_is_printed():
 
 
 def test_a_p_value_below_the_checks_resolution_and_a_negative_contraction_are_said_so():
-    from sliders.runs.forecast.infer import (Inference, check_text, combined_verdict,
-                                             contraction_text)
+    from sliders.analysis.forecast.posterior_check import combined_verdict
+    from sliders.forecasting.infer import Inference, check_text, contraction_text
 
     check = {"reproduced": False, "p_values": {"onset": 0.0, "log_events": 0.3},
              "simulated": 24, "significance_level": 0.01}

@@ -28,7 +28,8 @@ from sliders.analysis.forecast.posterior_check import simulate_pile
 from sliders.io.forecast_files import ForecastInputError
 from sliders.io.forecast_model import check_accuracy_table
 from sliders.runs.forecast import cli
-from sliders.runs.forecast.infer import load_posterior
+from sliders.forecasting.infer import load_posterior
+from sliders.runs.forecast.infer import CHECK_SIMULATION
 from sliders.scene import Scene
 
 from helpers import write_model
@@ -164,10 +165,10 @@ def test_numbers_of_sliders_beyond_the_memory_are_refused_on_load(posterior, tmp
     import sliders.scene
 
     monkeypatch.setattr(sliders.scene, "available_memory", lambda: 4 * 10**9)
-    load_posterior(crafted(posterior, tmp_path, lambda p: None, "fits.zip"))
+    load_posterior(crafted(posterior, tmp_path, lambda p: None, "fits.zip"), CHECK_SIMULATION)
     path = crafted(posterior, tmp_path, _numbers_of_sliders([8, 3_000_000]))
     with pytest.raises(ForecastInputError) as info:
-        load_posterior(path)
+        load_posterior(path, CHECK_SIMULATION)
     assert str(path) in str(info.value) and "n_sliders=3000000" in str(info.value)
     assert "GB available" in str(info.value)
 

@@ -9,35 +9,26 @@
     post = model.infer("pile.csv")          # the posterior of the pile's material
     post.to_dict()                          # what ``infer --json`` prints
 
-``python -m sliders.forecast`` runs the commands (``sliders.runs.forecast.cli``); ``predict``
-is this API (``sliders.runs.forecast.predict``): one code path.
+``python -m sliders.forecast`` runs the commands (``sliders.runs.forecast.cli``); the API is
+the forecasting layer's (``sliders.forecasting``), which the commands call: one code path.
 """
 
 from __future__ import annotations
 
-import importlib
 import sys
 
-from ._forward import interrupted_while_starting, names_at_first_use
-
-#: the API's names, each read from its module at first use: ``python -m sliders.forecast
-#: predict --help`` imports neither the forecasters nor scikit-learn
-_API = {
-    "ForecastModel": ("runs.forecast.predict", "ForecastModel"),
-    "Prediction": ("runs.forecast.predict", "Prediction"),
-    "Inference": ("runs.forecast.infer", "Inference"),
-    "InferenceModel": ("runs.forecast.infer", "InferenceModel"),
-}
+from . import forecasting
+from ._forward import interrupted_while_starting
 
 __all__ = ["load", "main", "ForecastModel", "Prediction", "Inference", "InferenceModel"]
 
 
-__getattr__ = names_at_first_use(__name__, _API)
-
-
-def _module(name: str):
-    """``sliders.runs.forecast.NAME``."""
-    return importlib.import_module(f"{__package__}.runs.forecast.{name}")
+def __getattr__(name: str):
+    """The API's classes (``sliders.forecasting``'s), imported at first use: ``python -m
+    sliders.forecast predict --help`` imports neither the forecasters nor NumPy."""
+    if name not in __all__:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(forecasting, name)
 
 
 def load(path=None, posterior=None):
@@ -62,12 +53,16 @@ def load(path=None, posterior=None):
     sliders.io.forecast_files.ForecastInputError
         The file is not a model file this version reads (one line naming it).
     """
-    return _module("infer").load_inference_model(path, posterior)
+    from .runs.forecast.infer import CHECK_SIMULATION
+
+    return forecasting.load(path, posterior, CHECK_SIMULATION)
 
 
 def main(argv=None) -> int:
     """``python -m sliders.forecast``: the forecast commands (``sliders.runs.forecast.cli``)."""
-    return _module("cli").main(argv)
+    from .runs.forecast.cli import main as command
+
+    return command(argv)
 
 
 if __name__ == "__main__":

@@ -1,17 +1,18 @@
 """The posterior predictive check: does the model, at the material the posterior gives, make
 catalogues like the one measured?
 
-``infer`` simulates piles at posterior draws up to the catalogue's tilt reached
-(``sliders.runs.forecast.infer``), measures them as the catalogue was, and
+``predictive_check`` simulates piles at posterior draws up to the catalogue's
+tilt reached (``simulate_piles``), measures them as the catalogue was, and
 compares summary statistics (``CHECK_STATISTICS``): each statistic's two-sided
 p-value against the simulated ones, and how likely a simulated pile stands up
 to the tilt the measured one reached (``survival_p_value``).  This posterior
 predictive test passes (``reproduced``) when the survival p-value is at least
 ``CHECK_ALPHA`` and no statistic's p-value falls below ``CHECK_ALPHA`` divided
 by their number (Bonferroni); the command's verdict also needs the prior
-predictive test, the posterior's domain check (``infer.combined_verdict``).
+predictive test, the posterior's domain check (``combined_verdict``, whose ``reasons``
+name each test that failed; ``p_value_text`` states a p-value as the text does).
 A pile of the check is run with its preparation stoppable by a signal (``simulate_pile``).
-No scikit-learn here: the command's module imports this one at its top.
+No scikit-learn here: ``sliders.forecasting.infer`` imports this one at its top.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from ...driver import run
 from ...io.catalogue import Catalogue
 from ...preparation import prepare
 from ...scene import Scene, check_memory
+from .measurement import Measurement, degrade
 
 #: the summary statistics compared; those counting sliders are left out for sizes in an
 #: arbitrary unit
@@ -38,6 +40,11 @@ CHECK_ALPHA = 0.01
 SURVIVAL = "stands_to_tilt"
 #: the least spread of the simulated avalanche angles the survival p-value assumes (0.25°)
 SURVIVAL_SPREAD = math.radians(0.25)
+#: the least p-value the check's text states as a number: each is a normal tail fitted to the
+#: ``CHECK_DRAWS`` (24) simulated piles, whose spread is known to about 1/sqrt(2 (24 - 1)), 15 %;
+#: at p = 0.001 (z = 3.3) that moves p by a factor of about 3, and below it the number says no
+#: more than "beyond the Bonferroni level" (0.01 over 9 statistics, 0.0011)
+P_VALUE_FLOOR = 0.001
 
 
 def simulate_pile(scene: Scene, backend: str):
@@ -132,3 +139,84 @@ def reproduced(p_values: dict, alpha: float = CHECK_ALPHA) -> bool:
         return False
     p = [v for k, v in p_values.items() if v is not None and k != SURVIVAL]
     return not p or min(p) >= alpha / len(p)
+
+
+def predictive_check(material: dict, base_scene: Scene, backend: str, cat: Catalogue,
+                     measurement: Measurement, rng, complete: bool = True) -> dict:
+    """The posterior predictive test: piles of the posterior draws ``material`` (one per draw),
+    made from ``base_scene`` and run on ``backend``, simulated up to ``cat``'s tilt reached,
+    measured as it was, against it (their displacements too if ``complete``): each statistic's
+    p-value, whether it is reproduced."""
+    draws = len(material["mu_d"])
+    simulated, avalanche_angles = simulate_piles(base_scene, backend, material, cat.tilt_now,
+                                                 measurement, rng)
+    arbitrary = measurement.size_unit == "arbitrary"
+    p = predictive_p_values(check_statistics(cat, arbitrary, complete),
+                            [check_statistics(c, arbitrary, complete) for c in simulated])
+    p[SURVIVAL] = survival_p_value(avalanche_angles, cat.tilt_now)
+    return {"reproduced": reproduced(p), "p_values": p, "simulated": draws,
+            "avalanched_before": int(np.sum(np.isfinite(avalanche_angles))),
+            "significance_level": CHECK_ALPHA}
+
+
+def simulate_piles(base_scene: Scene, backend: str, material: dict, tilt: float,
+                   measurement: Measurement, rng):
+    """The catalogues of piles of ``material`` (one per draw; ``base_scene`` with its
+    parameters, run on ``backend``) tilted up to ``tilt``, measured as ``measurement`` says
+    (sizes in sliders), and each one's avalanche angle (NaN: it stood)."""
+    seeds = rng.integers(1, 2**31 - 1, len(material["mu_d"]))
+    measured = Measurement(measurement.angle_resolution, 1.0 if measurement.size_unit ==
+                           "arbitrary" else measurement.min_size, measurement.missed_fraction)
+    cats, avalanched = [], []
+    for j, seed in enumerate(seeds):
+        mu_d = float(material["mu_d"][j])
+        changes = {"mu_d": mu_d, "alpha_max": max(float(tilt), 1e-6), "seed": int(seed)}
+        if "mu_s_minus_mu_d" in material:
+            changes["mu_s_mean"] = mu_d + float(material["mu_s_minus_mu_d"][j])
+        for name in ("sigma_mu", "xi"):
+            if name in material:
+                changes[name] = float(material[name][j])
+        if "n_sliders" in material:
+            changes["n_sliders"] = int(material["n_sliders"][j])
+        result = simulate_pile(base_scene.replace(**changes), backend)
+        sim = Catalogue.from_result(result)
+        sim = Catalogue(sim.alpha, sim.size, sim.displacement, sim.first, sim.last,
+                        tilt_now=max(float(tilt), float(sim.tilt_now)))
+        cats.append(degrade(sim, measured, rng))
+        avalanched.append(result.alpha_c if result.status == "avalanche" else math.nan)
+    return cats, np.array(avalanched, dtype=float)
+
+
+def combined_verdict(check: dict, in_domain: bool, domain_reason: str) -> dict:
+    """The check's verdict on both tests: the prior predictive one (the model over its prior
+    makes catalogues like this one: ``in_domain``) and the posterior predictive one (piles at
+    posterior draws reproduce it: ``check["reproduced"]``).  The catalogue is reproduced when
+    both pass; ``reasons`` names each test that failed (``test``) and why (``detail``), and
+    ``tests`` each one's result."""
+    reasons = []
+    if not in_domain:
+        reasons.append({"test": "prior_predictive",
+                        "detail": "no pile of the prior makes a catalogue like it: "
+                                  + domain_reason})
+    if not check["reproduced"]:
+        name, p = smallest_p_value(check)
+        n = sum(v is not None for v in check["p_values"].values())
+        reasons.append({"test": "posterior_predictive",
+                        "detail": f"{check['simulated']} piles simulated at posterior draws "
+                                  f"differ in {name} (p {p_value_text(p)}, below "
+                                  f"{check['significance_level']:g} "
+                                  f"over the {n} statistics)"})
+    return {**check, "reproduced": not reasons, "reasons": reasons,
+            "tests": {"prior_predictive": in_domain, "posterior_predictive": check["reproduced"]}}
+
+
+def smallest_p_value(check: dict) -> tuple:
+    """The statistic of the check's smallest p-value and that p-value."""
+    return min(((k, v) for k, v in check["p_values"].items() if v is not None),
+               key=lambda kv: kv[1], default=("none", 1.0))
+
+
+def p_value_text(p: float) -> str:
+    """A p-value of the check as the text gives it: ``= 0.023``, or ``< 0.001`` below
+    ``P_VALUE_FLOOR``."""
+    return f"< {P_VALUE_FLOOR:g}" if p < P_VALUE_FLOOR else f"= {p:.2g}"

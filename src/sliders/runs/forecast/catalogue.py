@@ -1,36 +1,19 @@
-"""The catalogues of the forecast commands: a measured one read with its measurement
-(``predict``), and a simulated row written as one (``python -m sliders.forecast catalogue``).
-
-``predict`` reads a CSV file with a header, one event per row, columns
-``angle [deg]`` or ``angle [rad]`` (increasing, within the angle error: a noisy
-catalogue in time order is sorted), ``size`` (sliders or grains
-moved, >= 1), optionally ``displacement``, ``first`` and ``last`` (0-based
-positions of the first and last mover); bad input gets one line naming the row
-and the column (``io.forecast_files.read_catalogue_csv``).  How it was measured
-(angle error, smallest size, missed events, size unit, pile) are flags, read
-here as a ``Measurement``.
-
-``load_set`` reads a prior file's rows (``evaluate``, ``train``, ``catalogue``);
-``catalogue`` writes one simulated row as the CSV ``predict`` reads, cut at a
-tilt or a lead before its avalanche: the documentation's examples are made so.
+"""``python -m sliders.forecast catalogue``: a simulated row written as the CSV ``predict``
+reads, cut at a tilt or a lead before its avalanche (the documentation's examples are made so);
+the prior files' rows read for the commands (``load_set``: ``evaluate``, ``train``,
+``catalogue``); the measurement of the commands' flags (``measurement_of``).
 
     python -m sliders.forecast catalogue --data prior.h5 --row 7 --lead 3deg --out row7.csv
 """
 
 from __future__ import annotations
 
-import io
 import math
-import numbers
 import os
 
-import numpy as np
-
-from ...analysis.forecast.measurement import Measurement
-from ...io.catalogue import Catalogue, CatalogueSet
-from ...io.forecast_files import (CatalogueRead, ForecastInputError, angle_option, parse_angle,
-                                  read_catalogue_columns, read_catalogue_file,
-                                  read_catalogue_stream)
+from ...forecasting.catalogue import catalogue_csv_text, measurement_from
+from ...io.catalogue import CatalogueSet
+from ...io.forecast_files import ForecastInputError, parse_angle
 from ...io.prior_file import read_prior_ensemble
 from ...io.safeio import describe_os_error, publish_bytes
 from ...io.storage import StorageError
@@ -47,90 +30,10 @@ def load_set(path: str, what: str = "--data") -> CatalogueSet:
         raise ForecastInputError(f"{what}: {describe_os_error(exc, path)}") from None
 
 
-def read_source(source, where: str = "catalogue", angle_resolution: float = 0.0):
-    """The events of ``source``, the radians per unit of its angles and that unit's name
-    (``io.forecast_files.CatalogueRead``: with ``reordered``, the rows sorted).
-
-    ``source``: a CSV file's path (``-``: standard input); the CSV's bytes (``where`` names
-    them in a refusal); a mapping or a pandas-like DataFrame whose keys are the CSV header's
-    names (``"angle [deg]"`` or ``"angle [rad]"``, ``"size"``, ...), each a column of values,
-    every cell checked as the CSV reader checks a field (``read_catalogue_columns``); or a
-    ``Catalogue`` (radians).  Every refusal is one line naming the row and the column.
-    ``angle_resolution`` (radians): the angles' error; rows in time order whose angles go back
-    by less than ``ANGLE_TOLERANCE_RESOLUTIONS`` of it are sorted by angle, as the training's
-    noisy catalogues are.
-    """
-    if isinstance(source, Catalogue):
-        return CatalogueRead(source, 1.0, "rad")
-    if isinstance(source, (bytes, bytearray)):
-        return read_catalogue_stream(io.BytesIO(bytes(source)), where, angle_resolution)
-    if isinstance(source, (str, os.PathLike)):
-        return read_catalogue_file(os.fspath(source), angle_resolution)
-    if hasattr(source, "keys") and hasattr(source, "__getitem__"):
-        return read_catalogue_columns(source, where, angle_resolution)
-    raise ForecastInputError(f"catalogue: a {type(source).__name__}; give a CSV file's path, or "
-                             "a mapping or DataFrame of the CSV's columns")
-
-
-def angles_and_sizes(cat: Catalogue) -> tuple[Catalogue, bool]:
-    """``cat`` and whether it is complete (displacements and movers); an incomplete one is kept
-    to its angles and sizes (no displacement, no movers)."""
-    complete = not np.isnan(cat.displacement).any() and bool((cat.first >= 0).all())
-    if not complete:
-        cat = Catalogue(cat.alpha, cat.size, np.zeros(len(cat)), np.full(len(cat), -1),
-                        np.full(len(cat), -1), cat.tilt_now)
-    return cat, complete
-
-
-def measurement_from(angle_resolution, min_size=1.0, missed_fraction=0.0, size_unit="sliders",
-                     sliders=None) -> Measurement:
-    """The ``Measurement`` of the ``predict`` flags' values (one line naming a bad flag);
-    ``angle_resolution``: ``"0.3deg"``, ``"0.005rad"`` or a bare number of degrees;
-    ``sliders``: a whole number (any integer, NumPy's too, or a float such as 100.0)."""
-    res = angle_option(angle_resolution, "--angle-resolution")
-    n_sliders = sliders_option(sliders)
-    try:
-        return Measurement(res, float(min_size), float(missed_fraction), size_unit, n_sliders)
-    except (TypeError, ValueError) as exc:
-        raise ForecastInputError(f"measurement flags: {exc}") from None
-
-
-def sliders_option(sliders) -> int | None:
-    """The number of sliders of ``--sliders`` (``sliders=``) as an int, or one line naming it."""
-    if sliders is None:
-        return None
-    whole = None
-    if isinstance(sliders, (bool, np.bool_)):
-        pass
-    elif isinstance(sliders, numbers.Integral):
-        whole = int(sliders)
-    elif isinstance(sliders, numbers.Real) and math.isfinite(sliders) and sliders == int(sliders):
-        whole = int(sliders)
-    if whole is None or whole < 1:
-        raise ForecastInputError(f"--sliders {sliders}: the number of sliders of the pile must "
-                                 "be a whole number of at least 1")
-    return whole
-
-
 def measurement_of(args):
     """The ``Measurement`` the flags of ``predict`` describe (one line naming a bad flag)."""
     return measurement_from(args.angle_resolution, args.min_size, args.missed_fraction,
                             args.size_unit, args.sliders)
-
-
-def measurement_as_json(measurement) -> dict:
-    """The measurement as JSON values (the angle error in degrees, as given)."""
-    return {"angle_resolution_deg": math.degrees(measurement.angle_resolution),
-            "min_size": measurement.min_size, "missed_fraction": measurement.missed_fraction,
-            "size_unit": measurement.size_unit, "n_sliders": measurement.n_sliders}
-
-
-def catalogue_csv_text(cat) -> str:
-    """A catalogue as the CSV ``predict`` reads (angles in radians, every column)."""
-    lines = ["angle [rad],size,displacement,first,last"]
-    for a, s, d, f, la in zip(cat.alpha, cat.size, cat.displacement, cat.first, cat.last):
-        lines.append(f"{a:.10g},{int(s)},{d:.10g},{int(f)},{int(la)}")
-    return "\n".join(lines) + "\n"
 
 
 def catalogue(args, argv=None) -> int:

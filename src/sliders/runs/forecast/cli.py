@@ -34,7 +34,7 @@ import time
 from ..parallel import (MPIUnavailable, error_line, get_comm, launcher_rank, stopped_job_status,
                         under_mpi_launcher)
 from ..signals import STOP_SIGNALS, stop_signal, stopped_by_sigterm
-from .common import (ALARM_DELTA_DEG, CHECK_DRAWS, DEFAULT_LEADS_DEG, DEFAULT_TILTS,
+from ...forecasting.common import (ALARM_DELTA_DEG, CHECK_DRAWS, DEFAULT_LEADS_DEG, DEFAULT_TILTS,
                      POSTERIOR_MAX_ITER, PREDICT_METHODS, TRAIN_MAX_ITER)
 
 #: the subcommands: each is the function of its name in the module of its name (this package's)

@@ -37,7 +37,7 @@ from ...io.forecast_files import (ForecastInputError, OutputSet, check_output_ta
 from ...io.safeio import (check_output_name, leftovers_note, os_reason, remove_leftovers,
                           resolve_target)
 from .catalogue import load_set
-from .common import jsonable, progress_log, provenance
+from ...forecasting.common import jsonable, progress_log, provenance
 from .dev import dev_catalogue_set
 from .scoring import score_forecasters
 

@@ -1,7 +1,7 @@
 """``python -m sliders.forecast predict FILE --follow``: the live forecast's command.
 
 The options, and the file's existence, are checked before the model is loaded; then
-``ForecastModel.follow`` (the loop, ``follower.Follower``) yields the updates and this prints
+``ForecastModel.follow`` (the loop, ``sliders.forecasting.follower.Follower``) yields the updates and this prints
 them: each update's line and the alarm's lines it raised (``--json``: the update's JSON object,
 one a line, the alarm's lines on stderr); the notices (a bad row, a file read again) and the
 stop's line on stderr; at ``# avalanche`` the run's score (``--json``: ``{"summary": ...}`` as
@@ -16,9 +16,11 @@ import json
 import os
 import sys
 
-from .alarm import RunScore
-from .follower import check_source, rate_option
-from .predict import check_predict_options, load_model
+from ...forecasting.alarm import RunScore
+from ...forecasting.follower import check_source, rate_option
+from ...forecasting.predict import load_model
+from ..signals import raise_stopped
+from .predict import check_predict_options
 
 
 def follow_command(args, argv=None) -> int:
@@ -35,7 +37,7 @@ def follow_command(args, argv=None) -> int:
         missed_fraction=args.missed_fraction, size_unit=args.size_unit, sliders=args.sliders,
         method=args.method, alarm_threshold=getattr(args, "alarm_threshold", None),
         alarm_release=getattr(args, "alarm_release", None),
-        on_alarm=getattr(args, "on_alarm", None), plot=args.plot)
+        on_alarm=getattr(args, "on_alarm", None), plot=args.plot, on_signal=raise_stopped)
     updates = iter(follower)
     try:
         for update in updates:

@@ -11,7 +11,7 @@ import numpy as np
 from ...analysis.forecast import evaluation as ev
 from ...analysis.forecast.base import LOWER, MEDIAN, UPPER
 from ...analysis.forecast.registry import names_where
-from .common import (ALARM_DELTA_DEG, ALARM_STEP_DEG, ALARM_WINDOW_DEG, TARGET_LEAD_DEG,
+from ...forecasting.common import (ALARM_DELTA_DEG, ALARM_STEP_DEG, ALARM_WINDOW_DEG, TARGET_LEAD_DEG,
                      provenance)
 
 

@@ -35,7 +35,7 @@ from ...io.forecast_files import ForecastInputError, check_output_target
 from ...io.prior_file import another_draw, prior_seed, same_draw, shared_piles
 from ...io.safeio import resolve_target
 from .catalogue import load_set
-from .common import POSTERIOR_MAX_ITER, TRAIN_MAX_ITER, progress_log, provenance
+from ...forecasting.common import POSTERIOR_MAX_ITER, TRAIN_MAX_ITER, progress_log, provenance
 
 
 def run_prior(args, prior_out: str, log) -> None:

@@ -61,10 +61,9 @@ import sys
 import threading
 import time
 
-from ...io.forecast_files import (MAX_CATALOGUE_BYTES, MAX_LINE_BYTES, ForecastInputError,
+from ..io.forecast_files import (MAX_CATALOGUE_BYTES, MAX_LINE_BYTES, ForecastInputError,
                                   angle_option, parse_angle, read_catalogue_stream,
                                   tilt_in_range)
-from ..signals import handled, raise_stopped, stop_signal
 
 #: a file is polled this often, seconds (idle: a stat and an empty read each time)
 POLL_SECONDS = 0.15
@@ -422,6 +421,14 @@ class Update:
         return json.dumps(self.to_dict())
 
 
+def raise_interrupt(signum, frame):
+    """The follower's default stop handler: the signal ``signum`` raises KeyboardInterrupt
+    carrying it (``signum``), so that a call blocked in the kernel returns at once."""
+    exc = KeyboardInterrupt(signum)
+    exc.signum = signum
+    raise exc
+
+
 def _say_on_stderr(line: str) -> None:
     print(f"sliders.forecast: {line}", file=sys.stderr, flush=True)
 
@@ -466,12 +473,18 @@ class Follower:
         default: stderr.
     poll_seconds : float
         The wait between polls.
+    on_signal : callable, optional
+        ``on_signal(signum, frame)``, called by the iteration's handler of SIGINT and SIGTERM
+        after the loop has recorded the signal; it raises (a KeyboardInterrupt).  Default:
+        ``raise_interrupt``; the commands pass theirs (``runs.signals.raise_stopped``).
     """
 
     def __init__(self, model, source, *, tilt_now=None, tilt_rate=None, until=None,
                  within: float, measurement, method: str = "learned", alarm, score,
-                 picture=None, say=None, poll_seconds: float = POLL_SECONDS):
+                 picture=None, say=None, poll_seconds: float = POLL_SECONDS, on_signal=None):
         self.model = model
+        self.on_signal = on_signal or raise_interrupt
+        self.signum: int | None = None  # the stop signal received while iterating
         self.where = check_source(source)
         self.say = say or _say_on_stderr
         self.rate = rate_option(tilt_rate) if tilt_rate is not None else None
@@ -515,7 +528,7 @@ class Follower:
 
     def stop_by_signal(self, exc: KeyboardInterrupt) -> None:
         """Stop for the signal behind ``exc`` (SIGINT: 130, SIGTERM: 143)."""
-        signum = stop_signal(exc)
+        signum = getattr(exc, "signum", None) or self.signum or signal.SIGINT
         name = signal.Signals(signum).name
         self.stop(name, f"stopped ({name})", 128 + signum)
 
@@ -789,11 +802,26 @@ class Follower:
             picture, self.picture = self.picture, None
             picture.close()
 
+    def _signal(self, signum, frame):
+        self.signum = signum
+        self.on_signal(signum, frame)
+
+    @contextlib.contextmanager
+    def _signals_handled(self):
+        """Within: SIGINT and SIGTERM recorded and raised (``_signal``); the previous handlers
+        restored on exit."""
+        old = {s: signal.signal(s, self._signal) for s in (signal.SIGTERM, signal.SIGINT)}
+        try:
+            yield
+        finally:
+            for s, h in old.items():
+                signal.signal(s, h)
+
     def __iter__(self):
         """The updates, one per new state, until a stop; SIGINT and SIGTERM stop the loop
         (their handler raises while it runs: a call blocked in the kernel returns)."""
         main = threading.current_thread() is threading.main_thread()
-        with handled(raise_stopped) if main else contextlib.nullcontext():
+        with self._signals_handled() if main else contextlib.nullcontext():
             finished = False
             try:
                 while self.proceed:

@@ -11,8 +11,8 @@ import math
 import sys
 import time
 
-from ..._version import __version__
-from ...analysis.forecast.registry import METHODS
+from .._version import __version__
+from ..analysis.forecast.registry import METHODS
 
 #: leads before the avalanche at which the test runs are cut, degrees
 DEFAULT_LEADS_DEG = (0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0)

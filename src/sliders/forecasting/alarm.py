@@ -39,8 +39,8 @@ import signal
 import subprocess
 import threading
 
-from ...io.forecast_files import ForecastInputError
-from ...io.safeio import publish_bytes
+from ..io.forecast_files import ForecastInputError
+from ..io.safeio import publish_bytes
 from .common import probability_text
 
 #: the release level's gap below the threshold (``default_release``)
@@ -67,7 +67,7 @@ HOOK_ENVIRONMENT = {
 def resolved_probabilities() -> tuple[float, float]:
     """The least and the greatest P(within) a forecast resolves (its quantile levels' ends):
     beyond them the text gives a bound and JSON the bound's value."""
-    from ...analysis.forecast.base import LEVELS
+    from ..analysis.forecast.base import LEVELS
 
     return float(LEVELS[0]), float(LEVELS[-1])
 
@@ -405,7 +405,7 @@ def png_bytes(prediction, status: dict | None = None) -> bytes:
     pyplot, so safe in a thread: saving it as PNG draws it on an Agg canvas); ``status``
     (``"alarm"``, ``"alarm_threshold"``, ``"time"``, ``"rows"``, ``"file"``) the live picture's
     banner (``figures.bench.bench_figure``)."""
-    from ...figures.bench import save_png
+    from ..figures.bench import save_png
 
     fig = prediction.figure(status=status)
     buf = io.BytesIO()
@@ -452,7 +452,7 @@ class LatestPicture:
         self._closed = False
         self._error: BaseException | None = None
         if self.fork and draw is png_bytes:
-            from ...figures import bench  # noqa: F401 - imported once here, not in each child
+            from ..figures import bench  # noqa: F401 - imported once here, not in each child
         self._thread = threading.Thread(target=self._run, daemon=True, name="sliders-picture")
         self._thread.start()
 
