@@ -63,8 +63,9 @@ import tempfile
 import time
 
 import numpy as np
-from scipy.stats import kstest
 
+from sliders.analysis.forecast.calibration import (COVERAGES, calibration_of, ks_count,
+                                                  randomized_pit)
 from sliders.analysis.forecast.features import Cuts
 from sliders.figures.style import save_figure
 from sliders.analysis.forecast.measurement import PERFECT
@@ -75,7 +76,6 @@ from sliders.forecasting.infer import load_posterior
 from sliders.runs.forecast.infer import CHECK_SIMULATION
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-COVERAGES = (0.5, 0.8, 0.95)
 LEAD_ERROR = math.radians(3.0)  # the lead of atan(mu_d)'s error
 LEAD_CHECK = math.radians(1.0)  # the lead of the predictive check's cut
 TARGETS = {"coverage_tolerance": 0.03, "atan_mu_d_error_rad": 2e-3, "outside_flagged": 0.9,
@@ -113,15 +113,6 @@ def one_cut_per_row(cset, top: float, rng) -> tuple[np.ndarray, np.ndarray]:
     return rows[keep], tilts[keep]
 
 
-def coverage_of(lo, hi, c: float) -> float:
-    """The share of the truths inside the central ``c`` interval, each PIT uniform on
-    [``lo``, ``hi``] (an atom's share inside counted in part; a point where they meet)."""
-    a, b = 0.5 - c / 2, 0.5 + c / 2
-    width = hi - lo
-    part = np.clip(np.minimum(hi, b) - np.maximum(lo, a), 0.0, None) / np.where(width > 0, width, 1)
-    return float(np.mean(np.where(width > 0, part, (lo >= a) & (lo <= b))))
-
-
 def cut_quantiles(post, cset, rows, tilts, kind: str = "complete") -> np.ndarray:
     """The posterior's reported quantiles (``quantiles``) of ``rows`` cut at ``tilts``, recorded
     as they are: complete catalogues, or kept to their angles and sizes (``kind``)."""
@@ -133,20 +124,15 @@ def cut_quantiles(post, cset, rows, tilts, kind: str = "complete") -> np.ndarray
 
 def sbc(post, cset, pairs, rng, kind: str) -> dict:
     """Ranks (posterior CDFs of the truths, the atoms spread at random) of the (row, tilt)
-    ``pairs``, their KS p-value and the central intervals' coverage (``coverage_of``), per
+    ``pairs``, their KS p-value and the central intervals' coverage (``calibration_of``), per
     parameter."""
     rows, tilts = pairs
     truth = {p: np.asarray(cset.parameters[p])[rows] for p in post.parameters_}
     q = cut_quantiles(post, cset, rows, tilts, kind)
     lo, hi = post.pit_bounds(q, truth)
-    ranks = rng.uniform(lo, hi)  # lo itself where the two meet (no atom)
-    out = {}
-    for j, p in enumerate(post.parameters_):
-        u = ranks[:, j]
-        out[p] = {"ks_p_value": float(kstest(u, "uniform").pvalue),
-                  "coverage": {f"{c:g}": coverage_of(lo[:, j], hi[:, j], c) for c in COVERAGES},
-                  "ranks": u.tolist()}
-    return out
+    ranks = randomized_pit(lo, hi, rng)
+    return {p: calibration_of(lo[:, j], hi[:, j], ranks[:, j])
+            for j, p in enumerate(post.parameters_)}
 
 
 def ks_over_cut_draws(post, sbc_set, top: float, first: dict, args, log) -> dict:
@@ -160,10 +146,10 @@ def ks_over_cut_draws(post, sbc_set, top: float, first: dict, args, log) -> dict
         for kind in p_values:
             for p, d in sbc(post, sbc_set, pairs, rng, kind).items():
                 p_values[kind][p].append(d["ks_p_value"])
-    every = [v for kind in p_values.values() for ps in kind.values() for v in ps]
-    out = {"draws": args.sbc_draws, "p_values": p_values, "tests": len(every),
-           "failed_at_5_percent": int(sum(v <= 0.05 for v in every)),
-           "expected_to_fail_if_calibrated": 0.05 * len(every)}
+    count = ks_count(p_values, 0.05)
+    out = {"draws": args.sbc_draws, "p_values": p_values, "tests": count["tests"],
+           "failed_at_5_percent": count["failed"],
+           "expected_to_fail_if_calibrated": count["expected_if_calibrated"]}
     log(f"KS over {args.sbc_draws} cut draws: {out['failed_at_5_percent']} of {out['tests']} "
         f"tests fail at 5 % ({out['expected_to_fail_if_calibrated']:.1f} expected by chance)")
     return out

@@ -52,10 +52,9 @@ import json
 import math
 
 import numpy as np
-from scipy.special import ndtr, ndtri
-from scipy.stats import binomtest, kstest
 
 from ...io.catalogue import Catalogue, CatalogueSet
+from .calibration import pit_is_off
 from .domain import DOMAIN_FEATURES, DomainCheck
 from .estimator import Estimator
 from .features import Cuts, coupled_lone_slips, feature_matrix, training_cuts
@@ -96,7 +95,8 @@ RECALIBRATION_GROUPS = ("complete_lone_slips", "complete_exact", "complete_measu
 RECALIBRATION_MIN_CUTS = 200
 #: the recalibration's cuts of each calibration realisation, in units of ``draws_per_row``
 RECALIBRATION_DRAWS = 4
-#: the level of the uniformity tests (``pit_is_off``, one calibration cut a realisation)
+#: the level of the uniformity tests (``calibration.pit_is_off``, one calibration cut a
+#: realisation)
 #: that a group's PITs of a parameter under the conformal CDF must fail for that CDF to be
 #: recalibrated: a map fitted where the CDF is already calibrated would only add its noise
 RECALIBRATION_ALPHA = 0.05
@@ -115,17 +115,6 @@ PHYSICAL_RANGES = {"mu_d": (0.0, 1e3), "mu_s_minus_mu_d": (0.0, 1e3), "sigma_mu"
                    "xi": (0.0, 1e6), "n_sliders": (2.0, 1e12)}
 #: the fewest decades below 1 a parameter learned as log10 may reach (10**-300 is a number)
 LOG_FLOOR = -300.0
-
-
-def pit_is_off(u) -> bool:
-    """Independent probability integral transforms ``u`` are not uniform: the
-    Kolmogorov-Smirnov test, or the share in a central 50, 80 or 95 % interval (binomial),
-    fails at ``RECALIBRATION_ALPHA``."""
-    if kstest(u, "uniform").pvalue < RECALIBRATION_ALPHA:
-        return True
-    inside = [int(np.sum(np.abs(np.asarray(u) - 0.5) <= c / 2)) for c in CENTRAL_INTERVALS]
-    return any(binomtest(k, len(u), c).pvalue < RECALIBRATION_ALPHA
-               for k, c in zip(inside, CENTRAL_INTERVALS))
 
 
 def recalibration_map(u, previous=REPORTED_LEVELS) -> np.ndarray:
@@ -427,7 +416,8 @@ class ParameterPosterior(Estimator):
                 if round_ == 0:  # one cut a realisation, independent PITs: off at all?
                     order = rng.permutation(np.flatnonzero(group == g))
                     one = order[np.unique(cuts.row[order], return_index=True)[1]]
-                    off[g] = [pit_is_off(u[one, p]) for p in range(n_p)]
+                    off[g] = [pit_is_off(u[one, p], RECALIBRATION_ALPHA, CENTRAL_INTERVALS)
+                              for p in range(n_p)]
                 for p in np.flatnonzero(off[g]):
                     self.recalibration_[g, p] = recalibration_map(
                         u[group == g, p], self.recalibration_[g, p])
@@ -437,6 +427,8 @@ class ParameterPosterior(Estimator):
         """How the parameters vary together about their posterior: the correlation of the
         normal scores of ``u``, the held-out truths' posterior CDFs (a Gaussian copula, the
         same for every catalogue: the quantiles are learned one parameter at a time)."""
+        from scipy.special import ndtri
+
         u = np.clip(u, 1e-4, 1 - 1e-4)
         c = np.corrcoef(ndtri(u), rowvar=False) if len(u) > 2 else np.eye(u.shape[1])
         c = np.nan_to_num(np.atleast_2d(c), nan=0.0)
@@ -597,6 +589,8 @@ class ParameterPosterior(Estimator):
         """``n`` draws of every parameter for one cut, in the parameters' own units (xi = 0
         and the prior's numbers of sliders as they are drawn): each parameter's inverse CDF
         at uniform draws joined by the Gaussian copula ``copula_``."""
+        from scipy.special import ndtr  # imported here: not at the posterior's import
+
         z = rng.standard_normal((n, len(self.parameters_))) @ np.linalg.cholesky(self.copula_).T
         u = ndtr(z)
         return {name: self.physical(name, self.ppf(q_row, p, u[:, p]))
