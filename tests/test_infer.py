@@ -417,3 +417,20 @@ def test_a_calibration_set_only_calibrates(held_out, model):
                                            extra.alpha_c[:1], ["avalanche"])
     with pytest.raises(IntegrityError, match="calibration realisations lack"):
         ParameterPosterior(**kw).fit(train, calibration=lacking)
+
+
+def test_one_catalogues_posterior_is_a_small_object_of_the_estimators_answers(model, held_out):
+    """``given(catalogue)``: its summary and contraction are the estimator's for the catalogue's
+    quantiles, its inverse CDF undoes its CDF, and its draws follow its CDF."""
+    cats, _ = held_out
+    post = model.posterior
+    given = post.given(cats[0], PERFECT)
+    q = post.quantiles(Cuts.from_catalogues([cats[0]], PERFECT))[0]
+    assert given.summary() == post.summary(q) and given.contraction() == post.contraction(q)
+    levels = np.array([0.1, 0.5, 0.9])
+    at = given.ppf(levels)
+    assert at["mu_d"][1] == pytest.approx(given.summary()["mu_d"]["median"])
+    assert np.allclose(given.cdf({"mu_d": at["mu_d"], "sigma_mu": at["sigma_mu"]})["mu_d"], levels)
+    draws = given.sample(2000, np.random.default_rng(0))
+    below = np.mean(draws["mu_d"] <= at["mu_d"][1])
+    assert abs(below - 0.5) < 0.05 and set(draws) == set(given.parameters)

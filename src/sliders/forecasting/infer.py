@@ -144,7 +144,7 @@ class PosteriorModel:
         cat, complete = angles_and_sizes(cat)
         cuts = Cuts.from_catalogues([cat], measurement)
         try:
-            q = post.quantiles(cuts)[0]
+            given = post.given(cuts)
             inside, reasons = post.domain(cuts)
         except AttributeError:  # a posterior of another version lacks what this one reads
             raise ForecastInputError(f"{self.path}: written by sliders "
@@ -153,10 +153,10 @@ class PosteriorModel:
         rng = np.random.default_rng([seed, 11])
         verdict = None
         if check:
-            verdict = self.predictive_check(post.sample(q, check_draws, rng), cat, measurement,
+            verdict = self.predictive_check(given.sample(check_draws, rng), cat, measurement,
                                             rng, complete)
             verdict = combined_verdict(verdict, bool(inside[0]), reasons[0])
-        report = {"parameters": post.summary(q), "contraction": post.contraction(q),
+        report = {"parameters": given.summary(), "contraction": given.contraction(),
                   "in_domain": bool(inside[0]), "domain_reason": reasons[0],
                   "events": len(cat), "tilt_now": float(cat.tilt_now),
                   "complete": complete, "notes": list(notes),
@@ -164,7 +164,7 @@ class PosteriorModel:
                   "measurement": measurement_as_json(measurement),
                   "check": verdict,
                   "posterior": {"path": str(self.path), **self.provenance}}
-        return Inference(jsonable(report), post.sample(q, 4000, rng), post.prior_range())
+        return Inference(jsonable(report), given.sample(4000, rng), post.prior_range())
 
     def predictive_check(self, material: dict, cat: Catalogue, measurement: Measurement,
                          rng, complete: bool = True) -> dict:

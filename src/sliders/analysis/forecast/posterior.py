@@ -647,6 +647,13 @@ class ParameterPosterior(Estimator):
                        if self.high_[p] > self.low_[p] else None)
                 for p, name in enumerate(self.parameters_)}
 
+    def given(self, catalogue, measurement=PERFECT) -> "CataloguePosterior":
+        """The posterior of one catalogue: ``catalogue`` a ``Catalogue`` at its tilt reached,
+        recorded as ``measurement`` says, or the ``Cuts`` of one cut (``quantiles``)."""
+        cuts = (catalogue if isinstance(catalogue, Cuts)
+                else Cuts.from_catalogues([catalogue], measurement))
+        return CataloguePosterior(self, self.quantiles(cuts)[0])
+
     def prior_range(self) -> dict:
         """Each parameter's prior range in its own units (xi: its positive range)."""
         out = {}
@@ -750,3 +757,57 @@ class ParameterPosterior(Estimator):
             raise IntegrityError("posterior: the copula is not positive definite") from None
         self.domain_.check_fitted("posterior's domain check")
 
+
+class CataloguePosterior:
+    """The posterior of one catalogue's pile (``ParameterPosterior.given``): its draws, CDF,
+    inverse CDF, summary and contraction, every value in the parameter's own units.
+
+    Attributes
+    ----------
+    estimator : ParameterPosterior
+        The fitted posterior.
+    quantiles : numpy.ndarray
+        (P, M) every parameter's reported quantiles for this catalogue (learned scale).
+    """
+
+    def __init__(self, estimator: ParameterPosterior, quantiles: np.ndarray):
+        self.estimator = estimator
+        self.quantiles = quantiles
+
+    def __repr__(self) -> str:
+        """One line: the parameters."""
+        return f"<CataloguePosterior of {', '.join(self.estimator.parameters_)}>"
+
+    @property
+    def parameters(self) -> list[str]:
+        """The parameters, in order."""
+        return list(self.estimator.parameters_)
+
+    def sample(self, n: int, rng) -> dict:
+        """``n`` draws of every parameter, joined by the copula (``ParameterPosterior.sample``)."""
+        return self.estimator.sample(self.quantiles, n, rng)
+
+    def cdf(self, values: dict) -> dict:
+        """P(parameter <= value) of each parameter of ``values`` (``{name: values}``, its own
+        units)."""
+        est = self.estimator
+        return {name: est.cdf(self.quantiles, est.parameters_.index(name),
+                              learned_scale(name, np.asarray(v, dtype=float), est.xi_zero_code_))
+                for name, v in values.items()}
+
+    def ppf(self, levels) -> dict:
+        """Every parameter's values at the probabilities ``levels`` (the inverse CDF), in its
+        own units."""
+        est = self.estimator
+        u = np.asarray(levels, dtype=float)
+        return {name: est.physical(name, est.ppf(self.quantiles, p, u))
+                for p, name in enumerate(est.parameters_)}
+
+    def summary(self) -> dict:
+        """Median, 80 % and 95 % intervals of every parameter (``ParameterPosterior.summary``)."""
+        return self.estimator.summary(self.quantiles)
+
+    def contraction(self) -> dict:
+        """How much the catalogue narrowed each parameter's prior
+        (``ParameterPosterior.contraction``)."""
+        return self.estimator.contraction(self.quantiles)
