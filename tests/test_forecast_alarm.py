@@ -19,13 +19,13 @@ rad = math.radians
 
 
 def prediction(p, tilt=28.0, alpha=29.0, interval=(28.5, 30.0), bounds=(0.05, 0.95),
-               threshold=0.5, calibrated=True) -> dict:
+               threshold=0.5, calibrated=True, fallback=False) -> dict:
     """A forecast's ``to_dict()`` as the alarm reads it (degrees given, radians kept)."""
     return {"probability_within": p, "tilt_now": rad(tilt), "within": rad(1.0),
             "alpha_c": rad(alpha), "interval": [rad(interval[0]), rad(interval[1])],
             "alarm_threshold": threshold,
             "methods": {"learned": {"probability_bounds": list(bounds),
-                                    "calibrated": calibrated}}}
+                                    "calibrated": calibrated, "fallback": fallback}}}
 
 
 class Lines(list):
@@ -90,9 +90,21 @@ def test_the_alarm_line_prints_p_as_the_update_line_does():
     assert "1.00" not in said[0] and "= 0.99" not in said[0]
     assert "avalanche angle 29.00° (80 % interval 28.50-30.00°)" in said[0]
     said.clear()
-    Alarm(0.5, say=said).update(prediction(0.62, calibrated=False), rows=7)
+    Alarm(0.5, say=said).update(prediction(0.62, calibrated=False, fallback=True), rows=7)
     assert "P(avalanche within the next 1°) = 0.62" in said[0]
     assert "widened interval, uncalibrated" in said[0]
+
+
+def test_the_alarm_line_names_the_interval_as_every_output_does():
+    """An interval uncalibrated but not widened (the pile outside the training domain, the
+    learned forecaster's own interval) is "interval, uncalibrated" in the ALARM line as in the
+    update line and the picture (``report.interval_name``), not "widened"."""
+    from sliders.forecasting.report import interval_name
+
+    said = Lines()
+    Alarm(0.5, say=said).update(prediction(0.62, calibrated=False), rows=7)
+    assert "avalanche angle 29.00° (interval, uncalibrated 28.50-30.00°)" in said[0]
+    assert interval_name({"calibrated": False, "fallback": False}, "learned") in said[0]
 
 
 # ---- the hook -----------------------------------------------------------------------

@@ -90,3 +90,13 @@ def _to_palette(path: str, dpi: int) -> None:
         small = im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT,
                                            dither=Image.Dither.NONE)
     small.save(path, optimize=True, dpi=(dpi, dpi))
+
+
+def png_bytes(fig, dpi: int) -> bytes:
+    """``fig`` as PNG bytes at ``dpi`` (drawn on an Agg canvas of its own, no pyplot state: safe
+    in a thread), to be written whole by the caller (``io.safeio.publish_bytes``)."""
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()

@@ -30,7 +30,6 @@ Three pieces of ``predict --follow`` (``follower.py``), each usable alone:
 from __future__ import annotations
 
 import gc
-import io
 import math
 import os
 import shlex
@@ -42,6 +41,7 @@ import threading
 from ..io.forecast_files import ForecastInputError
 from ..io.safeio import publish_bytes
 from .common import probability_text
+from .report import interval_name
 
 #: the release level's gap below the threshold (``default_release``)
 RELEASE_GAP = 0.1
@@ -174,10 +174,6 @@ def probability_within(prediction) -> float:
     return float(m.get("probability_within_raw", prediction["probability_within"]))
 
 
-def _interval_name(method: dict) -> str:
-    return "80 % interval" if method.get("calibrated", True) else "widened interval, uncalibrated"
-
-
 class Alarm:
     """The alarm of a live forecast, with hysteresis (module docstring).
 
@@ -249,12 +245,13 @@ class Alarm:
     def alarm_line(self, prediction, rows: int, threshold: float) -> str:
         """The ALARM line: where, P as the update line prints it, the forecast."""
         deg = math.degrees
-        m = _first_method(prediction)
+        method = next(iter(prediction["methods"]))
+        m = prediction["methods"][method]
         lo, hi = prediction["interval"]
         return (f"ALARM at {deg(prediction['tilt_now']):.2f}° (rows {rows}): P(avalanche within "
                 f"the next {deg(prediction['within']):g}°) {self._p_text(prediction)}, at or "
                 f"above the threshold {threshold:g}; avalanche angle "
-                f"{deg(prediction['alpha_c']):.2f}° ({_interval_name(m)} {deg(lo):.2f}-"
+                f"{deg(prediction['alpha_c']):.2f}° ({interval_name(m, method)} {deg(lo):.2f}-"
                 f"{deg(hi):.2f}°)")
 
     def off_line(self, prediction, rows: int, release: float) -> str:
@@ -267,7 +264,8 @@ class Alarm:
     def environment(self, prediction, rows: int, threshold: float) -> dict:
         """The hook's variables (``HOOK_ENVIRONMENT``) for ``prediction``."""
         deg = math.degrees
-        m = _first_method(prediction)
+        method = next(iter(prediction["methods"]))
+        m = prediction["methods"][method]
         lo, hi = prediction["interval"]
         return {"SLIDERS_ALARM_P": f"{float(prediction['probability_within']):.6g}",
                 "SLIDERS_ALARM_P_TEXT": self._p_text(prediction),
@@ -405,12 +403,7 @@ def png_bytes(prediction, status: dict | None = None) -> bytes:
     pyplot, so safe in a thread: saving it as PNG draws it on an Agg canvas); ``status``
     (``"alarm"``, ``"alarm_threshold"``, ``"time"``, ``"rows"``, ``"file"``) the live picture's
     banner (``figures.bench.bench_figure``)."""
-    from ..figures.bench import save_png
-
-    fig = prediction.figure(status=status)
-    buf = io.BytesIO()
-    save_png(fig, buf)
-    return buf.getvalue()
+    return prediction.png(status=status)
 
 
 class LatestPicture:

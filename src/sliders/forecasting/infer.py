@@ -28,9 +28,7 @@ and whose ``str()`` is the text output; ``sliders.forecast.load()`` gives an
 
 from __future__ import annotations
 
-import copy
 import dataclasses
-import io
 import math
 from typing import Callable
 
@@ -39,7 +37,6 @@ import numpy as np
 from ..io.catalogue import Catalogue
 from ..io.forecast_files import ForecastInputError
 from ..io.forecast_model import default_posterior_path
-from ..io.safeio import publish_bytes
 from ..scene import check_memory
 from ..analysis.forecast.features import Cuts
 from ..analysis.forecast.measurement import Measurement
@@ -48,6 +45,7 @@ from ..analysis.forecast.posterior_check import (combined_verdict, p_value_text,
 from .catalogue import angles_and_sizes, measurement_as_json, measurement_from, read_source
 from .common import CHECK_DRAWS, jsonable
 from .predict import ForecastModel, load_model, prepared, read_model_file
+from .report import Report
 
 #: the most piles the predictive check may simulate
 MAX_CHECK_DRAWS = 1000
@@ -194,7 +192,7 @@ class PosteriorModel:
         return scene
 
 
-class Inference:
+class Inference(Report):
     """The posterior of one catalogue: ``to_dict()`` (the ``infer --json`` object), ``str()``
     (the text output), ``plot(path)`` (the corner plot).
 
@@ -207,23 +205,15 @@ class Inference:
     """
 
     def __init__(self, report: dict, draws: dict, prior_range: dict):
-        self._report = report
+        super().__init__(report)
         self.draws = draws
         self.prior_range = prior_range
-
-    def __getitem__(self, key):
-        """A value of ``to_dict()``."""
-        return self._report[key]
 
     def __repr__(self) -> str:
         """One line: mu_d's median and the events."""
         mu = self._report["parameters"].get("mu_d", {}).get("median")
         return f"<Inference mu_d {mu:.3f} from {self._report['events']} events>" if mu else \
             f"<Inference from {self._report['events']} events>"
-
-    def to_dict(self) -> dict:
-        """The posterior as JSON values: what ``infer --json`` prints."""
-        return copy.deepcopy(self._report)
 
     def lines(self) -> list[str]:
         """The text output: the catalogue, the domain, one line per parameter, the check."""
@@ -245,10 +235,6 @@ class Inference:
                    f"training rows, {d['posterior'].get('created', '?')})")
         return out
 
-    def __str__(self) -> str:
-        """The text output (``lines``)."""
-        return "\n".join(self.lines())
-
     def figure(self):
         """The corner plot (``figures.posterior.corner_figure``): a matplotlib Figure, the
         predictive check's verdict on it."""
@@ -256,12 +242,6 @@ class Inference:
 
         return corner_figure(self.draws, self.prior_range, self._report["parameters"],
                              check=self._report["check"] or "skipped")
-
-    def plot(self, path) -> None:
-        """Write the corner plot to ``path`` (PNG), whole or not at all."""
-        buf = io.BytesIO()
-        self.figure().savefig(buf, format="png", dpi=110)
-        publish_bytes(str(path), buf.getvalue(), overwrite=True)
 
 
 def parameter_text(name: str, p: dict) -> str:

@@ -14,8 +14,6 @@ catalogue and returns a ``Prediction``, whose ``to_dict()`` is what
 
 from __future__ import annotations
 
-import copy
-import io
 import math
 
 import numpy as np
@@ -27,9 +25,9 @@ from ..io.catalogue import Catalogue
 from ..io.forecast_files import (ANGLE_TOLERANCE_RESOLUTIONS, ForecastInputError, angle_option,
                                  parse_angle, tilt_in_range)
 from ..io.forecast_model import ModelFileError, default_model_path
-from ..io.safeio import publish_bytes
 from .alarm import Alarm, LatestPicture, RunScore
 from .catalogue import angles_and_sizes, measurement_as_json, measurement_from, read_source
+from .report import Report, interval_name
 from .common import (ALARM_DELTA_DEG, PREDICT_METHODS, clipped_probability, jsonable,
                      probability_text)
 from .follower import Follower, check_source
@@ -254,22 +252,6 @@ class ForecastModel:
         return Prediction(jsonable(top_level | report), forecasts, cat, complete, measurement)
 
 
-def interval_name(method_dict: dict, method: str) -> str:
-    """What a method's interval is, in the words every output uses (``predict``'s lines,
-    ``--follow``'s update line, the picture): ``method_dict`` is the method's entry of
-    ``to_dict()["methods"]``."""
-    from ..analysis.forecast.base import NOMINAL_COVERAGE
-
-    if method_dict["calibrated"]:
-        return f"{NOMINAL_COVERAGE * 100:.0f} % interval"
-    fallback = method_dict.get("fallback", False)
-    if fallback and method != "learned":
-        return "climatology's 10-90 % range, uncalibrated"
-    if fallback:  # the learned forecaster out of its domain
-        return "widened interval, uncalibrated"
-    return "interval, uncalibrated"
-
-
 def within_option(within) -> float:
     """The alarm's horizon (radians) of ``--within``, in (0, 90°)."""
     delta = angle_option(within, "--within")
@@ -371,7 +353,7 @@ def disjoint_intervals(methods: dict) -> list[str]:
             f"{math.degrees(b[1]):.2f}°) do not overlap; trust neither alone"]
 
 
-class Prediction:
+class Prediction(Report):
     """A forecast of a catalogue by every method asked: ``to_dict()`` (the ``predict --json``
     object), ``lines()`` (the text output), ``plot(path)`` (the bench picture).
 
@@ -388,7 +370,7 @@ class Prediction:
     """
 
     def __init__(self, report: dict, forecasts, catalogue, complete: bool, measurement):
-        self._report = report
+        super().__init__(report)
         self.forecasts = forecasts
         self.catalogue = catalogue
         self.complete = complete
@@ -399,14 +381,6 @@ class Prediction:
         d = self._report
         return (f"<Prediction {d['forecaster']}: {math.degrees(d['alpha_c']):.2f}° from "
                 f"{math.degrees(d['tilt_now']):.2f}°, {d['events']} events>")
-
-    def __getitem__(self, key):
-        """A value of ``to_dict()``."""
-        return self._report[key]
-
-    def to_dict(self) -> dict:
-        """The forecast as JSON values (radians): what ``predict --json`` prints."""
-        return copy.deepcopy(self._report)
 
     @property
     def alarm(self) -> bool:
@@ -464,10 +438,6 @@ class Prediction:
                     out.append(f"  {k}: {f'{len(v)} rows' if k == 'held_out_rows' else v}")
         return out
 
-    def __str__(self) -> str:
-        """The text output (``lines``)."""
-        return "\n".join(self.lines())
-
     #: the sizes' unit as the picture's axis names it (``predict``'s ``size_label``)
     size_label = None
 
@@ -488,12 +458,3 @@ class Prediction:
                             within=d["within"], size_unit=self.measurement.size_unit,
                             size_label=self.size_label, status=status,
                             interval_name=interval_name(m, method))
-
-    def plot(self, path, status: dict | None = None) -> None:
-        """Write the bench picture to ``path`` (PNG), whole or not at all (a temporary file
-        beside it, then renamed over it); ``status`` as ``figure``'s."""
-        from ..figures.bench import save_png
-
-        buf = io.BytesIO()
-        save_png(self.figure(status=status), buf)
-        publish_bytes(str(path), buf.getvalue(), overwrite=True)
