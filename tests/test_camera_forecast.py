@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from sliders.analysis.forecast.features import Cuts, camera_features, displacement_scale
-from sliders.analysis.forecast.learned import EDGE_RESOLUTIONS, Learned, edge
+from sliders.analysis.forecast.base import EDGE_RESOLUTIONS, edge
+from sliders.analysis.forecast.learned import Learned
 from sliders.analysis.forecast.measurement import (Measurement, degrade, degrade_cuts,
                                                    tell_sliders)
 from sliders.io.catalogue import Catalogue, CatalogueSet
@@ -127,3 +128,11 @@ def test_a_noisy_tilts_avalanche_may_lie_below_its_last_angle():
     assert edge(cuts) == pytest.approx(np.array([seen.tilt_now, cat.tilt_now])
                                        - EDGE_RESOLUTIONS * math.radians(0.3))
     assert edge(Cuts.from_catalogues([cat]))[0] == cat.tilt_now
+    # a forecast keeps quantiles down to its floor, not to the noisy tilt reached
+    from sliders.analysis.forecast.base import LEVELS, Forecast
+
+    q = 0.5 + 0.02 * (LEVELS - 0.2)
+    kept = Forecast(q, 0.5, "learned_blind", floor=0.49)
+    assert kept.interval[0] < 0.5 and not kept.clipped
+    assert Forecast(q, 0.5, "learned_blind").interval[0] == 0.5
+    assert Forecast(q, 0.5, "learned_blind", floor=0.4985).clipped

@@ -224,8 +224,10 @@ def reference_catalogues() -> list:
     A pile's 150 events accelerating towards an avalanche near 31°, with
     displacements and movers, recorded perfectly; its angles and sizes only, the
     events of 2 sliders or more, a twentieth of a degree of angle error, a tenth
-    missed; 40 events early in the tilt, sizes in an arbitrary unit; and a pile
-    of 50 sliders, told, at 12° with 6 events.
+    missed; 40 events early in the tilt, sizes in an arbitrary unit; a pile
+    of 50 sliders, told, at 12° with 6 events; and the first as a camera records it
+    (displacements in its unit, positions as fractions of the pile's length, 100-300
+    sliders told).
     """
     rng = np.random.default_rng(20261128)
     u = np.sort(rng.random(150))
@@ -243,11 +245,16 @@ def reference_catalogues() -> list:
                       -np.ones(40, np.int64), tilt_now=float(alpha[39]) + 0.01)
     few = Catalogue(alpha[:6], size[:6], disp[:6], first[:6], last[:6],
                     tilt_now=math.radians(12.0))
+    camera = Catalogue(alpha, size, 37.0 * disp, (first + 0.5) / 200, (last + 0.5) / 200,
+                       tilt_now=full.tilt_now)
     return [(full, Measurement()),
             (blind, Measurement(angle_resolution=math.radians(0.05), min_size=2.0,
                                 missed_fraction=0.1)),
             (early, Measurement(size_unit="arbitrary", min_size=0.37)),
-            (few, Measurement(n_sliders=50))]
+            (few, Measurement(n_sliders=50)),
+            (camera, Measurement(angle_resolution=math.radians(0.05), n_sliders=100,
+                                 n_sliders_high=300, displacement_unit="arbitrary",
+                                 position_unit="fraction"))]
 
 
 def reference_cuts(cases=None):
@@ -305,14 +312,17 @@ def catalogue_arrays(cases) -> dict:
     """``{name: array}`` of catalogues and their measurements (``reference_catalogues``)."""
     cats = [c for c, _ in cases]
     ms = [m for _, m in cases]
+    camera = any(c.first.dtype.kind == "f" for c in cats)  # positions as fractions: floats
     out = {f"catalogue.{col}": np.concatenate([np.asarray(getattr(c, col)) for c in cats])
-           .astype(np.float64 if col in ("alpha", "size", "displacement") else np.int64)
+           .astype(np.float64 if col in ("alpha", "size", "displacement") or camera else np.int64)
            for col in ("alpha", "size", "displacement", "first", "last")}
     out["catalogue.start"] = np.concatenate([[0], np.cumsum([len(c) for c in cats])]).astype(np.int64)
     out["catalogue.tilt_now"] = np.array([c.tilt_now for c in cats], dtype=np.float64)
     out["catalogue.measurement"] = np.array([[m.angle_resolution, m.min_size, m.missed_fraction,
                                               float(m.size_unit == "arbitrary"),
-                                              float(m.n_sliders or 0)] for m in ms])
+                                              float(m.n_sliders or 0), float(m.n_sliders_high or 0),
+                                              float(m.displacement_unit == "arbitrary"),
+                                              float(m.position_unit == "fraction")] for m in ms])
     return out
 
 
@@ -326,19 +336,22 @@ def catalogues_of(arrays: dict) -> list:
                                                            "increasing from 0")
     k = start.size - 1
     cols = {c: check_array(arrays.get(f"catalogue.{c}"), f"reference catalogue {c}", shape=(n,),
-                           kind="f" if c in ("alpha", "size", "displacement") else "i")
+                           kind="f" if c in ("alpha", "size", "displacement") else "fi")
             for c in ("alpha", "size", "displacement", "first", "last")}
     tilt = check_array(arrays.get("catalogue.tilt_now"), "reference tilts", shape=(k,), lo=0.0,
                        hi=math.pi / 2)
     meas = check_array(arrays.get("catalogue.measurement"), "reference measurements",
-                       shape=(k, 5), lo=0.0)
+                       ndim=2, lo=0.0)
+    require(meas.shape in ((k, 5), (k, 8)), f"reference measurements have shape {meas.shape}, "
+                                            f"not ({k}, 8)")
     out = []
     for i in range(k):
         s = slice(int(start[i]), int(start[i + 1]))
-        a, r, mf, arb, ns = meas[i]
+        a, r, mf, arb, ns, high, disp, frac = np.r_[meas[i], np.zeros(8 - meas.shape[1])]
         try:
             m = Measurement(float(a), float(r), float(mf), "arbitrary" if arb else "sliders",
-                            int(ns) if ns else None)
+                            int(ns) if ns else None, int(high) if high else None,
+                            "arbitrary" if disp else "model", "fraction" if frac else "sliders")
             c = Catalogue(*(cols[col][s] for col in ("alpha", "size", "displacement", "first",
                                                       "last")), tilt_now=float(tilt[i]))
         except (ValueError, TypeError) as exc:

@@ -57,9 +57,12 @@ class Forecast:
         ``probability_within`` still reads the distribution itself.
     clipped : bool
         Set on construction: True when some quantile lay outside
-        [``tilt_now``, 90°], the angles an avalanche can come at (it has not
+        [``floor``, 90°], the angles an avalanche can come at (it has not
         come yet, and the incline cannot tilt past vertical), and was moved to
         that edge.
+    floor : float, optional
+        The least angle the avalanche may come at (default ``tilt_now``): below
+        it by the angle error a noisy catalogue allows (``edge``).
     """
 
     quantiles: np.ndarray
@@ -68,12 +71,14 @@ class Forecast:
     fallback: bool = False
     levels: np.ndarray | None = None
     clipped: bool = False
+    floor: float | None = None
 
     def __post_init__(self):
         q = np.asarray(self.quantiles, dtype=float)
         if not np.isfinite(q).all():
             raise ForecastError(f"forecaster {self.forecaster!r} gave no finite forecast")
-        inside = np.clip(q, self.tilt_now, math.pi / 2)
+        floor = self.tilt_now if self.floor is None else min(self.floor, self.tilt_now)
+        inside = np.clip(q, floor, math.pi / 2)
         object.__setattr__(self, "quantiles", inside)
         object.__setattr__(self, "clipped", bool(self.clipped or not np.array_equal(inside, q)))
 
@@ -100,6 +105,19 @@ class Forecast:
                 "tilt_now": self.tilt_now, "within": delta,
                 "probability_within": self.probability_within(delta),
                 "fallback": self.fallback, "clipped": self.clipped}
+
+
+#: how far below the tilt reached a noisy catalogue's avalanche may lie, in angle errors (its
+#: last events' angles, which the tilt reached is at least, may each be this far too high)
+EDGE_RESOLUTIONS = 3.0
+
+
+def edge(cuts) -> np.ndarray:
+    """(n,) the least tilt each cut's avalanche may lie at: the tilt reached, less
+    ``EDGE_RESOLUTIONS`` of its measurement's angle errors (a noisy last event may lie above
+    the avalanche; the tilt reached itself without an angle error)."""
+    res = np.array([m.angle_resolution for m in cuts.measurements()], dtype=float)
+    return np.maximum(cuts.tilt_now - EDGE_RESOLUTIONS * res, 0.0)
 
 
 def check_catalogue(catalogue, measurement=None) -> None:
@@ -299,9 +317,11 @@ class Forecaster(Estimator):
         """
         check_catalogue(catalogue, measurement)
 
-        q, fb, lv = self.quantiles(Cuts.from_catalogues([catalogue], measurement), levels=True)
+        cuts = Cuts.from_catalogues([catalogue], measurement)
+        q, fb, lv = self.quantiles(cuts, levels=True)
         levels = None if np.array_equal(lv[0], LEVELS) else lv[0]
-        return Forecast(q[0], float(catalogue.tilt_now), self.name, bool(fb[0]), levels)
+        return Forecast(q[0], float(catalogue.tilt_now), self.name, bool(fb[0]), levels,
+                        floor=float(edge(cuts)[0]))
 
     def _quantiles(self, cuts):
         raise NotImplementedError

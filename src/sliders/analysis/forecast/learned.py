@@ -49,7 +49,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .base import LEVELS, Forecaster
+from .base import LEVELS, Forecaster, edge
 from .baselines import Climatology, check_climatology, conditioned_quantiles
 from ...io.catalogue import Catalogue
 from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
@@ -60,9 +60,6 @@ from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, RECORD_FEATUR
 from .evaluators import ResidualTable, check_boosting
 from .integrity import check_array, check_choice, require
 
-#: how far below the tilt reached a noisy catalogue's avalanche may lie, in angle errors (its
-#: last events' angles, which the tilt reached is at least, may each be this far too high)
-EDGE_RESOLUTIONS = 3.0
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
 #: what a learned forecaster sees: every feature, only those of the angles and sizes of the
@@ -568,14 +565,6 @@ class Learned(Forecaster):
             q[out] = np.where(half[None, :], lower, upper)
             levels[out] = LEVELS  # no distribution of its own: read at the nominal levels
         return q, out, levels
-
-
-def edge(cuts) -> np.ndarray:
-    """(n,) the least tilt each cut's avalanche may lie at: the tilt reached, less
-    ``EDGE_RESOLUTIONS`` of its measurement's angle errors (a noisy last event may lie above
-    the avalanche; the tilt reached itself without an angle error)."""
-    res = np.array([m.angle_resolution for m in cuts.measurements()], dtype=float)
-    return np.maximum(cuts.tilt_now - EDGE_RESOLUTIONS * res, 0.0)
 
 
 def _outside(feature: str, value: float, lo: float, hi: float) -> str:

@@ -1,0 +1,232 @@
+"""The shipped forecasters under the conditions a lab brings: a camera's units, the pile's size
+told, a noisy tilt near its end, and the accuracy each forecast announces.
+
+    .venv/bin/python benchmarks/forecast_conditions.py --model src/sliders/data/default_forecaster.zip \\
+        --out benchmarks/results
+
+On the held-out rows of the model's training prior (named in its provenance, as
+``forecast_skill.py`` reads them):
+
+* **a camera's catalogue** (``learned_camera``): each cut recorded as the
+  camera forecaster's training cuts are (``measurement.degrade_cuts(camera=True)``:
+  a displacement unit drawn over four decades, a relative displacement error,
+  positions as fractions of the pile's length, angle errors, missed events and
+  detection thresholds drawn from the training ranges), no number of sliders
+  told: the median |error| over the conditioned climatology's 3° and 1° before
+  the avalanche, and the 80 % coverage over random cuts and at each lead;
+* **the pile's size told** (``--sliders N``, and a range N/2-2N): for the
+  angles-and-sizes forecaster, the coverage per size class (N < 50, 50-199,
+  ≥ 200) over random cuts and at each lead, and the median signed error 3°
+  before, told and not told;
+* **the edge of a noisy tilt**: catalogues with 0.15° of angle error cut within
+  0.25° of their avalanche (the tilt reached at least their last, noisy, angle),
+  angles and sizes only: the coverage;
+* **the accuracy announced** ("typical error at this stage"): per size class,
+  the median |error| over the median of the errors announced, over random cuts.
+
+Writes forecast_conditions.json and forecast_conditions.md to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from dataclasses import replace
+
+import numpy as np
+
+from forecast_skill import LEADS_DEG, blind, skill, write_report
+from sliders.analysis.forecast import Measurement
+from sliders.analysis.forecast.base import LOWER, MEDIAN, UPPER, Forecast
+from sliders.analysis.forecast.evaluation import cuts_at_leads, typical_accuracy
+from sliders.analysis.forecast.features import training_cuts
+from sliders.analysis.forecast.measurement import degrade_cuts
+from sliders.analysis.forecast.model_file import load_forecasters
+from sliders.io.catalogue import CatalogueSet
+from sliders.runs.forecast.catalogue import load_set
+
+#: size classes of the pile: label -> mask over numbers of sliders
+SIZE_CLASSES = {"N < 50": lambda n: n < 50, "N 50-199": lambda n: (n >= 50) & (n < 200),
+                "N ≥ 200": lambda n: n >= 200}
+#: the noisy tilt's angle error (degrees) and how close to the avalanche its cuts lie
+EDGE_NOISE_DEG, EDGE_LEAD_DEG = 0.15, 0.25
+
+
+def untold(cuts):
+    """The cuts with no number of sliders told (as the training cuts draw it for half)."""
+    return replace(cuts, measurement=[replace(m, n_sliders=None, n_sliders_high=None)
+                                      for m in cuts.measurements()], cache={})
+
+
+def told(cuts, n, factor: float = 1.0):
+    """The cuts told their piles' numbers of sliders ``n`` (a range n/factor-n*factor if > 1)."""
+    ms = []
+    for m, k in zip(cuts.measurements(), np.asarray(n)[cuts.row].tolist()):
+        lo, hi = max(1, math.floor(k / factor)), math.ceil(k * factor)
+        ms.append(replace(m, n_sliders=int(lo), n_sliders_high=int(hi) if hi > lo else None))
+    return replace(cuts, measurement=ms, cache={})
+
+
+def camera(cuts, seed: int):
+    """The cuts as a camera records them (the camera forecaster's training draw), untold."""
+    return untold(degrade_cuts(cuts, np.random.default_rng(seed), camera=True))
+
+
+def coverage_at(f, cuts, lead=None, mask=None) -> dict:
+    """80 % coverage, median |error| and median signed error (degrees) of ``f`` on ``cuts``
+    (at each lead of ``lead`` if given), within ``mask`` of the cuts."""
+    q, _ = f.quantiles(cuts)
+    truth = cuts.alpha_c
+    keep = np.ones(len(cuts), bool) if mask is None else mask
+
+    def one(m):
+        inside = (q[m, LOWER] <= truth[m]) & (truth[m] <= q[m, UPPER])
+        err = q[m, MEDIAN] - truth[m]
+        return {"coverage": float(inside.mean()) if m.any() else math.nan,
+                "median_abs_deg": float(np.degrees(np.median(np.abs(err)))) if m.any() else math.nan,
+                "median_signed_deg": float(np.degrees(np.median(err))) if m.any() else math.nan,
+                "n": int(m.sum())}
+
+    if lead is None:
+        return one(keep)
+    return {f"{d:g}": one(keep & np.isclose(lead, math.radians(d))) for d in LEADS_DEG}
+
+
+def camera_report(f, test, train_ac, seed) -> dict:
+    """The camera forecaster on camera catalogues: skill 3° and 1° before, coverage."""
+    out = {}
+    for d in (3.0, 1.0):
+        cuts, _ = cuts_at_leads(test, np.arange(len(test)), [math.radians(d)])
+        out[f"skill_{d:g}deg"] = skill(f, camera(cuts, seed), train_ac)
+    out["random_cuts"] = coverage_at(f, camera(training_cuts(test, 10, np.random.default_rng(seed)),
+                                               seed))
+    cuts, which = cuts_at_leads(test, np.arange(len(test)), np.radians(LEADS_DEG))
+    out["per_lead"] = coverage_at(f, camera(cuts, seed), np.radians(LEADS_DEG)[which])
+    return out
+
+
+def size_report(f, test, seed) -> dict:
+    """Coverage per size class, angles and sizes only, told N (a number, a range) or not."""
+    n = np.asarray(test.parameters["n_sliders"])
+    rnd = blind(training_cuts(test, 10, np.random.default_rng(seed)))
+    at, which = cuts_at_leads(test, np.arange(len(test)), np.radians(LEADS_DEG))
+    at = blind(at)
+    lead = np.radians(LEADS_DEG)[which]
+    out = {}
+    for how, view in (("not told", lambda c: c), ("told N", lambda c: told(c, n)),
+                      ("told N/2-2N", lambda c: told(c, n, 2.0))):
+        out[how] = {}
+        r, a = view(rnd), view(at)
+        for label, of in SIZE_CLASSES.items():
+            out[how][label] = {"random_cuts": coverage_at(f, r, mask=of(n[r.row])),
+                               "per_lead": coverage_at(f, a, lead, mask=of(n[a.row]))}
+    return out
+
+
+def edge_report(f, test, seed) -> dict:
+    """Coverage of noisy catalogues (angles and sizes) cut within ``EDGE_LEAD_DEG`` of their
+    avalanche, the angle error told."""
+    rng = np.random.default_rng(seed)
+    rows = np.flatnonzero(np.isfinite(test.alpha_c))
+    leads = rng.uniform(0.0, math.radians(EDGE_LEAD_DEG), (rows.size, 4))
+    from sliders.analysis.forecast.features import Cuts
+
+    cuts = Cuts.from_set(test, np.repeat(rows, 4), np.repeat(test.alpha_c[rows], 4) - leads.ravel())
+    noisy = degrade_cuts(blind(cuts), rng, Measurement(angle_resolution=math.radians(EDGE_NOISE_DEG)))
+    q, _ = f.quantiles(noisy)
+    above = np.array([len(c) and c.alpha[-1] > t for c, t in zip(noisy.catalogues, noisy.alpha_c)])
+    inside = (q[:, LOWER] <= noisy.alpha_c) & (noisy.alpha_c <= q[:, UPPER])
+    return {"coverage": float(inside.mean()), "n": int(len(noisy)),
+            "last_angle_above_avalanche": float(above.mean()),
+            "coverage_last_angle_above": float(inside[above].mean()) if above.any() else math.nan}
+
+
+def announced_report(f, test, seed, view=blind) -> dict:
+    """Per size class: the median |error| over the median error announced (random cuts)."""
+    n = np.asarray(test.parameters["n_sliders"])
+    cuts = untold(view(training_cuts(test, 6, np.random.default_rng(seed))))
+    q, fb = f.quantiles(cuts)
+    announced = np.full(len(cuts), np.nan)
+    for i in range(len(cuts)):
+        fc = Forecast(q[i], float(cuts.tilt_now[i]), bool(fb[i]))
+        t = typical_accuracy(f, fc)
+        announced[i] = np.nan if t is None else t["median_abs_deg"]
+    err = np.degrees(np.abs(q[:, MEDIAN] - cuts.alpha_c))
+    out = {}
+    for label, of in {"all": lambda k: np.ones(k.shape, bool), **SIZE_CLASSES}.items():
+        m = of(n[cuts.row]) & np.isfinite(announced)
+        out[label] = {"median_abs_deg": float(np.median(err[m])),
+                      "announced_deg": float(np.median(announced[m])),
+                      "ratio": float(np.median(err[m]) / np.median(announced[m])), "n": int(m.sum())}
+    return out
+
+
+def markdown(rep: dict) -> str:
+    """The tables of docs/forecasting_results.md."""
+    cam = rep["camera"]
+    lines = ["| a camera's catalogue | median abs err (deg) | / cond. clim. | 80 % coverage | n |",
+             "|---|---|---|---|---|"]
+    for d in ("3", "1"):
+        s = cam[f"skill_{d}deg"]
+        lines.append(f"| {d}° before | {s['median_abs_deg']:.2f} | {s['vs_conditioned']:.2f} | "
+                     f"{s['coverage']:.2f} | {s['n']} |")
+    lines += ["", f"random cuts: coverage {cam['random_cuts']['coverage']:.2f} "
+                  f"({cam['random_cuts']['n']} cuts)", "",
+              "| lead (deg) | " + " | ".join(cam["per_lead"]) + " |",
+              "|---|" + "---|" * len(cam["per_lead"]),
+              "| coverage | " + " | ".join(f"{v['coverage']:.2f}" for v in cam["per_lead"].values())
+              + " |"]
+    lines += ["", "| angles and sizes, size class | told | coverage, random cuts | lowest coverage "
+                  "over leads 0.25-20° | median signed err 3° before (deg) |", "|---|---|---|---|---|"]
+    for how, per in rep["sizes"].items():
+        for label, v in per.items():
+            low = min(x["coverage"] for x in v["per_lead"].values())
+            lines.append(f"| {label} | {how} | {v['random_cuts']['coverage']:.2f} "
+                         f"({v['random_cuts']['n']}) | {low:.2f} | "
+                         f"{v['per_lead']['3']['median_signed_deg']:+.2f} |")
+    e = rep["edge"]
+    lines += ["", f"noisy tilt (angle error {EDGE_NOISE_DEG}°) cut within {EDGE_LEAD_DEG}° of the "
+                  f"avalanche: coverage {e['coverage']:.2f} ({e['n']} cuts); last angle above the "
+                  f"avalanche in {e['last_angle_above_avalanche']:.2f} of them, covered "
+                  f"{e['coverage_last_angle_above']:.2f}"]
+    for name, per in rep["announced"].items():
+        lines += ["", f"{name}: the typical error announced against the error made (random cuts)",
+                  "", "| size class | median abs err (deg) | median announced (deg) | ratio | n |",
+                  "|---|---|---|---|---|"]
+        for label, v in per.items():
+            lines.append(f"| {label} | {v['median_abs_deg']:.2f} | {v['announced_deg']:.2f} | "
+                         f"{v['ratio']:.2f} | {v['n']} |")
+    return "\n".join(lines) + "\n"
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--model", default="src/sliders/data/default_forecaster.zip")
+    p.add_argument("--out", default="benchmarks/results")
+    p.add_argument("--seed", type=int, default=0)
+    args = p.parse_args()
+    models, prov = load_forecasters(args.model)
+    beside = os.path.dirname(os.path.abspath(args.model))
+    paths = [f if os.path.exists(f) else os.path.join(beside, os.path.basename(f))
+             for f in prov["data_files"]]
+    if not all(os.path.exists(f) for f in paths):
+        paths = [os.path.join("results/default_model", os.path.basename(f)) for f in paths]
+    data = CatalogueSet.joined([load_set(f) for f in paths])
+    held = np.asarray(prov["held_out_rows"], dtype=int)
+    test = data.subset(held[np.isfinite(data.alpha_c[held])])
+    train_ac = models["learned_blind"].climatology_.alpha_c_
+    rep = {"model": os.path.basename(args.model), "rows_tested": int(len(test)),
+           "camera": camera_report(models["learned_camera"], test, train_ac, args.seed),
+           "sizes": size_report(models["learned_blind"], test, args.seed),
+           "edge": edge_report(models["learned_blind"], test, args.seed),
+           "announced": {"learned, angles + sizes": announced_report(models["learned_blind"], test,
+                                                                     args.seed),
+                         "learned, camera's units": announced_report(
+                             models["learned_camera"], test, args.seed,
+                             view=lambda c: camera(c, args.seed))}}
+    print(write_report(rep, args.out, "forecast_conditions", markdown))
+
+
+if __name__ == "__main__":
+    main()
