@@ -20,7 +20,7 @@ import sys
 from . import forecasting
 from ._forward import interrupted_while_starting
 
-__all__ = ["load", "main", "ForecastModel", "Prediction", "Inference", "InferenceModel"]
+__all__ = ["load", "main", "ForecastModel", "Prediction", "Inference"]
 
 
 def __getattr__(name: str):
@@ -44,9 +44,10 @@ def load(path=None, posterior=None):
 
     Returns
     -------
-    InferenceModel
-        A ``ForecastModel``: ``predict(catalogue, tilt_now=..., **measurement)`` gives a
-        ``Prediction``, ``infer(catalogue, ...)`` an ``Inference``.
+    ForecastModel
+        ``predict(catalogue, tilt_now=..., **measurement)`` gives a ``Prediction``,
+        ``infer(catalogue, ...)`` an ``Inference``, ``follow(source, ...)`` a ``Follower``
+        (its predictive check's piles made as the commands make them, ``CHECK_SIMULATION``).
 
     Raises
     ------

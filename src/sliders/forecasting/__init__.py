@@ -1,13 +1,16 @@
 """Forecasting: the layer below the commands that forecasts a measured pile and infers its material.
 
-* ``predict``: ``load_model`` reads a model file once; ``ForecastModel`` forecasts a catalogue
-  (``predict``, a ``Prediction``) and follows a growing one (``follow``, a ``Follower``);
-* ``infer``: the posterior of the pile's material (``PosteriorModel.infer``, an ``Inference``);
-  ``InferenceModel``, the model ``load()`` gives, has ``predict``, ``infer`` and ``follow``;
+* ``predict``: ``load_model`` reads a model file once; ``ForecastModel``, the model ``load()``
+  gives, forecasts a catalogue (``predict``, a ``Prediction``), follows a growing one
+  (``follow``, a ``Follower``) and infers its pile's material (``infer``, an ``Inference``);
+* ``infer``: the posterior of the pile's material (``PosteriorModel``, read from a posterior
+  file by ``load_posterior``; the predictive check's piles as ``PileSimulation`` says);
+* ``report``: what ``Prediction`` and ``Inference`` share, and the interval's one name;
 * ``follower``: the live forecast's loop, its own stop conditions (a signal, ``until``,
   ``# avalanche``), data one way: file -> line reader -> catalogue reader -> forecast;
 * ``alarm``: the live forecast's alarm, the run's score, the picture drawn aside;
-* ``catalogue``: a measured catalogue read (CSV, columns, bytes) with its measurement;
+* ``catalogue``: a measured catalogue read (CSV, columns, bytes) with its measurement, and
+  put at its tilt reached; ``files``: the model and posterior files read;
 * ``common``: the defaults, the probability's text, JSON values, the provenance.
 
 The commands (``sliders.runs.forecast``) parse, call this layer and print;
@@ -17,23 +20,23 @@ The commands (``sliders.runs.forecast``) parse, call this layer and print;
 
 from __future__ import annotations
 
-__all__ = ["load", "ForecastModel", "Prediction", "Inference", "InferenceModel", "PileSimulation"]
+__all__ = ["load", "ForecastModel", "Prediction", "Inference", "PileSimulation"]
 
 
 def load(path=None, posterior=None, simulation=None):
-    """The forecasters of a model file, loaded once (``infer.load_inference_model``; default:
-    the model shipped in the package); ``posterior``: a posterior file, read at the first
-    ``infer``; ``simulation``: how ``infer``'s predictive check makes piles."""
-    from .infer import load_inference_model
+    """The forecasters of a model file, loaded once (``predict.load_model``; default: the model
+    shipped in the package); ``posterior``: a posterior file, read at the first ``infer``;
+    ``simulation``: how ``infer``'s predictive check makes piles."""
+    from .predict import load_model
 
-    return load_inference_model(path, posterior, simulation)
+    return load_model(path, posterior, simulation)
 
 
 def __getattr__(name: str):
     """The API's classes, imported at first use (their modules import NumPy)."""
     if name in ("ForecastModel", "Prediction"):
         from . import predict as module
-    elif name in ("Inference", "InferenceModel", "PileSimulation"):
+    elif name in ("Inference", "PileSimulation"):
         from . import infer as module
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

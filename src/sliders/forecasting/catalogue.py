@@ -1,5 +1,6 @@
 """A measured catalogue read with its measurement, and a catalogue written as the CSV that is
-read (``python -m sliders.forecast catalogue`` writes a simulated row so).
+read (``python -m sliders.forecast catalogue`` writes a simulated row so), and a catalogue at
+the tilt reached (``prepared``).
 
 ``predict`` reads a CSV file with a header, one event per row, columns
 ``angle [deg]`` or ``angle [rad]`` (increasing, within the angle error: a noisy
@@ -24,9 +25,13 @@ import numpy as np
 
 from ..analysis.forecast.measurement import Measurement
 from ..io.catalogue import Catalogue
-from ..io.forecast_files import (CatalogueRead, ForecastInputError, angle_option,
-                                  read_catalogue_columns, read_catalogue_file,
-                                  read_catalogue_stream)
+from ..io.forecast_files import (ANGLE_TOLERANCE_RESOLUTIONS, CatalogueRead, ForecastInputError,
+                                 angle_option, parse_angle, read_catalogue_columns,
+                                 read_catalogue_file, read_catalogue_stream, tilt_in_range)
+
+#: a tilt reached below the last event's angle by less than this many angle resolutions is the
+#: angles' error, not a mistake: the last event's angle is taken instead
+TILT_TOLERANCE_RESOLUTIONS = 3.0
 
 
 def read_source(source, where: str = "catalogue", angle_resolution: float = 0.0):
@@ -107,3 +112,44 @@ def catalogue_csv_text(cat) -> str:
     for a, s, d, f, la in zip(cat.alpha, cat.size, cat.displacement, cat.first, cat.last):
         lines.append(f"{a:.10g},{int(s)},{d:.10g},{int(f)},{int(la)}")
     return "\n".join(lines) + "\n"
+
+
+def prepared(read, tilt_now, measurement) -> tuple[Catalogue, list[str]]:
+    """The catalogue read (``catalogue.read_source``'s triple) at the tilt reached ``tilt_now``
+    (``at_tilt``) and the notes on what was done to it: its rows sorted by angle where they
+    went back within the angle error (``io.forecast_files.ANGLE_TOLERANCE_RESOLUTIONS``)."""
+    cat, scale, unit = read
+    notes = []
+    if reordered := getattr(read, "reordered", 0):
+        notes.append(f"{reordered} of {len(cat)} rows lay below an earlier row's angle, within "
+                     f"{ANGLE_TOLERANCE_RESOLUTIONS:g} × the angle resolution "
+                     f"({math.degrees(measurement.angle_resolution):g}°): the rows are sorted by "
+                     "angle, each keeping its size, as the training's noisy catalogues are")
+    return at_tilt(cat, tilt_now, scale, unit, measurement.angle_resolution, notes), notes
+
+
+def at_tilt(cat, tilt_now, scale: float, unit: str, resolution: float, notes: list):
+    """``cat`` at the tilt reached ``tilt_now`` (text or a bare number in ``unit``, ``scale``
+    radians each); a tilt below the last event's angle by less than
+    ``TILT_TOLERANCE_RESOLUTIONS`` angle resolutions is raised to it (a note in ``notes``)."""
+    if tilt_now is None:
+        return cat
+    text = tilt_now if isinstance(tilt_now, str) else repr(tilt_now)
+    if isinstance(tilt_now, str):
+        tilt = parse_angle(tilt_now, scale)
+    else:
+        tilt = float(tilt_now) * scale
+    tilt = tilt_in_range(tilt, f"--tilt-now {text}")
+    last = float(cat.alpha[-1]) if len(cat) else 0.0
+    if tilt < last:
+        gap = last - tilt
+        if gap >= TILT_TOLERANCE_RESOLUTIONS * resolution:
+            raise ForecastInputError(
+                f"--tilt-now {text}: below the last event's angle ({last / scale:g} {unit}) by "
+                f"{math.degrees(gap):.3g}°, more than {TILT_TOLERANCE_RESOLUTIONS:g} × the angle "
+                f"resolution ({math.degrees(resolution):g}°)")
+        notes.append(f"--tilt-now {text} lies {math.degrees(gap):.3g}° below the last event's "
+                     f"angle, within {TILT_TOLERANCE_RESOLUTIONS:g} × the angle resolution: the "
+                     f"tilt reached is taken as the last event's, {math.degrees(last):.3f}°")
+        tilt = last
+    return Catalogue(cat.alpha, cat.size, cat.displacement, cat.first, cat.last, tilt_now=tilt)

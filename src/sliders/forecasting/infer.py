@@ -2,7 +2,7 @@
 and ``sliders.forecast.load().infer``).
 
 The catalogue and its measurement are read as ``predict`` reads them
-(``catalogue.read_source``, ``predict.prepared``, ``catalogue.measurement_from``).
+(``catalogue.read_source``, ``catalogue.prepared``, ``catalogue.measurement_from``).
 The posterior file (default: the one shipped in the package,
 ``sliders/data/default_posterior.zip``, checked by its digest) is a model
 file of one entry, ``"posterior"``, a fitted
@@ -22,8 +22,8 @@ simulations and the verdict (``in_domain`` stays).
 
 One code path for the command and the Python API: ``PosteriorModel.infer``
 returns an ``Inference`` whose ``to_dict()`` is what ``infer --json`` prints
-and whose ``str()`` is the text output; ``sliders.forecast.load()`` gives an
-``InferenceModel``, the forecast model with ``infer`` too.
+and whose ``str()`` is the text output; the model of ``sliders.forecast.load()``
+(``predict.ForecastModel``) calls it.
 """
 
 from __future__ import annotations
@@ -42,9 +42,10 @@ from ..analysis.forecast.features import Cuts
 from ..analysis.forecast.measurement import Measurement
 from ..analysis.forecast.posterior_check import (combined_verdict, p_value_text,
                                                  predictive_check, smallest_p_value)
-from .catalogue import angles_and_sizes, measurement_as_json, measurement_from, read_source
+from .catalogue import (angles_and_sizes, measurement_as_json, measurement_from, prepared,
+                        read_source)
 from .common import CHECK_DRAWS, jsonable
-from .predict import ForecastModel, load_model, prepared, read_model_file
+from .files import read_model_file
 from .report import Report
 
 #: the most piles the predictive check may simulate
@@ -289,27 +290,3 @@ def check_text(check) -> str:
                        for r in check["reasons"])
     return (f"predictive check: the model does not reproduce this catalogue ({failed}); its "
             "parameters are not to be trusted")
-
-
-class InferenceModel(ForecastModel):
-    """The forecast model of ``sliders.forecast.load()`` with ``infer`` too: the posterior of
-    the pile's material (the posterior file is read at the first ``infer``)."""
-
-    posterior_path = None
-    simulation = None
-    _posterior = None
-
-    def infer(self, catalogue, tilt_now=None, **options) -> Inference:
-        """``PosteriorModel.infer`` with the shipped posterior (or ``posterior_path``)."""
-        if self._posterior is None:
-            self._posterior = load_posterior(self.posterior_path, self.simulation)
-        return self._posterior.infer(catalogue, tilt_now, **options)
-
-
-def load_inference_model(path=None, posterior=None, simulation=None) -> InferenceModel:
-    """``predict.load_model`` as an ``InferenceModel`` (``posterior``: a posterior file;
-    ``simulation``: how ``infer``'s predictive check makes piles, a ``PileSimulation``)."""
-    model = load_model(path)
-    out = InferenceModel(model.path, model.models, model.provenance)
-    out.posterior_path, out.simulation = posterior, simulation
-    return out

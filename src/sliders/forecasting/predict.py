@@ -19,14 +19,14 @@ import math
 import numpy as np
 
 from ..analysis.forecast.features import Cuts
-from ..analysis.forecast.model_file import load_forecasters
 from ..analysis.forecast.registry import fallback_of
-from ..io.catalogue import Catalogue
-from ..io.forecast_files import (ANGLE_TOLERANCE_RESOLUTIONS, ForecastInputError, angle_option,
-                                 parse_angle, tilt_in_range)
-from ..io.forecast_model import ModelFileError, default_model_path
+from ..io.forecast_files import ForecastInputError, angle_option
+from ..io.forecast_model import default_model_path
 from .alarm import Alarm, LatestPicture, RunScore
-from .catalogue import angles_and_sizes, measurement_as_json, measurement_from, read_source
+from .catalogue import (angles_and_sizes, measurement_as_json, measurement_from, prepared,
+                        read_source)
+from .files import read_model_file
+from .infer import Inference, load_posterior
 from .report import Report, interval_name
 from .common import (ALARM_DELTA_DEG, PREDICT_METHODS, clipped_probability, jsonable,
                      probability_text)
@@ -35,17 +35,16 @@ from .follower import Follower, check_source
 #: why a method of the displacements gave no forecast of its own on a catalogue without them
 NO_DISPLACEMENT = ("the catalogue has no displacement column: the conditioned climatology is "
                    "given instead")
-#: a tilt reached below the last event's angle by less than this many angle resolutions is the
-#: angles' error, not a mistake: the last event's angle is taken instead
-TILT_TOLERANCE_RESOLUTIONS = 3.0
 #: the probability of the avalanche within the horizon at which the alarm sounds, unless the
 #: forecaster holds its own (``alarm_threshold_``)
 DEFAULT_ALARM_THRESHOLD = 0.5
 
 
-def load_model(path=None) -> "ForecastModel":
+def load_model(path=None, posterior=None, simulation=None) -> "ForecastModel":
     """The forecasters of the model file ``path`` (default: the one shipped in the package),
-    read once, as data (``io.forecast_model``)."""
+    read once, as data (``io.forecast_model``); ``posterior``, a posterior file (default: the
+    shipped one), and ``simulation``, how its predictive check makes piles
+    (``infer.PileSimulation``), are ``infer``'s, read at its first call."""
     from ..analysis.forecast.base import Forecaster
 
     models, prov, path = read_model_file(
@@ -58,22 +57,7 @@ def load_model(path=None) -> "ForecastModel":
                                  "the fitted forecasters a model file holds")
     if "learned_blind" not in models:
         raise ForecastInputError(f"{path}: no forecaster of angles and sizes (learned_blind) in it")
-    return ForecastModel(path, models, prov)
-
-
-def read_model_file(path, shipped_path, missing: str):
-    """``(models, provenance, path)`` of the model file ``path`` (None: the one shipped at
-    ``shipped_path``, refused with ``missing`` if absent), read as data; every refusal one line
-    (``ForecastInputError``)."""
-    if path is None:
-        path = shipped_path
-        if not path.is_file():
-            raise ForecastInputError(f"{path}: {missing}")
-    try:
-        models, prov = load_forecasters(path)
-    except ModelFileError as exc:
-        raise ForecastInputError(str(exc)) from None
-    return models, prov, path
+    return ForecastModel(path, models, prov, posterior, simulation)
 
 
 def fallback_reason(method: str, forecast, complete: bool = True) -> str | None:
@@ -87,7 +71,9 @@ def fallback_reason(method: str, forecast, complete: bool = True) -> str | None:
 
 
 class ForecastModel:
-    """A model file's forecasters, loaded once: ``predict`` forecasts catalogues with them.
+    """The model of ``sliders.forecast.load()``: a model file's forecasters, loaded once;
+    ``predict`` forecasts a catalogue, ``follow`` a growing one, ``infer`` gives the posterior
+    of its pile's material (the posterior file read at the first ``infer``).
 
     Parameters
     ----------
@@ -97,12 +83,27 @@ class ForecastModel:
         ``{method: fitted Forecaster}``.
     provenance : dict
         The model's provenance (prior, rows, mode, versions, date).
+    posterior_path : str or os.PathLike, optional
+        The posterior file of ``infer`` (default: the shipped one).
+    simulation : sliders.forecasting.infer.PileSimulation, optional
+        How ``infer``'s predictive check makes piles (None: ``infer`` with ``check=False``).
     """
 
-    def __init__(self, path, models: dict, provenance: dict):
+    def __init__(self, path, models: dict, provenance: dict, posterior_path=None,
+                 simulation=None):
         self.path = path
         self.models = models
         self.provenance = provenance
+        self.posterior_path = posterior_path
+        self.simulation = simulation
+        self._posterior = None
+
+    def infer(self, catalogue, tilt_now=None, **options) -> Inference:
+        """The posterior of the material of the pile that made ``catalogue``
+        (``infer.PosteriorModel.infer``, its options)."""
+        if self._posterior is None:
+            self._posterior = load_posterior(self.posterior_path, self.simulation)
+        return self._posterior.infer(catalogue, tilt_now, **options)
 
     def __repr__(self) -> str:
         """One line: the file and its forecasters."""
@@ -259,47 +260,6 @@ def within_option(within) -> float:
         raise ForecastInputError(f"--within {within}: the alarm's horizon must lie in (0, 90) "
                                  "degrees")
     return delta
-
-
-def prepared(read, tilt_now, measurement) -> tuple[Catalogue, list[str]]:
-    """The catalogue read (``catalogue.read_source``'s triple) at the tilt reached ``tilt_now``
-    (``at_tilt``) and the notes on what was done to it: its rows sorted by angle where they
-    went back within the angle error (``io.forecast_files.ANGLE_TOLERANCE_RESOLUTIONS``)."""
-    cat, scale, unit = read
-    notes = []
-    if reordered := getattr(read, "reordered", 0):
-        notes.append(f"{reordered} of {len(cat)} rows lay below an earlier row's angle, within "
-                     f"{ANGLE_TOLERANCE_RESOLUTIONS:g} × the angle resolution "
-                     f"({math.degrees(measurement.angle_resolution):g}°): the rows are sorted by "
-                     "angle, each keeping its size, as the training's noisy catalogues are")
-    return at_tilt(cat, tilt_now, scale, unit, measurement.angle_resolution, notes), notes
-
-
-def at_tilt(cat, tilt_now, scale: float, unit: str, resolution: float, notes: list):
-    """``cat`` at the tilt reached ``tilt_now`` (text or a bare number in ``unit``, ``scale``
-    radians each); a tilt below the last event's angle by less than
-    ``TILT_TOLERANCE_RESOLUTIONS`` angle resolutions is raised to it (a note in ``notes``)."""
-    if tilt_now is None:
-        return cat
-    text = tilt_now if isinstance(tilt_now, str) else repr(tilt_now)
-    if isinstance(tilt_now, str):
-        tilt = parse_angle(tilt_now, scale)
-    else:
-        tilt = float(tilt_now) * scale
-    tilt = tilt_in_range(tilt, f"--tilt-now {text}")
-    last = float(cat.alpha[-1]) if len(cat) else 0.0
-    if tilt < last:
-        gap = last - tilt
-        if gap >= TILT_TOLERANCE_RESOLUTIONS * resolution:
-            raise ForecastInputError(
-                f"--tilt-now {text}: below the last event's angle ({last / scale:g} {unit}) by "
-                f"{math.degrees(gap):.3g}°, more than {TILT_TOLERANCE_RESOLUTIONS:g} × the angle "
-                f"resolution ({math.degrees(resolution):g}°)")
-        notes.append(f"--tilt-now {text} lies {math.degrees(gap):.3g}° below the last event's "
-                     f"angle, within {TILT_TOLERANCE_RESOLUTIONS:g} × the angle resolution: the "
-                     f"tilt reached is taken as the last event's, {math.degrees(last):.3f}°")
-        tilt = last
-    return Catalogue(cat.alpha, cat.size, cat.displacement, cat.first, cat.last, tilt_now=tilt)
 
 
 def widened_reason(learned, forecast) -> str:

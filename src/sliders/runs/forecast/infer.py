@@ -12,9 +12,8 @@ from __future__ import annotations
 import json
 import math
 
-from ...forecasting.catalogue import read_source
+from ...forecasting.catalogue import prepared, read_source
 from ...forecasting.infer import MAX_CHECK_DRAWS, PileSimulation, load_posterior
-from ...forecasting.predict import prepared
 from ...io.forecast_files import ForecastInputError, angle_option, parse_angle, tilt_in_range
 from ...io.forecast_model import default_posterior_path
 from ..command import DEFAULT_BACKEND

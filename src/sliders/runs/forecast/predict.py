@@ -11,8 +11,8 @@ import json
 import math
 
 from ...forecasting.alarm import check_alarm_options, single_alarm
-from ...forecasting.catalogue import read_source
-from ...forecasting.predict import load_model, prepared, within_option
+from ...forecasting.catalogue import prepared, read_source
+from ...forecasting.predict import load_model, within_option
 from ...io.forecast_files import (ForecastInputError, angle_option, check_output_target,
                                   parse_angle, tilt_in_range)
 from ...io.forecast_model import default_model_path
