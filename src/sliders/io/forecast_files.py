@@ -287,7 +287,7 @@ def _header(lines, path: str) -> tuple[list[str], float, str]:
     return [n if n in COLUMNS else "" for n in names], units.ANGLE_UNITS[unit], unit
 
 
-def _value(v: str, k: int, n: str, path: str) -> float:
+def _value(v: str, k: int, n: str, path: str, position_unit: str = "sliders") -> float:
     """One field of column ``n`` on row ``k`` as a number, checked (``_checked``)."""
     s = v.strip()
     if len(s) > MAX_FIELD_CHARS:
@@ -297,14 +297,21 @@ def _value(v: str, k: int, n: str, path: str) -> float:
         x = float(s)
     except ValueError:
         raise ForecastInputError(f"{path}: row {k}, column {n!r}: {s!r} is not a number") from None
-    return _checked(x, s, k, n, path)
+    return _checked(x, s, k, n, path, position_unit)
 
 
-def _checked(x: float, s: str, k: int, n: str, path: str) -> float:
-    """The number ``x`` (shown as ``s``) of column ``n`` on row ``k``, if that column may hold it."""
+def _checked(x: float, s: str, k: int, n: str, path: str, position_unit: str = "sliders") -> float:
+    """The number ``x`` (shown as ``s``) of column ``n`` on row ``k``, if that column may hold it
+    (``position_unit``: the movers' positions as slider indices, "fraction" of the pile's
+    length, or "mm" along it)."""
     if not math.isfinite(x):
         raise ForecastInputError(f"{path}: row {k}, column {n!r}: {s!r} is not finite")
-    if n in WHOLE_COLUMNS and not (WHOLE_COLUMNS[n] <= x <= MAX_WHOLE and x == int(x)):
+    if n in WHOLE_COLUMNS and position_unit != "sliders":
+        top = 1.0 if position_unit == "fraction" else MAX_WHOLE
+        if not 0.0 <= x <= top:
+            raise ForecastInputError(f"{path}: row {k}, column {n!r}: {s!r} is not a position "
+                                     f"from 0 to {top:g} ({position_unit})")
+    elif n in WHOLE_COLUMNS and not (WHOLE_COLUMNS[n] <= x <= MAX_WHOLE and x == int(x)):
         raise ForecastInputError(f"{path}: row {k}, column {n!r}: {s!r} must be a whole number "
                                  f"from {WHOLE_COLUMNS[n]} to 2**53")
     if n == "size" and not 0 < x <= MAX_WHOLE:
@@ -344,8 +351,10 @@ class _EventRows:
     row checked as it comes: the first mover not after the last, the angle in [0, 90°) and not
     below the rows before it by ``ANGLE_TOLERANCE_RESOLUTIONS`` angle resolutions or more."""
 
-    def __init__(self, names, scale: float, where: str, angle_resolution: float = 0.0):
+    def __init__(self, names, scale: float, where: str, angle_resolution: float = 0.0,
+                 position_unit: str = "sliders"):
         self.cols = {n: array.array("d") for n in names if n}
+        self.position_unit = position_unit
         self.scale, self.where = scale, where
         self.tolerance = ANGLE_TOLERANCE_RESOLUTIONS * angle_resolution  # radians
         self.top, self.top_row, self.reordered = -math.inf, 0, 0
@@ -363,8 +372,8 @@ class _EventRows:
             cols[n].append(x)
         if "first" in cols and cols["first"][-1] > cols["last"][-1]:
             raise ForecastInputError(f"{where}: row {k}, columns 'first' and 'last': the first "
-                                     f"mover ({cols['first'][-1]:.0f}) lies after the last "
-                                     f"({cols['last'][-1]:.0f})")
+                                     f"mover ({cols['first'][-1]:g}) lies after the last "
+                                     f"({cols['last'][-1]:g})")
         a = cols["angle"][-1] * self.scale
         if not 0 <= a < math.pi / 2:
             raise ForecastInputError(f"{where}: row {k}, column 'angle': {shown_angle!r} is "
@@ -405,23 +414,25 @@ class _EventRows:
         def column(n, fill, dtype):
             return arrays[n].astype(dtype) if n in arrays else np.full(k, fill, dtype)
 
+        place = np.int64 if self.position_unit == "sliders" else np.float64
         cat = Catalogue(arrays["angle"] * self.scale, column("size", 1, np.float64),
-                        column("displacement", np.nan, np.float64), column("first", -1, np.int64),
-                        column("last", -1, np.int64))
+                        column("displacement", np.nan, np.float64), column("first", -1, place),
+                        column("last", -1, place))
         return CatalogueRead(cat, self.scale, unit, self.reordered)
 
 
 def _events(lines, names: list[str], scale: float, path: str,
-            angle_resolution: float = 0.0) -> _EventRows:
+            angle_resolution: float = 0.0, position_unit: str = "sliders") -> _EventRows:
     """The events of the CSV's rows (``_EventRows``)."""
-    rows = _EventRows(names, scale, path, angle_resolution)
+    rows = _EventRows(names, scale, path, angle_resolution, position_unit)
     at = names.index("angle")
     for k, text in lines:
         rec = _fields(text, k, path)
         if len(rec) != len(names):
             raise ForecastInputError(f"{path}: row {k}: {len(rec)} fields, the header has {len(names)}")
         rows.room(k)
-        rows.add(k, {n: _value(v, k, n, path) for n, v in zip(names, rec) if n}, rec[at].strip())
+        rows.add(k, {n: _value(v, k, n, path, position_unit) for n, v in zip(names, rec) if n},
+                 rec[at].strip())
     return rows
 
 
@@ -452,26 +463,30 @@ def read_catalogue_csv(path: str, tilt_now_text: str | None = None) -> Catalogue
     return cat
 
 
-def read_catalogue_file(path: str, angle_resolution: float = 0.0) -> CatalogueRead:
+def read_catalogue_file(path: str, angle_resolution: float = 0.0,
+                        position_unit: str = "sliders") -> CatalogueRead:
     """The catalogue of the CSV file ``path`` (``-``: standard input), the radians per unit of its
     angle column and that unit's name (``read_catalogue_stream``), within the reader's bounds."""
     with _open_catalogue(path) as fh:
-        return read_catalogue_stream(fh, path, angle_resolution)
+        return read_catalogue_stream(fh, path, angle_resolution, position_unit)
 
 
-def read_catalogue_stream(fh, where: str, angle_resolution: float = 0.0) -> CatalogueRead:
+def read_catalogue_stream(fh, where: str, angle_resolution: float = 0.0,
+                          position_unit: str = "sliders") -> CatalogueRead:
     """The catalogue of the CSV bytes of ``fh`` (a binary file, read to its end), the radians per
     unit of its angle column and that unit's name; its ``tilt_now`` is its greatest angle.
     ``angle_resolution`` (radians): the angles' error, within which a row may lie below the
     rows before it (``ANGLE_TOLERANCE_RESOLUTIONS``; the rows are then sorted by angle).
-    Refusals as ``read_catalogue_csv``'s, naming ``where``."""
+    ``position_unit``: the movers' positions (``first``, ``last``) as slider indices (whole
+    numbers), "fraction" of the pile's length (0 to 1), or "mm" along it (from 0), read as
+    floats.  Refusals as ``read_catalogue_csv``'s, naming ``where``."""
     lines = _numbered_lines(fh, where)
     names, scale, unit = _header(lines, where)
-    return _events(lines, names, scale, where, angle_resolution).read(unit)
+    return _events(lines, names, scale, where, angle_resolution, position_unit).read(unit)
 
 
-def read_catalogue_columns(columns, where: str = "catalogue",
-                           angle_resolution: float = 0.0) -> CatalogueRead:
+def read_catalogue_columns(columns, where: str = "catalogue", angle_resolution: float = 0.0,
+                           position_unit: str = "sliders") -> CatalogueRead:
     """The catalogue of a mapping (or DataFrame) of columns keyed by the CSV header's names, each
     cell checked as the CSV reader checks its fields, rows numbered as the CSV's would be (the
     header is row 1).  A cell is a number (a Python or NumPy integer or float) or the text of
@@ -505,22 +520,22 @@ def read_catalogue_columns(columns, where: str = "catalogue",
     n_rows = len(values[0]) if values else 0
     header, scale, unit = _header(iter([(1, ",".join(names))]), where)
     used = [(n, v.tolist()) for n, v in zip(header, values) if n]
-    rows = _EventRows(header, scale, where, angle_resolution)
+    rows = _EventRows(header, scale, where, angle_resolution, position_unit)
     for i in range(n_rows):
         k = i + 2
-        cells = {n: _cell(v[i], k, n, where) for n, v in used}
+        cells = {n: _cell(v[i], k, n, where, position_unit) for n, v in used}
         rows.add(k, {n: x for n, (x, _) in cells.items()}, cells["angle"][1])
     return rows.read(unit)
 
 
-def _cell(v, k: int, n: str, where: str) -> tuple[float, str]:
+def _cell(v, k: int, n: str, where: str, position_unit: str = "sliders") -> tuple[float, str]:
     """One cell of a mapping's column ``n`` on row ``k``: the checked number and its text."""
     if isinstance(v, str):
         if any(c in v for c in ",\r\n") or not v.isprintable():
             raise ForecastInputError(f"{where}: row {k}, column {n!r}: '{printable(v)}' holds a "
                                      "comma, a line break or a control character (a cell is "
                                      "one number)")
-        return _value(v, k, n, where), v.strip()
+        return _value(v, k, n, where, position_unit), v.strip()
     if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
         what = "None (an empty cell)" if v is None else f"a {type(v).__name__} ({printable(repr(v))[:40]})"
         raise ForecastInputError(f"{where}: row {k}, column {n!r}: {what} is not a number")
@@ -530,7 +545,7 @@ def _cell(v, k: int, n: str, where: str) -> tuple[float, str]:
         raise ForecastInputError(f"{where}: row {k}, column {n!r}: {printable(repr(v))[:40]} is "
                                  "not a finite number") from None
     shown = str(int(v)) if isinstance(v, numbers.Integral) else repr(x)
-    return _checked(x, shown, k, n, where), shown
+    return _checked(x, shown, k, n, where, position_unit), shown
 
 
 def tilt_in_range(angle: float, what: str) -> float:
