@@ -11,24 +11,31 @@
 
 ``python -m sliders.forecast`` runs the commands (``sliders.runs.forecast.cli``); the API is
 the forecasting layer's (``sliders.forecasting``), which the commands call: one code path.
+Run as a command, this module imports the parser only (``--help`` reads no NumPy) and exits
+before the API's imports below it.
 """
 
 from __future__ import annotations
 
 import sys
 
-from . import forecasting
 from ._forward import interrupted_while_starting
 
+if __name__ == "__main__":
+    try:
+        from .runs.forecast.cli import main as _command
+
+        sys.exit(_command())
+    except KeyboardInterrupt:  # while the command's modules are imported, before its handler
+        interrupted_while_starting("sliders.forecast")
+
+# the API (not reached when run as a command)
+from .forecasting.infer import Inference  # noqa: E402
+from .forecasting.predict import ForecastModel, Prediction, load_model  # noqa: E402
+from .runs.forecast.cli import main  # noqa: E402
+from .runs.forecast.infer import CHECK_SIMULATION  # noqa: E402
+
 __all__ = ["load", "main", "ForecastModel", "Prediction", "Inference"]
-
-
-def __getattr__(name: str):
-    """The API's classes (``sliders.forecasting``'s), imported at first use: ``python -m
-    sliders.forecast predict --help`` imports neither the forecasters nor NumPy."""
-    if name not in __all__:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(forecasting, name)
 
 
 def load(path=None, posterior=None):
@@ -54,20 +61,4 @@ def load(path=None, posterior=None):
     sliders.io.forecast_files.ForecastInputError
         The file is not a model file this version reads (one line naming it).
     """
-    from .runs.forecast.infer import CHECK_SIMULATION
-
-    return forecasting.load(path, posterior, CHECK_SIMULATION)
-
-
-def main(argv=None) -> int:
-    """``python -m sliders.forecast``: the forecast commands (``sliders.runs.forecast.cli``)."""
-    from .runs.forecast.cli import main as command
-
-    return command(argv)
-
-
-if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except KeyboardInterrupt:  # while the command's modules are imported, before its handler
-        interrupted_while_starting("sliders.forecast")
+    return load_model(path, posterior, CHECK_SIMULATION)

@@ -9,6 +9,7 @@ PNG of ``PNG_DPI`` dots per inch.
 
 from __future__ import annotations
 
+import io
 import os
 
 import matplotlib
@@ -95,8 +96,6 @@ def _to_palette(path: str, dpi: int) -> None:
 def png_bytes(fig, dpi: int) -> bytes:
     """``fig`` as PNG bytes at ``dpi`` (drawn on an Agg canvas of its own, no pyplot state: safe
     in a thread), to be written whole by the caller (``io.safeio.publish_bytes``)."""
-    import io
-
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     return buf.getvalue()

@@ -14,30 +14,6 @@
 * ``common``: the defaults, the probability's text, JSON values, the provenance.
 
 The commands (``sliders.runs.forecast``) parse, call this layer and print;
-``sliders.forecast`` is its front door.  Importing this package imports none of its modules:
-``python -m sliders.forecast predict --help`` reads ``common``'s defaults only.
+``sliders.forecast`` is its front door (``load()``).  Importing this package imports none of
+its modules: ``python -m sliders.forecast predict --help`` reads ``common``'s defaults only.
 """
-
-from __future__ import annotations
-
-__all__ = ["load", "ForecastModel", "Prediction", "Inference", "PileSimulation"]
-
-
-def load(path=None, posterior=None, simulation=None):
-    """The forecasters of a model file, loaded once (``predict.load_model``; default: the model
-    shipped in the package); ``posterior``: a posterior file, read at the first ``infer``;
-    ``simulation``: how ``infer``'s predictive check makes piles."""
-    from .predict import load_model
-
-    return load_model(path, posterior, simulation)
-
-
-def __getattr__(name: str):
-    """The API's classes, imported at first use (their modules import NumPy)."""
-    if name in ("ForecastModel", "Prediction"):
-        from . import predict as module
-    elif name in ("Inference", "PileSimulation"):
-        from . import infer as module
-    else:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(module, name)

@@ -38,6 +38,7 @@ import signal
 import subprocess
 import threading
 
+from ..analysis.forecast.base import LEVELS
 from ..io.forecast_files import ForecastInputError
 from ..io.safeio import publish_bytes
 from .common import probability_text
@@ -67,8 +68,6 @@ HOOK_ENVIRONMENT = {
 def resolved_probabilities() -> tuple[float, float]:
     """The least and the greatest P(within) a forecast resolves (its quantile levels' ends):
     beyond them the text gives a bound and JSON the bound's value."""
-    from ..analysis.forecast.base import LEVELS
-
     return float(LEVELS[0]), float(LEVELS[-1])
 
 

@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from ..analysis.forecast.base import LEVELS, Forecaster
 from ..analysis.forecast.features import Cuts
 from ..analysis.forecast.registry import fallback_of
 from ..io.forecast_files import ForecastInputError, angle_option
@@ -45,8 +46,6 @@ def load_model(path=None, posterior=None, simulation=None) -> "ForecastModel":
     read once, as data (``io.forecast_model``); ``posterior``, a posterior file (default: the
     shipped one), and ``simulation``, how its predictive check makes piles
     (``infer.PileSimulation``), are ``infer``'s, read at its first call."""
-    from ..analysis.forecast.base import Forecaster
-
     models, prov, path = read_model_file(
         path, default_model_path(), "the default forecaster is missing from this installation; "
         "reinstall sliders, or train one with python -m sliders.forecast train and pass --model "
@@ -287,8 +286,6 @@ def probability_bounds(forecast) -> tuple[float, float]:
     """The least and the greatest probability the forecast's distribution resolves: its lowest
     and highest quantile levels (below and above them the tails are extrapolated, not
     calibrated)."""
-    from ..analysis.forecast.base import LEVELS
-
     lv = LEVELS if forecast.levels is None else np.asarray(forecast.levels)
     return float(lv[0]), float(lv[-1])
 

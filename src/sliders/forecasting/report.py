@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 
+from ..analysis.forecast.base import NOMINAL_COVERAGE
 from ..io.safeio import publish_bytes
 
 
@@ -17,8 +18,6 @@ def interval_name(method_dict: dict, method: str) -> str:
     """What a method's interval is, in the words every output uses (``predict``'s lines,
     ``--follow``'s update and ALARM lines, the picture): ``method_dict`` is the method's entry
     of ``to_dict()["methods"]``."""
-    from ..analysis.forecast.base import NOMINAL_COVERAGE
-
     if method_dict["calibrated"]:
         return f"{NOMINAL_COVERAGE * 100:.0f} % interval"
     fallback = method_dict.get("fallback", False)

@@ -17,13 +17,14 @@ non-randomized PIT of Czado, Gneiting and Held 2009).
 * ``ks_count``: how many KS tests over several independent draws fail at a
   level, against the number a calibrated posterior fails by chance.
 
-SciPy is imported by the functions that test, not by this module: the forecast's modules
-that import this one stay quick to import.
+This module imports SciPy's statistics (a second and more): the posterior imports it when it
+fits, not when it is read.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import binomtest, kstest
 
 #: the central intervals whose coverage is reported
 COVERAGES = (0.5, 0.8, 0.95)
@@ -31,8 +32,6 @@ COVERAGES = (0.5, 0.8, 0.95)
 
 def ks_p_value(u) -> float:
     """The Kolmogorov-Smirnov p-value of ``u`` against the uniform law on [0, 1]."""
-    from scipy.stats import kstest
-
     return float(kstest(np.asarray(u, dtype=float), "uniform").pvalue)
 
 
@@ -40,8 +39,6 @@ def pit_is_off(u, alpha: float, intervals=COVERAGES) -> bool:
     """Independent probability integral transforms ``u`` are not uniform: the
     Kolmogorov-Smirnov test, or the share inside a central interval of ``intervals``
     (binomial), fails at ``alpha``."""
-    from scipy.stats import binomtest
-
     if ks_p_value(u) < alpha:
         return True
     inside = [int(np.sum(np.abs(np.asarray(u) - 0.5) <= c / 2)) for c in intervals]

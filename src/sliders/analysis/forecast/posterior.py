@@ -52,9 +52,9 @@ import json
 import math
 
 import numpy as np
+from scipy.special import ndtr, ndtri
 
 from ...io.catalogue import Catalogue, CatalogueSet
-from .calibration import pit_is_off
 from .domain import DOMAIN_FEATURES, DomainCheck
 from .estimator import Estimator
 from .features import Cuts, coupled_lone_slips, feature_matrix, training_cuts
@@ -400,6 +400,8 @@ class ParameterPosterior(Estimator):
         ``RECALIBRATION_ROUNDS`` times on the PITs of the CDF it makes.  Between the learned
         levels the conformal CDF is linear, too coarse where a posterior is sharp (mu_d from
         the lone slips): the map resolves it to ``REPORTED_LEVELS``."""
+        from .calibration import pit_is_off  # SciPy's statistics, needed by the fit only
+
         rng = np.random.default_rng([self.random_state, 1])
         cuts = self.cuts_of(cal_set, rng, self.draws_per_row * RECALIBRATION_DRAWS)
         truth = {p: np.asarray(cal_set.parameters[p])[cuts.row] for p in self.parameters_}
@@ -427,8 +429,6 @@ class ParameterPosterior(Estimator):
         """How the parameters vary together about their posterior: the correlation of the
         normal scores of ``u``, the held-out truths' posterior CDFs (a Gaussian copula, the
         same for every catalogue: the quantiles are learned one parameter at a time)."""
-        from scipy.special import ndtri
-
         u = np.clip(u, 1e-4, 1 - 1e-4)
         c = np.corrcoef(ndtri(u), rowvar=False) if len(u) > 2 else np.eye(u.shape[1])
         c = np.nan_to_num(np.atleast_2d(c), nan=0.0)
@@ -589,8 +589,6 @@ class ParameterPosterior(Estimator):
         """``n`` draws of every parameter for one cut, in the parameters' own units (xi = 0
         and the prior's numbers of sliders as they are drawn): each parameter's inverse CDF
         at uniform draws joined by the Gaussian copula ``copula_``."""
-        from scipy.special import ndtr  # imported here: not at the posterior's import
-
         z = rng.standard_normal((n, len(self.parameters_))) @ np.linalg.cholesky(self.copula_).T
         u = ndtr(z)
         return {name: self.physical(name, self.ppf(q_row, p, u[:, p]))
