@@ -89,3 +89,24 @@ def test_every_module_of_the_package_imports_on_its_own(tmp_path):
     res = import_each("sliders", tmp_path / "pycache")  # the installed package
     assert res.returncode == 0, res.stderr
     assert int(res.stdout.split()[0]) > 50  # the package's modules were walked
+
+
+# The forecasting layer's modules imported in a fresh interpreter, and what of the package they
+# bring in: none of the commands (``sliders.runs``) nor the front door, however reached
+# (an import statement, a name imported by importlib at run time).
+FORECASTING_IMPORTS = """
+import importlib, pkgutil, sys
+import sliders.forecasting as layer
+for m in pkgutil.iter_modules(layer.__path__, "sliders.forecasting."):
+    importlib.import_module(m.name)
+print("\\n".join(sorted(m for m in sys.modules if m.startswith(("sliders.runs", "sliders.forecast"))
+                        and not m.startswith("sliders.forecasting"))))
+"""
+
+
+@pytest.mark.slow  # an interpreter started
+def test_the_forecasting_layer_imports_none_of_the_commands():
+    res = subprocess.run([sys.executable, "-c", FORECASTING_IMPORTS], capture_output=True,
+                         text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.split() == []
