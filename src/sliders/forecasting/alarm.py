@@ -89,27 +89,6 @@ def threshold_option(value, option: str = "--alarm-threshold") -> float:
     return p
 
 
-def check_alarm_options(args) -> None:
-    """``--alarm-threshold``, ``--alarm-release`` and ``--on-alarm`` in range, the hook's
-    program found (one line naming the option), before the catalogue and the model are read;
-    the release level and the hook need ``--follow`` (a single forecast has no hysteresis)."""
-    threshold = getattr(args, "alarm_threshold", None)
-    release = getattr(args, "alarm_release", None)
-    hook = getattr(args, "on_alarm", None)
-    if threshold is not None:
-        threshold = threshold_option(threshold)
-    if not getattr(args, "follow", False):
-        for option, value in (("--alarm-release", release), ("--on-alarm", hook)):
-            if value is not None:
-                raise ForecastInputError(f"{option} {value}: with --follow only (a single "
-                                         "forecast has no alarm to release or act on; "
-                                         "--alarm-threshold says whether it sounds)")
-    if release is not None:
-        check_release(release, threshold if threshold is not None else 1.0)
-    if hook is not None:
-        check_hook(hook)
-
-
 def single_alarm(report: dict, threshold) -> tuple[dict, str]:
     """A single forecast's alarm at ``threshold`` (no hysteresis): ``report`` (its JSON object)
     with ``alarm_threshold`` and ``alarm``, and the line that says it."""

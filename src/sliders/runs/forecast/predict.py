@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import math
 
-from ...forecasting.alarm import check_alarm_options, single_alarm
+from ...forecasting.alarm import check_hook, check_release, single_alarm, threshold_option
 from ...forecasting.catalogue import prepared, read_source
 from ...forecasting.predict import load_model, within_option
 from ...io.forecast_files import (ForecastInputError, angle_option, check_output_target,
@@ -72,3 +72,24 @@ def check_plot_target(plot, inputs: dict) -> None:
         raise ForecastInputError(f"--plot: {exc}") from None
     check_output_target(plot, {what: resolve_target(path) for what, path in inputs.items()
                                if path is not None and str(path) != "-"}, "--plot")
+
+
+def check_alarm_options(args) -> None:
+    """``--alarm-threshold``, ``--alarm-release`` and ``--on-alarm`` in range, the hook's
+    program found (one line naming the option), before the catalogue and the model are read;
+    the release level and the hook need ``--follow`` (a single forecast has no hysteresis)."""
+    threshold = getattr(args, "alarm_threshold", None)
+    release = getattr(args, "alarm_release", None)
+    hook = getattr(args, "on_alarm", None)
+    if threshold is not None:
+        threshold = threshold_option(threshold)
+    if not getattr(args, "follow", False):
+        for option, value in (("--alarm-release", release), ("--on-alarm", hook)):
+            if value is not None:
+                raise ForecastInputError(f"{option} {value}: with --follow only (a single "
+                                         "forecast has no alarm to release or act on; "
+                                         "--alarm-threshold says whether it sounds)")
+    if release is not None:
+        check_release(release, threshold if threshold is not None else 1.0)
+    if hook is not None:
+        check_hook(hook)
