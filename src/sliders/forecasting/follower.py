@@ -3,8 +3,8 @@ and of ``python -m sliders.forecast predict FILE --follow``.
 
 Data go one way: the file (or standard input) -> a bounded line reader
 (``Tail`` for a file, ``Stream`` for standard input, a FIFO or a device) ->
-the catalogue reader (``read_catalogue_stream``) -> ``model.predict_read`` ->
-an ``Update``.  The loop is a solver's loop (Dedalus's ``proceed``/``step``)::
+the catalogue reader (``read_catalogue_stream``) -> the forecast it is handed
+(``ForecastModel.predict_read``) -> an ``Update``.  The loop is a solver's loop (Dedalus's ``proceed``/``step``)::
 
     follower = model.follow("pile.csv", tilt_rate="0.1deg/s")
     while follower.proceed:             # no stop yet: signal, until, '# avalanche'
@@ -441,8 +441,11 @@ class Follower:
 
     Parameters
     ----------
-    model
-        A ``ForecastModel``: its ``predict_read`` forecasts each state.
+    forecast : callable
+        ``forecast(read, tilt, measurement, within, method)``: the ``Prediction`` of a catalogue
+        read (``catalogue.read_source``'s triple) at the tilt reached ``tilt``
+        (``ForecastModel.predict_read``); the follower hands it each state, and nothing flows
+        back.
     source : str or os.PathLike
         The catalogue CSV (``-``: standard input); it must exist.
     tilt_now : str, optional
@@ -479,10 +482,10 @@ class Follower:
         ``raise_interrupt``; the commands pass theirs (``runs.signals.raise_stopped``).
     """
 
-    def __init__(self, model, source, *, tilt_now=None, tilt_rate=None, until=None,
+    def __init__(self, forecast, source, *, tilt_now=None, tilt_rate=None, until=None,
                  within: float, measurement, method: str = "learned", alarm, score,
                  picture=None, say=None, poll_seconds: float = POLL_SECONDS, on_signal=None):
-        self.model = model
+        self.forecast = forecast
         self.on_signal = on_signal or raise_interrupt
         self.signum: int | None = None  # the stop signal received while iterating
         self.where = check_source(source)
@@ -734,7 +737,7 @@ class Follower:
         return update
 
     def _predict(self, read, tilt: float):
-        return self.model.predict_read((read[0], 1.0, "rad"), tilt, self.measurement,
+        return self.forecast((read[0], 1.0, "rad"), tilt, self.measurement,
                                        self.within, self.method)
 
     def _skip_refused_row(self, exc) -> bool:

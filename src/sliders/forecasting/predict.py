@@ -191,7 +191,7 @@ class ForecastModel:
         measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
                                        sliders)
         where = check_source(source)
-        return Follower(self, where, tilt_now=tilt_now, tilt_rate=tilt_rate, until=until,
+        return Follower(self.predict_read, where, tilt_now=tilt_now, tilt_rate=tilt_rate, until=until,
                         within=within_option(within), measurement=measurement, method=method,
                         alarm=Alarm(alarm_threshold, alarm_release, hook=on_alarm,
                                     catalogue=where),
