@@ -42,8 +42,9 @@ The domain check (``domain.DomainCheck``) is fitted on the training cuts and
 its thresholds set on the calibration realisations' cuts (``domain_level`` of
 them flagged): it is the prior predictive test of the command's check, and
 the posterior predictive test compares a catalogue with piles simulated at
-posterior draws (``posterior_check``; the simulations are the command's,
-``sliders.runs.forecast.infer``).
+posterior draws (``posterior_check``).  ``given(catalogue)`` is one catalogue's posterior
+(``CataloguePosterior``: ``sample``, ``cdf``, ``ppf``, ``summary``, ``contraction``); the
+tests of its calibration are ``calibration``'s.
 """
 
 from __future__ import annotations
