@@ -136,3 +136,23 @@ def test_a_noisy_tilts_avalanche_may_lie_below_its_last_angle():
     assert kept.interval[0] < 0.5 and not kept.clipped
     assert Forecast(q, 0.5, "learned_blind").interval[0] == 0.5
     assert Forecast(q, 0.5, "learned_blind", floor=0.4985).clipped
+
+
+@pytest.mark.parametrize("xi", [0.0, 0.02])
+def test_lone_slips_give_mu_d_and_the_cameras_unit_from_the_tilt_itself(xi):
+    from sliders.analysis.forecast.features import coupled_lone_slips, scale_free_lone_slips
+    from sliders.driver import run
+    from sliders.scene import Scene
+
+    scene = Scene(n_sliders=40, seed=3, mu_d=0.6, mu_s_mean=0.66, sigma_mu=0.01, xi=xi,
+                  mode="explore", record="displacements")
+    result = run(scene, "fortran")
+    cat = Catalogue.from_result(result).cut(result.alpha_c - math.radians(1.0))
+    mu_d, _, agree = coupled_lone_slips(cat)
+    assert agree >= 4 and mu_d == pytest.approx(0.6, abs=1e-6)
+    for scale in (1e-3, 250.0):
+        seen = degrade(cat, CAMERA, np.random.default_rng(0), camera=(scale, 0.0), n_sliders=40)
+        mu, unit, n = scale_free_lone_slips(seen, CAMERA)
+        assert n == agree and mu == pytest.approx(mu_d, rel=1e-9)
+        if xi == 0.0:  # the unit itself: model units per camera unit
+            assert unit == pytest.approx(1.0 / scale, rel=1e-6)

@@ -267,14 +267,73 @@ def coupled_lone_slips(cat: Catalogue) -> tuple[float, float, int]:
     d = disp[i] + disp[j]
     m = np.column_stack([np.ones_like(a), -d / 2 / a, (before[i] - before[j + 1] + d / 2) / a])
     y = (d - (np.sin(alpha[i]) - np.sin(alpha[j]))) / a
-    keep = np.ones(a.size, dtype=bool)
+    sol, off = _pruned_least_squares(m, y)
+    return float(sol[0]), float(sol[1]), int(np.sum(off <= COUPLED_TOL))
+
+
+def _pruned_least_squares(m: np.ndarray, y: np.ndarray):
+    """``m x = y`` by least squares, the rows off by more than ``COUPLED_TOL`` (and three
+    times the median) dropped and the rest solved again (twice at most): the solution and
+    every row's misfit."""
+    keep = np.ones(y.size, dtype=bool)
     for _ in range(3):
         sol = np.linalg.lstsq(m[keep], y[keep], rcond=None)[0]
         off = np.abs(y - m @ sol)
         near = off <= max(COUPLED_TOL, 3.0 * float(np.median(off[keep])))
-        if near.sum() <= COUPLED_UNKNOWNS or (near == keep).all():
+        if near.sum() <= m.shape[1] or (near == keep).all():
             break
         keep = near
+    return sol, off
+
+
+def slider_indices(cat: Catalogue, measurement) -> Catalogue:
+    """``cat`` with its movers as slider indices: as given, or from a camera's fractions of the
+    pile's length, the sliders' spacing read as the least gap between two positions seen (the
+    pile's number of sliders if told).  Unknown positions stay -1."""
+    if measurement.position_unit != "fraction" or not len(cat):
+        return cat
+    known = (cat.first >= 0) & (cat.last >= 0)
+    seen = np.unique(np.concatenate([cat.first[known], cat.last[known]]))
+    gaps = np.diff(seen)
+    gaps = gaps[gaps > 1e-9]
+    n = measurement.n_sliders if measurement.n_sliders and not measurement.n_sliders_high else (
+        round(1.0 / float(gaps.min())) if gaps.size else 0)
+    if n < 1:
+        return Catalogue(cat.alpha, cat.size, cat.displacement, np.full(len(cat), -1),
+                         np.full(len(cat), -1), cat.tilt_now)
+    first, last = (np.where(known, np.round(p * n - 0.5), -1).astype(np.int64)
+                   for p in (cat.first, cat.last))
+    return Catalogue(cat.alpha, cat.size, cat.displacement, first, last, cat.tilt_now)
+
+
+def scale_free_lone_slips(cat: Catalogue, measurement) -> tuple[float, float, int]:
+    """mu_d from the lone-slip pairs of a catalogue whose displacements are in an unknown unit,
+    solved with that unit: (mu_d, model units per displacement unit, pairs that agree), NaN
+    with fewer than four pairs.
+
+    ``coupled_lone_slips``' equation with every displacement ``d = s d'`` (``d'`` as recorded,
+    ``s`` unknown) is linear in mu_d, ``u = s (1 + xi / 2)`` and ``v = s xi / N``:
+
+        mu_d (cos a_j - cos a_i) - u D' + v (S' + D' / 2) = -(sin a_i - sin a_j),
+
+    so the tilt's own sine fixes the unit and mu_d is exact when the angles are, in pixels or
+    millimetres as in g tau^2 (the scale returned is ``u``: s itself when xi = 0).
+    """
+    cat = slider_indices(cat, measurement)
+    pairs = lone_slip_pairs(cat)
+    if len(pairs) < COUPLED_UNKNOWNS + 1:
+        return math.nan, math.nan, 0
+    j, i = np.array(pairs).T
+    alpha, disp = cat.alpha, cat.displacement
+    a = np.cos(alpha[j]) - np.cos(alpha[i])
+    j, i, a = j[a > 0], i[a > 0], a[a > 0]
+    if a.size < COUPLED_UNKNOWNS + 1:
+        return math.nan, math.nan, 0
+    before = np.concatenate([[0.0], np.cumsum(disp)])
+    d = disp[i] + disp[j]
+    m = np.column_stack([np.ones_like(a), -d / a, (before[i] - before[j + 1] + d / 2) / a])
+    y = -(np.sin(alpha[i]) - np.sin(alpha[j])) / a
+    sol, off = _pruned_least_squares(m, y)
     return float(sol[0]), float(sol[1]), int(np.sum(off <= COUPLED_TOL))
 
 
@@ -424,6 +483,14 @@ def camera_features(cat: Catalogue, measurement) -> dict:
     wide = (size >= 3) & (extent > 0)
     f["log_n_from_extent"] = (float(np.log(np.median((size[wide] - 1.0) / extent[wide])))
                               if wide.any() and measurement.size_unit == "sliders" else np.nan)
+    mu_d, unit, agree = scale_free_lone_slips(cat, measurement)
+    ok = np.isfinite(mu_d) and agree > 0
+    f["atan_mu_d_lone"] = float(np.arctan(mu_d)) if ok else np.nan
+    f["atan_mu_d_lone_minus_tilt"] = f["atan_mu_d_lone"] - t
+    f["lone_pairs_agree"] = float(agree)
+    # the displacement's own scale in the model's units (mu_s - mu_d over the median slip)
+    f["log_delta_mu_lone"] = (float(np.log(unit * scale)) if ok and unit > 0
+                              and np.isfinite(scale) else np.nan)
     return f
 
 

@@ -118,8 +118,10 @@ FORECASTERS = (
           boosted=True, seeded=True, alarm=True, example=True, method="learned_blind",
           fallback=_LEARNED_FALLBACK, colour="#fdae61"),
     # a camera's catalogue: its displacements in any unit, read relative to the catalogue's
-    # own (``features.camera_features``), trained on displacement units drawn over four decades
-    Entry("learned.Learned", {"inputs": "camera", "calibration_size_bins": 2,
+    # own (``features.camera_features``), trained on displacement units drawn over four decades;
+    # mu_d from lone slips solved with the unit is exact when the angles are (fine bins, as
+    # the forecaster of every feature)
+    Entry("learned.Learned", {"inputs": "camera", "max_bins": 255, "calibration_size_bins": 2,
                               "calibration_remaining_bins": 3},
           boosted=True, seeded=True, alarm=True, example=True, method="learned_camera",
           fallback=_LEARNED_FALLBACK, colour="#e31a1c"),
