@@ -254,21 +254,31 @@ def coupled_lone_slips(cat: Catalogue) -> tuple[float, float, int]:
     and the rest solved again (twice at most).  Exact when the angles are, whatever xi
     (N is not needed: an estimate from the slider indices would spoil it).
     """
+    terms = _pair_terms(cat)
+    if terms is None:
+        return math.nan, math.nan, 0
+    a, d, between, rise = terms
+    m = np.column_stack([np.ones_like(a), -d / 2 / a, (between + d / 2) / a])
+    sol, off = _pruned_least_squares(m, (d - rise) / a)
+    return float(sol[0]), float(sol[1]), int(np.sum(off <= COUPLED_TOL))
+
+
+def _pair_terms(cat: Catalogue):
+    """The terms of the lone-slip pairs' equations (``lone_slip_pairs``, the second slip at a
+    larger angle): cos a_j - cos a_i, D = d_j + d_i, S (the displacement of the events in
+    between) and sin a_i - sin a_j; None with fewer than four pairs."""
     pairs = lone_slip_pairs(cat)
     if len(pairs) < COUPLED_UNKNOWNS + 1:
-        return math.nan, math.nan, 0
+        return None
     j, i = np.array(pairs).T
     alpha, disp = cat.alpha, cat.displacement
     a = np.cos(alpha[j]) - np.cos(alpha[i])
     j, i, a = j[a > 0], i[a > 0], a[a > 0]
     if a.size < COUPLED_UNKNOWNS + 1:
-        return math.nan, math.nan, 0
+        return None
     before = np.concatenate([[0.0], np.cumsum(disp)])
-    d = disp[i] + disp[j]
-    m = np.column_stack([np.ones_like(a), -d / 2 / a, (before[i] - before[j + 1] + d / 2) / a])
-    y = (d - (np.sin(alpha[i]) - np.sin(alpha[j]))) / a
-    sol, off = _pruned_least_squares(m, y)
-    return float(sol[0]), float(sol[1]), int(np.sum(off <= COUPLED_TOL))
+    return (a, disp[i] + disp[j], before[i] - before[j + 1],
+            np.sin(alpha[i]) - np.sin(alpha[j]))
 
 
 def _pruned_least_squares(m: np.ndarray, y: np.ndarray):
@@ -319,21 +329,12 @@ def scale_free_lone_slips(cat: Catalogue, measurement) -> tuple[float, float, in
     so the tilt's own sine fixes the unit and mu_d is exact when the angles are, in pixels or
     millimetres as in g tau^2 (the scale returned is ``u``: s itself when xi = 0).
     """
-    cat = slider_indices(cat, measurement)
-    pairs = lone_slip_pairs(cat)
-    if len(pairs) < COUPLED_UNKNOWNS + 1:
+    terms = _pair_terms(slider_indices(cat, measurement))
+    if terms is None:
         return math.nan, math.nan, 0
-    j, i = np.array(pairs).T
-    alpha, disp = cat.alpha, cat.displacement
-    a = np.cos(alpha[j]) - np.cos(alpha[i])
-    j, i, a = j[a > 0], i[a > 0], a[a > 0]
-    if a.size < COUPLED_UNKNOWNS + 1:
-        return math.nan, math.nan, 0
-    before = np.concatenate([[0.0], np.cumsum(disp)])
-    d = disp[i] + disp[j]
-    m = np.column_stack([np.ones_like(a), -d / a, (before[i] - before[j + 1] + d / 2) / a])
-    y = -(np.sin(alpha[i]) - np.sin(alpha[j])) / a
-    sol, off = _pruned_least_squares(m, y)
+    a, d, between, rise = terms
+    m = np.column_stack([np.ones_like(a), -d / a, (between + d / 2) / a])
+    sol, off = _pruned_least_squares(m, -rise / a)
     return float(sol[0]), float(sol[1]), int(np.sum(off <= COUPLED_TOL))
 
 
