@@ -24,12 +24,11 @@ import time
 import numpy as np
 import pytest
 
-from sliders.analysis.forecast.posterior_check import simulate_pile
 from sliders.io.forecast_files import ForecastInputError
 from sliders.io.forecast_model import check_accuracy_table
 from sliders.runs.forecast import cli
 from sliders.forecasting.infer import load_posterior
-from sliders.runs.forecast.infer import CHECK_SIMULATION
+from sliders.runs.forecast.infer import CHECK_SIMULATION, simulate_pile
 from sliders.scene import Scene
 
 from helpers import write_model

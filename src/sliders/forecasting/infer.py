@@ -58,11 +58,12 @@ LABELS = {"mu_d": "mu_d", "mu_s_minus_mu_d": "mu_s - mu_d", "sigma_mu": "sigma_m
 @dataclasses.dataclass(frozen=True)
 class PileSimulation:
     """How the predictive check makes its piles: ``base_scene(spec)``, the base scene of the
-    prior a posterior stores (the ``prior`` command's specification), and the ``backend`` the
-    piles run on.  The commands hold both (``sliders.runs.forecast.infer.CHECK_SIMULATION``)."""
+    prior a posterior stores (the ``prior`` command's specification), and ``run_pile(scene)``,
+    a pile's run (a ``Result``).  The commands hold both
+    (``sliders.runs.forecast.infer.CHECK_SIMULATION``)."""
 
     base_scene: Callable[[dict], object]
-    backend: str
+    run_pile: Callable[[object], object]
 
 
 def load_posterior(path=None, simulation: PileSimulation | None = None) -> "PosteriorModel":
@@ -169,7 +170,7 @@ class PosteriorModel:
                          rng, complete: bool = True) -> dict:
         """The posterior predictive test of ``cat``: piles simulated at the posterior draws
         ``material`` (``posterior_check.predictive_check``) on the prior's base scene."""
-        return predictive_check(material, self.prior_scene(), self.simulation.backend, cat,
+        return predictive_check(material, self.prior_scene(), self.simulation.run_pile, cat,
                                 measurement, rng, complete)
 
     def prior_scene(self, checked: bool = False):

@@ -11,8 +11,10 @@ predictive test passes (``reproduced``) when the survival p-value is at least
 by their number (Bonferroni); the command's verdict also needs the prior
 predictive test, the posterior's domain check (``combined_verdict``, whose ``reasons``
 name each test that failed; ``p_value_text`` states a p-value as the text does).
-A pile of the check is run with its preparation stoppable by a signal (``simulate_pile``).
-No scikit-learn here: ``sliders.forecasting.infer`` imports this one at its top.
+A pile is run by the runner the caller hands (``run_pile(scene) -> Result``: the commands'
+runs its preparation stoppable by a signal, ``sliders.runs.forecast.infer.simulate_pile``).
+Neither scikit-learn nor the driver here: ``sliders.forecasting.infer`` imports this one at
+its top, and ``predict`` imports that.
 """
 
 from __future__ import annotations
@@ -21,11 +23,8 @@ import math
 
 import numpy as np
 
-from ... import status
-from ...driver import run
 from ...io.catalogue import Catalogue
-from ...preparation import prepare
-from ...scene import Scene, check_memory
+from ...scene import Scene
 from .measurement import Measurement, degrade
 
 #: the summary statistics compared; those counting sliders are left out for sizes in an
@@ -45,25 +44,6 @@ SURVIVAL_SPREAD = math.radians(0.25)
 #: at p = 0.001 (z = 3.3) that moves p by a factor of about 3, and below it the number says no
 #: more than "beyond the Bonferroni level" (0.01 over 9 statistics, 0.0011)
 P_VALUE_FLOOR = 0.001
-
-
-def simulate_pile(scene: Scene, backend: str):
-    """The run of one pile of the check (``driver.run``), stopped at once by Ctrl-C or SIGTERM.
-
-    The run's memory is checked first (``scene.check_memory``), then the chain is prepared
-    here, outside the run: ``run`` finishes a preparation a signal interrupts (the milliseconds
-    of Python around its engine), which for a pile of millions of sliders is half a minute
-    and more; here the signal's exception goes on up at once.  The same state, so the same
-    run as ``run(scene)``.  A history preparation (``initial_forces = "history"``), whose
-    engine answers a signal by ending its tilt as interrupted, stops as interrupted too."""
-    check_memory(scene)
-    try:
-        state = prepare(scene)
-    except RuntimeError as exc:
-        if f"'{status.NAMES[status.INTERRUPTED]}'" in str(exc):
-            raise KeyboardInterrupt from None
-        raise
-    return run(scene, backend, state=state)
 
 
 def check_statistics(cat: Catalogue, arbitrary_size: bool = False, complete: bool = True) -> dict:
@@ -141,14 +121,14 @@ def reproduced(p_values: dict, alpha: float = CHECK_ALPHA) -> bool:
     return not p or min(p) >= alpha / len(p)
 
 
-def predictive_check(material: dict, base_scene: Scene, backend: str, cat: Catalogue,
+def predictive_check(material: dict, base_scene: Scene, run_pile, cat: Catalogue,
                      measurement: Measurement, rng, complete: bool = True) -> dict:
     """The posterior predictive test: piles of the posterior draws ``material`` (one per draw),
-    made from ``base_scene`` and run on ``backend``, simulated up to ``cat``'s tilt reached,
+    made from ``base_scene`` and run by ``run_pile(scene)``, simulated up to ``cat``'s tilt reached,
     measured as it was, against it (their displacements too if ``complete``): each statistic's
     p-value, whether it is reproduced."""
     draws = len(material["mu_d"])
-    simulated, avalanche_angles = simulate_piles(base_scene, backend, material, cat.tilt_now,
+    simulated, avalanche_angles = simulate_piles(base_scene, run_pile, material, cat.tilt_now,
                                                  measurement, rng)
     arbitrary = measurement.size_unit == "arbitrary"
     p = predictive_p_values(check_statistics(cat, arbitrary, complete),
@@ -159,10 +139,10 @@ def predictive_check(material: dict, base_scene: Scene, backend: str, cat: Catal
             "significance_level": CHECK_ALPHA}
 
 
-def simulate_piles(base_scene: Scene, backend: str, material: dict, tilt: float,
+def simulate_piles(base_scene: Scene, run_pile, material: dict, tilt: float,
                    measurement: Measurement, rng):
     """The catalogues of piles of ``material`` (one per draw; ``base_scene`` with its
-    parameters, run on ``backend``) tilted up to ``tilt``, measured as ``measurement`` says
+    parameters, run by ``run_pile(scene)``) tilted up to ``tilt``, measured as ``measurement`` says
     (sizes in sliders), and each one's avalanche angle (NaN: it stood)."""
     seeds = rng.integers(1, 2**31 - 1, len(material["mu_d"]))
     measured = Measurement(measurement.angle_resolution, 1.0 if measurement.size_unit ==
@@ -178,7 +158,7 @@ def simulate_piles(base_scene: Scene, backend: str, material: dict, tilt: float,
                 changes[name] = float(material[name][j])
         if "n_sliders" in material:
             changes["n_sliders"] = int(material["n_sliders"][j])
-        result = simulate_pile(base_scene.replace(**changes), backend)
+        result = run_pile(base_scene.replace(**changes))
         sim = Catalogue.from_result(result)
         sim = Catalogue(sim.alpha, sim.size, sim.displacement, sim.first, sim.last,
                         tilt_now=max(float(tilt), float(sim.tilt_now)))

@@ -3,8 +3,10 @@
     python -m sliders.forecast infer CATALOGUE.csv [--tilt-now ANGLE] [--json] [--plot FILE.png]
 
 The options are checked here; the posterior and its predictive check are the forecasting
-layer's (``sliders.forecasting.infer``), given the prior's base scene by ``prior_base_scene``
-(a posterior stores the prior it was fitted on as the ``prior`` command's specification).
+layer's (``sliders.forecasting.infer``), given how the check's piles are made
+(``CHECK_SIMULATION``): the prior's base scene by ``prior_base_scene`` (a posterior stores the
+prior it was fitted on as the ``prior`` command's specification), each pile run by
+``simulate_pile``, stoppable by a signal.
 """
 
 from __future__ import annotations
@@ -12,10 +14,14 @@ from __future__ import annotations
 import json
 import math
 
+from ... import status
+from ...driver import run
 from ...forecasting.catalogue import prepared, read_source
 from ...forecasting.infer import MAX_CHECK_DRAWS, PileSimulation, load_posterior
 from ...io.forecast_files import ForecastInputError, angle_option, parse_angle, tilt_in_range
 from ...io.forecast_model import default_posterior_path
+from ...preparation import prepare
+from ...scene import check_memory
 from ..command import DEFAULT_BACKEND
 from ..prior_spec import parse_prior
 from .catalogue import measurement_of
@@ -27,9 +33,28 @@ def prior_base_scene(spec: dict):
     return parse_prior(spec, "the posterior's prior").base_scene
 
 
-#: how ``infer``'s predictive check makes its piles: the stored prior's base scene, run on the
-#: commands' default backend
-CHECK_SIMULATION = PileSimulation(prior_base_scene, DEFAULT_BACKEND)
+def simulate_pile(scene, backend: str = DEFAULT_BACKEND):
+    """The run of one pile of the check (``driver.run``), stopped at once by Ctrl-C or SIGTERM.
+
+    The run's memory is checked first (``scene.check_memory``), then the chain is prepared
+    here, outside the run: ``run`` finishes a preparation a signal interrupts (the milliseconds
+    of Python around its engine), which for a pile of millions of sliders is half a minute
+    and more; here the signal's exception goes on up at once.  The same state, so the same
+    run as ``run(scene)``.  A history preparation (``initial_forces = "history"``), whose
+    engine answers a signal by ending its tilt as interrupted, stops as interrupted too."""
+    check_memory(scene)
+    try:
+        state = prepare(scene)
+    except RuntimeError as exc:
+        if f"'{status.NAMES[status.INTERRUPTED]}'" in str(exc):
+            raise KeyboardInterrupt from None
+        raise
+    return run(scene, backend, state=state)
+
+
+#: how ``infer``'s predictive check makes its piles: the stored prior's base scene, each pile
+#: run on the commands' default backend, stoppable by a signal
+CHECK_SIMULATION = PileSimulation(prior_base_scene, simulate_pile)
 
 
 def infer(args, argv=None) -> int:
