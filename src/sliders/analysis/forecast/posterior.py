@@ -61,7 +61,7 @@ from .estimator import Estimator
 from .features import Cuts, coupled_lone_slips, feature_matrix, training_cuts
 from .evaluators import check_boosting
 from .integrity import IntegrityError, check_array, check_number, require
-from .measurement import MEASUREMENT_FEATURES, PERFECT, degrade_cuts
+from .measurement import RECORD_FEATURES, PERFECT, degrade_cuts
 
 #: the material parameters inferred, in order
 POSTERIOR_PARAMETERS = ("mu_d", "mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders")
@@ -480,7 +480,7 @@ class ParameterPosterior(Estimator):
         names = design_names()
         complete = x[:, names.index("complete")] > 0
         lone = x[:, names.index("lone_slider_mu_d")] > 0
-        m = x[:, [names.index(k) for k in MEASUREMENT_FEATURES]]
+        m = x[:, [names.index(k) for k in RECORD_FEATURES]]
         exact = (m == PERFECT.as_features(Catalogue([], [], [], [], []))).all(axis=1)
         return np.where(complete, np.where(lone, 0, np.where(exact, 1, 2)),
                         np.where(exact, 3, 4))
