@@ -152,7 +152,7 @@ def test_lone_slips_give_mu_d_and_the_cameras_unit_from_the_tilt_itself(xi):
     assert agree >= 4 and mu_d == pytest.approx(0.6, abs=1e-6)
     for scale in (1e-3, 250.0):
         seen = degrade(cat, CAMERA, np.random.default_rng(0), camera=(scale, 0.0), n_sliders=40)
-        mu, unit, n = scale_free_lone_slips(seen, CAMERA)
-        assert n == agree and mu == pytest.approx(mu_d, rel=1e-9)
+        mu, unit, n, misfit = scale_free_lone_slips(seen, CAMERA)
+        assert n == agree and mu == pytest.approx(mu_d, rel=1e-9) and misfit < 1e-6
         if xi == 0.0:  # the unit itself: model units per camera unit
             assert unit == pytest.approx(1.0 / scale, rel=1e-6)

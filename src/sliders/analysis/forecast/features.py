@@ -316,10 +316,10 @@ def slider_indices(cat: Catalogue, measurement) -> Catalogue:
     return Catalogue(cat.alpha, cat.size, cat.displacement, first, last, cat.tilt_now)
 
 
-def scale_free_lone_slips(cat: Catalogue, measurement) -> tuple[float, float, int]:
+def scale_free_lone_slips(cat: Catalogue, measurement) -> tuple[float, float, int, float]:
     """mu_d from the lone-slip pairs of a catalogue whose displacements are in an unknown unit,
-    solved with that unit: (mu_d, model units per displacement unit, pairs that agree), NaN
-    with fewer than four pairs.
+    solved with that unit: (mu_d, model units per displacement unit, pairs that agree, the
+    pairs' median misfit), NaN with fewer than four pairs.
 
     ``coupled_lone_slips``' equation with every displacement ``d = s d'`` (``d'`` as recorded,
     ``s`` unknown) is linear in mu_d, ``u = s (1 + xi / 2)`` and ``v = s xi / N``:
@@ -331,11 +331,11 @@ def scale_free_lone_slips(cat: Catalogue, measurement) -> tuple[float, float, in
     """
     terms = _pair_terms(slider_indices(cat, measurement))
     if terms is None:
-        return math.nan, math.nan, 0
+        return math.nan, math.nan, 0, math.nan
     a, d, between, rise = terms
     m = np.column_stack([np.ones_like(a), -d / a, (between + d / 2) / a])
     sol, off = _pruned_least_squares(m, -rise / a)
-    return float(sol[0]), float(sol[1]), int(np.sum(off <= COUPLED_TOL))
+    return float(sol[0]), float(sol[1]), int(np.sum(off <= COUPLED_TOL)), float(np.median(off))
 
 
 def n_sliders_estimate(cat: Catalogue) -> float:
@@ -484,11 +484,14 @@ def camera_features(cat: Catalogue, measurement) -> dict:
     wide = (size >= 3) & (extent > 0)
     f["log_n_from_extent"] = (float(np.log(np.median((size[wide] - 1.0) / extent[wide])))
                               if wide.any() and measurement.size_unit == "sliders" else np.nan)
-    mu_d, unit, agree = scale_free_lone_slips(cat, measurement)
-    ok = np.isfinite(mu_d) and agree > 0
+    # solved over every pair (a noisy record's pairs agree only to its noise: the misfit says
+    # how well, the agreeing pairs how exactly)
+    mu_d, unit, agree, misfit = scale_free_lone_slips(cat, measurement)
+    ok = np.isfinite(mu_d) and abs(mu_d) < 10.0
     f["atan_mu_d_lone"] = float(np.arctan(mu_d)) if ok else np.nan
     f["atan_mu_d_lone_minus_tilt"] = f["atan_mu_d_lone"] - t
     f["lone_pairs_agree"] = float(agree)
+    f["log_lone_misfit"] = float(np.log10(max(misfit, 1e-12))) if ok else np.nan
     # the displacement's own scale in the model's units (mu_s - mu_d over the median slip)
     f["log_delta_mu_lone"] = (float(np.log(unit * scale)) if ok and unit > 0
                               and np.isfinite(scale) else np.nan)

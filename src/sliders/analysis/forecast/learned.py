@@ -326,7 +326,11 @@ class Learned(Forecaster):
         for k in range(CALIBRATION_FOLDS):
             out = fold == k
             if out.any() and (~out).any():
-                models = self._fit_regressors(x[~out], y_log[~out])
+                part = x[~out]
+                # a feature no cut of the other folds has (the boosting cannot bin a column of
+                # NaN only) is held constant there: no tree splits on it
+                part[:, ~np.isfinite(part).any(axis=0)] = 0.0
+                models = self._fit_regressors(part, y_log[~out])
                 z[out] = np.column_stack([m.predict(x[out]) for m in models])
             else:  # too few realisations for this fold: the regressors kept
                 z[out] = np.column_stack([m.predict(x[out]) for m in self.models_])
