@@ -41,14 +41,15 @@ def piles(n_rows: int, seed: int = 0) -> CatalogueSet:
 
 
 def in_camera_units(cat: Catalogue, n: int, scale: float, length_mm: float | None = None):
-    """``cat`` as a camera records it: displacements times ``scale``; positions as fractions
-    of the pile's length, or in mm along a pile ``length_mm`` long (then divided by it, as
-    ``--position-unit mm --pile-length`` does)."""
+    """``cat`` as a camera records it, and its measurement: displacements times ``scale``;
+    positions as fractions of the pile's length, or in mm along a pile ``length_mm`` long."""
     first, last = (cat.first + 0.5) / n, (cat.last + 0.5) / n
+    m = CAMERA
     if length_mm is not None:
-        first, last = first * length_mm / length_mm, last * length_mm / length_mm
+        first, last = first * length_mm, last * length_mm
+        m = replace(CAMERA, position_unit="mm", pile_length=length_mm)
     return Catalogue(cat.alpha, cat.size, cat.displacement * scale, first, last,
-                     tilt_now=cat.tilt_now)
+                     tilt_now=cat.tilt_now), m
 
 
 CAMERA = Measurement(displacement_unit="arbitrary", position_unit="fraction")
@@ -60,7 +61,7 @@ def test_camera_features_do_not_depend_on_the_displacement_unit_or_the_position_
     n = int(cset.parameters["n_sliders"][0])
     model = camera_features(cat, Measurement(n_sliders=n))
     for scale, length in ((1e-3, None), (1.0, 850.0), (1e3, 0.37)):
-        other = camera_features(in_camera_units(cat, n, scale, length), CAMERA)
+        other = camera_features(*in_camera_units(cat, n, scale, length))
         for key, v in model.items():
             assert other[key] == pytest.approx(v, rel=1e-12, nan_ok=True), key
     # the displacement's own scale is the median displacement per mover
@@ -77,8 +78,9 @@ def test_a_camera_forecast_is_the_same_in_any_unit():
     n = np.asarray(test.parameters["n_sliders"])
     qs = []
     for scale, length in ((1e-3, None), (1.0, None), (1e3, 1200.0)):
-        cats = [in_camera_units(c, int(k), scale, length) for c, k in zip(base, n)]
-        qs.append(f.quantiles(Cuts.from_catalogues(cats, CAMERA))[0])
+        seen = [in_camera_units(c, int(k), scale, length) for c, k in zip(base, n)]
+        cuts = Cuts([c for c, _ in seen], np.full(len(seen), -1), measurement=[m for _, m in seen])
+        qs.append(f.quantiles(cuts)[0])
     assert np.isfinite(qs[0]).all()
     for q in qs[1:]:
         np.testing.assert_allclose(q, qs[0], rtol=0, atol=1e-9)
@@ -97,8 +99,9 @@ def test_a_cameras_training_catalogues_are_in_its_units():
     scales = [displacement_scale(c) / displacement_scale(o) for c, o in
               zip(cam.catalogues, cuts.catalogues)]
     assert max(scales) / min(scales) > 3  # one unit per catalogue
-    with pytest.raises(ValueError, match="number of sliders"):
-        degrade_cuts(replace(cuts, n_sliders=None), rng, camera=True)
+    # without the piles' numbers of sliders a camera's positions are unknown
+    unknown = degrade_cuts(replace(cuts, n_sliders=None), rng, camera=True)
+    assert all((c.first == -1).all() and len(c) for c in unknown.catalogues)
 
 
 def test_the_number_of_sliders_told_holds_the_truth_as_a_number_or_a_range():
@@ -116,6 +119,10 @@ def test_the_number_of_sliders_told_holds_the_truth_as_a_number_or_a_range():
     assert x[-2:] == pytest.approx([math.log(100), math.log(300)])
     with pytest.raises(ValueError, match="range"):
         Measurement(n_sliders=300, n_sliders_high=100)
+    with pytest.raises(ValueError, match="pile's length"):
+        Measurement(position_unit="mm")
+    with pytest.raises(ValueError, match="position unit mm"):
+        Measurement(pile_length=300.0)
 
 
 def test_a_noisy_tilts_avalanche_may_lie_below_its_last_angle():
@@ -138,21 +145,29 @@ def test_a_noisy_tilts_avalanche_may_lie_below_its_last_angle():
     assert Forecast(q, 0.5, "learned_blind", floor=0.4985).clipped
 
 
-@pytest.mark.parametrize("xi", [0.0, 0.02])
+@pytest.mark.parametrize("xi", [0.0, 0.003])
 def test_lone_slips_give_mu_d_and_the_cameras_unit_from_the_tilt_itself(xi):
-    from sliders.analysis.forecast.features import coupled_lone_slips, scale_free_lone_slips
+    from sliders.analysis.forecast.features import (UNIT_PAIRS, coupled_lone_slips,
+                                                    in_model_units, scale_free_lone_slips)
     from sliders.driver import run
     from sliders.scene import Scene
 
-    scene = Scene(n_sliders=40, seed=3, mu_d=0.6, mu_s_mean=0.66, sigma_mu=0.01, xi=xi,
+    scene = Scene(n_sliders=100, seed=3, mu_d=0.6, mu_s_mean=0.66, sigma_mu=0.01, xi=xi,
                   mode="explore", record="displacements")
     result = run(scene, "fortran")
     cat = Catalogue.from_result(result).cut(result.alpha_c - math.radians(1.0))
     mu_d, _, agree = coupled_lone_slips(cat)
     assert agree >= 4 and mu_d == pytest.approx(0.6, abs=1e-6)
     for scale in (1e-3, 250.0):
-        seen = degrade(cat, CAMERA, np.random.default_rng(0), camera=(scale, 0.0), n_sliders=40)
+        seen = degrade(cat, CAMERA, np.random.default_rng(0), camera=(scale, 0.0), n_sliders=100)
         mu, unit, n, misfit = scale_free_lone_slips(seen, CAMERA)
         assert n == agree and mu == pytest.approx(mu_d, rel=1e-9) and misfit < 1e-6
         if xi == 0.0:  # the unit itself: model units per camera unit
             assert unit == pytest.approx(1.0 / scale, rel=1e-6)
+        # read back in the model's units: the movers' indices and displacements in g tau^2
+        back, unit, pairs = in_model_units(seen, CAMERA)
+        assert pairs >= UNIT_PAIRS and unit == pytest.approx(1.0 / scale, rel=1e-3)
+        assert (back.first == cat.first).all() and (back.last == cat.last).all()
+        np.testing.assert_allclose(back.displacement, cat.displacement, rtol=1e-3)
+    noisy = degrade(cat, CAMERA, np.random.default_rng(0), camera=(2.0, 0.05), n_sliders=100)
+    assert in_model_units(noisy, CAMERA)[0] is None  # a noisy record's unit is not read

@@ -243,7 +243,9 @@ def test_degraded_catalogues_and_the_flags_reach_the_features(tmp_path, model_fi
     assert out.returncode == 0, out.stderr
     d = json.loads(out.stdout)
     assert d["measurement"] == {"angle_resolution_deg": pytest.approx(0.3), "min_size": 21.0,
-                                "missed_fraction": 0.5, "size_unit": "arbitrary", "n_sliders": None}
+                                "missed_fraction": 0.5, "size_unit": "arbitrary", "n_sliders": None,
+                                "n_sliders_high": None, "displacement_unit": "model",
+                                "position_unit": "sliders", "pile_length_mm": None}
     bad = predict([str(path), "--model", model_file, "--missed-fraction", "1.5"])
     assert bad.returncode == 2 and "missed fraction" in bad.stderr and bad.stderr.count("\n") == 1
 

@@ -34,7 +34,8 @@ from ..io.forecast_files import (ANGLE_TOLERANCE_RESOLUTIONS, CatalogueRead, For
 TILT_TOLERANCE_RESOLUTIONS = 3.0
 
 
-def read_source(source, where: str = "catalogue", angle_resolution: float = 0.0):
+def read_source(source, where: str = "catalogue", angle_resolution: float = 0.0,
+                position_unit: str = "sliders"):
     """The events of ``source``, the radians per unit of its angles and that unit's name
     (``io.forecast_files.CatalogueRead``: with ``reordered``, the rows sorted).
 
@@ -45,16 +46,18 @@ def read_source(source, where: str = "catalogue", angle_resolution: float = 0.0)
     ``Catalogue`` (radians).  Every refusal is one line naming the row and the column.
     ``angle_resolution`` (radians): the angles' error; rows in time order whose angles go back
     by less than ``ANGLE_TOLERANCE_RESOLUTIONS`` of it are sorted by angle, as the training's
-    noisy catalogues are.
+    noisy catalogues are.  ``position_unit``: the movers' positions as slider indices,
+    fractions of the pile's length, or mm along it (``Measurement.position_unit``).
     """
     if isinstance(source, Catalogue):
         return CatalogueRead(source, 1.0, "rad")
     if isinstance(source, (bytes, bytearray)):
-        return read_catalogue_stream(io.BytesIO(bytes(source)), where, angle_resolution)
+        return read_catalogue_stream(io.BytesIO(bytes(source)), where, angle_resolution,
+                                     position_unit)
     if isinstance(source, (str, os.PathLike)):
-        return read_catalogue_file(os.fspath(source), angle_resolution)
+        return read_catalogue_file(os.fspath(source), angle_resolution, position_unit)
     if hasattr(source, "keys") and hasattr(source, "__getitem__"):
-        return read_catalogue_columns(source, where, angle_resolution)
+        return read_catalogue_columns(source, where, angle_resolution, position_unit)
     raise ForecastInputError(f"catalogue: a {type(source).__name__}; give a CSV file's path, or "
                              "a mapping or DataFrame of the CSV's columns")
 
@@ -69,23 +72,77 @@ def angles_and_sizes(cat: Catalogue) -> tuple[Catalogue, bool]:
     return cat, complete
 
 
+#: which learned forecaster reads a catalogue, by its columns and its measurement: every
+#: feature (displacements and movers in the model's units), a camera's (displacements in any
+#: unit, positions if given), or angles and sizes only
+LEARNED_BY_RECORD = {"complete": "learned", "camera": "learned_camera", "blind": "learned_blind"}
+
+
+def record_kind(cat: Catalogue, measurement) -> str:
+    """``"complete"``, ``"camera"`` or ``"blind"`` (``LEARNED_BY_RECORD``): a catalogue with
+    every displacement is a camera's when its displacements or positions are not in the
+    model's units, or when its movers are not all given."""
+    if len(cat) == 0 or np.isnan(cat.displacement).any():
+        return "blind"
+    whole = bool((cat.first >= 0).all())
+    return "complete" if whole and not measurement.camera else "camera"
+
+
+def camera_record(cat: Catalogue) -> Catalogue:
+    """A camera's catalogue as its forecaster reads it: every displacement, the movers where
+    given (else -1)."""
+    known = (cat.first >= 0) & (cat.last >= 0)
+    return Catalogue(cat.alpha, cat.size, cat.displacement, np.where(known, cat.first, -1),
+                     np.where(known, cat.last, -1), cat.tilt_now)
+
+
 def measurement_from(angle_resolution, min_size=1.0, missed_fraction=0.0, size_unit="sliders",
-                     sliders=None) -> Measurement:
+                     sliders=None, displacement_unit="model", position_unit="sliders",
+                     pile_length=None) -> Measurement:
     """The ``Measurement`` of the ``predict`` flags' values (one line naming a bad flag);
     ``angle_resolution``: ``"0.3deg"``, ``"0.005rad"`` or a bare number of degrees;
-    ``sliders``: a whole number (any integer, NumPy's too, or a float such as 100.0)."""
+    ``sliders``: a whole number (any integer, NumPy's too, or a float such as 100.0), or a
+    range, ``"100-300"`` or a pair; ``displacement_unit``, ``position_unit`` and
+    ``pile_length`` (mm): a camera's units."""
     res = angle_option(angle_resolution, "--angle-resolution")
-    n_sliders = sliders_option(sliders)
+    low, high = sliders_range(sliders)
+    if pile_length is not None:
+        try:
+            pile_length = float(pile_length)
+        except (TypeError, ValueError):
+            raise ForecastInputError(f"--pile-length {pile_length}: the pile's length in mm, a "
+                                     "positive number") from None
     try:
-        return Measurement(res, float(min_size), float(missed_fraction), size_unit, n_sliders)
+        return Measurement(res, float(min_size), float(missed_fraction), size_unit, low, high,
+                           displacement_unit, position_unit, pile_length)
     except (TypeError, ValueError) as exc:
         raise ForecastInputError(f"measurement flags: {exc}") from None
 
 
+def sliders_range(sliders) -> tuple[int | None, int | None]:
+    """``--sliders`` (``sliders=``) as (least, largest or None): a whole number, or a range
+    ``"100-300"`` (a pair of whole numbers); one line naming it otherwise."""
+    if isinstance(sliders, str) and "-" in sliders.strip()[1:]:
+        text = sliders.strip()
+        cut = text.index("-", 1)
+        low, high = sliders_option(text[:cut].strip()), sliders_option(text[cut + 1:].strip())
+    elif isinstance(sliders, (tuple, list)) and len(sliders) == 2:
+        low, high = sliders_option(sliders[0]), sliders_option(sliders[1])
+    else:
+        return sliders_option(sliders), None
+    if high < low:
+        raise ForecastInputError(f"--sliders {sliders}: a range is written least-largest "
+                                 "(100-300)")
+    return low, (high if high > low else None)
+
+
 def sliders_option(sliders) -> int | None:
-    """The number of sliders of ``--sliders`` (``sliders=``) as an int, or one line naming it."""
+    """A number of sliders of ``--sliders`` (``sliders=``) as an int, or one line naming it."""
     if sliders is None:
         return None
+    if isinstance(sliders, str):
+        text = sliders.strip()
+        sliders = int(text) if text.isdigit() else float(text) if _number(text) else text
     whole = None
     if isinstance(sliders, (bool, np.bool_)):
         pass
@@ -101,9 +158,21 @@ def sliders_option(sliders) -> int | None:
 
 def measurement_as_json(measurement) -> dict:
     """The measurement as JSON values (the angle error in degrees, as given)."""
-    return {"angle_resolution_deg": math.degrees(measurement.angle_resolution),
-            "min_size": measurement.min_size, "missed_fraction": measurement.missed_fraction,
-            "size_unit": measurement.size_unit, "n_sliders": measurement.n_sliders}
+    m = measurement
+    return {"angle_resolution_deg": math.degrees(m.angle_resolution), "min_size": m.min_size,
+            "missed_fraction": m.missed_fraction, "size_unit": m.size_unit,
+            "n_sliders": m.n_sliders, "n_sliders_high": m.n_sliders_high,
+            "displacement_unit": m.displacement_unit, "position_unit": m.position_unit,
+            "pile_length_mm": m.pile_length}
+
+
+def _number(text: str) -> bool:
+    """``text`` reads as a float."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def catalogue_csv_text(cat) -> str:
@@ -125,6 +194,13 @@ def prepared(read, tilt_now, measurement) -> tuple[Catalogue, list[str]]:
                      f"{ANGLE_TOLERANCE_RESOLUTIONS:g} × the angle resolution "
                      f"({math.degrees(measurement.angle_resolution):g}°): the rows are sorted by "
                      "angle, each keeping its size, as the training's noisy catalogues are")
+    top = 1.0 if measurement.position_unit == "fraction" else measurement.pile_length
+    if top is not None and len(cat) and max(cat.last.max(), cat.first.max()) > top * (1 + 1e-9):
+        far = float(max(cat.last.max(), cat.first.max()))
+        raise ForecastInputError(
+            f"catalogue: a mover at {far:g} {measurement.position_unit} lies beyond the pile's "
+            f"length ({top:g} {measurement.position_unit}): positions are measured along the "
+            "pile from its up-slope end")
     return at_tilt(cat, tilt_now, scale, unit, measurement.angle_resolution, notes), notes
 
 

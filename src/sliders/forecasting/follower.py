@@ -611,7 +611,8 @@ class Follower:
             trace = _Trace(bytes(self.kept))
             try:
                 self.read = read_catalogue_stream(trace, self.where,
-                                                  self.measurement.angle_resolution)
+                                                  self.measurement.angle_resolution,
+                                                  self.measurement.position_unit)
                 return
             except ForecastInputError as exc:
                 at = trace.line_start
@@ -752,7 +753,8 @@ class Follower:
             end = rows[j][0] + len(rows[j][1]) if j >= 0 else self.new_from
             try:
                 read = read_catalogue_stream(io.BytesIO(bytes(self.kept[:end])), self.where,
-                                             self.measurement.angle_resolution)
+                                             self.measurement.angle_resolution,
+                                             self.measurement.position_unit)
             except ForecastInputError:
                 return None  # no event yet
             try:

@@ -109,7 +109,8 @@ class PosteriorModel:
         return f"<PosteriorModel {self.path} ({', '.join(self.posterior.parameters_)})>"
 
     def infer(self, catalogue, tilt_now=None, *, angle_resolution=0.0, min_size=1.0,
-              missed_fraction=0.0, size_unit="sliders", sliders=None, check=True,
+              missed_fraction=0.0, size_unit="sliders", sliders=None, displacement_unit="model",
+              position_unit="sliders", pile_length=None, check=True,
               check_draws=CHECK_DRAWS, seed=0) -> "Inference":
         """The posterior of the material of the pile that made ``catalogue``.
 
@@ -120,7 +121,10 @@ class PosteriorModel:
         tilt_now : str or float, optional
             The tilt reached (as ``predict``'s); default: the last event's angle.
         angle_resolution, min_size, missed_fraction, size_unit, sliders
-            How the catalogue was measured, as ``predict``'s flags of those names.
+        displacement_unit, position_unit, pile_length
+            How the catalogue was measured, as ``predict``'s flags of those names.  A
+            camera's catalogue (displacements or positions not in the model's units) is
+            read by its angles and sizes: the posterior reads displacements in g tau^2 only.
         check : bool
             Run the predictive check (``check_draws`` piles simulated at posterior draws).
         seed : int
@@ -132,8 +136,9 @@ class PosteriorModel:
             ``to_dict()``: the ``infer --json`` object; ``str()``: the text output.
         """
         measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
-                                       sliders)
-        cat, notes = prepared(read_source(catalogue, angle_resolution=measurement.angle_resolution),
+                                       sliders, displacement_unit, position_unit, pile_length)
+        cat, notes = prepared(read_source(catalogue, angle_resolution=measurement.angle_resolution,
+                                          position_unit=measurement.position_unit),
                               tilt_now, measurement)
         return self.infer_catalogue(cat, measurement, check, check_draws, seed, notes)
 
@@ -141,6 +146,13 @@ class PosteriorModel:
                         check_draws: int = CHECK_DRAWS, seed: int = 0, notes=()) -> "Inference":
         """``infer`` of a ``Catalogue`` at its tilt reached, measured as ``measurement``."""
         post = self.posterior
+        if measurement.camera:
+            notes = [*notes, "a camera's displacements and positions are not read: the "
+                             "posterior reads them in the model's units only (g τ², slider "
+                             "indices), so it reads this catalogue's angles and sizes"]
+            cat = angles_and_sizes(cat)[0]
+            measurement = dataclasses.replace(measurement, displacement_unit="model",
+                                              position_unit="sliders", pile_length=None)
         cat, complete = angles_and_sizes(cat)
         cuts = Cuts.from_catalogues([cat], measurement)
         try:

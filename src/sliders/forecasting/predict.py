@@ -14,18 +14,19 @@ catalogue and returns a ``Prediction``, whose ``to_dict()`` is what
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
 from ..analysis.forecast.base import LEVELS, Forecaster
-from ..analysis.forecast.features import Cuts
+from ..analysis.forecast.features import Cuts, in_model_units
 from ..analysis.forecast.registry import fallback_of
 from ..io.forecast_files import ForecastInputError, angle_option
 from ..io.forecast_model import default_model_path
 from .alarm import Alarm, LatestPicture, RunScore
-from .catalogue import (angles_and_sizes, measurement_as_json, measurement_from, prepared,
-                        read_source)
+from .catalogue import (LEARNED_BY_RECORD, angles_and_sizes, camera_record, measurement_as_json,
+                        measurement_from, prepared, read_source, record_kind)
 from .files import read_model_file
 from .infer import Inference, load_posterior
 from .report import Report, interval_name
@@ -110,6 +111,7 @@ class ForecastModel:
 
     def predict(self, catalogue, tilt_now=None, *, within=ALARM_DELTA_DEG, angle_resolution=0.0,
                 min_size=1.0, missed_fraction=0.0, size_unit="sliders", sliders=None,
+                displacement_unit="model", position_unit="sliders", pile_length=None,
                 method="learned", size_label=None) -> "Prediction":
         """The forecast of ``catalogue`` at the tilt ``tilt_now``, measured as the keywords say.
 
@@ -129,7 +131,12 @@ class ForecastModel:
             How the catalogue was measured, as ``predict``'s flags of those names
             (``angle_resolution``: an angle, a bare number in degrees; with it, rows in time
             order whose angles go back by less than 6 of it are sorted by angle; ``sliders``:
-            any whole number).
+            any whole number, or a range ``"100-300"``).
+        displacement_unit, position_unit, pile_length
+            A camera's units, as ``--displacement-unit`` (``"model"`` or ``"arbitrary"``),
+            ``--position-unit`` (``"sliders"``, ``"fraction"`` of the pile's length, or
+            ``"mm"``) and ``--pile-length`` (mm); a catalogue with displacements in an
+            arbitrary unit or positions not in sliders is forecast by the camera's forecaster.
         method : str
             ``"learned"``, a method of ``common.PREDICT_METHODS``, or ``"all"``.
         size_label : str, optional
@@ -144,8 +151,9 @@ class ForecastModel:
         if method not in PREDICT_METHODS:
             raise ForecastInputError(f"--method {method}: one of {', '.join(PREDICT_METHODS)}")
         measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
-                                       sliders)
-        read = read_source(catalogue, angle_resolution=measurement.angle_resolution)
+                                       sliders, displacement_unit, position_unit, pile_length)
+        read = read_source(catalogue, angle_resolution=measurement.angle_resolution,
+                           position_unit=measurement.position_unit)
         return self.predict_read(read, tilt_now, measurement, within_option(within), method,
                                  size_label=size_label)
 
@@ -160,7 +168,8 @@ class ForecastModel:
 
     def follow(self, source, *, tilt_now=None, tilt_rate=None, until=None,
                within=ALARM_DELTA_DEG, angle_resolution=0.0, min_size=1.0, missed_fraction=0.0,
-               size_unit="sliders", sliders=None, method="learned", alarm_threshold=None,
+               size_unit="sliders", sliders=None, displacement_unit="model",
+               position_unit="sliders", pile_length=None, method="learned", alarm_threshold=None,
                alarm_release=None, on_alarm=None, plot=None, say=None, on_signal=None):
         """Follow the catalogue ``source`` while an acquisition appends to it: a
         ``follower.Follower``, whose iteration yields one ``Update`` per new state (the
@@ -175,6 +184,7 @@ class ForecastModel:
             The tilt reached at the start, its rate (``"0.1deg/s"``) and the tilt at which to
             stop, as ``predict --follow``'s options.
         within, angle_resolution, min_size, missed_fraction, size_unit, sliders, method
+        displacement_unit, position_unit, pile_length
             As ``predict``.
         alarm_threshold, alarm_release, on_alarm : optional
             The alarm's threshold, its release level and the command it runs, as
@@ -189,7 +199,7 @@ class ForecastModel:
         if method not in PREDICT_METHODS:
             raise ForecastInputError(f"--method {method}: one of {', '.join(PREDICT_METHODS)}")
         measurement = measurement_from(angle_resolution, min_size, missed_fraction, size_unit,
-                                       sliders)
+                                       sliders, displacement_unit, position_unit, pile_length)
         where = check_source(source)
         return Follower(self.predict_read, where, tilt_now=tilt_now, tilt_rate=tilt_rate, until=until,
                         within=within_option(within), measurement=measurement, method=method,
@@ -204,15 +214,33 @@ class ForecastModel:
         as ``measurement``, the alarm's horizon ``within`` in radians."""
         from ..analysis.forecast.evaluation import typical_accuracy, typical_accuracy_line
 
-        cat, complete = angles_and_sizes(catalogue)
+        kind = record_kind(catalogue, measurement)
         models, prov, path = self.models, self.provenance, self.path
-        learned = models["learned"] if complete and "learned" in models else models["learned_blind"]
+        given = measurement  # as the user gave it, reported so
+        if kind == "camera" and "learned" in models:
+            # an exact record's lone slips fix the camera's unit: forecast in the model's units
+            converted, unit, pairs = in_model_units(catalogue, measurement)
+            if converted is not None:
+                catalogue, kind = converted, "complete"
+                measurement = dataclasses.replace(measurement, displacement_unit="model",
+                                                  position_unit="sliders", pile_length=None)
+                notes = [*notes, f"the camera's unit read from {pairs} lone slips that agree "
+                                 f"(1 unit = {unit:.4g} g τ²), its positions as slider indices: "
+                                 "forecast in the model's units"]
+        if LEARNED_BY_RECORD[kind] not in models:
+            kind = "blind"
+        cat, complete = angles_and_sizes(catalogue)
+        # the camera's forecaster reads its displacements and positions; every other method
+        # reads them in the model's units only, so it is given the angles and sizes
+        seen = camera_record(catalogue) if kind == "camera" else cat
+        learned = models[LEARNED_BY_RECORD[kind]]
         try:
-            inside, reasons = learned.domain(Cuts.from_catalogues([cat], measurement))
+            inside, reasons = learned.domain(Cuts.from_catalogues([seen], measurement))
             chosen = {m: learned if m == "learned" else models[m] for m in
                       (PREDICT_METHODS[:-1] if method == "all" else (method,))
                       if m == "learned" or m in models}
-            forecasts = [(m, f, f.predict(cat, measurement)) for m, f in chosen.items()]
+            forecasts = [(m, f, f.predict(seen if m == "learned" else cat, measurement))
+                         for m, f in chosen.items()]
         except AttributeError:  # a forecaster of another version lacks what this one reads
             raise ForecastInputError(f"{path}: written by sliders {prov.get('sliders', '?')}, "
                                      "whose forecasters this version cannot use; train it "
@@ -244,12 +272,23 @@ class ForecastModel:
         report = {"in_domain": in_domain, "domain_reason": reason, "events": len(cat),
                   "notes": list(notes), "warnings": warnings,
                   "alarm_threshold": alarm_threshold(forecasts[0][1]),
-                  "measurement": measurement_as_json(measurement),
+                  "measurement": measurement_as_json(given),
                   "model": {"path": str(path), **prov}, "methods": methods}
         first = forecasts[0][0]
         top_level = {k: methods[first][k] for k in (*forecasts[0][2].as_dict(within),
                                                     "probability_within_raw")}
-        return Prediction(jsonable(top_level | report), forecasts, cat, complete, measurement)
+        return Prediction(jsonable(top_level | report), forecasts, cat, complete, given)
+
+
+def camera_units(m) -> str:
+    """", displacements in ..., positions in ..." of a camera's measurement ("" otherwise)."""
+    if not m.camera:
+        return ""
+    disp = "a camera's unit" if m.displacement_unit == "arbitrary" else "g τ²"
+    where = (f"mm along a {m.pile_length:g} mm pile" if m.position_unit == "mm" else
+             {"sliders": "slider indices", "fraction": "fractions of the pile's length"}[
+                 m.position_unit])
+    return f", displacements in {disp}, positions in {where}"
 
 
 def within_option(within) -> float:
@@ -352,7 +391,8 @@ class Prediction(Report):
         return (f"measurement assumed: angle resolution {math.degrees(m.angle_resolution):g}°, "
                 f"min size {m.min_size:g} ({unit}), missed fraction {m.missed_fraction:g}, "
                 f"size unit {m.size_unit}"
-                + (f", {m.n_sliders} sliders" if m.n_sliders is not None else ""))
+                + (f", {m.n_sliders}" + (f"-{m.n_sliders_high}" if m.n_sliders_high else "")
+                   + " sliders" if m.n_sliders is not None else "") + camera_units(m))
 
     def method_line(self, method: str, forecaster, forecast) -> str:
         """One method's forecast: the point, the interval (called what it is), P(within)."""

@@ -127,7 +127,7 @@ def check_catalogue(catalogue, measurement=None) -> None:
 
     Every size is positive; in sliders a whole number, at least ``min_size``,
     and at most the sliders from the first to the last mover (``last - first
-    + 1``) where those are known; the first and last movers are known together
+    + 1``) where those are known as slider indices; the first and last movers are known together
     and the first is not after the last.  In an arbitrary unit only the
     detection threshold binds the sizes (no size below ``min_size``).
     """
@@ -154,6 +154,8 @@ def check_catalogue(catalogue, measurement=None) -> None:
     if (bad := size != np.round(size)).any():
         refuse(bad, lambda k: f"size {size[k]:g} is not a whole number of sliders (sizes in "
                               "another unit: --size-unit arbitrary)")
+    if measurement is not None and measurement.position_unit != "sliders":
+        return  # a camera's positions hold no count of sliders
     if (bad := (first >= 0) & (size > last - first + 1)).any():
         refuse(bad, lambda k: f"{size[k]:g} sliders moved between slider {first[k]} and slider "
                               f"{last[k]}, which hold {last[k] - first[k] + 1}")

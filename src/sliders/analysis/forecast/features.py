@@ -300,10 +300,11 @@ def slider_indices(cat: Catalogue, measurement) -> Catalogue:
     """``cat`` with its movers as slider indices: as given, or from a camera's fractions of the
     pile's length, the sliders' spacing read as the least gap between two positions seen (the
     pile's number of sliders if told).  Unknown positions stay -1."""
-    if measurement.position_unit != "fraction" or not len(cat):
+    if measurement.position_unit == "sliders" or not len(cat):
         return cat
     known = (cat.first >= 0) & (cat.last >= 0)
-    seen = np.unique(np.concatenate([cat.first[known], cat.last[known]]))
+    first, last = measurement.position_fractions(cat.first), measurement.position_fractions(cat.last)
+    seen = np.unique(np.concatenate([first[known], last[known]]))
     gaps = np.diff(seen)
     gaps = gaps[gaps > 1e-9]
     n = measurement.n_sliders if measurement.n_sliders and not measurement.n_sliders_high else (
@@ -312,14 +313,14 @@ def slider_indices(cat: Catalogue, measurement) -> Catalogue:
         return Catalogue(cat.alpha, cat.size, cat.displacement, np.full(len(cat), -1),
                          np.full(len(cat), -1), cat.tilt_now)
     first, last = (np.where(known, np.round(p * n - 0.5), -1).astype(np.int64)
-                   for p in (cat.first, cat.last))
+                   for p in (first, last))
     return Catalogue(cat.alpha, cat.size, cat.displacement, first, last, cat.tilt_now)
 
 
 def scale_free_lone_slips(cat: Catalogue, measurement) -> tuple[float, float, int, float]:
     """mu_d from the lone-slip pairs of a catalogue whose displacements are in an unknown unit,
-    solved with that unit: (mu_d, model units per displacement unit, pairs that agree, the
-    pairs' median misfit), NaN with fewer than four pairs.
+    solved with that unit: (mu_d, ``u`` below, pairs that agree, the pairs' median misfit),
+    NaN with fewer than four pairs.
 
     ``coupled_lone_slips``' equation with every displacement ``d = s d'`` (``d'`` as recorded,
     ``s`` unknown) is linear in mu_d, ``u = s (1 + xi / 2)`` and ``v = s xi / N``:
@@ -327,15 +328,49 @@ def scale_free_lone_slips(cat: Catalogue, measurement) -> tuple[float, float, in
         mu_d (cos a_j - cos a_i) - u D' + v (S' + D' / 2) = -(sin a_i - sin a_j),
 
     so the tilt's own sine fixes the unit and mu_d is exact when the angles are, in pixels or
-    millimetres as in g tau^2 (the scale returned is ``u``: s itself when xi = 0).
+    millimetres as in g tau^2 (``in_model_units`` takes s from u and v).
     """
-    terms = _pair_terms(slider_indices(cat, measurement))
-    if terms is None:
+    solved = _scale_free_solution(slider_indices(cat, measurement))
+    if solved is None:
         return math.nan, math.nan, 0, math.nan
+    sol, off = solved
+    return float(sol[0]), float(sol[1]), int(np.sum(off <= COUPLED_TOL)), float(np.median(off))
+
+
+def _scale_free_solution(indexed: Catalogue):
+    """(mu_d, u, v) of ``scale_free_lone_slips`` and every pair's misfit (None: too few pairs)."""
+    terms = _pair_terms(indexed)
+    if terms is None:
+        return None
     a, d, between, rise = terms
     m = np.column_stack([np.ones_like(a), -d / a, (between + d / 2) / a])
-    sol, off = _pruned_least_squares(m, -rise / a)
-    return float(sol[0]), float(sol[1]), int(np.sum(off <= COUPLED_TOL)), float(np.median(off))
+    return _pruned_least_squares(m, -rise / a)
+
+
+#: lone-slip pairs that must agree, to ``COUPLED_TOL``, for a camera's unit to be read from them
+#: (``in_model_units``): their equations then hold exactly, as only an exact record's do
+UNIT_PAIRS = 8
+
+
+def in_model_units(cat: Catalogue, measurement) -> tuple[Catalogue | None, float, int]:
+    """A camera's catalogue in the model's units, when its lone slips fix its unit exactly:
+    (the catalogue with displacements in g tau^2 and the movers as slider indices, model
+    units per camera unit, the pairs that agree); (None, NaN, pairs) when fewer than
+    ``UNIT_PAIRS`` pairs agree (a noisy record, or too few lone slips)."""
+    indexed = slider_indices(cat, measurement)
+    solved = _scale_free_solution(indexed)
+    if solved is None:
+        return None, math.nan, 0
+    (_, u, v), off = solved
+    agree = int(np.sum(off <= COUPLED_TOL))
+    # u = s (1 + xi / 2), v = s xi / N: xi = N r / (1 - N r / 2) with r = v / u
+    n = n_sliders_estimate(indexed)
+    r = float(v / u) * n if u > 0 and np.isfinite(n) else math.nan
+    unit = float(u) / (1.0 + max(r / (1.0 - r / 2.0), 0.0) / 2.0) if r < 2.0 else math.nan
+    if agree < UNIT_PAIRS or not (np.isfinite(unit) and unit > 0) or (indexed.first < 0).any():
+        return None, math.nan, agree
+    return (Catalogue(indexed.alpha, indexed.size, indexed.displacement * unit, indexed.first,
+                      indexed.last, indexed.tilt_now), unit, agree)
 
 
 def n_sliders_estimate(cat: Catalogue) -> float:
@@ -439,9 +474,11 @@ def positions_as_fractions(cat: Catalogue, measurement) -> tuple[np.ndarray, np.
     number of sliders (told, else estimated from the indices)."""
     first, last = cat.first.astype(float), cat.last.astype(float)
     unknown = (first < 0) | (last < 0)
-    if measurement.position_unit != "fraction":
+    if measurement.position_unit == "sliders":
         n = measurement.n_sliders or n_sliders_estimate(cat)
         first, last = (first + 0.5) / n, (last + 0.5) / n
+    else:
+        first, last = measurement.position_fractions(first), measurement.position_fractions(last)
     return np.where(unknown, np.nan, first), np.where(unknown, np.nan, last)
 
 

@@ -54,7 +54,7 @@ from .baselines import Climatology, check_climatology, conditioned_quantiles
 from ...io.catalogue import Catalogue
 from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
-from .features import (Cuts, camera_feature_names, SHORTEST_WINDOW, camera_feature_matrix, ceiling_features,
+from .features import (Cuts, camera_feature_names, n_sliders_estimate, SHORTEST_WINDOW, camera_feature_matrix, ceiling_features,
                        feature_matrix, training_cuts)
 from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, RECORD_FEATURES, degrade_cuts
 from .evaluators import ResidualTable, check_boosting
@@ -261,6 +261,11 @@ class Learned(Forecaster):
     def training_cuts(self, train, rng):
         """Random cuts of ``train``, degraded if ``degrade``, with their features."""
         cuts = training_cuts(train, self.draws_per_row, rng)
+        if self.degrade and self.inputs == "camera" and cuts.n_sliders is None:
+            # a camera's positions are fractions of the pile: of the number the indices show
+            cuts = replace(cuts, n_sliders=np.array([
+                round(n) if np.isfinite(n := n_sliders_estimate(c)) else -1
+                for c in cuts.catalogues], dtype=np.int64))
         if self.degrade:
             cuts = degrade_cuts(cuts, rng, camera=self.inputs == "camera")
         return with_design(cuts, self.inputs)

@@ -22,9 +22,10 @@ from ...io.catalogue import Catalogue
 SIZE_UNITS = ("sliders", "arbitrary")
 #: displacements in the model's unit (g tau^2), or in a camera's (pixels, mm: any positive scale)
 DISPLACEMENT_UNITS = ("model", "arbitrary")
-#: the movers' positions as slider indices (0 up-slope), or as fractions of the pile's length
-#: along the slope from its up-slope end (the centre of slider i of N at (i + 1/2) / N)
-POSITION_UNITS = ("sliders", "fraction")
+#: the movers' positions as slider indices (0 up-slope), as fractions of the pile's length
+#: along the slope from its up-slope end (the centre of slider i of N at (i + 1/2) / N), or in
+#: millimetres from that end (with the pile's length)
+POSITION_UNITS = ("sliders", "fraction", "mm")
 #: the ranges the training measurements are drawn from: angle error (radians, 0 with
 #: probability ``p_exact``, else log-uniform), smallest detected size (sliders), share of
 #: events missed (0 with probability ``p_exact``, else uniform), and the share of cuts
@@ -43,7 +44,8 @@ SLIDERS_TOLD = {"p_told": 0.5, "p_exact": 0.4, "range_factor": 4.0}
 #: the measurement's features, in order: how the catalogue was recorded (``RECORD_FEATURES``),
 #: and the number of sliders told, as the logs of its range's ends (NaN when not told)
 RECORD_FEATURES = ("angle_resolution", "min_size", "missed_fraction", "size_arbitrary")
-MEASUREMENT_FEATURES = (*RECORD_FEATURES, "log_sliders_low", "log_sliders_high")
+TOLD_FEATURES = ("log_sliders_low", "log_sliders_high")
+MEASUREMENT_FEATURES = (*RECORD_FEATURES, *TOLD_FEATURES)
 
 
 @dataclass(frozen=True)
@@ -71,9 +73,12 @@ class Measurement:
     displacement_unit : {"model", "arbitrary"}
         Displacements in g tau^2, or in a camera's unit (pixels, mm): then only
         displacements relative to the catalogue's own are used (``camera_features``).
-    position_unit : {"sliders", "fraction"}
-        The movers' positions (``first``, ``last``) as slider indices, or as
-        fractions of the pile's length from its up-slope end.
+    position_unit : {"sliders", "fraction", "mm"}
+        The movers' positions (``first``, ``last``) as slider indices, as
+        fractions of the pile's length from its up-slope end, or in millimetres
+        from that end.
+    pile_length : float, optional
+        The pile's length along the slope in millimetres (with ``position_unit`` "mm").
     """
 
     angle_resolution: float = 0.0
@@ -84,6 +89,7 @@ class Measurement:
     n_sliders_high: int | None = None
     displacement_unit: str = "model"
     position_unit: str = "sliders"
+    pile_length: float | None = None
 
     def __post_init__(self):
         if not (math.isfinite(self.angle_resolution) and self.angle_resolution >= 0):
@@ -108,11 +114,27 @@ class Measurement:
                              f"{DISPLACEMENT_UNITS}")
         if self.position_unit not in POSITION_UNITS:
             raise ValueError(f"position unit {self.position_unit!r} must be one of {POSITION_UNITS}")
+        mm = self.position_unit == "mm"
+        length = self.pile_length
+        if mm and (length is None or isinstance(length, bool) or not isinstance(length, (int, float))
+                   or not math.isfinite(length) or length <= 0):
+            raise ValueError(f"positions in mm need the pile's length in mm, a positive number "
+                             f"(pile length {length!r})")
+        if not mm and length is not None:
+            raise ValueError("the pile's length converts positions in mm: give it with the "
+                             "position unit mm")
 
     @property
     def camera(self) -> bool:
         """The displacements or the positions are a camera's (not the model's units)."""
-        return self.displacement_unit == "arbitrary" or self.position_unit == "fraction"
+        return self.displacement_unit == "arbitrary" or self.position_unit != "sliders"
+
+    def position_fractions(self, positions: np.ndarray) -> np.ndarray:
+        """A camera's positions as fractions of the pile's length (-1: unknown, kept)."""
+        p = np.asarray(positions, dtype=float)
+        if self.position_unit == "mm":
+            return np.where(p >= 0, p / self.pile_length, -1.0)
+        return p
 
     def as_features(self, catalogue: Catalogue) -> np.ndarray:
         """The measurement features of ``catalogue`` (``MEASUREMENT_FEATURES``).
@@ -169,8 +191,10 @@ def degrade(catalogue: Catalogue, measurement: Measurement, rng: np.random.Gener
         scale, noise = camera
         disp = disp * scale * (np.exp(rng.normal(0.0, noise, disp.size)) if noise > 0 else 1.0)
     first, last = catalogue.first[keep][order], catalogue.last[keep][order]
-    if measurement.position_unit == "fraction":
-        first, last = (np.where(i >= 0, (i + 0.5) / n_sliders, -1.0) for i in (first, last))
+    if measurement.position_unit == "fraction":  # unknown without the number of sliders
+        n = n_sliders if n_sliders is not None and n_sliders >= 1 else math.inf
+        first, last = (np.where((i >= 0) & np.isfinite(n), (i + 0.5) / n, -1.0)
+                       for i in (first, last))
     return Catalogue(alpha[order], size, disp, first, last, tilt_now=tilt_now)
 
 
@@ -206,7 +230,7 @@ def degrade_cuts(cuts, rng: np.random.Generator, measurement: Measurement | None
     """New ``Cuts``: each catalogue degraded, by ``measurement`` or by one drawn per cut.
 
     ``camera``: recorded by a camera too (``draw_camera``; positions as fractions of the
-    pile's length, which needs the cuts' ``n_sliders``).  The truth and the simulation's
+    pile's length, of the cuts' ``n_sliders``: unknown without them).  The truth and the simulation's
     extras are kept; the measurements are recorded with the cuts, as ``predict`` is told them.
     """
     if measurement is None:
@@ -217,9 +241,7 @@ def degrade_cuts(cuts, rng: np.random.Generator, measurement: Measurement | None
     if camera:
         meas = [replace(m, displacement_unit="arbitrary", position_unit="fraction") for m in meas]
         cams = draw_camera(len(cuts), rng)
-    n = cuts.n_sliders if cuts.n_sliders is not None else np.full(len(cuts), -1)
-    if camera and (n < 1).any():
-        raise ValueError("a camera's positions need each cut's number of sliders")
+    n = np.full(len(cuts), -1) if cuts.n_sliders is None else np.asarray(cuts.n_sliders)
     cats = [degrade(c, m, rng, float(s), cam, int(k))
             for c, m, s, cam, k in zip(cuts.catalogues, meas, scales, cams, n)]
     if measurement is None and cuts.n_sliders is not None:

@@ -61,7 +61,7 @@ from .estimator import Estimator
 from .features import Cuts, coupled_lone_slips, feature_matrix, training_cuts
 from .evaluators import check_boosting
 from .integrity import IntegrityError, check_array, check_number, require
-from .measurement import RECORD_FEATURES, PERFECT, degrade_cuts
+from .measurement import PERFECT, RECORD_FEATURES, TOLD_FEATURES, degrade_cuts
 
 #: the material parameters inferred, in order
 POSTERIOR_PARAMETERS = ("mu_d", "mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders")
@@ -179,7 +179,7 @@ def design(cuts: Cuts) -> np.ndarray:
     (``features.feature_matrix``), mu_d and xi solved together from the lone-slip pairs and
     how many agree (``features.coupled_lone_slips``), whether the catalogue is complete, and
     whether its lone-slider pairs give mu_d (``lone_slider_mu_d``)."""
-    x, names = feature_matrix(cuts)
+    x, names = record_features(cuts)
     coupled = np.array([coupled_lone_slips(c) for c in cuts.catalogues],
                        dtype=float).reshape(len(cuts), len(COUPLED_NAMES))
     x = np.hstack([x, coupled])
@@ -205,8 +205,16 @@ def lone_slider_mu_d(x, names) -> np.ndarray:
 def design_names() -> list[str]:
     """The names of ``design``'s columns."""
     one = Catalogue([0.1], [1], [0.0], [0], [0], 0.1)
-    return (feature_matrix(Cuts.from_catalogues([one]))[1] + COUPLED_NAMES
+    return (record_features(Cuts.from_catalogues([one]))[1] + COUPLED_NAMES
             + ["complete", "lone_slider_mu_d"])
+
+
+def record_features(cuts: Cuts) -> tuple[np.ndarray, list[str]]:
+    """``features.feature_matrix`` without the number of sliders told (``TOLD_FEATURES``): the
+    posterior infers N, it is not told it."""
+    x, names = feature_matrix(cuts)
+    keep = [i for i, n in enumerate(names) if n not in TOLD_FEATURES]
+    return x[:, keep], [names[i] for i in keep]
 
 
 class ParameterPosterior(Estimator):
@@ -481,7 +489,7 @@ class ParameterPosterior(Estimator):
         complete = x[:, names.index("complete")] > 0
         lone = x[:, names.index("lone_slider_mu_d")] > 0
         m = x[:, [names.index(k) for k in RECORD_FEATURES]]
-        exact = (m == PERFECT.as_features(Catalogue([], [], [], [], []))).all(axis=1)
+        exact = (m == PERFECT.as_features(Catalogue([], [], [], [], []))[:len(RECORD_FEATURES)]).all(axis=1)
         return np.where(complete, np.where(lone, 0, np.where(exact, 1, 2)),
                         np.where(exact, 3, 4))
 

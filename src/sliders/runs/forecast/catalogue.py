@@ -32,8 +32,15 @@ def load_set(path: str, what: str = "--data") -> CatalogueSet:
 
 def measurement_of(args):
     """The ``Measurement`` the flags of ``predict`` describe (one line naming a bad flag)."""
-    return measurement_from(args.angle_resolution, args.min_size, args.missed_fraction,
-                            args.size_unit, args.sliders)
+    return measurement_from(**measurement_options(args))
+
+
+def measurement_options(args) -> dict:
+    """The measurement's keywords of the API (``ForecastModel.predict``) from the flags."""
+    return {"angle_resolution": args.angle_resolution, "min_size": args.min_size,
+            "missed_fraction": args.missed_fraction, "size_unit": args.size_unit,
+            "sliders": args.sliders, "displacement_unit": args.displacement_unit,
+            "position_unit": args.position_unit, "pile_length": args.pile_length}
 
 
 def catalogue(args, argv=None) -> int:

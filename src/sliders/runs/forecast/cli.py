@@ -165,9 +165,19 @@ def add_measured_catalogue_arguments(pr: argparse.ArgumentParser) -> None:
                     help="share of events missed at random, in [0, 1)")
     pr.add_argument("--size-unit", default="sliders", choices=("sliders", "arbitrary"),
                     help="sliders: sizes count sliders; arbitrary: an unknown unit (grains, area, pixels)")
-    pr.add_argument("--sliders", type=int, default=None, metavar="N",
-                    help="the number of sliders of the pile, if known: a pile outside the "
-                         "training piles' is out of the domain")
+    pr.add_argument("--sliders", default=None, metavar="N",
+                    help="the number of sliders of the pile, or a range (100-300), if known: "
+                         "the forecast is conditioned on it; a pile outside the training "
+                         "piles' is out of the domain")
+    pr.add_argument("--displacement-unit", default="model", choices=("model", "arbitrary"),
+                    help="model: displacements in g tau^2; arbitrary: a camera's unit (pixels, "
+                         "mm, any positive scale), read relative to the catalogue's own")
+    pr.add_argument("--position-unit", default="sliders", choices=("sliders", "fraction", "mm"),
+                    help="the movers' positions (first, last): slider indices from the up-slope "
+                         "end; fractions of the pile's length from that end; or mm from it "
+                         "(with --pile-length)")
+    pr.add_argument("--pile-length", type=float, default=None, metavar="MM",
+                    help="the pile's length along the slope in mm (with --position-unit mm)")
 
 
 def add_infer_arguments(inf: argparse.ArgumentParser) -> None:

@@ -20,6 +20,7 @@ from ...forecasting.alarm import RunScore
 from ...forecasting.follower import check_source, rate_option
 from ...forecasting.predict import load_model
 from ..signals import raise_stopped
+from .catalogue import measurement_options
 from .predict import check_predict_options
 
 
@@ -33,9 +34,7 @@ def follow_command(args, argv=None) -> int:
     model = load_model(args.model)
     follower = model.follow(
         args.catalogue, tilt_now=args.tilt_now, tilt_rate=args.tilt_rate, until=args.until,
-        within=args.within, angle_resolution=args.angle_resolution, min_size=args.min_size,
-        missed_fraction=args.missed_fraction, size_unit=args.size_unit, sliders=args.sliders,
-        method=args.method, alarm_threshold=getattr(args, "alarm_threshold", None),
+        within=args.within, **measurement_options(args), method=args.method, alarm_threshold=getattr(args, "alarm_threshold", None),
         alarm_release=getattr(args, "alarm_release", None),
         on_alarm=getattr(args, "on_alarm", None), plot=args.plot, on_signal=raise_stopped)
     updates = iter(follower)

@@ -62,7 +62,8 @@ def infer(args, argv=None) -> int:
     check_infer_options(args)
     # the catalogue read and checked before the posterior's seconds of loading
     measurement = measurement_of(args)
-    cat, notes = prepared(read_source(args.catalogue, angle_resolution=measurement.angle_resolution),
+    cat, notes = prepared(read_source(args.catalogue, angle_resolution=measurement.angle_resolution,
+                                      position_unit=measurement.position_unit),
                           args.tilt_now, measurement)
     model = load_posterior(args.posterior, CHECK_SIMULATION)
     result = model.infer_catalogue(cat, measurement, not args.no_check, args.check_draws,

@@ -26,7 +26,8 @@ def predict(args, argv=None) -> int:
     check_predict_options(args)
     # the catalogue read and checked before the model's seconds of loading
     measurement = measurement_of(args)
-    cat, notes = prepared(read_source(args.catalogue, angle_resolution=measurement.angle_resolution),
+    cat, notes = prepared(read_source(args.catalogue, angle_resolution=measurement.angle_resolution,
+                                      position_unit=measurement.position_unit),
                           args.tilt_now, measurement)
     model = load_model(args.model)
     pred = model.forecast(cat, measurement, within_option(args.within), args.method, notes)
