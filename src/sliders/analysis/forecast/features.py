@@ -373,6 +373,23 @@ def in_model_units(cat: Catalogue, measurement) -> tuple[Catalogue | None, float
                       indexed.last, indexed.tilt_now), unit, agree)
 
 
+def cuts_in_model_units(cuts: Cuts) -> tuple[Cuts, np.ndarray]:
+    """The cuts whose camera's unit their lone slips fix (``in_model_units``), in the model's
+    units and measured so, and which of ``cuts`` they are (a boolean mask)."""
+    from dataclasses import replace
+
+    out, which = [], np.zeros(len(cuts), dtype=bool)
+    for k, (cat, m) in enumerate(zip(cuts.catalogues, cuts.measurements())):
+        if m.camera and (back := in_model_units(cat, m)[0]) is not None:
+            out.append((back, replace(m, displacement_unit="model", position_unit="sliders",
+                                      pile_length=None)))
+            which[k] = True
+    sub = Cuts([c for c, _ in out], cuts.row[which],
+               None if cuts.alpha_c is None else cuts.alpha_c[which],
+               measurement=[m for _, m in out])
+    return sub, which
+
+
 def n_sliders_estimate(cat: Catalogue) -> float:
     """Number of sliders from the slider indices seen (largest index + 1; NaN if unknown).
 
