@@ -68,6 +68,7 @@ def test_camera_features_do_not_depend_on_the_displacement_unit_or_the_position_
     assert displacement_scale(cat) == pytest.approx(np.median(cat.displacement / cat.size))
 
 
+@pytest.mark.slow
 def test_a_camera_forecast_is_the_same_in_any_unit():
     train = piles(40, seed=1)
     f = Learned(inputs="camera", draws_per_row=6, max_iter=15, random_state=0).fit(train)
@@ -172,3 +173,41 @@ def test_lone_slips_give_mu_d_and_the_cameras_unit_from_the_tilt_itself(xi):
         np.testing.assert_allclose(back.displacement, cat.displacement, rtol=1e-3)
     noisy = degrade(cat, CAMERA, np.random.default_rng(0), camera=(2.0, 0.05), n_sliders=100)
     assert in_model_units(noisy, CAMERA)[0] is None  # a noisy record's unit is not read
+
+
+@pytest.fixture(scope="module")
+def pile_near_its_end():
+    """A simulated pile of 100 sliders cut 1° before its avalanche (its catalogue complete)."""
+    from sliders.driver import run
+    from sliders.scene import Scene
+
+    result = run(Scene(n_sliders=100, seed=11, mu_d=0.55, mu_s_mean=0.6, sigma_mu=0.01,
+                       mode="explore", record="displacements"), "fortran")
+    return Catalogue.from_result(result).cut(result.alpha_c - math.radians(1.0)), result.alpha_c
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.1])
+def test_the_api_forecasts_a_camera_catalogue_alike_in_any_unit(pile_near_its_end, noise):
+    import sliders.forecast as sf
+
+    model = sf.load()
+    cat, alpha_c = pile_near_its_end
+    rng = np.random.default_rng(3)
+    disp = cat.displacement * np.exp(rng.normal(0.0, noise, len(cat)))
+    out = []
+    for scale, length in ((1e-3, None), (1.0, 1000.0), (1e3, 37.5)):
+        pos = {k: (getattr(cat, k) + 0.5) / 100 * (length or 1.0) for k in ("first", "last")}
+        cols = {"angle [rad]": cat.alpha, "size": cat.size, "displacement": disp * scale, **pos}
+        units = {"position_unit": "mm", "pile_length": length} if length else \
+            {"position_unit": "fraction"}
+        d = model.predict(cols, displacement_unit="arbitrary", **units).to_dict()
+        out.append(d)
+        assert isinstance(d["alarm"], bool) and d["alarm"] == (
+            d["probability_within_raw"] >= d["alarm_threshold"])
+    for d in out[1:]:
+        assert d["alpha_c"] == pytest.approx(out[0]["alpha_c"], abs=1e-9)
+        assert d["interval"] == pytest.approx(out[0]["interval"], abs=1e-9)
+    read = any("camera's unit read from" in n for n in out[0]["notes"])
+    # an exact record's unit is read from its lone slips; a noisy one's goes to learned_camera
+    assert read == (noise == 0.0)
+    assert out[0]["forecaster"] == ("learned" if noise == 0.0 else "learned_camera")

@@ -277,6 +277,8 @@ class ForecastModel:
         first = forecasts[0][0]
         top_level = {k: methods[first][k] for k in (*forecasts[0][2].as_dict(within),
                                                     "probability_within_raw")}
+        # a single forecast's alarm (no hysteresis): P(within) at or above the threshold
+        report["alarm"] = bool(top_level["probability_within_raw"] >= report["alarm_threshold"])
         return Prediction(jsonable(top_level | report), forecasts, cat, complete, given)
 
 
