@@ -109,11 +109,12 @@ def test_a_cameras_training_catalogues_are_in_its_units():
 def test_the_number_of_sliders_told_holds_the_truth_as_a_number_or_a_range():
     rng = np.random.default_rng(1)
     n = rng.choice([8, 50, 800], 400)
-    told = tell_sliders([Measurement()] * 400, n, rng)
+    told = tell_sliders([Measurement()] * 400, n, rng, {"p_told": 0.5, "p_exact": 0.4,
+                                                         "range_factor": 4.0})
     low = np.array([m.n_sliders or 0 for m in told])
     high = np.array([m.n_sliders_high or m.n_sliders or 0 for m in told])
     some = low > 0
-    assert 0.4 < some.mean() < 0.6
+    assert 0.4 < some.mean() < 0.6  # told to half of them
     assert ((low[some] <= n[some]) & (n[some] <= high[some])).all()
     ranges = some & (high > low)
     assert 0.4 < ranges[some].mean() < 0.8 and (high[ranges] / low[ranges] <= 16.5).all()
