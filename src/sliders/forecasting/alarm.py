@@ -354,7 +354,7 @@ class RunScore:
                  else "the last tilt reached; write it as '# avalanche 28.85deg' to score against "
                       "the angle measured")
         out = [f"run scored at the avalanche angle {deg(a):.2f}° ({where}): "
-               f"{summary['updates']} updates"]
+               f"{summary['updates']} update{'s' if summary['updates'] != 1 else ''}"]
         first = summary["first_alarm"]
         if first is None:
             out.append("alarm: never raised")

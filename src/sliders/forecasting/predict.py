@@ -287,10 +287,11 @@ def camera_units(m) -> str:
     if not m.camera:
         return ""
     disp = "a camera's unit" if m.displacement_unit == "arbitrary" else "g τ²"
+    if m.position_unit == "sliders":
+        return f", displacements in {disp}"
     where = (f"mm along a {m.pile_length:g} mm pile" if m.position_unit == "mm" else
-             {"sliders": "slider indices", "fraction": "fractions of the pile's length"}[
-                 m.position_unit])
-    return f", displacements in {disp}, positions in {where}"
+             "fractions of the pile's length")
+    return f", displacements in {disp}, positions (if given) in {where}"
 
 
 def within_option(within) -> float:

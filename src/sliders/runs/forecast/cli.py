@@ -167,8 +167,7 @@ def add_measured_catalogue_arguments(pr: argparse.ArgumentParser) -> None:
                     help="sliders: sizes count sliders; arbitrary: an unknown unit (grains, area, pixels)")
     pr.add_argument("--sliders", default=None, metavar="N",
                     help="the number of sliders of the pile, or a range (100-300), if known: "
-                         "the forecast is conditioned on it; a pile outside the training "
-                         "piles' is out of the domain")
+                         "a pile outside the training piles' is out of the domain")
     pr.add_argument("--displacement-unit", default="model", choices=("model", "arbitrary"),
                     help="model: displacements in g tau^2; arbitrary: a camera's unit (pixels, "
                          "mm, any positive scale), read relative to the catalogue's own")
