@@ -74,10 +74,7 @@ DEGRADATIONS = {
 
 def blind(cuts):
     """The cuts as angles and sizes only (no displacement, no movers)."""
-    from sliders.io.catalogue import Catalogue
-
-    cats = [Catalogue(c.alpha, c.size, np.zeros(len(c)), np.full(len(c), -1), np.full(len(c), -1),
-                      c.tilt_now) for c in cuts.catalogues]
+    cats = [c.angles_and_sizes() for c in cuts.catalogues]
     return replace(cuts, catalogues=cats, cache={})
 
 
@@ -134,8 +131,7 @@ def small_pile_example(forecaster, lead_deg: float = 0.5) -> dict:
     result = sliders.tilt(sliders.Scene(n_sliders=10, seed=1))
     full = Catalogue.from_result(result)
     cat = full.cut(result.alpha_c - math.radians(lead_deg))
-    cat = Catalogue(cat.alpha, cat.size, np.zeros(len(cat)), np.full(len(cat), -1),
-                    np.full(len(cat), -1), cat.tilt_now)
+    cat = cat.angles_and_sizes()
     f = forecaster.predict(cat)
     return {"alpha_c_deg": math.degrees(result.alpha_c), "lead_deg": lead_deg,
             "point_deg": math.degrees(f.point), "interval_deg": [math.degrees(a) for a in f.interval],

@@ -69,7 +69,6 @@ from sliders.analysis.forecast.calibration import (COVERAGES, calibration_of, ks
 from sliders.analysis.forecast.features import Cuts
 from sliders.figures.style import save_figure
 from sliders.analysis.forecast.measurement import PERFECT
-from sliders.analysis.forecast.posterior import angles_sizes_only
 from sliders.io.prior_file import another_draw, read_prior_ensemble
 from sliders.forecasting.catalogue import catalogue_csv_text
 from sliders.forecasting.infer import load_posterior
@@ -118,7 +117,7 @@ def cut_quantiles(post, cset, rows, tilts, kind: str = "complete") -> np.ndarray
     as they are: complete catalogues, or kept to their angles and sizes (``kind``)."""
     cats = [cset.catalogue(int(r)).cut(t) for r, t in zip(rows, tilts)]
     if kind == "angles_sizes":
-        cats = [angles_sizes_only(c) for c in cats]
+        cats = [c.angles_and_sizes() for c in cats]
     return post.quantiles(Cuts.from_catalogues(cats, PERFECT))
 
 

@@ -27,11 +27,12 @@ from matplotlib.patches import Rectangle
 from matplotlib.ticker import (FuncFormatter, MaxNLocator, NullFormatter, NullLocator,
                                ScalarFormatter)
 
+from ..parts.materials import LOG_NAMES, MATERIALS
+
 #: axis labels of the parameters
-AXIS_LABELS = {"mu_d": "atan(mu_d) [deg]", "mu_s_minus_mu_d": "mu_s - mu_d",
-               "sigma_mu": "sigma_mu", "xi": "xi [units of k]", "n_sliders": "N (sliders)"}
+AXIS_LABELS = {m.name: m.axis_label for m in MATERIALS}
 #: the parameters drawn on a log axis
-LOG_AXES = ("mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders")
+LOG_AXES = LOG_NAMES
 PRIOR_COLOUR, POSTERIOR_COLOUR, TRUTH_COLOUR = "0.88", "C0", "C3"
 EDGE_COLOUR = "0.3"
 #: an axis is fitted to the posterior when its central 95 % (these quantiles) spans less

@@ -65,11 +65,7 @@ def read_source(source, where: str = "catalogue", angle_resolution: float = 0.0,
 def angles_and_sizes(cat: Catalogue) -> tuple[Catalogue, bool]:
     """``cat`` and whether it is complete (displacements and movers); an incomplete one is kept
     to its angles and sizes (no displacement, no movers)."""
-    complete = not np.isnan(cat.displacement).any() and bool((cat.first >= 0).all())
-    if not complete:
-        cat = Catalogue(cat.alpha, cat.size, np.zeros(len(cat)), np.full(len(cat), -1),
-                        np.full(len(cat), -1), cat.tilt_now)
-    return cat, complete
+    return (cat, True) if cat.complete else (cat.angles_and_sizes(), False)
 
 
 #: which learned forecaster reads a catalogue, by its columns and its measurement: every

@@ -37,6 +37,7 @@ import numpy as np
 from ..io.catalogue import Catalogue
 from ..io.forecast_files import ForecastInputError
 from ..io.forecast_model import default_posterior_path
+from ..parts.materials import MATERIALS
 from ..scene import check_memory
 from ..analysis.forecast.features import Cuts
 from ..analysis.forecast.measurement import Measurement
@@ -51,8 +52,7 @@ from .report import Report
 #: the most piles the predictive check may simulate
 MAX_CHECK_DRAWS = 1000
 #: the parameters' names in the text output
-LABELS = {"mu_d": "mu_d", "mu_s_minus_mu_d": "mu_s - mu_d", "sigma_mu": "sigma_mu", "xi": "xi",
-          "n_sliders": "N (sliders)"}
+LABELS = {m.name: m.label for m in MATERIALS}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -150,7 +150,7 @@ class PosteriorModel:
             notes = [*notes, "a camera's displacements and positions are not read: the "
                              "posterior reads them in the model's units only (g τ², slider "
                              "indices), so it reads this catalogue's angles and sizes"]
-            cat = angles_and_sizes(cat)[0]
+            cat = cat.angles_and_sizes()
             measurement = dataclasses.replace(measurement, displacement_unit="model",
                                               position_unit="sliders", pile_length=None)
         cat, complete = angles_and_sizes(cat)

@@ -82,6 +82,19 @@ class Catalogue:
         """One line: the events and the tilt reached."""
         return f"<Catalogue {len(self)} events up to tilt {self.tilt_now:.4f} rad>"
 
+    @property
+    def complete(self) -> bool:
+        """Every displacement and every mover known (an empty catalogue is complete)."""
+        return (not np.isnan(self.displacement).any() and bool((self.first >= 0).all())
+                and bool((self.last >= 0).all()))
+
+    def angles_and_sizes(self) -> "Catalogue":
+        """The catalogue of its angles and sizes only: displacements 0, movers -1 (unknown),
+        as a record without those columns is read."""
+        n = len(self)
+        return Catalogue(self.alpha, self.size, np.zeros(n), np.full(n, -1), np.full(n, -1),
+                         self.tilt_now)
+
     def cut(self, alpha_obs: float) -> "Catalogue":
         """The catalogue as seen at tilt ``alpha_obs``: the events at angles <= ``alpha_obs``."""
         k = int(np.searchsorted(self.alpha, alpha_obs, side="right"))

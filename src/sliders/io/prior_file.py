@@ -53,6 +53,7 @@ from typing import Any
 import numpy as np
 
 from .. import status
+from ..parts.materials import MU_S_GAP
 from . import formats, h5tools, safeio
 from .catalogue import EVENT_COLUMNS, Catalogue, CatalogueSet
 from .conventions import ENSEMBLE_ROW_VARIABLES, add_provenance
@@ -77,7 +78,7 @@ EVENT_UNITS = {"alpha": ("rad", "tilt of the rearrangement"),
                "last": ("1", "last (down-slope) slider that moved, 0-based")}
 PARAMETER_UNITS = {"mu_d": ("1", "dynamic friction coefficient"),
                    "mu_s_mean": ("1", "mean static friction coefficient"),
-                   "mu_s_minus_mu_d": ("1", "mu_s_mean - mu_d"),
+                   MU_S_GAP: ("1", "mu_s_mean - mu_d"),
                    "sigma_mu": ("1", "width of the static coefficients"),
                    "xi": ("1", "stiffness of the cantilever springs (units of k)"),
                    "n_sliders": ("1", "number of sliders N"),

@@ -49,17 +49,22 @@ import numpy as np
 from .command import UsageError
 from .rows import realisation_seeds
 from ..keyed_random import realisation_seed
+from ..parts import materials
 from ..parts.checks import SceneError
 from ..scene import Scene, available_memory, read_toml
 
 DESIGNS = ("sobol", "latin", "random")
 DISTRIBUTIONS = ("uniform", "loguniform", "choice")
-DERIVED = {"mu_s_minus_mu_d": "mu_s_mean"}  # drawn name -> the scene field it gives
-DRAWABLE = ("mu_d", "mu_s_mean", "mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders",
+DERIVED = materials.DERIVED  # drawn name -> the scene field it gives
+GAP = materials.MU_S_GAP  # mu_s_mean - mu_d, drawn instead of mu_s_mean
+#: the scene fields of the materials (parts.materials), in the records' order
+MATERIAL_FIELDS = tuple(m.derived or m.scene_key for m in materials.MATERIALS)
+DRAWABLE = (*(n for m in materials.MATERIALS for n in ((m.derived, m.name) if m.derived
+                                                       else (m.scene_key,))),
             "spring_length", "initial_forces")
-MATERIAL = ("mu_d", "mu_s_mean", "sigma_mu", "xi", "n_sliders",
-            "initial_forces")  # always in the file (the last: the preparation)
-INTEGERS = ("n_sliders",)  # drawn parameters that are integers (a choice of integers)
+MATERIAL = (*MATERIAL_FIELDS, "initial_forces")  # always in the file (the last: the preparation)
+INTEGERS = tuple(m.scene_key for m in materials.MATERIALS
+                 if m.integer)  # drawn parameters that are integers (a choice of integers)
 MAX_REALISATIONS = 10**7  # rows of one file: the plan is drawn in memory on every rank
 PLAN_BYTES_PER_ROW = 160  # the design, every parameter, seed, order and flags of a row
 PLAN_MEMORY_SHARE = 0.5  # of the memory available, at most, for the plans of one node
@@ -255,10 +260,11 @@ class Prior:
             if not m.drawn:
                 out[name] = m.ppf(np.zeros(rows))
         for name in MATERIAL:
-            if name not in out and not (name == "mu_s_mean" and "mu_s_minus_mu_d" in out):
+            if name not in out and not any(d == name and g in out for g, d in DERIVED.items()):
                 out[name] = np.full(rows, getattr(self.base_scene, name))
-        if "mu_s_minus_mu_d" in out:
-            out["mu_s_mean"] = out["mu_d"] + out["mu_s_minus_mu_d"]
+        for gap, name in DERIVED.items():
+            if gap in out:
+                out[name] = materials.derive(gap, out)
         return out
 
     def seed(self, r: int) -> int:
@@ -301,9 +307,9 @@ class Prior:
         m = self.marginals
         if "mu_s_mean" in m:
             mu_s_top = m["mu_s_mean"].support()[1]
-        elif "mu_s_minus_mu_d" in m:
+        elif GAP in m:
             mu_d_top = m["mu_d"].support()[1] if "mu_d" in m else self.base_scene.mu_d
-            mu_s_top = mu_d_top + m["mu_s_minus_mu_d"].support()[1]
+            mu_s_top = materials.mu_s_mean(mu_d_top, m[GAP].support()[1])
         else:
             mu_s_top = self.base_scene.mu_s_mean
         top = float(np.arctan(mu_s_top)) + self.ceiling_step
@@ -365,8 +371,9 @@ def parse_prior(data: dict, where: str = "prior") -> Prior:
             raise PriorError(f"{where}: unknown parameter {name!r}{hint}; allowed are {DRAWABLE}")
         if name in scene_values or DERIVED.get(name) in scene_values:
             raise PriorError(f"{where}: {name!r} is both in [scene] and in [parameters]")
-    if "mu_s_minus_mu_d" in params and "mu_s_mean" in params:
-        raise PriorError(f"{where}: give mu_s_mean or mu_s_minus_mu_d in [parameters], not both")
+    for gap, name in DERIVED.items():
+        if gap in params and name in params:
+            raise PriorError(f"{where}: give {name} or {gap} in [parameters], not both")
     scene_values.setdefault("mode", "explore")
     if scene_values.get("record", "displacements") != "displacements":
         raise PriorError(f"{where}: [scene] record = {scene_values['record']!r}: a prior ensemble "
@@ -398,17 +405,17 @@ def parse_prior(data: dict, where: str = "prior") -> Prior:
 
 def _check_friction_ranges(marginals: dict, base, where: str) -> None:
     """Refuse up front a prior whose ranges allow mu_d >= mu_s_mean (one line)."""
-    if "mu_s_minus_mu_d" in marginals:
-        low = marginals["mu_s_minus_mu_d"].support()[0]
+    if GAP in marginals:
+        low = marginals[GAP].support()[0]
         if low <= 0:
-            raise PriorError(f"{where}: [parameters] mu_s_minus_mu_d reaches {low!r} <= 0, which "
+            raise PriorError(f"{where}: [parameters] {GAP} reaches {low!r} <= 0, which "
                              "gives mu_d >= mu_s_mean")
         return
     d_hi = marginals["mu_d"].support()[1] if "mu_d" in marginals else base.mu_d
     s_lo = marginals["mu_s_mean"].support()[0] if "mu_s_mean" in marginals else base.mu_s_mean
     if d_hi >= s_lo:
         raise PriorError(f"{where}: [parameters] mu_d up to {d_hi!r} and mu_s_mean from {s_lo!r} "
-                         "allow mu_d >= mu_s_mean; draw mu_s_minus_mu_d > 0 instead")
+                         f"allow mu_d >= mu_s_mean; draw {GAP} > 0 instead")
 
 
 def load_prior(path, data: bytes | None = None) -> Prior:

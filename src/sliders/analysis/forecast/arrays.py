@@ -238,11 +238,10 @@ def reference_catalogues() -> list:
     disp = size * (1e-3 + 1e-3 * rng.random(150))
     full = Catalogue(alpha, size, disp, first, last, tilt_now=float(alpha[-1]) + 1e-3)
     keep = size >= 2
-    none = -np.ones(int(keep.sum()), dtype=np.int64)
-    blind = Catalogue(alpha[keep], size[keep], np.zeros(int(keep.sum())), none, none,
-                      tilt_now=full.tilt_now)
-    early = Catalogue(alpha[:40], 0.37 * size[:40], np.zeros(40), -np.ones(40, np.int64),
-                      -np.ones(40, np.int64), tilt_now=float(alpha[39]) + 0.01)
+    blind = Catalogue(alpha[keep], size[keep], disp[keep], first[keep], last[keep],
+                      tilt_now=full.tilt_now).angles_and_sizes()
+    early = Catalogue(alpha[:40], 0.37 * size[:40], disp[:40], first[:40], last[:40],
+                      tilt_now=float(alpha[39]) + 0.01).angles_and_sizes()
     few = Catalogue(alpha[:6], size[:6], disp[:6], first[:6], last[:6],
                     tilt_now=math.radians(12.0))
     camera = Catalogue(alpha, size, 37.0 * disp, (first + 0.5) / 200, (last + 0.5) / 200,

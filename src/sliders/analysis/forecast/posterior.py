@@ -56,6 +56,7 @@ import numpy as np
 from scipy.special import ndtr, ndtri
 
 from ...io.catalogue import Catalogue, CatalogueSet
+from ...parts import materials
 from .domain import DOMAIN_FEATURES, DomainCheck
 from .estimator import Estimator
 from .features import Cuts, coupled_lone_slips, feature_matrix, training_cuts
@@ -63,10 +64,10 @@ from .evaluators import check_boosting
 from .integrity import IntegrityError, check_array, check_number, require
 from .measurement import PERFECT, RECORD_FEATURES, TOLD_FEATURES, degrade_cuts
 
-#: the material parameters inferred, in order
-POSTERIOR_PARAMETERS = ("mu_d", "mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders")
+#: the material parameters inferred, in order (``parts.materials``)
+POSTERIOR_PARAMETERS = materials.NAMES
 #: those learned as log10 (their priors are log-uniform, or a choice spread over decades)
-LOG_PARAMETERS = ("mu_s_minus_mu_d", "sigma_mu", "xi", "n_sliders")
+LOG_PARAMETERS = materials.LOG_NAMES
 #: the levels of the conditional quantiles learned: the median and the 50, 80 and 95 % intervals
 POSTERIOR_LEVELS = np.array([0.025, 0.1, 0.25, 0.5, 0.75, 0.9, 0.975])
 #: decades below the smallest positive xi of the prior at which xi = 0 is coded
@@ -112,8 +113,7 @@ CENTRAL_INTERVALS = (0.5, 0.8, 0.95)
 #: coefficients positive (mu_d > 0; mu_s - mu_d and sigma_mu, learned as log10, are positive
 #: wherever they are finite), xi >= 0 (its zero coded below its range), and none so large
 #: that a pile of it means nothing (a friction coefficient of 1000 is a tilt of 89.94 degrees)
-PHYSICAL_RANGES = {"mu_d": (0.0, 1e3), "mu_s_minus_mu_d": (0.0, 1e3), "sigma_mu": (0.0, 1e3),
-                   "xi": (0.0, 1e6), "n_sliders": (2.0, 1e12)}
+PHYSICAL_RANGES = {m.name: m.physical_range for m in materials.MATERIALS}
 #: the fewest decades below 1 a parameter learned as log10 may reach (10**-300 is a number)
 LOG_FLOOR = -300.0
 
@@ -162,18 +162,6 @@ def learned_scale(name: str, values, xi_zero_code: float = math.nan) -> np.ndarr
     return np.where(v > 0, out, xi_zero_code) if name == "xi" else out
 
 
-def angles_sizes_only(cat: Catalogue) -> Catalogue:
-    """``cat`` as a record of angles and sizes only: no displacement, no movers (as the command
-    reads a catalogue without those columns)."""
-    n = len(cat)
-    return Catalogue(cat.alpha, cat.size, np.zeros(n), np.full(n, -1), np.full(n, -1), cat.tilt_now)
-
-
-def is_complete(cat: Catalogue) -> bool:
-    """The catalogue has displacements and movers (an empty one counts as complete)."""
-    return bool((cat.first >= 0).all()) and not np.isnan(cat.displacement).any()
-
-
 def design(cuts: Cuts) -> np.ndarray:
     """(n, F) what the regressors see: the catalogue's and the measurement's features
     (``features.feature_matrix``), mu_d and xi solved together from the lone-slip pairs and
@@ -183,7 +171,7 @@ def design(cuts: Cuts) -> np.ndarray:
     coupled = np.array([coupled_lone_slips(c) for c in cuts.catalogues],
                        dtype=float).reshape(len(cuts), len(COUPLED_NAMES))
     x = np.hstack([x, coupled])
-    complete = np.array([is_complete(c) for c in cuts.catalogues], dtype=float)
+    complete = np.array([c.complete for c in cuts.catalogues], dtype=float)
     exact = np.isfinite(lone_slider_mu_d(x, names + COUPLED_NAMES)).astype(float)
     return np.hstack([x, complete[:, None], exact[:, None]])
 
@@ -302,7 +290,7 @@ class ParameterPosterior(Estimator):
             cuts.catalogues = [k if e else c for k, c, e in zip(kept, cuts.catalogues, exact)]
             cuts.measurement = [PERFECT if e else m for m, e in zip(cuts.measurement, exact)]
         strip = rng.random(len(cuts)) < self.angles_sizes_share
-        cuts.catalogues = [angles_sizes_only(c) if s else c for c, s in zip(cuts.catalogues, strip)]
+        cuts.catalogues = [c.angles_and_sizes() if s else c for c, s in zip(cuts.catalogues, strip)]
         return cuts
 
     def targets(self, cset, rows) -> np.ndarray:
@@ -480,7 +468,7 @@ class ParameterPosterior(Estimator):
 
     @staticmethod
     def _class_of(cuts: Cuts) -> np.ndarray:
-        return np.array([0 if is_complete(c) else 1 for c in cuts.catalogues])
+        return np.array([0 if c.complete else 1 for c in cuts.catalogues])
 
     @staticmethod
     def _group_of(x) -> np.ndarray:

@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from ...io.catalogue import Catalogue
+from ...parts.materials import scene_values
 from ...scene import Scene
 from .measurement import Measurement, degrade
 
@@ -149,16 +150,9 @@ def simulate_piles(base_scene: Scene, run_pile, material: dict, tilt: float,
                            "arbitrary" else measurement.min_size, measurement.missed_fraction)
     cats, avalanched = [], []
     for j, seed in enumerate(seeds):
-        mu_d = float(material["mu_d"][j])
-        changes = {"mu_d": mu_d, "alpha_max": max(float(tilt), 1e-6), "seed": int(seed)}
-        if "mu_s_minus_mu_d" in material:
-            changes["mu_s_mean"] = mu_d + float(material["mu_s_minus_mu_d"][j])
-        for name in ("sigma_mu", "xi"):
-            if name in material:
-                changes[name] = float(material[name][j])
-        if "n_sliders" in material:
-            changes["n_sliders"] = int(material["n_sliders"][j])
-        result = run_pile(base_scene.replace(**changes))
+        changes = scene_values({name: v[j] for name, v in material.items()})
+        result = run_pile(base_scene.replace(alpha_max=max(float(tilt), 1e-6), seed=int(seed),
+                                             **changes))
         sim = Catalogue.from_result(result)
         sim = Catalogue(sim.alpha, sim.size, sim.displacement, sim.first, sim.last,
                         tilt_now=max(float(tilt), float(sim.tilt_now)))

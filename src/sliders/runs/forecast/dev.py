@@ -11,10 +11,11 @@ import numpy as np
 
 from ...driver import run
 from ...io.catalogue import Catalogue, CatalogueSet
+from ...parts.materials import MU_S_GAP, derive, scene_values
 from ...scene import Scene
 
 #: the prior ensembles' default prior (mpi_runs/priors/default.toml): name -> (law, bounds)
-DEV_PRIOR = {"mu_d": ("uniform", (0.3, 0.8)), "mu_s_minus_mu_d": ("loguniform", (0.02, 0.12)),
+DEV_PRIOR = {"mu_d": ("uniform", (0.3, 0.8)), MU_S_GAP: ("loguniform", (0.02, 0.12)),
              "sigma_mu": ("uniform", (0.005, 0.03)), "xi": ("loguniform", (1e-4, 1e-2)),
              "n_sliders": ("choice", (100, 200, 400))}
 
@@ -60,16 +61,14 @@ def dev_catalogue_set(n: int, seed: int = 0, initial_forces: str = "uniform", mo
     par = draw_dev_parameters(n, seed, prior)
     cats, alpha_c, status = [], [], []
     for r in range(n):
-        mu_d = float(par["mu_d"][r])
-        scene = Scene(n_sliders=int(par["n_sliders"][r]), xi=float(par["xi"][r]), mu_d=mu_d,
-                      mu_s_mean=mu_d + float(par["mu_s_minus_mu_d"][r]),
-                      sigma_mu=float(par["sigma_mu"][r]), seed=(seed * 100003 + r) % 2**32,
-                      initial_forces=initial_forces, mode=mode, record="displacements")
+        scene = Scene(**scene_values({name: v[r] for name, v in par.items()}),
+                      seed=(seed * 100003 + r) % 2**32, initial_forces=initial_forces, mode=mode,
+                      record="displacements")
         res = run(scene)
         cats.append(Catalogue.from_result(res))
         status.append(res.status)
         alpha_c.append(res.alpha_c if res.status == "avalanche" else np.nan)
-    params = {"mu_d": par["mu_d"], "mu_s_mean": par["mu_d"] + par["mu_s_minus_mu_d"],
+    params = {"mu_d": par["mu_d"], "mu_s_mean": derive(MU_S_GAP, par),
               "sigma_mu": par["sigma_mu"], "xi": par["xi"], "n_sliders": par["n_sliders"]}
     return CatalogueSet.from_catalogues(cats, params, alpha_c, status,
                                         attrs={"source": "sliders.runs.forecast.dev.dev_catalogue_set",
