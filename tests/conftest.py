@@ -377,13 +377,42 @@ def tilt_file(tmp_path_factory):
     return path
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def shipped():
-    """The shipped model, loaded once."""
+    """The shipped model's forecasters and provenance (``load_forecasters``), loaded once a
+    session: read only."""
     from sliders.analysis.forecast.model_file import load_forecasters
     from sliders.io.forecast_model import default_model_path
 
     return load_forecasters(default_model_path())
+
+
+@pytest.fixture(scope="session")
+def shipped_model():
+    """The shipped model and posterior as ``sliders.forecast.load()`` gives them, loaded once a
+    session: read only."""
+    import sliders.forecast as sf
+
+    return sf.load()
+
+
+def _run_small_prior(folder: Path) -> None:
+    from helpers import SMALL_PRIOR, TIMEOUT, _env
+
+    (folder / "p.toml").write_text(SMALL_PRIOR.format(R=12, design="sobol"))
+    done = subprocess.run([sys.executable, "-m", "sliders.prior", str(folder / "p.toml"),
+                           "--out", str(folder / "p.h5"), "--quiet"], capture_output=True,
+                          text=True, timeout=TIMEOUT, env=_env())
+    assert done.returncode == 0, done.stderr
+
+
+@pytest.fixture(scope="session")
+def small_prior() -> tuple[Path, Path]:
+    """``helpers.SMALL_PRIOR`` of 12 Sobol rows (``p.toml``) and its ensemble run serially by
+    ``python -m sliders.prior`` (``p.h5``), made once a session for every worker: read only
+    (copy what you change)."""
+    folder = session_folder("small-prior", _run_small_prior)
+    return folder / "p.toml", folder / "p.h5"
 
 
 @pytest.fixture(scope="module")

@@ -188,10 +188,9 @@ def pile_near_its_end():
 
 
 @pytest.mark.parametrize("noise", [0.0, 0.1])
-def test_the_api_forecasts_a_camera_catalogue_alike_in_any_unit(pile_near_its_end, noise):
-    import sliders.forecast as sf
-
-    model = sf.load()
+def test_the_api_forecasts_a_camera_catalogue_alike_in_any_unit(pile_near_its_end, noise,
+                                                                 shipped_model):
+    model = shipped_model
     cat, alpha_c = pile_near_its_end
     rng = np.random.default_rng(3)
     disp = cat.displacement * np.exp(rng.normal(0.0, noise, len(cat)))

@@ -388,15 +388,14 @@ def test_a_stop_signal_lets_the_drawing_child_finish_its_picture(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_live_picture_of_a_real_forecast_carries_its_status(tmp_path):
+def test_the_live_picture_of_a_real_forecast_carries_its_status(tmp_path, shipped_model):
     import numpy as np
 
-    import sliders.forecast as sf
     from sliders.forecasting.alarm import png_bytes
 
     u = np.sort(np.random.default_rng(3).random(120))
     alpha, size = 31.0 - 31.0 * np.exp(-3.0 * u), np.ones(120, dtype=int)
-    pred = sf.load().predict({"angle [deg]": alpha, "size": size}, tilt_now="30deg")
+    pred = shipped_model.predict({"angle [deg]": alpha, "size": size}, tilt_now="30deg")
     status = {"alarm": True, "alarm_threshold": 0.4, "rows": 120, "file": "pile.csv",
               "time": "2026-11-28T03:40:00"}
     bare, with_status = png_bytes(pred), png_bytes(pred, status)
@@ -414,17 +413,17 @@ SMALL_PILE = ("0.1824:1 4.0529:2 4.7686:2 6.8907:2 6.9814:1 7.7756:1 9.1642:3 9.
 
 
 @pytest.mark.slow
-def test_the_command_runs_the_hook_once_and_scores_the_run_at_the_avalanche(tmp_path, hook):
+def test_the_command_runs_the_hook_once_and_scores_the_run_at_the_avalanche(tmp_path, hook,
+                                                                            shipped_model):
     import subprocess
 
-    import sliders.forecast as sf
     from sliders.forecasting.alarm import probability_within
 
     rows = [r.split(":") for r in SMALL_PILE.split()]
     path = tmp_path / "pile.csv"
     path.write_text("angle [deg],size\n" + "".join(f"{a},{s}\n" for a, s in rows)
                     + "# avalanche 19.937deg\n")
-    p = probability_within(sf.load().predict(path).to_dict())
+    p = probability_within(shipped_model.predict(path).to_dict())
     assert p > 0.08  # the threshold below it is one the option takes
     threshold = f"{max(0.06, min(0.95, p - 0.02)):.3f}"
     text, runs = hook

@@ -15,7 +15,6 @@ import sys
 import numpy as np
 import pytest
 
-import sliders.forecast as sf
 from sliders.analysis.forecast.base import LEVELS
 from sliders.analysis.forecast.evaluation import accuracy_table
 from sliders.io.forecast_files import ForecastInputError
@@ -28,8 +27,9 @@ pytestmark = pytest.mark.xdist_group("forecast-api")
 
 
 @pytest.fixture(scope="module")
-def model():
-    return sf.load()
+def model(shipped_model):
+    """The shipped model (the session's)."""
+    return shipped_model
 
 
 @pytest.fixture

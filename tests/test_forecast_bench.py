@@ -7,14 +7,14 @@ import math
 import numpy as np
 import pytest
 
-import sliders.forecast as sf
 
 from helpers import SMALL_CATALOGUE, accelerating
 
 
 @pytest.fixture(scope="module")
-def model():
-    return sf.load()
+def model(shipped_model):
+    """The shipped model (the session's)."""
+    return shipped_model
 
 
 def test_the_picture_shows_catalogue_forecast_tilt_and_verdict(model, tmp_path):

@@ -16,7 +16,6 @@ import time
 import numpy as np
 import pytest
 
-import sliders.forecast as sf
 from sliders.io.forecast_files import ForecastInputError
 from sliders.forecasting import follower as live
 from sliders.forecasting.follower import LineBuffer, Tail, marker, rate_option
@@ -34,8 +33,9 @@ def csv_rows(alpha, size) -> str:
 
 
 @pytest.fixture(scope="module")
-def model():
-    return sf.load()
+def model(shipped_model):
+    """The shipped model (the session's)."""
+    return shipped_model
 
 
 class Clock:

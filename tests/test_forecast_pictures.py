@@ -271,11 +271,9 @@ def test_predict_takes_a_size_label():
 
 
 @pytest.mark.slow
-def test_the_api_carries_the_size_label_to_the_picture():
-    import sliders.forecast as sf
-
+def test_the_api_carries_the_size_label_to_the_picture(shipped_model):
     cat, _ = normal()
-    pred = sf.load().predict({"angle [deg]": np.degrees(cat.alpha), "size": 0.5 * cat.size},
-                             size_unit="arbitrary", min_size=0.5, size_label="mm²")
+    pred = shipped_model.predict({"angle [deg]": np.degrees(cat.alpha), "size": 0.5 * cat.size},
+                                 size_unit="arbitrary", min_size=0.5, size_label="mm²")
     assert "mm²" in pred.figure().axes[1].get_ylabel()
     assert "mm²" in pred.figure(status={"rows": 150}).axes[1].get_ylabel()

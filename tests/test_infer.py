@@ -243,11 +243,11 @@ def test_a_posterior_fitted_on_a_few_piles_round_trips_through_its_file(tmp_path
 
 
 @pytest.mark.slow
-def test_the_python_api_infers_with_the_forecast_model(tmp_path, held_out):
+def test_the_python_api_infers_with_the_forecast_model(tmp_path, held_out, shipped_model):
     import sliders.forecast as sf
 
     cats, _ = held_out
-    inference = sf.load().infer(_csv(tmp_path, cats[0]), check=False)
+    inference = shipped_model.infer(_csv(tmp_path, cats[0]), check=False)
     assert isinstance(inference, sf.Inference)
     assert inference.to_dict()["check"] is None and "mu_d" in str(inference)
 

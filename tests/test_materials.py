@@ -104,3 +104,17 @@ def test_a_catalogue_kept_to_its_angles_and_sizes():
     assert not Catalogue([0.1], [1], [np.nan], [0], [0]).complete
     assert not Catalogue([0.1], [1], [0.5], [0], [-1]).complete
     assert Catalogue([], [], [], [], []).complete
+
+
+def test_infer_reads_a_cameras_complete_catalogue_by_its_angles_and_sizes(shipped_model):
+    """Displacements in a camera's unit are not the model's: the posterior of a camera's
+    complete catalogue is that of its angles and sizes, not that of the catalogue read as
+    the model's units."""
+    from sliders.analysis.forecast.arrays import reference_catalogues
+
+    full, _ = reference_catalogues()[0]
+    camera = shipped_model.infer(full, check=False, displacement_unit="arbitrary").to_dict()
+    kept = shipped_model.infer(full.angles_and_sizes(), check=False).to_dict()
+    as_model = shipped_model.infer(full, check=False).to_dict()
+    assert not camera["complete"] and as_model["complete"]
+    assert camera["parameters"] == kept["parameters"] != as_model["parameters"]

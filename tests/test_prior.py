@@ -47,19 +47,15 @@ def run(args, n=None, env=None):
 
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory):
-    path = tmp_path_factory.mktemp("prior") / "small.toml"
-    path.write_text(SMALL_PRIOR.format(R=12, design="sobol"))
-    return path
+def small(small_prior):
+    """``helpers.SMALL_PRIOR`` of 12 rows (the session's)."""
+    return small_prior[0]
 
 
 @pytest.fixture(scope="module")
-def reference(small):
+def reference(small_prior):
     """The small prior run once, serially (read only by the tests)."""
-    out = small.parent / "ref.h5"
-    done = run([small, "--out", out, "--quiet"])
-    assert done.returncode == 0, done.stderr
-    return out
+    return small_prior[1]
 
 
 # ---------------------------------------------------------------------------

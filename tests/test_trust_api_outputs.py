@@ -201,10 +201,9 @@ def test_an_angle_back_by_the_tolerance_or_more_is_refused_naming_its_row():
 # ---- the forecast's and the posterior's edges (the shipped model: slow, its loading) ---------
 
 @pytest.fixture(scope="module")
-def model():
-    import sliders.forecast as sf
-
-    return sf.load()
+def model(shipped_model):
+    """The shipped model (the session's)."""
+    return shipped_model
 
 
 def accelerating(n=150, seed=7):

@@ -43,20 +43,6 @@ MPIRUN = shutil.which("mpirun") or shutil.which("mpiexec")
 TIMEOUT = 300
 FAST = ["--max-iter", "3", "--boot", "5", "--alarm-rows", "3", "--leads-deg", "1", "--tilts",
         "0.2", "--only", "learned,learned_blind"]
-PRIOR = """
-[prior]
-realisations = 12
-design = "sobol"
-seed = 3
-[scene]
-mode = "explore"
-[parameters]
-mu_d = { uniform = [0.3, 0.8] }
-mu_s_minus_mu_d = { loguniform = [0.02, 0.12] }
-sigma_mu = { uniform = [0.005, 0.03] }
-xi = { loguniform = [1e-4, 1e-2], zero = 0.5 }
-n_sliders = { choice = [20, 30, 40] }
-"""
 STUDY = """
 [study]
 realisations = 1
@@ -112,17 +98,10 @@ def leftovers(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
 
 
-def _make_prior(d: Path) -> None:
-    (d / "p.toml").write_text(PRIOR)
-    res = subprocess.run([PY, "-m", "sliders.prior", str(d / "p.toml"), "--out", str(d / "p.h5"),
-                          "--quiet"], capture_output=True, text=True, timeout=TIMEOUT, env=_env())
-    assert res.returncode == 0, res.stderr
-
-
 @pytest.fixture(scope="module")
-def prior() -> Path:
+def prior(small_prior) -> Path:
     """A 12-row prior ensemble (``python -m sliders.prior``), made once for every worker."""
-    return session_folder("trust-forecast-prior", _make_prior) / "p.h5"
+    return small_prior[1]
 
 
 @pytest.fixture(scope="module")

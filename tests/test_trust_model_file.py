@@ -210,7 +210,7 @@ def test_the_shipped_model_matches_its_recorded_digest():
     assert hashlib.sha256(path.read_bytes()).hexdigest() == recorded
 
 
-def test_the_shipped_archive_passes_the_checks_beside_its_digest(tmp_path):
+def test_the_shipped_archive_passes_the_checks_beside_its_digest(tmp_path, shipped):
     """Loaded from the package, the shipped model is checked by its digest and as any file:
     its arrays' form, and a copy loaded from elsewhere, in full."""
     header, arrays = read_model_arrays(default_model_path())
@@ -219,7 +219,7 @@ def test_the_shipped_archive_passes_the_checks_beside_its_digest(tmp_path):
     copy_path = tmp_path / "copy.zip"
     shutil.copyfile(default_model_path(), copy_path)
     models, _ = load_forecasters(copy_path)
-    assert set(models) == set(load_forecasters(default_model_path())[0])
+    assert set(models) == set(shipped[0])
 
 
 def test_a_changed_shipped_model_is_refused_by_its_digest(tmp_path, monkeypatch):
