@@ -85,7 +85,7 @@ def test_the_predictive_check_builds_its_scenes_from_the_records():
                 "n_sliders": np.array([6.0, 8.0])}
     cats, _ = simulate_piles(Scene(n_sliders=5, mode="explore"), run_pile, material, 0.3,
                              PERFECT, np.random.default_rng(0))
-    assert len(cats) == 2
+    assert len(cats) == 2 and all(c.tilt_now >= 0.3 for c in cats)
     assert [s.n_sliders for s in seen] == [6, 8]
     assert np.allclose([s.mu_s_mean for s in seen], [0.45, 0.6])
     assert np.allclose([s.sigma_mu for s in seen], [0.01, 0.02])

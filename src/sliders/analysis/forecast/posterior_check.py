@@ -19,6 +19,7 @@ its top, and ``predict`` imports that.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -154,8 +155,7 @@ def simulate_piles(base_scene: Scene, run_pile, material: dict, tilt: float,
         result = run_pile(base_scene.replace(alpha_max=max(float(tilt), 1e-6), seed=int(seed),
                                              **changes))
         sim = Catalogue.from_result(result)
-        sim = Catalogue(sim.alpha, sim.size, sim.displacement, sim.first, sim.last,
-                        tilt_now=max(float(tilt), float(sim.tilt_now)))
+        sim = dataclasses.replace(sim, tilt_now=max(float(tilt), float(sim.tilt_now)))
         cats.append(degrade(sim, measured, rng))
         avalanched.append(result.alpha_c if result.status == "avalanche" else math.nan)
     return cats, np.array(avalanched, dtype=float)
