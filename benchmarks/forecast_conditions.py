@@ -1,5 +1,5 @@
-"""The shipped forecasters under the conditions a lab brings: a camera's units, the pile's size
-told, a noisy tilt near its end, and the accuracy each forecast announces.
+"""The shipped forecasters under the conditions a lab brings: a camera's units, the pile's size,
+a noisy tilt near its end, and the accuracy each forecast announces.
 
     .venv/bin/python benchmarks/forecast_conditions.py --model src/sliders/data/default_forecaster.zip \\
         --out benchmarks/results
@@ -7,17 +7,18 @@ told, a noisy tilt near its end, and the accuracy each forecast announces.
 On the held-out rows of the model's training prior (named in its provenance, as
 ``forecast_skill.py`` reads them):
 
-* **a camera's catalogue** (``learned_camera``): each cut recorded as the
-  camera forecaster's training cuts are (``measurement.degrade_cuts(camera=True)``:
-  a displacement unit drawn over four decades, a relative displacement error,
-  positions as fractions of the pile's length, angle errors, missed events and
-  detection thresholds drawn from the training ranges), no number of sliders
-  told: the median |error| over the conditioned climatology's 3° and 1° before
-  the avalanche, and the 80 % coverage over random cuts and at each lead;
-* **the pile's size told** (``--sliders N``, and a range N/2-2N): for the
-  angles-and-sizes forecaster, the coverage per size class (N < 50, 50-199,
-  ≥ 200) over random cuts and at each lead, and the median signed error 3°
-  before, told and not told;
+* **a camera's catalogue**, as ``predict`` forecasts it (``CameraForecast``: in the
+  model's units when its lone slips fix the camera's unit, else ``learned_camera``),
+  recorded three ways (``CAMERA_RECORDS``): the camera's units only (a displacement
+  unit drawn over four decades, positions as fractions of the pile's length), with
+  a 10 % relative displacement error too, and as the camera forecaster's training
+  cuts are (``measurement.degrade_cuts(camera=True)``: also angle errors, missed
+  events and detection thresholds drawn from the training ranges), no number of
+  sliders told: the median |error| over the conditioned climatology's 3° and 1°
+  before the avalanche, and the 80 % coverage over random cuts and at each lead;
+* **the pile's size**: for the angles-and-sizes forecaster, the coverage per
+  size class (N < 50, 50-199, ≥ 200) over random cuts and at each lead, and
+  the median signed error 3° before;
 * **the edge of a noisy tilt**: catalogues with 0.15° of angle error cut within
   0.25° of their avalanche (the tilt reached at least their last, noisy, angle),
   angles and sizes only: the coverage;
@@ -40,8 +41,8 @@ from forecast_skill import LEADS_DEG, blind, skill, write_report
 from sliders.analysis.forecast import Measurement
 from sliders.analysis.forecast.base import LOWER, MEDIAN, UPPER, Forecast
 from sliders.analysis.forecast.evaluation import cuts_at_leads, typical_accuracy
-from sliders.analysis.forecast.features import training_cuts
-from sliders.analysis.forecast.measurement import degrade_cuts
+from sliders.analysis.forecast.features import cuts_in_model_units, training_cuts
+from sliders.analysis.forecast.measurement import degrade, degrade_cuts, draw_camera
 from sliders.analysis.forecast.model_file import load_forecasters
 from sliders.io.catalogue import CatalogueSet
 from sliders.runs.forecast.catalogue import load_set
@@ -54,18 +55,9 @@ EDGE_NOISE_DEG, EDGE_LEAD_DEG = 0.15, 0.25
 
 
 def untold(cuts):
-    """The cuts with no number of sliders told (as the training cuts draw it for half)."""
+    """The cuts with no number of sliders told."""
     return replace(cuts, measurement=[replace(m, n_sliders=None, n_sliders_high=None)
                                       for m in cuts.measurements()], cache={})
-
-
-def told(cuts, n, factor: float = 1.0):
-    """The cuts told their piles' numbers of sliders ``n`` (a range n/factor-n*factor if > 1)."""
-    ms = []
-    for m, k in zip(cuts.measurements(), np.asarray(n)[cuts.row].tolist()):
-        lo, hi = max(1, math.floor(k / factor)), math.ceil(k * factor)
-        ms.append(replace(m, n_sliders=int(lo), n_sliders_high=int(hi) if hi > lo else None))
-    return replace(cuts, measurement=ms, cache={})
 
 
 def camera(cuts, seed: int):
@@ -93,31 +85,71 @@ def coverage_at(f, cuts, lead=None, mask=None) -> dict:
     return {f"{d:g}": one(keep & np.isclose(lead, math.radians(d))) for d in LEADS_DEG}
 
 
-def camera_report(f, test, train_ac, seed) -> dict:
-    """The camera forecaster on camera catalogues: skill 3° and 1° before, coverage."""
+class CameraForecast:
+    """What ``predict`` does with a camera's catalogue: in the model's units by ``learned`` when
+    its lone slips fix its unit (``features.cuts_in_model_units``), else by ``learned_camera``."""
+
+    def __init__(self, models: dict):
+        self.complete, self.camera = models["learned"], models["learned_camera"]
+
+    def quantiles(self, cuts):
+        q, fb = self.camera.quantiles(cuts)
+        converted, which = cuts_in_model_units(cuts)
+        if which.any():
+            q[which], fb[which] = self.complete.quantiles(converted)
+        self.read_in_model_units = float(which.mean())
+        return q, fb
+
+
+#: records of a camera: its units only (an exact record), with a 10 % relative displacement
+#: error, and the camera forecaster's training draw (angle noise, thresholds, missed events)
+CAMERA_RECORDS = ("units only", "10 % displacement error", "training draw")
+
+
+def camera_cuts(cuts, record: str, seed: int):
+    """``cuts`` as a camera of ``record`` (``CAMERA_RECORDS``) records them, no N told."""
+    if record == "training draw":
+        return camera(cuts, seed)
+    rng = np.random.default_rng(seed)
+    m = Measurement(displacement_unit="arbitrary", position_unit="fraction")
+    noise = 0.1 if record.startswith("10") else 0.0
+    cats = [degrade(c, m, rng, 1.0, (s, noise), int(n)) for c, (s, _), n
+            in zip(cuts.catalogues, draw_camera(len(cuts), rng), cuts.n_sliders)]
+    return replace(cuts, catalogues=cats, measurement=[m] * len(cuts), cache={})
+
+
+def camera_report(models, test, train_ac, seed) -> dict:
+    """A camera's catalogue as ``predict`` forecasts it (``CameraForecast``), for each record of
+    ``CAMERA_RECORDS``: skill 3° and 1° before, the share read in the model's units, coverage
+    over random cuts and at each lead."""
+    f = CameraForecast(models)
     out = {}
-    for d in (3.0, 1.0):
-        cuts, _ = cuts_at_leads(test, np.arange(len(test)), [math.radians(d)])
-        out[f"skill_{d:g}deg"] = skill(f, camera(cuts, seed), train_ac)
-    out["random_cuts"] = coverage_at(f, camera(training_cuts(test, 10, np.random.default_rng(seed)),
-                                               seed))
-    cuts, which = cuts_at_leads(test, np.arange(len(test)), np.radians(LEADS_DEG))
-    out["per_lead"] = coverage_at(f, camera(cuts, seed), np.radians(LEADS_DEG)[which])
+    for record in CAMERA_RECORDS:
+        rep = {}
+        for d in (3.0, 1.0):
+            cuts, _ = cuts_at_leads(test, np.arange(len(test)), [math.radians(d)])
+            rep[f"skill_{d:g}deg"] = skill(f, camera_cuts(cuts, record, seed), train_ac)
+            rep[f"skill_{d:g}deg"]["read_in_model_units"] = f.read_in_model_units
+        rnd = training_cuts(test, 10, np.random.default_rng(seed))
+        rep["random_cuts"] = coverage_at(f, camera_cuts(rnd, record, seed))
+        cuts, which = cuts_at_leads(test, np.arange(len(test)), np.radians(LEADS_DEG))
+        rep["per_lead"] = coverage_at(f, camera_cuts(cuts, record, seed),
+                                      np.radians(LEADS_DEG)[which])
+        out[record] = rep
     return out
 
 
 def size_report(f, test, seed) -> dict:
-    """Coverage per size class, angles and sizes only, told N (a number, a range) or not."""
+    """Coverage per size class, angles and sizes only."""
     n = np.asarray(test.parameters["n_sliders"])
     rnd = blind(training_cuts(test, 10, np.random.default_rng(seed)))
     at, which = cuts_at_leads(test, np.arange(len(test)), np.radians(LEADS_DEG))
     at = blind(at)
     lead = np.radians(LEADS_DEG)[which]
     out = {}
-    for how, view in (("not told", lambda c: c), ("told N", lambda c: told(c, n)),
-                      ("told N/2-2N", lambda c: told(c, n, 2.0))):
+    for how in ("not told",):
         out[how] = {}
-        r, a = view(rnd), view(at)
+        r, a = rnd, at
         for label, of in SIZE_CLASSES.items():
             out[how][label] = {"random_cuts": coverage_at(f, r, mask=of(n[r.row])),
                                "per_lead": coverage_at(f, a, lead, mask=of(n[a.row]))}
@@ -164,19 +196,20 @@ def announced_report(f, test, seed, view=blind) -> dict:
 
 def markdown(rep: dict) -> str:
     """The tables of docs/forecasting_results.md."""
-    cam = rep["camera"]
-    lines = ["| a camera's catalogue | median abs err (deg) | / cond. clim. | 80 % coverage | n |",
-             "|---|---|---|---|---|"]
-    for d in ("3", "1"):
-        s = cam[f"skill_{d}deg"]
-        lines.append(f"| {d}° before | {s['median_abs_deg']:.2f} | {s['vs_conditioned']:.2f} | "
-                     f"{s['coverage']:.2f} | {s['n']} |")
-    lines += ["", f"random cuts: coverage {cam['random_cuts']['coverage']:.2f} "
-                  f"({cam['random_cuts']['n']} cuts)", "",
-              "| lead (deg) | " + " | ".join(cam["per_lead"]) + " |",
-              "|---|" + "---|" * len(cam["per_lead"]),
-              "| coverage | " + " | ".join(f"{v['coverage']:.2f}" for v in cam["per_lead"].values())
-              + " |"]
+    lines = ["| a camera's catalogue | lead | median abs err (deg) | / cond. clim. | 80 % coverage "
+             "| read in the model's units | n |", "|---|---|---|---|---|---|---|"]
+    for record, cam in rep["camera"].items():
+        for d in ("3", "1"):
+            s = cam[f"skill_{d}deg"]
+            lines.append(f"| {record} | {d}° | {s['median_abs_deg']:.2f} | "
+                         f"{s['vs_conditioned']:.2f} | {s['coverage']:.2f} | "
+                         f"{s['read_in_model_units']:.2f} | {s['n']} |")
+    leads = next(iter(rep["camera"].values()))["per_lead"]
+    lines += ["", "| 80 % coverage | random cuts | " + " | ".join(f"{k}°" for k in leads) + " |",
+              "|---|---|" + "---|" * len(leads)]
+    for record, cam in rep["camera"].items():
+        lines.append(f"| {record} | {cam['random_cuts']['coverage']:.2f} | "
+                     + " | ".join(f"{v['coverage']:.2f}" for v in cam["per_lead"].values()) + " |")
     lines += ["", "| angles and sizes, size class | told | coverage, random cuts | lowest coverage "
                   "over leads 0.25-20° | median signed err 3° before (deg) |", "|---|---|---|---|---|"]
     for how, per in rep["sizes"].items():
@@ -200,24 +233,31 @@ def markdown(rep: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--model", default="src/sliders/data/default_forecaster.zip")
-    p.add_argument("--out", default="benchmarks/results")
-    p.add_argument("--seed", type=int, default=0)
-    args = p.parse_args()
-    models, prov = load_forecasters(args.model)
-    beside = os.path.dirname(os.path.abspath(args.model))
+def held_out(model: str):
+    """The forecasters and provenance of ``model``, its training prior (found as named, beside
+    the model, or in results/default_model) and its held-out rows that reached the avalanche."""
+    models, prov = load_forecasters(model)
+    beside = os.path.dirname(os.path.abspath(model))
     paths = [f if os.path.exists(f) else os.path.join(beside, os.path.basename(f))
              for f in prov["data_files"]]
     if not all(os.path.exists(f) for f in paths):
         paths = [os.path.join("results/default_model", os.path.basename(f)) for f in paths]
     data = CatalogueSet.joined([load_set(f) for f in paths])
     held = np.asarray(prov["held_out_rows"], dtype=int)
-    test = data.subset(held[np.isfinite(data.alpha_c[held])])
+    return models, prov, data, held[np.isfinite(data.alpha_c[held])]
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--model", default="src/sliders/data/default_forecaster.zip")
+    p.add_argument("--out", default="benchmarks/results")
+    p.add_argument("--seed", type=int, default=0)
+    args = p.parse_args()
+    models, prov, data, held = held_out(args.model)
+    test = data.subset(held)
     train_ac = models["learned_blind"].climatology_.alpha_c_
     rep = {"model": os.path.basename(args.model), "rows_tested": int(len(test)),
-           "camera": camera_report(models["learned_camera"], test, train_ac, args.seed),
+           "camera": camera_report(models, test, train_ac, args.seed),
            "sizes": size_report(models["learned_blind"], test, args.seed),
            "edge": edge_report(models["learned_blind"], test, args.seed),
            "announced": {"learned, angles + sizes": announced_report(models["learned_blind"], test,

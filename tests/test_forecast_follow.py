@@ -201,8 +201,13 @@ def test_an_alarm_line_gives_the_probability_as_the_update_line(model, tmp_path)
     u = f.step()
     p_text = u.line().rsplit(") ", 1)[1]
     assert u.alarm["raised"] and p_text.startswith(">"), u.lines()
-    assert len(u.lines()) == 2 and f"°) {p_text}," in u.lines()[1], u.lines()
+    # the first update also says what the alarm can do for this kind of catalogue
+    assert len(u.lines()) == 3 and u.lines()[1].startswith("alarm: at P(avalanche within")
+    assert f"°) {p_text}," in u.lines()[2], u.lines()
     assert u.to_dict()["alarm"] is True
+    f.clock.now += 0.5
+    later = f.step()
+    assert later is None or not any(x.startswith("alarm: at P(") for x in later.lines())
 
 
 def test_the_reads_are_bounded(model, tmp_path):
@@ -442,7 +447,7 @@ def test_follow_forecasts_what_batch_forecasts(tmp_path, model):
             assert u[key] == pytest.approx(batch[key], abs=1e-9), key
         assert u["interval"] == pytest.approx(batch["interval"], abs=1e-9)
         assert {k: v for k, v in u.items() if k not in ("rows", "alarm", "model")} \
-            .keys() == {k for k in batch if k != "model"}
+            .keys() == {k for k in batch if k not in ("model", "alarm")}
     tilts = [u["tilt_now"] for u in updates]
     assert any(t > math.radians(alpha[n + 19]) + 1e-6 for t in tilts)  # the tilt-now line read
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

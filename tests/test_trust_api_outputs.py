@@ -119,10 +119,13 @@ def test_the_command_refuses_to_draw_over_its_catalogue(bench):
 # ---- the API's cells ------------------------------------------------------------------------
 
 def test_any_whole_number_of_sliders_is_taken_and_a_fraction_refused():
-    for n in (100, np.int64(100), np.uint16(100), 100.0, np.float32(100.0)):
+    for n in (100, np.int64(100), np.uint16(100), 100.0, np.float32(100.0), "100", " 100 "):
         m = measurement_from(0.0, sliders=n)
-        assert m.n_sliders == 100 and type(m.n_sliders) is int
-    for n in (2.5, 0, -3, True, float("nan"), "100"):
+        assert m.n_sliders == 100 and type(m.n_sliders) is int and m.n_sliders_high is None
+    for n in ("100-300", (100, 300), [np.int64(100), 300.0]):  # a range
+        m = measurement_from(0.0, sliders=n)
+        assert (m.n_sliders, m.n_sliders_high) == (100, 300)
+    for n in (2.5, 0, -3, True, float("nan"), "abc", "2.5", "300-100", "100-", (1, 2, 3)):
         with pytest.raises(ForecastInputError, match="--sliders") as refused:
             measurement_from(0.0, sliders=n)
         assert "\n" not in str(refused.value) and "measurement flags: --" not in str(refused.value)

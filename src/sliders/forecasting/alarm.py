@@ -103,6 +103,22 @@ def single_alarm(report: dict, threshold) -> tuple[dict, str]:
     return report | {"alarm_threshold": t, "alarm": on}, line
 
 
+def alarm_skill_line(forecaster, default: float, used: float | None = None) -> str:
+    """What ``forecaster``'s alarm did on held-out piles followed to their avalanche
+    (``alarm_skill_``, measured at its ``default`` threshold by benchmarks/alarm_skill.py), and
+    the threshold in use (``used``; None: the default), in one line."""
+    used = default if used is None else threshold_option(used)
+    skill = getattr(forecaster, "alarm_skill_", None)
+    head = f"alarm: at P(avalanche within the next degree) ≥ {used:g} ({forecaster.label})"
+    if not skill:
+        return head + "; the model file holds no measure of this alarm on held-out piles"
+    return (f"{head}; at its default {default:g}, on {skill['piles']} held-out piles followed "
+            f"to their avalanche, it rose before the avalanche for {skill['hit_share']:.0%} of "
+            f"them, a median {skill['warning_median_deg']:.2f}° before (10th percentile "
+            f"{skill['warning_p10_deg']:.2f}°), and more than 3° early for "
+            f"{skill['false_alarm_share']:.0%}")
+
+
 def default_release(threshold: float) -> float:
     """The level below which a raised alarm is released: ``RELEASE_GAP`` below the threshold,
     or half the threshold if that is smaller (a low threshold keeps a level to fall below)."""

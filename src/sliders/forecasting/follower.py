@@ -64,6 +64,7 @@ import time
 from ..io.forecast_files import (MAX_CATALOGUE_BYTES, MAX_LINE_BYTES, ForecastInputError,
                                   angle_option, parse_angle, read_catalogue_stream,
                                   tilt_in_range)
+from .alarm import alarm_skill_line
 
 #: a file is polled this often, seconds (idle: a stat and an empty read each time)
 POLL_SECONDS = 0.15
@@ -719,7 +720,9 @@ class Follower:
                     self._note(str(exc))
                     return None
         events = len(self.read[0])
-        self._captured = []
+        # the first update says what the alarm can do for this kind of catalogue
+        self._captured = [] if self.score.updates else [alarm_skill_line(
+            pred.forecasts[0][1], pred.to_dict()["alarm_threshold"], self.alarm.threshold)]
         try:
             alarm = self.alarm.update(pred, events)
             update = Update(pred, events, alarm, self._captured)

@@ -272,6 +272,7 @@ class ForecastModel:
         report = {"in_domain": in_domain, "domain_reason": reason, "events": len(cat),
                   "notes": list(notes), "warnings": warnings,
                   "alarm_threshold": alarm_threshold(forecasts[0][1]),
+                  "alarm_skill": getattr(forecasts[0][1], "alarm_skill_", None),
                   "measurement": measurement_as_json(given),
                   "model": {"path": str(path), **prov}, "methods": methods}
         first = forecasts[0][0]
@@ -335,6 +336,7 @@ def probability_bounds(forecast) -> tuple[float, float]:
 def alarm_threshold(forecaster) -> float:
     """The probability at which ``forecaster``'s alarm sounds (its own, or the default)."""
     return float(getattr(forecaster, "alarm_threshold_", DEFAULT_ALARM_THRESHOLD))
+
 
 
 def disjoint_intervals(methods: dict) -> list[str]:

@@ -12,7 +12,7 @@ read those.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -376,8 +376,6 @@ def in_model_units(cat: Catalogue, measurement) -> tuple[Catalogue | None, float
 def cuts_in_model_units(cuts: Cuts) -> tuple[Cuts, np.ndarray]:
     """The cuts whose camera's unit their lone slips fix (``in_model_units``), in the model's
     units and measured so, and which of ``cuts`` they are (a boolean mask)."""
-    from dataclasses import replace
-
     out, which = [], np.zeros(len(cuts), dtype=bool)
     for k, (cat, m) in enumerate(zip(cuts.catalogues, cuts.measurements())):
         if m.camera and (back := in_model_units(cat, m)[0]) is not None:

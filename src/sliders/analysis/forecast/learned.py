@@ -58,7 +58,7 @@ from .features import (Cuts, camera_feature_names, n_sliders_estimate, SHORTEST_
                        feature_matrix, training_cuts)
 from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, RECORD_FEATURES, degrade_cuts
 from .evaluators import ResidualTable, check_boosting
-from .integrity import check_array, check_choice, require
+from .integrity import check_array, check_choice, check_number, require
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
@@ -496,6 +496,7 @@ class Learned(Forecaster):
         check_choice(self.calibration, "calibration", CALIBRATIONS)
         check_choice(self.degrade, "degrade", (True, False))
         check_climatology(self.climatology_, "climatology")
+        check_alarm_skill(self)
         names = self.design(_probe_cuts())[1]
         cols = check_array(self.columns_, "feature columns", shape=(len(names),), kind="b")
         kept = [n for n, k in zip(names, cols) if k]
@@ -574,6 +575,27 @@ class Learned(Forecaster):
             q[out] = np.where(half[None, :], lower, upper)
             levels[out] = LEVELS  # no distribution of its own: read at the nominal levels
         return q, out, levels
+
+
+#: what a learned forecaster's measured alarm holds (``alarm_skill_``, set by
+#: benchmarks/alarm_skill.py with its default threshold ``alarm_threshold_``): name -> range
+ALARM_SKILL = {"hit_share": (0.0, 1.0), "false_alarm_share": (0.0, 1.0),
+               "warning_median_deg": (0.0, 90.0), "warning_p10_deg": (0.0, 90.0),
+               "within_deg": (0.0, 90.0), "piles": (1, 10 ** 9)}
+
+
+def check_alarm_skill(forecaster) -> None:
+    """The alarm's default threshold and its measured skill, if the forecaster holds them:
+    a threshold the alarm takes (0.05-0.95), and every figure of ``ALARM_SKILL`` in range."""
+    threshold = getattr(forecaster, "alarm_threshold_", None)
+    skill = getattr(forecaster, "alarm_skill_", None)
+    if threshold is None and skill is None:
+        return
+    check_number(threshold, "alarm threshold", 0.05, 0.95)
+    require(isinstance(skill, dict) and set(skill) == set(ALARM_SKILL),
+            "the alarm's skill is not a table of " + ", ".join(ALARM_SKILL))
+    for name, (lo, hi) in ALARM_SKILL.items():
+        check_number(skill[name], f"alarm skill {name}", lo, hi)
 
 
 def _outside(feature: str, value: float, lo: float, hi: float) -> str:
