@@ -34,7 +34,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-from dataclasses import replace
 
 import numpy as np
 
