@@ -172,9 +172,9 @@ def add_measured_catalogue_arguments(pr: argparse.ArgumentParser) -> None:
                     help="model: displacements in g tau^2; arbitrary: a camera's unit (pixels, "
                          "mm, any positive scale), read relative to the catalogue's own")
     pr.add_argument("--position-unit", default="sliders", choices=("sliders", "fraction", "mm"),
-                    help="the movers' positions (first, last): slider indices from the up-slope "
-                         "end; fractions of the pile's length from that end; or mm from it "
-                         "(with --pile-length)")
+                    help="the movers' positions (first, last) -- sliders: slider indices from "
+                         "the up-slope end; fraction: fractions of the pile's length from that "
+                         "end; mm: millimetres from it (with --pile-length)")
     pr.add_argument("--pile-length", type=float, default=None, metavar="MM",
                     help="the pile's length along the slope in mm (with --position-unit mm)")
 
