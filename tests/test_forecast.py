@@ -218,6 +218,7 @@ def test_shortest_interval_is_no_longer_than_the_central_one_and_keeps_the_media
         Learned(interval="lead").fit(train)
 
 
+@pytest.mark.slow
 def test_the_shortest_interval_leaves_the_probability_within_to_the_distribution():
     """The shortest interval's quantiles sit at other levels than ``LEVELS``; read at those
     levels, P(avalanche within delta) is the calibrated distribution's, as the central reading

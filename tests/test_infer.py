@@ -215,6 +215,7 @@ def test_the_estimator_follows_the_scikit_learn_rules():
     assert not any(k.endswith("_") for k in vars(twin))
 
 
+@pytest.mark.slow
 def test_the_corner_plot_is_a_png(tmp_path, model, held_out):
     cats, _ = held_out
     out = tmp_path / "posterior.png"
