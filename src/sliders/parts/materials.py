@@ -16,16 +16,27 @@ from dataclasses import dataclass
 class Material:
     """One material parameter.
 
-    name : the posterior's and the prior file's name
-    scale : ``"log"`` (learned as log10; a log axis) or ``"linear"``
-    unit : its unit (``"1"``: a number)
-    label : its name in ``infer``'s text
-    axis_label : its corner plot axis
-    scene_key : the scene field it sets (None: it is derived, see ``derived``)
-    derived : the scene field it gives through ``scene_values`` (None: it is a scene field)
-    physical_range : (low, high), the values a posterior file may hold of it: a friction
-        coefficient of 1000 is a tilt of 89.94 degrees, and a pile of more means nothing
-    integer : whether a scene takes it as an integer
+    Parameters
+    ----------
+    name : str
+        The posterior's and the prior file's name.
+    scale : {"log", "linear"}
+        Learned as log10 (and drawn on a log axis), or as it is.
+    unit : str
+        Its unit (``"1"``: a number).
+    label : str
+        Its name in ``infer``'s text.
+    axis_label : str
+        Its corner plot axis.
+    scene_key : str, optional
+        The scene field it sets (None: it is derived, see ``derived``).
+    derived : str, optional
+        The scene field it gives through ``scene_values`` (None: it is a scene field).
+    physical_range : tuple of float
+        (low, high), the values a posterior file may hold of it: a friction coefficient of
+        1000 is a tilt of 89.94 degrees, and a pile of more means nothing.
+    integer : bool
+        Whether a scene takes it as an integer.
     """
 
     name: str
