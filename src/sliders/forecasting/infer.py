@@ -151,8 +151,7 @@ class PosteriorModel:
                              "posterior reads them in the model's units only (g τ², slider "
                              "indices), so it reads this catalogue's angles and sizes"]
             cat = cat.angles_and_sizes()
-            measurement = dataclasses.replace(measurement, displacement_unit="model",
-                                              position_unit="sliders", pile_length=None)
+            measurement = measurement.in_model_units()
         cat, complete = angles_and_sizes(cat)
         cuts = Cuts.from_catalogues([cat], measurement)
         try:

@@ -14,7 +14,6 @@ catalogue and returns a ``Prediction``, whose ``to_dict()`` is what
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -222,8 +221,7 @@ class ForecastModel:
             converted, unit, pairs = in_model_units(catalogue, measurement)
             if converted is not None:
                 catalogue, kind = converted, "complete"
-                measurement = dataclasses.replace(measurement, displacement_unit="model",
-                                                  position_unit="sliders", pile_length=None)
+                measurement = measurement.in_model_units()
                 notes = [*notes, f"the camera's unit read from {pairs} lone slips that agree "
                                  f"(1 unit = {unit:.4g} g τ²), its positions as slider indices: "
                                  "forecast in the model's units"]

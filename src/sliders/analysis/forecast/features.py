@@ -12,7 +12,7 @@ read those.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -379,8 +379,7 @@ def cuts_in_model_units(cuts: Cuts) -> tuple[Cuts, np.ndarray]:
     out, which = [], np.zeros(len(cuts), dtype=bool)
     for k, (cat, m) in enumerate(zip(cuts.catalogues, cuts.measurements())):
         if m.camera and (back := in_model_units(cat, m)[0]) is not None:
-            out.append((back, replace(m, displacement_unit="model", position_unit="sliders",
-                                      pile_length=None)))
+            out.append((back, m.in_model_units()))
             which[k] = True
     sub = Cuts([c for c, _ in out], cuts.row[which],
                None if cuts.alpha_c is None else cuts.alpha_c[which],

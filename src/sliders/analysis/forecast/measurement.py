@@ -133,6 +133,11 @@ class Measurement:
         """The displacements or the positions are a camera's (not the model's units)."""
         return self.displacement_unit == "arbitrary" or self.position_unit != "sliders"
 
+    def in_model_units(self) -> "Measurement":
+        """The same record with displacements in g tau^2 and positions as slider indices (a
+        camera's catalogue read back in the model's units, or kept to its angles and sizes)."""
+        return replace(self, displacement_unit="model", position_unit="sliders", pile_length=None)
+
     def position_fractions(self, positions: np.ndarray) -> np.ndarray:
         """A camera's positions as fractions of the pile's length (-1: unknown, kept)."""
         p = np.asarray(positions, dtype=float)
