@@ -208,3 +208,78 @@ def test_the_import_count_sees_relative_and_nested_imports():
     assert function_imports(source, ["sliders", "runs"]) == [
         (4, "sliders.io"), (6, "h5py"), (7, "sliders._kernel")]
     assert not _allowed("sliders.io") and _allowed("h5py") and _allowed("sklearn.metrics")
+
+
+# ---------------------------------------------------------------------------
+# the reading and checking of a model file
+# ---------------------------------------------------------------------------
+_F = "sliders.analysis.forecast."
+#: the source that reads a model file and checks it (its form, the header's schema, every
+#: fitted part, the expected-accuracy tables, the reference forecasts): "module" for all of a
+#: module, "module:Qualified.name" for a function, a class or an assignment (a class's FIELDS)
+MODEL_FILE_READING = (
+    "sliders.io.model_arrays:read_model_arrays", "sliders.io.model_arrays:_member",
+    *(f"sliders.io.forecast_model:{n}" for n in (
+        "read_model_bytes", "check_digest", "printable_tree", "check_accuracy_table", "_column")),
+    _F + "model_file:load_forecasters", _F + "model_file:_estimators_of_blob", _F + "integrity",
+    *(f"{_F}arrays:{n}" for n in ("from_arrays", "_decode", "check_references",
+                                  "CATALOGUE_FIELDS", "catalogues_of", "estimators_of")),
+    *(f"{_F}evaluators:{n}" for n in (
+        "Arrays", "_nodes", "QuantileTrees.FIELDS", "QuantileTrees.FILE_NAMES",
+        "QuantileTrees.check_consistent", "ResidualTable.FIELDS", "ResidualTable.check_consistent",
+        "NoveltyDetector.FIELDS", "NoveltyDetector.check_consistent")),
+    *(f"{_F}learned:{n}" for n in ("Learned.FIELDS", "Learned.check_consistent", "ALARM_SKILL",
+                                   "ALARM_FIELDS", "check_alarm_skill")),
+    *(f"{_F}posterior:{n}" for n in (
+        "_n_p", "ParameterPosterior._check_range", "ParameterPosterior.FIELDS",
+        "ParameterPosterior.check_fitted", "ParameterPosterior.check_consistent")),
+    _F + "domain:DomainCheck.FIELDS", _F + "domain:DomainCheck.check_consistent",
+    _F + "baselines:Climatology.FIELDS", _F + "physics:ModelBased.FIELDS",
+    _F + "inverse_rate:_InverseRate.FIELDS", _F + "base:Forecaster.check_fitted")
+#: the most non-blank lines MODEL_FILE_READING may hold; it may only fall
+MAX_MODEL_FILE_READING_LINES = 686
+
+
+def nonblank_lines(source: str) -> dict[str, int]:
+    """Non-blank lines (docstrings and comments included) of ``source`` (key "") and of each of
+    its functions, classes and assignments, by qualified name."""
+    lines = source.splitlines()
+    out = {"": sum(1 for line in lines if line.strip())}
+
+    def visit(node: ast.AST, prefix: str) -> None:
+        for child in ast.iter_child_nodes(node):
+            target = (child.targets[0] if isinstance(child, ast.Assign)
+                      else getattr(child, "target", None))
+            name = getattr(child, "name", None) or getattr(target, "id", None)
+            if isinstance(child, (ast.FunctionDef, ast.ClassDef, ast.Assign, ast.AnnAssign)) \
+                    and name:
+                qual = f"{prefix}.{name}" if prefix else name
+                span = lines[child.lineno - 1:child.end_lineno]
+                out[qual] = sum(1 for line in span if line.strip())
+                if isinstance(child, ast.ClassDef):
+                    visit(child, qual)
+
+    visit(ast.parse(source), "")
+    return out
+
+
+def test_the_count_of_nonblank_lines_sees_functions_classes_and_fields():
+    source = 'X = 1\n\nclass C:\n    """Doc."""\n\n    FIELDS = {\n        "a": 1}\n' \
+             '    def f(self):\n        # a comment\n\n        return 2\n'
+    assert nonblank_lines(source) == {"": 8, "X": 1, "C": 7, "C.FIELDS": 2, "C.f": 3}
+
+
+def test_the_reading_and_checking_of_a_model_file_does_not_grow():
+    """The code a model file's trust rests on (``MODEL_FILE_READING``) is read in full by
+    whoever audits it: each class declares its fitted parts (``FIELDS``) for one checker
+    (``integrity.check_fields``), with code of its own only for what a declaration cannot say.
+    The goal is 344 lines; the bound holds what was reached and may only fall."""
+    counts = {}
+    for entry in MODEL_FILE_READING:
+        module, _, name = entry.partition(":")
+        path = PACKAGE.joinpath(*module.split(".")[1:]).with_suffix(".py")
+        counts[entry] = nonblank_lines(path.read_text(encoding="utf-8"))[name]
+    total = sum(counts.values())
+    assert total <= MAX_MODEL_FILE_READING_LINES, (
+        f"{total} lines read and check a model file: " + ", ".join(
+            f"{e} ({n})" for e, n in sorted(counts.items(), key=lambda kv: -kv[1])[:8]))

@@ -143,17 +143,14 @@ def check_accuracy_table(table) -> None:
                 if isinstance(overall, dict) and c not in overall]
     if missing:
         raise ValueError(f"no column {', '.join(missing)}")
-    edges = _numbers(table["lead_edges_deg"], "lead_edges_deg")
-    if not 1 <= edges.size <= MAX_ACCURACY_BINS or edges[0] < 0 or (np.diff(edges) <= 0).any():
+    edges = _column(table["lead_edges_deg"], "lead_edges_deg")
+    if not 1 <= edges.size <= MAX_ACCURACY_BINS or (np.diff(edges) <= 0).any():
         raise ValueError(f"lead_edges_deg: {edges.size} edges, not 1 to {MAX_ACCURACY_BINS} "
                          "increasing from 0 up")
     for c in ACCURACY_COLUMNS:
-        v = _numbers(table[c], c)
-        if v.shape != edges.shape:
-            raise ValueError(f"{c}: {v.size} values for {edges.size} lead bins")
-        _in_range(v, c, c)
+        _column(table[c], c, edges.size, "lead bins")
     for c in (*ACCURACY_COLUMNS, "rows"):
-        _in_range(_numbers([overall[c]], f"overall {c}"), f"overall {c}", c)
+        _column([overall[c]], f"overall {c}", column=c)
     cells = table.get("by_width")
     if cells is None:
         return
@@ -161,40 +158,35 @@ def check_accuracy_table(table) -> None:
                                                                     *ACCURACY_COLUMNS)):
         raise ValueError("by_width: not a table of width edges and columns per lead bin")
     for c in ("width_edges_deg", *ACCURACY_COLUMNS):
-        rows = cells[c]
+        rows, first = cells[c], cells["width_edges_deg"][0]
         if not isinstance(rows, (list, tuple)) or len(rows) != edges.size:
             raise ValueError(f"by_width {c}: not one row per lead bin")
-        width = len(rows[0]) if rows and isinstance(rows[0], (list, tuple)) else 0
+        width = len(first) + (c != "width_edges_deg") if isinstance(first, (list, tuple)) else 0
         for row in rows:
-            v = _numbers(row, f"by_width {c}")
-            if v.size != (width if c == "width_edges_deg" else len(cells["width_edges_deg"][0]) + 1):
-                raise ValueError(f"by_width {c}: rows of unequal or wrong length")
-            if c == "width_edges_deg":
-                if (v < 0).any() or (np.diff(v) < 0).any():
-                    raise ValueError("by_width width_edges_deg: not increasing from 0 up")
-            else:
-                _in_range(v, f"by_width {c}", c)
+            if (np.diff(_column(row, f"by_width {c}", width, "width bins")) < 0).any() \
+                    and c == "width_edges_deg":
+                raise ValueError("by_width width_edges_deg: not increasing from 0 up")
 
 
-def _numbers(values, what: str) -> np.ndarray:
-    """``values`` (a list of plain numbers, or a 1-D array) as finite floats."""
-    ok = isinstance(values, (list, tuple)) and all(
-        isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
-        for v in values)
-    ok = ok or (isinstance(values, np.ndarray) and values.ndim == 1 and values.dtype.kind in "iuf")
-    if not ok:
+def _column(values, what: str, size: int | None = None, per: str = "", column: str = ""):
+    """``values`` (a list of plain numbers, or a 1-D array) as finite floats, ``size`` of them
+    (one per ``per``), in the range of ``column`` (``what`` unless given): degrees, a share, a
+    count, or from 0 up."""
+    column = column or what.split()[-1]
+    if not ((isinstance(values, (list, tuple)) and all(
+            isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+            for v in values)) or (isinstance(values, np.ndarray) and values.ndim == 1
+                                  and values.dtype.kind in "iuf")):
         raise ValueError(f"{what}: not a list of numbers")
     v = np.asarray(values, dtype=float)
-    if not np.isfinite(v).all():
-        raise ValueError(f"{what}: NaN or infinite values")
-    return v
-
-
-def _in_range(v: np.ndarray, what: str, column: str) -> None:
-    """The values ``v`` of ``column`` in its range (degrees, a share, a count)."""
     lo, hi = {"median_abs_deg": (0.0, 90.0), "coverage": (0.0, 1.0)}.get(column, (0.0, np.inf))
-    if (v < lo).any() or (v > hi).any():
-        raise ValueError(f"{what}: values outside [{lo:g}, {hi:g}]" if np.isfinite(hi)
-                         else f"{what}: negative values")
-    if column in ("n", "rows") and (v != np.round(v)).any():
-        raise ValueError(f"{what}: counts that are not whole numbers")
+    for bad, why in ((lambda: not np.isfinite(v).all(), "NaN or infinite values"),
+                     (lambda: size is not None and v.size != size,
+                      f"{v.size} values for {size} {per}"),
+                     (lambda: (v < lo).any() or (v > hi).any(), f"values outside [{lo:g}, {hi:g}]"
+                      if hi < np.inf else "negative values"),
+                     (lambda: column in ("n", "rows") and (v != np.round(v)).any(),
+                      "counts that are not whole numbers")):
+        if bad():
+            raise ValueError(f"{what}: {why}")
+    return v

@@ -12,9 +12,11 @@ reference forecasts.  Reading (``read_model_arrays``) checks the form before
 anything is used: a regular file of at most ``MAX_MODEL_BYTES``, read once; a
 zip whose members are exactly the header and the arrays it lists, each bounded
 before it is inflated (``MAX_MEMBER_BYTES``, ``MAX_INFLATED_BYTES``: no zip
-bomb); every array of the dtype and shape the header declares, read with
-``allow_pickle=False``.  Any refusal is one line naming the file and, where it
-is one, the array (``ModelFileError``).
+bomb), each member's size and CRC-32 checked by ``zipfile`` as it is read;
+every array a ``.npy`` of version 1.0 in C order (its header parsed by NumPy,
+``read_array_header_1_0``: a literal, never a pickle) of exactly the dtype,
+shape and bytes the header declares.  Any refusal is one line naming the
+file and, where it is one, the array (``ModelFileError``).
 """
 
 from __future__ import annotations
@@ -24,7 +26,6 @@ import json
 import math
 import re
 import zipfile
-import zlib
 
 import numpy as np
 
@@ -38,11 +39,6 @@ HEADER = "header.json"
 DTYPES = ("|b1", "<i8", "<f8")
 #: a name of an array: letters, digits, '_' and '.'
 NAME = re.compile(r"[A-Za-z0-9_.]{1,200}")
-#: the header of a .npy member as NumPy writes it for a C-ordered array of ``DTYPES``
-NPY_HEADER = re.compile(rb"\x93NUMPY\x01\x00..\{'descr': '(?P<descr><f8|<i8|\|b1)', "
-                        rb"'fortran_order': False, 'shape': \((?P<shape>(?:\d{1,10}, ?)*\d{0,10}),?\), \}"
-                        rb" *\n", re.DOTALL)
-NPY_HEADER_MAX = 4096
 
 
 def model_arrays_bytes(header: dict, arrays: dict) -> bytes:
@@ -90,32 +86,31 @@ def read_model_arrays(path, blob: bytes | None = None) -> tuple[dict, dict]:
         infos = archive.infolist()
     except (zipfile.BadZipFile, ValueError, OSError, EOFError):
         refuse("refused: not a sliders model file (a zip of arrays; a pickle is never loaded)")
-    if len(infos) > MAX_MEMBERS:
-        refuse(f"{len(infos)} members; a model file holds at most {MAX_MEMBERS}")
-    big = max(infos, key=lambda i: i.file_size, default=None)
-    if big is not None and big.file_size > MAX_MEMBER_BYTES:
-        refuse(f"member {printable(big.filename)[:80]!r} inflates to "
-               f"{big.file_size / 2**20:.0f} MB; a member holds at most "
-               f"{MAX_MEMBER_BYTES // 2**20} MB")
-    if sum(i.file_size for i in infos) > MAX_INFLATED_BYTES:
-        refuse(f"its members inflate to more than {MAX_INFLATED_BYTES // 2**20} MB")
+    big = max(infos, key=lambda i: i.file_size, default=zipfile.ZipInfo())
     by_name = {i.filename: i for i in infos}
-    if len(by_name) != len(infos):
-        refuse("two members of one name")
-    head = by_name.get(HEADER)
-    if head is None:
-        refuse(f"refused: not a sliders model file of format {MODEL_ARRAYS_FORMAT} (no "
-               f"{HEADER}): train it again")
-    if head.file_size > MAX_TREE_BYTES:
-        refuse(f"its header inflates to {head.file_size / 2**20:.0f} MB; at most "
-               f"{MAX_TREE_BYTES // 2**20} MB")
+    head = by_name.get(HEADER, zipfile.ZipInfo())
+    for bad, what in (
+            (len(infos) > MAX_MEMBERS, f"{len(infos)} members; a model file holds at most "
+                                       f"{MAX_MEMBERS}"),
+            (big.file_size > MAX_MEMBER_BYTES, f"member {printable(big.filename)[:80]!r} inflates "
+             f"to {big.file_size / 2**20:.0f} MB; a member holds at most "
+             f"{MAX_MEMBER_BYTES // 2**20} MB"),
+            (sum(i.file_size for i in infos) > MAX_INFLATED_BYTES,
+             f"its members inflate to more than {MAX_INFLATED_BYTES // 2**20} MB"),
+            (len(by_name) != len(infos), "two members of one name"),
+            (HEADER not in by_name, f"refused: not a sliders model file of format "
+                                    f"{MODEL_ARRAYS_FORMAT} (no {HEADER}): train it again"),
+            (head.file_size > MAX_TREE_BYTES, f"its header inflates to "
+             f"{head.file_size / 2**20:.0f} MB; at most {MAX_TREE_BYTES // 2**20} MB")):
+        if bad:
+            refuse(what)
     text = _member(archive, head, where)
     try:
         header = json.loads(text)
     except (ValueError, RecursionError):
         refuse(f"{HEADER} is not JSON")
-    if not isinstance(header, dict) or header.get("format") != MODEL_ARRAYS_FORMAT:
-        found = header.get("format") if isinstance(header, dict) else None
+    found = header.get("format") if isinstance(header, dict) else None
+    if found != MODEL_ARRAYS_FORMAT:
         refuse(f"a model file of format {printable(str(found))[:60]}; this version reads "
                f"{MODEL_ARRAYS_FORMAT}: train it again" if isinstance(found, str)
                else f"not a sliders model file of format {MODEL_ARRAYS_FORMAT}")
@@ -134,49 +129,36 @@ def read_model_arrays(path, blob: bytes | None = None) -> tuple[dict, dict]:
                 and isinstance(spec.get("shape"), list) and len(spec["shape"]) <= 3
                 and all(type(d) is int and 0 <= d <= 2**31 for d in spec["shape"])):
             refuse(f"{what}: declared of no dtype of {', '.join(DTYPES)} or of no shape")
-        info = by_name.get(f"{name}.npy")
-        if info is None:
+        if f"{name}.npy" not in by_name:
             refuse(f"{what} is missing")
+        raw = io.BytesIO(_member(archive, by_name[f"{name}.npy"], where))
         dtype, shape = np.dtype(spec["dtype"]), tuple(spec["shape"])
-        if info.file_size < dtype.itemsize * math.prod(shape):
-            refuse(f"{what}: its member holds {info.file_size} bytes, not an array of shape "
-                   f"{shape}")
-        arrays[name] = _array(_member(archive, info, where), dtype, shape, what, where)
+        try:  # NumPy's own parser of a header of at most 10 kB: a literal, never a pickle
+            found = np.lib.format.read_magic(raw) == (1, 0) and \
+                np.lib.format.read_array_header_1_0(raw)
+        except (ValueError, TypeError, SyntaxError, RecursionError, MemoryError, EOFError):
+            found = False
+        if not found or found[1]:
+            refuse(f"{what} is not a NumPy array of this format's (version 1.0, C order, "
+                   "booleans or 64-bit numbers)")
+        if found[2] != dtype or found[0] != shape:
+            refuse(f"{what} holds {found[2].str} {found[0]}, not the {dtype} {shape} the header "
+                   "declares")
+        body = raw.read()
+        if len(body) != dtype.itemsize * math.prod(shape):
+            refuse(f"{what}: its member holds {len(body)} bytes of data, not the "
+                   f"{dtype.itemsize * math.prod(shape)} of its shape")
+        arrays[name] = np.frombuffer(body, dtype=dtype).reshape(shape).copy()
     return header, arrays
 
 
-def _array(raw: bytes, dtype: np.dtype, shape: tuple, what: str, where) -> np.ndarray:
-    """The array of a ``.npy`` member: its header exactly the one ``write_array`` writes for
-    ``dtype`` and ``shape`` (version 1.0, C order), its data exactly the bytes they need.
-    Parsed here (no ``ast.literal_eval``, no object dtype: nothing a pickle could hide in)."""
-    m = NPY_HEADER.fullmatch(raw[:NPY_HEADER_MAX].split(b"\n", 1)[0] + b"\n") \
-        if raw[:8] == b"\x93NUMPY\x01\x00" else None
-    if m is None:
-        raise ModelFileError(f"{where}: {what} is not a NumPy array of this format's (version "
-                             "1.0, C order, booleans or 64-bit numbers)")
-    dims = tuple(int(d) for d in m["shape"].split(b",") if d.strip())
-    if m["descr"].decode() != dtype.str or dims != shape:
-        raise ModelFileError(f"{where}: {what} holds {m['descr'].decode()} {dims}, not the "
-                             f"{dtype} {shape} the header declares")
-    body = raw[m.end():]
-    if len(body) != dtype.itemsize * math.prod(shape):
-        raise ModelFileError(f"{where}: {what}: its member holds {len(body)} bytes of data, not "
-                             f"the {dtype.itemsize * math.prod(shape)} of its shape")
-    return np.frombuffer(body, dtype=dtype).reshape(shape).copy()
-
-
 def _member(archive: zipfile.ZipFile, info: zipfile.ZipInfo, where) -> bytes:
-    """A member's bytes, at most those it declares (a damaged member: ``ModelFileError``)."""
+    """A member's bytes, their size and CRC-32 checked by ``zipfile`` as it reads them (a
+    damaged member: ``ModelFileError``)."""
     try:
-        with archive.open(info) as fh:
-            data = fh.read(info.file_size + 1)
-        if len(data) != info.file_size or zlib.crc32(data) != info.CRC:
-            raise zipfile.BadZipFile(f"member {printable(info.filename)[:80]!r} is not the "
-                                     "bytes its size and CRC-32 declare")
-        return data
-    except (zipfile.BadZipFile, OSError, EOFError, ValueError, NotImplementedError) as exc:
-        raise ModelFileError(f"{where}: damaged model file ({printable(str(exc))[:80]})") \
-            from None
-    except MemoryError:
-        raise ModelFileError(f"{where}: damaged model file (out of memory while reading it)") \
+        return archive.read(info)
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError, NotImplementedError,
+            MemoryError) as exc:
+        raise ModelFileError(f"{where}: damaged model file "
+                             f"({printable(str(exc) or 'out of memory while reading it')[:80]})") \
             from None

@@ -6,8 +6,9 @@ arrays are named and kept apart, and every fitted part of scikit-learn or
 crepes becomes the arrays its ``predict`` reads (``evaluators``: the trees of
 each quantile regressor, the conformal residuals, the domain check's
 detectors).  ``from_arrays`` builds the forecasters back from that tree and
-those arrays, each class from a closed table (``classes``), each part checked
-as it is built and each forecaster's ``check_fitted`` run: no code of the
+those arrays, each class from a closed table (``classes``), and each
+forecaster's ``check_fitted`` is run (its declared fitted parts, every tree,
+table and detector among them: ``integrity.check_fields``): no code of the
 file, no scikit-learn.
 
 A model file also carries reference forecasts: a few catalogues
@@ -22,6 +23,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -32,7 +34,7 @@ from .domain import DomainCheck
 from .estimator import param_names
 from .evaluators import NoveltyDetector, QuantileTrees, ResidualTable
 from .features import Cuts, feature_matrix
-from .integrity import IntegrityError, check_array, require
+from .integrity import IntegrityError, Spec, check_fields, require
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .learned import Learned
 from .measurement import Measurement
@@ -49,6 +51,8 @@ FITTED = {"HistGradientBoostingRegressor": "trees", "ConformalPredictiveSystem":
 REFERENCE_TOLERANCE = 1e-12
 #: a name of an array (and of the parts of the tree): letters, digits, '_' and '.'
 NAME = re.compile(r"[A-Za-z0-9_.]{1,200}")
+#: the columns of a reference catalogue, in ``Catalogue``'s order
+CATALOGUE_COLUMNS = ("alpha", "size", "displacement", "first", "last")
 #: the dtypes of the arrays: booleans, 64-bit integers, 64-bit floats
 DTYPES = {"b": np.dtype(bool), "i": np.dtype("<i8"), "u": np.dtype("<i8"), "f": np.dtype("<f8")}
 
@@ -144,7 +148,7 @@ def _evaluator(kind: str, value, name: str):
         raise ConversionError(f"{name}: a {type(value).__name__} of a form the evaluators do not "
                               "reproduce")
     part = EVALUATORS[kind].of(value)
-    part.check(name)
+    check_fields(part, name)
     return part
 
 
@@ -182,11 +186,9 @@ def _decode(node, arrays: dict, known: dict, used: set, where: str):
         require(node[key] in arrays, f"array {node[key]!r} is missing")
         used.add(node[key])
         return arrays[node[key]]
-    if key in EVALUATORS and isinstance(node[key], str):
+    if key in EVALUATORS and isinstance(node[key], str):  # its arrays, checked by its owner
         prefix = node[key] + "."
         part = {k[len(prefix):]: a for k, a in arrays.items() if k.startswith(prefix)}
-        missing = [k for k in _evaluator_arrays(key) if k not in part]
-        require(not missing, f"array {prefix + missing[0] if missing else ''!r} is missing")
         used.update(prefix + k for k in part)
         return EVALUATORS[key].from_arrays(part, node[key])
     if key == "object" and set(node) == {"object", "state"}:
@@ -207,14 +209,6 @@ def _decode(node, arrays: dict, known: dict, used: set, where: str):
                              for k, v in state.items()})
         return obj
     raise IntegrityError(f"{where}: not a part of a model")
-
-
-def _evaluator_arrays(kind: str) -> tuple:
-    return {"trees": ("baseline", "tree_start", "feature", "threshold", "left", "right",
-                      "missing_left", "leaf", "value", "shape", "quantile"),
-            "residuals": ("bins", "start", "residuals"),
-            "detector": ("medians", "mean", "scale", "points", "k_distance", "density",
-                         "n_neighbors", "offset")}[kind]
 
 
 # -- reference forecasts ------------------------------------------------------------------
@@ -293,18 +287,15 @@ def check_references(estimators: dict, recorded: dict, cuts=None) -> None:
     ``REFERENCE_TOLERANCE`` (or is missing)."""
     now = reference_outputs(estimators, cuts)
     for name in sorted(set(now) | set(recorded)):
-        require(name in recorded, f"reference forecast {name!r} is missing")
-        require(name in now, f"reference forecast {name!r} is of no estimator of the file")
-        a, b = np.asarray(now[name]), np.asarray(recorded[name])
-        same = a.shape == b.shape
-        if same and a.dtype.kind == "f":
-            with np.errstate(invalid="ignore"):
-                close = np.abs(a - b) <= REFERENCE_TOLERANCE * np.maximum(1.0, np.abs(b))
-            same = bool((close | (np.isnan(a) & np.isnan(b)) | (a == b)).all())
-        elif same:
-            same = bool(np.array_equal(a, b))
-        require(same, f"reference forecast {name!r} is not reproduced (the arrays give "
-                      "another forecast than the fitted forecasters did)")
+        require(name in recorded and name in now, f"reference forecast {name!r} is " + (
+            "of no estimator of the file" if name in recorded else "missing"))
+        a, b = np.asarray(now[name], dtype=float), np.asarray(recorded[name], dtype=float)
+        with np.errstate(invalid="ignore"):  # integers and booleans: equal
+            require(a.shape == b.shape and (
+                (np.abs(a - b) <= REFERENCE_TOLERANCE * np.maximum(1.0, np.abs(b)))
+                | (a == b) | (np.isnan(a) & np.isnan(b))).all(),
+                f"reference forecast {name!r} is not reproduced (the arrays give another "
+                "forecast than the fitted forecasters did)")
 
 
 def catalogue_arrays(cases) -> dict:
@@ -314,7 +305,7 @@ def catalogue_arrays(cases) -> dict:
     camera = any(c.first.dtype.kind == "f" for c in cats)  # positions as fractions: floats
     out = {f"catalogue.{col}": np.concatenate([np.asarray(getattr(c, col)) for c in cats])
            .astype(np.float64 if col in ("alpha", "size", "displacement") or camera else np.int64)
-           for col in ("alpha", "size", "displacement", "first", "last")}
+           for col in CATALOGUE_COLUMNS}
     out["catalogue.start"] = np.concatenate([[0], np.cumsum([len(c) for c in cats])]).astype(np.int64)
     out["catalogue.tilt_now"] = np.array([c.tilt_now for c in cats], dtype=np.float64)
     out["catalogue.measurement"] = np.array([[m.angle_resolution, m.min_size, m.missed_fraction,
@@ -325,34 +316,35 @@ def catalogue_arrays(cases) -> dict:
     return out
 
 
+#: the reference catalogues' arrays (``catalogue_arrays``), by their name after "catalogue."
+CATALOGUE_FIELDS = {
+    "start": Spec("i", lo=0, min_size=2, increasing=True),
+    **{c: Spec("fi" if c in ("first", "last") else "f", shape=lambda o: o.start[-1:])
+       for c in CATALOGUE_COLUMNS},
+    "tilt_now": Spec("f", shape=lambda o: (o.start.size - 1,), lo=0.0, hi=math.pi / 2),
+    "measurement": Spec("f", ndim=2, lo=0.0)}
+
+
 def catalogues_of(arrays: dict) -> list:
     """The ``[(Catalogue, Measurement)]`` of ``catalogue_arrays`` (checked: finite, within the
     events, each catalogue's angles increasing and below its tilt reached)."""
-    start = check_array(arrays.get("catalogue.start"), "reference catalogue starts", kind="i",
-                        lo=0, min_size=2)
-    n = int(start[-1])
-    require(start[0] == 0 and (np.diff(start) >= 0).all(), "reference catalogue starts are not "
-                                                           "increasing from 0")
-    k = start.size - 1
-    cols = {c: check_array(arrays.get(f"catalogue.{c}"), f"reference catalogue {c}", shape=(n,),
-                           kind="f" if c in ("alpha", "size", "displacement") else "fi")
-            for c in ("alpha", "size", "displacement", "first", "last")}
-    tilt = check_array(arrays.get("catalogue.tilt_now"), "reference tilts", shape=(k,), lo=0.0,
-                       hi=math.pi / 2)
-    meas = check_array(arrays.get("catalogue.measurement"), "reference measurements",
-                       ndim=2, lo=0.0)
-    require(meas.shape in ((k, 5), (k, 8)), f"reference measurements have shape {meas.shape}, "
-                                            f"not ({k}, 8)")
+    a = SimpleNamespace(**{k: arrays.get(f"catalogue.{k}") for k in CATALOGUE_FIELDS})
+    check_fields(a, "reference catalogue", CATALOGUE_FIELDS)
+    k = a.start.size - 1
+    require(a.start[0] == 0 and a.measurement.shape in ((k, 5), (k, 8)),
+            f"reference catalogue: starts not from 0, or measurements of shape "
+            f"{a.measurement.shape}, not ({k}, 8)")
     out = []
     for i in range(k):
-        s = slice(int(start[i]), int(start[i + 1]))
-        a, r, mf, arb, ns, high, disp, frac = np.r_[meas[i], np.zeros(8 - meas.shape[1])]
+        s = slice(int(a.start[i]), int(a.start[i + 1]))
+        r, ms, mf, arb, ns, high, disp, frac = np.r_[a.measurement[i],
+                                                     np.zeros(8 - a.measurement.shape[1])]
         try:
-            m = Measurement(float(a), float(r), float(mf), "arbitrary" if arb else "sliders",
+            m = Measurement(float(r), float(ms), float(mf), "arbitrary" if arb else "sliders",
                             int(ns) if ns else None, int(high) if high else None,
                             "arbitrary" if disp else "model", "fraction" if frac else "sliders")
-            c = Catalogue(*(cols[col][s] for col in ("alpha", "size", "displacement", "first",
-                                                      "last")), tilt_now=float(tilt[i]))
+            c = Catalogue(*(getattr(a, col)[s] for col in CATALOGUE_COLUMNS),
+                          tilt_now=float(a.tilt_now[i]))
         except (ValueError, TypeError) as exc:
             raise IntegrityError(f"reference catalogue {i}: {exc}") from None
         out.append((c, m))
@@ -379,10 +371,7 @@ def estimators_of(header: dict, arrays: dict) -> dict:
     estimators = from_arrays(header.get("content"),
                              {k: v for k, v in arrays.items() if not k.startswith("reference.")})
     for method, e in estimators.items():
-        try:
-            e.check_fitted()
-        except IntegrityError as exc:
-            raise IntegrityError(f"{method}: {exc}") from None
+        check_fields(e, method)
     if not estimators:  # nothing to forecast with: no reference forecasts to make again
         return estimators
     cases = catalogues_of({k: v for k, v in refs.items() if k.startswith("catalogue.")})

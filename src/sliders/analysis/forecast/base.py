@@ -15,7 +15,7 @@ import numpy as np
 from ...io.forecast_files import ForecastInputError
 from .estimator import Estimator
 from .features import Cuts
-from .integrity import IntegrityError
+from .integrity import check_fields
 
 #: quantile levels of every forecast (uniform, so that twice their mean pinball
 #: loss approximates the CRPS)
@@ -328,10 +328,6 @@ class Forecaster(Estimator):
     def _quantiles(self, cuts):
         raise NotImplementedError
 
-    def check_fitted(self) -> None:
-        """Check every fitted part a forecast reads (``integrity``), as read from a model file:
-        ``integrity.IntegrityError`` on the first that is not of the form ``fit`` writes.
-
-        A forecaster that a model file never holds has no such check and refuses.
-        """
-        raise IntegrityError(f"a {type(self).__name__} is not a forecaster a model file holds")
+    #: ``check_fitted(where)``: every fitted part a forecast reads, as read from a model file,
+    #: as its class declares them (``FIELDS``; ``integrity.check_fields``)
+    check_fitted = check_fields

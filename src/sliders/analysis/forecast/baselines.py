@@ -14,7 +14,7 @@ import numpy as np
 
 from .base import LEVELS, Forecaster, ForecastError, quantiles_of_sample
 from .features import training_cuts
-from .integrity import check_array, require
+from .integrity import Spec
 
 #: fewest training avalanche angles above the tilt for the conditioned climatology
 MIN_ABOVE = 5
@@ -33,6 +33,9 @@ class Climatology(Forecaster):
 
     name = "climatology"
     label = "climatology"
+    #: sorted avalanche angles in (0, 90°), more than the conditioned climatology's MIN_ABOVE
+    FIELDS = {"alpha_c_": Spec("f", lo=1e-9, hi=np.pi / 2, increasing=True, min_size=MIN_ABOVE + 1),
+              "quantiles_": Spec("f", shape=LEVELS.shape, lo=0.0, hi=np.pi / 2, increasing=True)}
 
     def fit(self, train, y=None):
         """Keep the training realisations' avalanche angles."""
@@ -46,21 +49,6 @@ class Climatology(Forecaster):
     def conditioned(self, tilt_now) -> np.ndarray:
         """(n, len(LEVELS)) the conditioned climatology above each tilt (``conditioned_quantiles``)."""
         return conditioned_quantiles(self.alpha_c_, tilt_now)[0]
-
-    def check_fitted(self) -> None:
-        """The avalanche angles and their quantiles (``check_climatology``)."""
-        check_climatology(self, "climatology")
-
-
-def check_climatology(clim, what: str) -> None:
-    """A fitted ``Climatology``: sorted finite avalanche angles in (0, 90°), more than the
-    conditioned climatology's ``MIN_ABOVE``, and their quantiles at ``LEVELS``;
-    ``integrity.IntegrityError`` naming ``what`` otherwise."""
-    require(isinstance(clim, Climatology), f"{what} is a {type(clim).__name__}, not a climatology")
-    check_array(clim.alpha_c_, f"{what}: avalanche angles", lo=1e-9, hi=np.pi / 2,
-                increasing=True, min_size=MIN_ABOVE + 1)
-    check_array(clim.quantiles_, f"{what}: quantiles", shape=LEVELS.shape, lo=0.0,
-                hi=np.pi / 2, increasing=True)
 
 
 def conditioned_quantiles(alpha_c_sorted: np.ndarray, tilt_now: np.ndarray):

@@ -31,9 +31,9 @@ from __future__ import annotations
 import numpy as np
 
 from .estimator import Estimator
-from .evaluators import NoveltyDetector, check_novelty_detector
+from .evaluators import NoveltyDetector
 from .features import n_sliders_estimate
-from .integrity import check_array, check_number, require
+from .integrity import Spec, require
 
 #: events at least this large (sliders) are recorded by every training measurement's
 #: detection threshold (``measurement.MEASUREMENT_RANGES["min_size"]`` goes up to 5)
@@ -146,6 +146,13 @@ class DomainCheck(Estimator):
         sliders outside them is out of the domain.
     """
 
+    #: per MEASUREMENT_CLASSES a detector or None; a top tilt in (0, 90°]; 1 <= sliders
+    FIELDS = {"detectors_": Spec("list", n=len(MEASUREMENT_CLASSES),
+                                 of=Spec("part", of=NoveltyDetector, optional=True)),
+              "top_tilt_": Spec("number", lo=1e-9, hi=np.pi / 2),
+              "tilt_quantile": Spec("number", lo=0.0, hi=1.0),
+              "n_sliders_range_": Spec("f", shape=(2,), lo=1.0, optional=True)}
+
     def __init__(self, features: tuple = DOMAIN_FEATURES, tilt_quantile: float = 0.995,
                  contamination: float = 0.03, n_neighbors: int = 35, max_samples: int = 1000,
                  random_state: int = 0):
@@ -248,21 +255,13 @@ class DomainCheck(Estimator):
             reasons.append("; ".join(why))
         return ~(high | novel | other), reasons
 
-    def check_fitted(self, what: str = "domain check") -> None:
-        """Known features, one detector (or None) per class of measurement, each of the width of
-        its features (``integrity.check_novelty_detector``: the arrays of
-        ``evaluators.NoveltyDetector``), a top tilt in (0, 90°], a range of sliders with 1 <= lo <= hi."""
+    def check_consistent(self) -> None:
+        """Known features, each detector of the width of its class's, a range of sliders
+        not reversed."""
         require(isinstance(self.features, tuple) and len(set(self.features)) == len(self.features)
-                and set(self.features) <= set(WITH_POSITIONS), f"{what}: unknown features")
-        require(isinstance(self.detectors_, list)
-                and len(self.detectors_) == len(MEASUREMENT_CLASSES),
-                f"{what}: not one detector per class of measurement")
+                and set(self.features) <= set(WITH_POSITIONS), "unknown features")
         for label, det in zip(MEASUREMENT_CLASSES, self.detectors_):
-            if det is not None:
-                check_novelty_detector(det, len(self._columns(label)), f"{what}, {label} detector")
-        check_number(self.top_tilt_, f"{what}: top tilt", 1e-9, np.pi / 2)
-        check_number(self.tilt_quantile, f"{what}: tilt quantile", 0.0, 1.0)
-        if self.n_sliders_range_ is not None:
-            span = check_array(self.n_sliders_range_, f"{what}: range of sliders", shape=(2,),
-                               lo=1.0)
-            require(span[0] <= span[1], f"{what}: range of sliders is reversed")
+            require(det is None or det.points.shape[1] == len(self._columns(label)),
+                    f"the {label} detector reads other features than its class's")
+        span = self.n_sliders_range_
+        require(span is None or span[0] <= span[1], "the range of sliders is reversed")

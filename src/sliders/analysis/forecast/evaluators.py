@@ -19,11 +19,12 @@ to the last bit:
   feature after feature as the k-d tree sums them.
 
 Each is built from the fitted object once (``of``, which imports scikit-learn
-or crepes: training only), read back from its arrays (``arrays``,
-``from_arrays``), and checks its arrays as a model file's (``check``:
-``integrity.IntegrityError`` on the first that is not of the form the
-converter writes: a tree's children after their parent and within its nodes,
-every node reached once, features within the inputs, no NaN threshold).
+or crepes: training only) and read back from its arrays (``arrays``,
+``from_arrays``); it declares them (``FIELDS``, checked by
+``integrity.check_fields`` with the forecaster that holds it) and checks what
+a declaration cannot say in ``check_consistent``: a tree's children after
+their parent and within its nodes, every node reached once, features within
+the inputs, no NaN threshold.
 """
 
 from __future__ import annotations
@@ -31,14 +32,41 @@ from __future__ import annotations
 import numpy as np
 
 from .integrity import (MAX_LEAF, MAX_NEIGHBOUR_POINTS, MAX_NODES, MAX_TREES, IntegrityError,
-                        check_array, check_int, check_number, require)
+                        Spec, require)
 
 #: the arrays of a ``QuantileTrees``, in the order ``arrays`` gives them
 TREE_ARRAYS = ("baseline", "tree_start", "feature", "threshold", "left", "right",
                "missing_left", "leaf", "value")
 
 
-class QuantileTrees:
+class Arrays:
+    """An evaluator read back from a model file's arrays: ``FIELDS`` names and declares them
+    (``integrity.Spec``; a number is an array of one value), ``FILE_NAMES`` renames some."""
+
+    FIELDS: dict = {}
+    FILE_NAMES: dict = {}
+
+    @classmethod
+    def from_arrays(cls, a: dict, what: str):
+        """Back from ``arrays``, each present and a number of one value; checked with the
+        forecaster that holds it (``integrity.check_fields``)."""
+        obj = cls.__new__(cls)
+        for attr, spec in cls.FIELDS.items():
+            key = cls.FILE_NAMES.get(attr, attr)
+            require(key in a, f"array '{what}.{key}' is missing")
+            v = a[key]
+            if spec.kind in ("number", "int"):
+                require(v.shape == (1,), f"{what}.{key} has shape {v.shape}, not (1,)")
+                v = v[0].item()
+            setattr(obj, attr, v)
+        return obj
+
+
+def _nodes(trees) -> tuple:
+    return (trees.tree_start[-1],)
+
+
+class QuantileTrees(Arrays):
     """The trees of one quantile regressor, as ``HistGradientBoostingRegressor.predict`` reads them.
 
     Parameters
@@ -60,6 +88,15 @@ class QuantileTrees:
     quantile : float
         The level the regressor was fitted at.
     """
+
+    FIELDS = {"baseline": Spec("number", lo=-MAX_LEAF, hi=MAX_LEAF),
+              "quantile": Spec("number", lo=0.0, hi=1.0),
+              "n_features_in_": Spec("int", lo=1, hi=1 << 20),
+              "tree_start": Spec("i", lo=0, min_size=2),
+              **{k: Spec(kind, shape=_nodes, finite=None) for k, kind in (
+                  ("feature", "i"), ("threshold", "f"), ("left", "i"), ("right", "i"),
+                  ("missing_left", "b"), ("leaf", "b"), ("value", "f"))}}
+    FILE_NAMES = {"n_features_in_": "shape"}
 
     def __init__(self, baseline, tree_start, feature, threshold, left, right, missing_left, leaf,
                  value, n_features: int, quantile: float):
@@ -95,15 +132,6 @@ class QuantileTrees:
                 "shape": np.array([self.n_features_in_], dtype=np.int64),
                 "quantile": np.array([self.quantile])}
 
-    @classmethod
-    def from_arrays(cls, a: dict, what: str = "trees") -> "QuantileTrees":
-        """Back from ``arrays`` (checked: ``check``, naming ``what``)."""
-        trees = cls(_one(a, "baseline", "f", what), a["tree_start"], a["feature"], a["threshold"],
-                    a["left"], a["right"], a["missing_left"], a["leaf"], a["value"],
-                    _one(a, "shape", "i", what), _one(a, "quantile", "f", what))
-        trees.check(what)
-        return trees
-
     def first(self, n: int) -> "QuantileTrees":
         """The regressor of the first ``n`` trees (the boosting stopped after ``n`` iterations)."""
         end = int(self.tree_start[n])
@@ -111,48 +139,36 @@ class QuantileTrees:
                              *(getattr(self, k)[:end].copy() for k in TREE_ARRAYS[2:]),
                              self.n_features_in_, self.quantile)
 
-    def check(self, what: str = "trees") -> None:
-        """Every array as ``predict`` walks it: children after their parent and within the
-        tree, every node but a root the child of exactly one split (so every walk ends), a
-        split's feature within the inputs and its threshold not NaN (+-inf: every value one
-        way), a leaf's value finite and bounded (``MAX_LEAF``)."""
-        check_number(self.baseline, f"{what}: baseline", -MAX_LEAF, MAX_LEAF)
-        check_number(self.quantile, f"{what}: quantile", 0.0, 1.0)
-        nf = check_int(self.n_features_in_, f"{what}: features", 1, 1 << 20)
-        start = check_array(self.tree_start, f"{what}: tree starts", kind="i", min_size=2, lo=0)
-        n = start[-1]
-        require(start[0] == 0 and (np.diff(start) >= 1).all() and start.size - 1 <= MAX_TREES
-                and (np.diff(start) <= MAX_NODES).all(),
-                f"{what}: tree starts are not 1 to {MAX_TREES} trees of 1 to {MAX_NODES} nodes")
-        for name, kind in (("feature", "i"), ("left", "i"), ("right", "i"), ("threshold", "f"),
-                           ("value", "f"), ("missing_left", "b"), ("leaf", "b")):
-            a = getattr(self, name)  # NaN and infinities: judged below, where a walk reads them
-            require(isinstance(a, np.ndarray) and a.dtype.kind == kind,
-                    f"{what}: {name} has dtype {getattr(a, 'dtype', type(a).__name__)}")
-            require(a.shape == (n,), f"{what}: {name} has shape {a.shape}, not ({n},)")
+    def check_consistent(self) -> None:
+        """As ``predict`` walks the trees: 1 to ``MAX_TREES`` trees of 1 to ``MAX_NODES`` nodes,
+        children after their parent and within the tree, every node but a root the child of
+        exactly one split (so every walk ends), a split's feature within the inputs and its
+        threshold not NaN (+-inf: every value one way), a leaf's value finite and bounded."""
+        start, split = self.tree_start, ~self.leaf
         sizes = np.diff(start)
-        first = np.repeat(start[:-1], sizes)
-        index = np.arange(n) - first
-        size = np.repeat(sizes, sizes)
-        split = ~self.leaf
+        require(start[0] == 0 and (sizes >= 1).all() and sizes.size <= MAX_TREES
+                and (sizes <= MAX_NODES).all(),
+                f"tree starts are not 1 to {MAX_TREES} trees of 1 to {MAX_NODES} nodes")
+        first, size = np.repeat(start[:-1], sizes), np.repeat(sizes, sizes)
+        index = np.arange(start[-1]) - first
 
         def none(bad, problem):
             if bad.any():
-                tree = int(np.searchsorted(start, np.argmax(bad), side="right") - 1)
-                raise IntegrityError(f"{what}, tree {tree}: {problem}")
+                raise IntegrityError(f"tree {np.searchsorted(start, np.argmax(bad), 'right') - 1}"
+                                     f": {problem}")
 
-        left, right = self.left, self.right
+        left, right, nf = self.left, self.right, self.n_features_in_
         none(split & ~((left > index) & (left < size) & (right > index) & (right < size)),
              "a child index points backwards or past the tree's nodes")
-        parents = np.bincount(np.concatenate([(left + first)[split], (right + first)[split]]),
-                              minlength=n)
+        parents = np.bincount(np.r_[(left + first)[split], (right + first)[split]],
+                              minlength=start[-1])
         none(parents != (index != 0), "the nodes do not form one tree (a node with no parent "
                                       "or two)")
         none(split & ((self.feature < 0) | (self.feature >= nf)),
              f"a split reads a feature outside the {nf} features")
         none(split & np.isnan(self.threshold), "a NaN threshold")
         with np.errstate(invalid="ignore"):
-            none(~split & ~(np.isfinite(self.value) & (np.abs(self.value) <= MAX_LEAF)),
+            none(~split & ~(np.abs(self.value) <= MAX_LEAF),
                  f"a leaf value is NaN, infinite or beyond {MAX_LEAF:g}")
 
     def predict(self, x) -> np.ndarray:
@@ -181,7 +197,7 @@ class QuantileTrees:
         return out
 
 
-class ResidualTable:
+class ResidualTable(Arrays):
     """A Mondrian conformal predictive system's residuals, as crepes's ``predict`` reads them.
 
     Parameters
@@ -195,6 +211,9 @@ class ResidualTable:
     """
 
     normalized = False
+    FIELDS = {"bins": Spec("i", lo=0, min_size=1, increasing="strictly"),
+              "start": Spec("i", shape=lambda t: (t.bins.size + 1,), increasing="strictly"),
+              "residuals": Spec("f", shape=lambda t: (t.start[-1],), lo=-1e6, hi=1e6)}
 
     def __init__(self, bins, start, residuals):
         self.bins, self.start, self.residuals = bins, start, residuals
@@ -211,24 +230,12 @@ class ResidualTable:
         """``{name: array}`` of the table (``from_arrays``)."""
         return {"bins": self.bins, "start": self.start, "residuals": self.residuals}
 
-    @classmethod
-    def from_arrays(cls, a: dict, what: str = "calibration") -> "ResidualTable":
-        """Back from ``arrays`` (checked: ``check``, naming ``what``)."""
-        table = cls(a["bins"], a["start"], a["residuals"])
-        table.check(what)
-        return table
-
-    def check(self, what: str = "calibration") -> None:
-        """Increasing bins, each holding at least one residual, sorted, finite and bounded."""
-        bins = check_array(self.bins, f"{what} bins", kind="i", lo=0, min_size=1)
-        require((np.diff(bins) > 0).all(), f"{what} bins are not increasing")
-        start = check_array(self.start, f"{what} bin starts", shape=(bins.size + 1,), kind="i")
-        require(start[0] == 0 and (np.diff(start) >= 1).all(),
-                f"{what} bin starts do not give each bin its residuals")
-        r = check_array(self.residuals, f"{what} residuals", shape=(start[-1],), lo=-1e6, hi=1e6)
-        for i in range(bins.size):
-            require((np.diff(r[start[i]:start[i + 1]]) >= 0).all(),
-                    f"{what} residuals of bin {bins[i]} are not sorted")
+    def check_consistent(self) -> None:
+        """Each bin's residuals from 0 on, sorted."""
+        require(self.start[0] == 0, "calibration bin starts do not start at 0")
+        for i in range(self.bins.size):
+            require((np.diff(self.residuals[self.start[i]:self.start[i + 1]]) >= 0).all(),
+                    f"the residuals of bin {self.bins[i]} are not sorted")
 
     def counts(self) -> np.ndarray:
         """(b,) the residuals each bin holds."""
@@ -255,7 +262,7 @@ class ResidualTable:
         return out
 
 
-class NoveltyDetector:
+class NoveltyDetector(Arrays):
     """The domain check's detector: an imputer of medians, a standard scaler and a local outlier
     factor (``novelty=True``), as their ``predict`` reads them.
 
@@ -272,6 +279,14 @@ class NoveltyDetector:
     offset : float
         A score below it is novel.
     """
+
+    FIELDS = {"points": Spec("f", ndim=2),
+              **{k: Spec("f", shape=lambda d: d.points.shape[1:], lo=lo)
+                 for k, lo in (("medians", None), ("mean", None), ("scale", 1e-300))},
+              "n_neighbors": Spec("int", lo=1, hi=lambda d: d.points.shape[0] - 1),
+              **{k: Spec("f", shape=lambda d: d.points.shape[:1], lo=0.0)
+                 for k in ("k_distance", "density")},
+              "offset": Spec("number", lo=-1e300, hi=1e300)}
 
     def __init__(self, medians, mean, scale, points, k_distance, density, n_neighbors: int,
                  offset: float):
@@ -298,29 +313,10 @@ class NoveltyDetector:
                 "n_neighbors": np.array([self.n_neighbors], dtype=np.int64),
                 "offset": np.array([self.offset])}
 
-    @classmethod
-    def from_arrays(cls, a: dict, what: str = "detector") -> "NoveltyDetector":
-        """Back from ``arrays`` (checked: ``check``, naming ``what``)."""
-        det = cls(a["medians"], a["mean"], a["scale"], a["points"], a["k_distance"], a["density"],
-                  _one(a, "n_neighbors", "i", what), _one(a, "offset", "f", what))
-        det.check(what)
-        return det
-
-    def check(self, what: str = "detector", n_features: int | None = None) -> None:
-        """Finite arrays of matching shapes, positive scales, 2 to ``MAX_NEIGHBOUR_POINTS``
-        points and fewer neighbours than points."""
-        x = check_array(self.points, f"{what}: training points", ndim=2)
-        m, f = x.shape
-        require(2 <= m <= MAX_NEIGHBOUR_POINTS and f >= 1
-                and (n_features is None or f == n_features),
-                f"{what}: training points of shape {x.shape}")
-        check_array(self.medians, f"{what}: imputer", shape=(f,))
-        check_array(self.mean, f"{what}: scaler mean", shape=(f,))
-        check_array(self.scale, f"{what}: scaler scale", shape=(f,), lo=1e-300)
-        check_int(self.n_neighbors, f"{what}: neighbours", 1, m - 1)
-        check_array(self.k_distance, f"{what}: neighbour distances", shape=(m,), lo=0.0)
-        check_array(self.density, f"{what}: reachability densities", shape=(m,), lo=0.0)
-        check_number(self.offset, f"{what}: offset", -1e300, 1e300)
+    def check_consistent(self) -> None:
+        """2 to ``MAX_NEIGHBOUR_POINTS`` training points of at least one feature."""
+        require(2 <= len(self.points) <= MAX_NEIGHBOUR_POINTS and self.points.shape[1] >= 1,
+                f"training points of shape {self.points.shape}")
 
     def score_samples(self, x) -> np.ndarray:
         """(n,) the local outlier factor's score of each row of ``x`` (higher: more usual), as
@@ -344,26 +340,3 @@ class NoveltyDetector:
         out = np.ones(len(x), dtype=int)
         out[self.score_samples(x) - self.offset < 0] = -1
         return out
-
-
-def check_boosting(model, n_features: int, what: str) -> None:
-    """A quantile regressor as a model file holds it (``evaluators.QuantileTrees``): reading
-    ``n_features`` inputs, every tree checked (``QuantileTrees.check``)."""
-    require(type(model) is QuantileTrees,
-            f"{what} is a {type(model).__name__}, not the trees of a quantile regressor")
-    check_int(model.n_features_in_, f"{what}: features", n_features, n_features)
-    model.check(what)
-
-
-def check_novelty_detector(det, n_features: int, what: str) -> None:
-    """A domain check's detector as a model file holds it (``evaluators.NoveltyDetector``:
-    imputer, standard scaler, local outlier factor) on ``n_features``, every array checked."""
-    require(type(det) is NoveltyDetector,
-            f"{what} is a {type(det).__name__}, not a novelty detector's arrays")
-    det.check(what, n_features)
-
-
-def _one(a: dict, name: str, kind: str, what: str):
-    """The one number of array ``name`` of ``a`` (of dtype kind ``kind``)."""
-    v = check_array(a[name], f"{what}: {name}", shape=(1,), kind=kind)
-    return v[0].item()

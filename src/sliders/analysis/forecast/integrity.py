@@ -1,25 +1,22 @@
-"""A fitted forecaster read from a file, checked as data before it forecasts.
+"""A fitted estimator read from a file, checked as data before it forecasts.
 
-A model file (``io.model_arrays``) holds plain arrays, and they are whatever
-the file holds: a child index past the node array reads outside it, a node
-that is its own child never ends, a NaN leaf gives a NaN forecast.
-``check_fitted`` (each forecaster's, built from the checks here) looks at every array a forecast reads, its type, shape, dtype and range,
-and raises ``IntegrityError`` (one phrase: what is wrong, where) on the first
-that is not of the form the forecaster writes.
-
-What passes is a model of the right form, not the right model: a tree whose
-leaves were changed to other finite values forecasts other finite angles
-(the shipped model is also checked by its digest, ``io.forecast_model``).
-This module imports nothing of the forecasters: each one's ``check_fitted``
-(and ``baselines.check_climatology``, ``DomainCheck.check_fitted``) builds on it.
+A model file's arrays are whatever the file holds: a child index past the
+nodes reads outside them, a NaN leaf gives a NaN forecast.  Each class a model
+file may hold declares its fitted parts (``FIELDS``: attribute -> ``Spec``)
+and ``check_fields`` walks them, then runs the class's ``check_consistent``
+for what a declaration cannot say (a tree's nodes forming one tree, nested
+edges matching).  ``IntegrityError`` names the first part not of the form
+``fit`` writes by its path (``learned_blind.models_.3.left``).  What passes is
+a model of the right form, not the right model (the shipped ones are also
+checked by their digest, ``io.forecast_model``).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
-
 
 #: bounds of a fitted model's parts (the shipped model: 700 trees of at most 29 nodes)
 MAX_NODES = 1 << 16
@@ -40,49 +37,89 @@ def require(ok, what: str) -> None:
         raise IntegrityError(what)
 
 
-def check_array(a, what: str, ndim: int | None = 1, shape=None, kind: str = "f",
-                finite: bool = True, lo: float | None = None, hi: float | None = None,
-                increasing: bool = False, min_size: int = 0) -> np.ndarray:
-    """``a`` as a NumPy array of dtype kind ``kind`` ("f", "i", "u", "b"; "iu": integers),
-    ``ndim`` dimensions (or ``shape``), finite, in [lo, hi], non-decreasing along its last
-    axis if ``increasing``; else ``IntegrityError`` naming ``what``."""
-    require(isinstance(a, np.ndarray), f"{what} is a {type(a).__name__}, not an array")
-    require(a.dtype.kind in kind, f"{what} has dtype {a.dtype}")
+@dataclass(frozen=True)
+class Spec:
+    """What one fitted part is.  ``kind``: an array's dtype kinds ("f", "i", "b", "fi"), or
+    "number", "int", "choice" (one of ``of``), "str", "part" (an instance of class ``of``,
+    checked by its own ``FIELDS``), "list" or "tuple" (``n`` items, at least ``min_size``, each
+    ``of``), "dict" (keys within ``keys``, each value ``of``; or ``of`` a table key -> Spec,
+    exactly its keys).  An array has ``shape`` (else ``ndim`` dimensions and at least
+    ``min_size`` values), is finite (``finite=False``: no NaN; None: not checked here), in
+    [lo, hi], non-decreasing along its last axis if ``increasing`` ("strictly": increasing).
+    Any of these may be a function of the owner.  ``optional``: may be None or absent;
+    ``when``: checked only if true of the owner."""
+    kind: str
+    shape: object = None
+    ndim: object = 1
+    lo: object = None
+    hi: object = None
+    increasing: object = False
+    finite: object = True
+    min_size: int = 0
+    of: object = None
+    n: object = None
+    keys: object = None
+    optional: bool = False
+    when: object = None
+
+
+def check_fields(obj, where: str = "", fields: dict | None = None) -> None:
+    """Every part of ``obj`` its class declares (``FIELDS``), then its ``check_consistent``;
+    or the parts ``fields`` declares."""
+    own, fields = fields is None, getattr(type(obj), "FIELDS", None) if fields is None else fields
+    require(fields is not None, f"{where or 'it'}: a {type(obj).__name__} is not a part a "
+                                "model file holds")
+    for name, spec in fields.items():
+        if spec.when is None or spec.when(obj):
+            value = getattr(obj, name, None) if spec.optional else getattr(obj, name)
+            check_value(value, spec, obj, f"{where}.{name}" if where else name)
+    try:
+        getattr(obj, "check_consistent", lambda: None)() if own else None
+    except IntegrityError as exc:
+        raise IntegrityError(f"{where}: {exc}" if where else str(exc)) from None
+
+
+def check_value(v, s: Spec, owner, what: str) -> None:
+    """``v`` as ``s`` declares (module docstring); else ``IntegrityError`` naming ``what``."""
+    lo, hi, n, shape, ndim = (x(owner) if callable(x) else x
+                              for x in (s.lo, s.hi, s.n, s.shape, s.ndim))
+    if v is None and s.optional:
+        return
+    if s.kind == "part":
+        require(isinstance(v, s.of), f"{what} is a {type(v).__name__}, not a {s.of.__name__}")
+        return check_fields(v, what)
+    if s.kind in ("list", "tuple", "dict"):
+        box = {"list": list, "tuple": tuple, "dict": dict}[s.kind]
+        items = None if not isinstance(v, box) else v if box is dict else dict(enumerate(v))
+        specs = s.of if isinstance(s.of, dict) else dict.fromkeys(items or (), s.of)
+        require(items is not None and (n is None or len(items) == n) and len(items) >= s.min_size
+                and set(s.keys or specs) >= set(items) >= set(specs),
+                f"{what} is not a {s.kind} of {n if n is not None else ', '.join(map(str, specs))}")
+        return [check_value(items[k], specs[k], owner, f"{what}.{k}") for k in items]
+    if s.kind == "choice":
+        return require(any(type(v) is type(c) and v == c for c in s.of),
+                       f"{what} = {v!r} is not one of {tuple(s.of)}")
+    if s.kind == "str":
+        return require(isinstance(v, str), f"{what} is not a text")
+    if s.kind in ("number", "int"):
+        ok = not isinstance(v, (bool, np.bool_)) and isinstance(
+            v, (int, np.integer) if s.kind == "int" else (int, float, np.integer, np.floating))
+        lo, hi = -math.inf if lo is None else lo, math.inf if hi is None else hi
+        return require(ok and math.isfinite(v) and lo <= v <= hi,
+                       f"{what} = {v!r} is not a {'whole ' * (s.kind == 'int')}number in "
+                       f"[{lo:g}, {hi:g}]")
+    require(isinstance(v, np.ndarray), f"{what} is a {type(v).__name__}, not an array")
+    require(v.dtype.kind in s.kind, f"{what} has dtype {v.dtype}")
     if shape is not None:
-        require(a.shape == tuple(shape), f"{what} has shape {a.shape}, not {tuple(shape)}")
-    elif ndim is not None:
-        require(a.ndim == ndim, f"{what} has {a.ndim} dimensions, not {ndim}")
-    require(a.size >= min_size, f"{what} holds {a.size} values, fewer than {min_size}")
-    if a.dtype.kind == "f":
-        if finite:
-            require(np.isfinite(a).all(), f"{what} holds NaN or infinite values")
-        else:
-            require(not np.isnan(a).any(), f"{what} holds NaN")
-    if lo is not None and a.size:
-        require(np.min(a) >= lo, f"{what} holds values below {lo:g}")
-    if hi is not None and a.size:
-        require(np.max(a) <= hi, f"{what} holds values above {hi:g}")
-    if increasing and a.size:  # compared, not differenced: +inf padding follows +inf
-        require((a[..., 1:] >= a[..., :-1]).all(), f"{what} is not increasing")
-    return a
-
-
-def check_int(v, what: str, lo: int, hi: int) -> int:
-    """``v`` a whole number (not a bool) in [lo, hi]."""
-    require(isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
-            and lo <= int(v) <= hi, f"{what} = {v!r} is not a whole number in [{lo}, {hi}]")
-    return int(v)
-
-
-def check_number(v, what: str, lo: float, hi: float) -> float:
-    """``v`` a finite real number (not a bool) in [lo, hi]."""
-    require(isinstance(v, (int, float, np.integer, np.floating))
-            and not isinstance(v, (bool, np.bool_)) and math.isfinite(float(v))
-            and lo <= float(v) <= hi, f"{what} = {v!r} is not a number in [{lo:g}, {hi:g}]")
-    return float(v)
-
-
-def check_choice(v, what: str, choices) -> None:
-    """``v`` one of ``choices`` (compared by type and value)."""
-    require(any(type(v) is type(c) and v == c for c in choices),
-            f"{what} = {v!r} is not one of {tuple(choices)}")
+        require(v.shape == tuple(shape), f"{what} has shape {v.shape}, not {tuple(shape)}")
+    require(shape is not None or v.ndim == ndim, f"{what} has {v.ndim} dimensions, not {ndim}")
+    require(v.size >= s.min_size, f"{what} holds {v.size} values, fewer than {s.min_size}")
+    if v.dtype.kind == "f" and s.finite is not None:
+        require(np.isfinite(v).all() if s.finite else not np.isnan(v).any(),
+                f"{what} holds NaN{' or infinite values' * bool(s.finite)}")
+    if v.size:
+        require(lo is None or v.min() >= lo, f"{what} holds values below {lo}")
+        require(hi is None or v.max() <= hi, f"{what} holds values above {hi}")
+    if s.increasing:  # compared, not differenced: +inf padding follows +inf
+        up = v[..., 1:] > v[..., :-1] if s.increasing == "strictly" else v[..., 1:] >= v[..., :-1]
+        require(up.all(), f"{what} is not increasing")

@@ -25,8 +25,8 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Forecaster, quantiles_of_grid
-from .baselines import Climatology, check_climatology, conditioned_quantiles
-from .integrity import check_choice, check_int, check_number
+from .baselines import Climatology, conditioned_quantiles
+from .integrity import Spec
 
 #: remaining angle alpha_c - tilt_now (radians) over which the fits are profiled
 REMAINING_GRID = np.geomspace(1e-4, 1.0, 161)
@@ -113,6 +113,11 @@ def point_process_profile(alpha, weight, start, tilt_now, exponent) -> np.ndarra
 class _InverseRate(Forecaster):
     """Shared parts: the climatology to fall back on, and the per-catalogue loop."""
 
+    FIELDS = {"rate": Spec("choice", of=("events", "displacement")),
+              "exponent": Spec("choice", of=(1, None)),
+              "fraction": Spec("number", lo=1e-6, hi=1.0), "block": Spec("int", lo=1, hi=10_000),
+              "climatology_": Spec("part", of=Climatology)}
+
     def __init__(self, rate: str = "events", exponent=1, fraction: float = 0.5, block: int = 5):
         self.rate = rate
         self.exponent = exponent
@@ -141,14 +146,6 @@ class _InverseRate(Forecaster):
 
     def _profile(self, cat):
         raise NotImplementedError
-
-    def check_fitted(self) -> None:
-        """The parameters (rate, exponent, window, block) and the climatology to fall back on."""
-        check_choice(self.rate, "rate", ("events", "displacement"))
-        check_choice(self.exponent, "exponent", (1, None))
-        check_number(self.fraction, "fraction", 1e-6, 1.0)
-        check_int(self.block, "block", 1, 10_000)
-        check_climatology(self.climatology_, "climatology")
 
     def best_log_remaining(self, cat) -> float:
         """log of the most likely remaining angle ``alpha_c - tilt_now`` (NaN: no fit, or none in reach)."""

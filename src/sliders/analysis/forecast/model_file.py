@@ -5,8 +5,9 @@ holds fitted estimators ``{method: estimator}`` as ``arrays.to_arrays`` writes
 them, their provenance, and reference forecasts.  ``load_forecasters`` reads
 its form (``io.model_arrays.read_model_arrays``), builds each estimator from a
 closed table of the package's classes with its fitted parts as NumPy
-evaluators (``arrays.from_arrays``: every tree, table and detector checked as
-it is built), runs each one's ``check_fitted`` and the check of its
+evaluators (``arrays.from_arrays``), runs each one's ``check_fitted`` (the
+fitted parts its class declares, every tree, table and detector among them:
+``integrity.check_fields``) and the check of its
 expected-accuracy table (``io.forecast_model.check_accuracy_table``), and
 recomputes the reference forecasts: a file whose arrays forecast otherwise is
 refused.  Every refusal is one line naming the file (``ModelFileError``).

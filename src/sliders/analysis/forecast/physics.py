@@ -26,9 +26,9 @@ from __future__ import annotations
 import numpy as np
 
 from .base import LEVELS, Forecaster, quantiles_of_sample
-from .baselines import Climatology, check_climatology, conditioned_quantiles
+from .baselines import Climatology, conditioned_quantiles
 from .features import catalogue_features, training_cuts
-from .integrity import check_array, require
+from .integrity import Spec
 
 #: prediction errors above the trend that mark the transition (REPRODUCTION.md: 3)
 DEPARTURE_SIGMAS = 3.0
@@ -151,6 +151,10 @@ class ModelBased(Forecaster):
 
     #: agreeing pairs that make an estimate "firm"
     MIN_AGREE = 3
+    #: the climatology to fall back on; the residual quantiles of each kind of estimate
+    FIELDS = {"climatology_": Spec("part", of=Climatology),
+              "residual_quantiles_": Spec("dict", keys=("0", "1", "2"), of=Spec(
+                  "f", shape=LEVELS.shape, lo=-np.pi / 2, hi=np.pi / 2, increasing=True))}
 
     def __init__(self, draws_per_row: int = 5, random_state: int = 0):
         self.draws_per_row = draws_per_row
@@ -191,14 +195,3 @@ class ModelBased(Forecaster):
             q[m] = np.maximum(est[m, None] + res[None, :], t[m, None])
             fb[m] = False
         return q, fb
-
-    def check_fitted(self) -> None:
-        """The residual quantiles of each kind of estimate (finite, increasing, within +-90°) and
-        the climatology to fall back on."""
-        check_climatology(self.climatology_, "climatology")
-        res = self.residual_quantiles_
-        require(isinstance(res, dict) and set(res) <= {"0", "1", "2"},
-                "residual quantiles are not keyed by kind of estimate")
-        for k, q in res.items():
-            check_array(q, f"residual quantiles {k}", shape=LEVELS.shape, lo=-np.pi / 2,
-                        hi=np.pi / 2, increasing=True)

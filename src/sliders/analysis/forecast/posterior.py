@@ -60,8 +60,8 @@ from ...parts import materials
 from .domain import DOMAIN_FEATURES, DomainCheck
 from .estimator import Estimator
 from .features import Cuts, coupled_lone_slips, feature_matrix, training_cuts
-from .evaluators import check_boosting
-from .integrity import IntegrityError, check_array, check_number, require
+from .evaluators import QuantileTrees
+from .integrity import IntegrityError, Spec, check_fields, require
 from .measurement import PERFECT, RECORD_FEATURES, TOLD_FEATURES, degrade_cuts
 
 #: the material parameters inferred, in order (``parts.materials``)
@@ -203,6 +203,11 @@ def record_features(cuts: Cuts) -> tuple[np.ndarray, list[str]]:
     x, names = feature_matrix(cuts)
     keep = [i for i, n in enumerate(names) if n not in TOLD_FEATURES]
     return x[:, keep], [names[i] for i in keep]
+
+
+def _n_p(p) -> tuple:
+    """(the number of parameters,) of a posterior: the shape of its per-parameter arrays."""
+    return (len(p.parameters_),)
 
 
 class ParameterPosterior(Estimator):
@@ -668,89 +673,75 @@ class ParameterPosterior(Estimator):
     # -- the file's checks ----------------------------------------------------------------
     def _check_range(self, name: str, low: float, high: float) -> None:
         """The prior range [low, high] (learned scale) of parameter ``name`` within its
-        ``PHYSICAL_RANGES`` (mu_d > 0, the others' log10 finite, above ``LOG_FLOOR``), its ends
-        named in a refusal."""
+        ``PHYSICAL_RANGES`` (mu_d > 0, the others' log10 finite, above ``LOG_FLOOR``)."""
         lo, hi = PHYSICAL_RANGES[name]
         if name in LOG_PARAMETERS:
-            floor = math.log10(lo) if lo > 0 else LOG_FLOOR
-            ok, shown = floor - 1e-12 <= low and high <= math.log10(hi) + 1e-12, \
-                f"10^{low:.6g} to 10^{high:.6g}"
+            ok, shown = (lo > 0 and math.log10(lo) or LOG_FLOOR) - 1e-12 <= low and \
+                high <= math.log10(hi) + 1e-12, f"10^{low:.6g} to 10^{high:.6g}"
         else:
             ok, shown = lo < low and high <= hi, f"{low:.6g} to {high:.6g}"
-        limits = f"{lo:g} to {hi:g}" if lo > 0 else f"above {lo:g}, at most {hi:g}"
-        require(ok, f"posterior: the prior range of {name}, {shown}, lies outside its physical "
-                    f"range ({limits})")
+        require(ok, f"the prior range of {name}, {shown}, lies outside its physical range "
+                    f"({f'{lo:g} to {hi:g}' if lo > 0 else f'above {lo:g}, at most {hi:g}'})")
 
-    def _check_numbers_of_sliders(self, n: np.ndarray) -> None:
-        """The prior's numbers of sliders: whole numbers from 2 on, each once, whose log10 ends
-        are the prior range of n_sliders."""
-        lo, hi = PHYSICAL_RANGES["n_sliders"]
-        require(bool((n == np.round(n)).all()) and n.min() >= lo and n.max() <= hi,
-                f"posterior: the numbers of sliders ({', '.join(f'{v:g}' for v in n[:4])}"
-                f"{', ...' if n.size > 4 else ''}) are not whole numbers from {lo:g} to {hi:g}")
-        require(bool((np.diff(n) > 0).all()), "posterior: a number of sliders is repeated")
-        p = self.parameters_.index("n_sliders")
-        ends = np.log10([n[0], n[-1]])
-        require(np.allclose([self.low_[p], self.high_[p]], ends, rtol=0.0, atol=1e-9),
-                "posterior: the prior range of n_sliders is not that of its numbers of sliders")
+    #: every part an inference reads, of the form ``fit`` writes (``integrity``)
+    FIELDS = {"parameters_": Spec("tuple", min_size=1, of=Spec("choice", of=POSTERIOR_PARAMETERS)),
+              "n_features_in_": Spec("int", lo=lambda p: len(design_names()),
+                                     hi=lambda p: len(design_names())),
+              "models_": Spec("list", n=lambda p: len(p.parameters_), of=Spec(
+                  "list", n=POSTERIOR_LEVELS.size, of=Spec("part", of=QuantileTrees))),
+              "low_": Spec("f", shape=_n_p), "high_": Spec("f", shape=_n_p),
+              "prior_variance_": Spec("f", shape=_n_p, lo=1e-300),
+              "shifts_": Spec("f", shape=lambda p: (len(CATALOGUE_CLASSES), len(p.parameters_),
+                                                    POSTERIOR_LEVELS.size), lo=-1e3, hi=1e3),
+              "recalibration_": Spec("f", shape=lambda p: (len(RECALIBRATION_GROUPS),
+                                                           len(p.parameters_),
+                                                           REPORTED_LEVELS.size),
+                                     lo=0.0, hi=1.0, increasing=True),
+              "n_sliders_values_": Spec("f", lo=1.0, increasing=True, min_size=1),
+              "mu_d_reference_": Spec("number", lo=-1e3, hi=1e3),
+              "xi_zero_code_": Spec("number", lo=LOG_FLOOR, hi=300.0,
+                                    when=lambda p: "xi" in p.parameters_),
+              "prior_": Spec("str"), "copula_": Spec("f", shape=lambda p: _n_p(p) * 2, lo=-1.0,
+                                                     hi=1.0),
+              "domain_": Spec("part", of=DomainCheck)}
+    check_fitted = check_fields
 
-    def check_fitted(self) -> None:
-        """Every part an inference reads, of the form ``fit`` writes (``integrity``)."""
-        require(isinstance(self.parameters_, tuple) and 1 <= len(self.parameters_)
-                and set(self.parameters_) <= set(POSTERIOR_PARAMETERS),
-                "posterior: unknown parameters")
-        n_p, n_l = len(self.parameters_), POSTERIOR_LEVELS.size
-        n_f = len(design_names())
-        require(self.n_features_in_ == n_f, f"posterior: {self.n_features_in_} features, not {n_f}")
-        require(isinstance(self.models_, list) and len(self.models_) == n_p
-                and all(isinstance(m, list) and len(m) == n_l for m in self.models_),
-                "posterior: not one regressor per parameter and level")
-        for name, models in zip(self.parameters_, self.models_):
-            for level, m in zip(POSTERIOR_LEVELS, models):
-                check_boosting(m, n_f, f"posterior of {name} at {level:g}")
-        check_array(self.low_, "posterior: prior low ends", shape=(n_p,))
-        check_array(self.high_, "posterior: prior high ends", shape=(n_p,))
-        require((self.low_ <= self.high_).all(), "posterior: a prior range is reversed")
-        for p, name in enumerate(self.parameters_):
-            self._check_range(name, float(self.low_[p]), float(self.high_[p]))
-        check_array(self.prior_variance_, "posterior: prior variances", shape=(n_p,), lo=1e-300)
-        check_array(self.shifts_, "posterior: conformal shifts",
-                    shape=(len(CATALOGUE_CLASSES), n_p, n_l), lo=-1e3, hi=1e3)
-        check_array(self.recalibration_, "posterior: recalibration",
-                    shape=(len(RECALIBRATION_GROUPS), n_p, REPORTED_LEVELS.size),
-                    lo=0.0, hi=1.0, increasing=True)
-        n = check_array(self.n_sliders_values_, "posterior: numbers of sliders", lo=1.0,
-                        increasing=True, min_size=1)
-        if "n_sliders" in self.parameters_:
-            self._check_numbers_of_sliders(n)
-        check_number(self.mu_d_reference_, "posterior: mu_d's reference", -1e3, 1e3)
-        if "mu_d" in self.parameters_:
-            p = self.parameters_.index("mu_d")
-            require(self.low_[p] <= self.mu_d_reference_ <= self.high_[p],
-                    f"posterior: mu_d's reference {self.mu_d_reference_:g} lies outside its "
-                    f"prior range [{self.low_[p]:g}, {self.high_[p]:g}]")
-        if "xi" in self.parameters_:
-            check_number(self.xi_zero_code_, "posterior: xi's zero", LOG_FLOOR, 300.0)
-            low = float(self.low_[self.parameters_.index("xi")])
-            require(self.xi_zero_code_ - 1e-9 <= low <= self.xi_zero_code_ + XI_ZERO_GAP + 1e-9,
-                    f"posterior: xi's zero code {self.xi_zero_code_:g} is not {XI_ZERO_GAP:g} "
-                    f"decades below its smallest positive value (the range starts at {low:g})")
-        require(isinstance(self.prior_, str), "posterior: the prior is not a text")
+    def check_consistent(self) -> None:
+        """What the declarations cannot say: every regressor reading the posterior's features,
+        the prior ranges within the physical ones (of the
+        numbers of sliders, whole, if it is drawn), mu_d's reference and xi's zero code within
+        theirs, the stored prior's tables, the copula a correlation matrix."""
+        p = {name: k for k, name in enumerate(self.parameters_)}
+        require(all(m.n_features_in_ == self.n_features_in_ for row in self.models_ for m in row),
+                "a regressor reads another number of features than the posterior's")
+        require((self.low_ <= self.high_).all(), "a prior range is reversed")
+        for name, k in p.items():
+            self._check_range(name, float(self.low_[k]), float(self.high_[k]))
+        n, (lo, hi), k = self.n_sliders_values_, PHYSICAL_RANGES["n_sliders"], p.get("n_sliders")
+        require(k is None or ((n == np.round(n)).all() and lo <= n.min() and n.max() <= hi
+                              and (np.diff(n) > 0).all() and np.allclose(
+                                  [self.low_[k], self.high_[k]], np.log10(n[[0, -1]]), atol=1e-9)),
+                f"the numbers of sliders ({', '.join(f'{v:g}' for v in n[:4])}) are not whole "
+                f"numbers from {lo:g} to {hi:g}, each once, whose log10 ends are the prior range "
+                "of n_sliders")
+        k = p.get("mu_d")
+        require(k is None or self.low_[k] <= self.mu_d_reference_ <= self.high_[k],
+                f"mu_d's reference {self.mu_d_reference_:g} lies outside its prior range")
+        zero, low = self.xi_zero_code_, self.low_[p["xi"]] if "xi" in p else math.nan
+        require("xi" not in p or zero - 1e-9 <= low <= zero + XI_ZERO_GAP + 1e-9,
+                f"xi's zero code {self.xi_zero_code_:g} is not {XI_ZERO_GAP:g} decades below its "
+                f"smallest positive value (the range starts at {low:g})")
         try:
             prior = json.loads(self.prior_)
         except ValueError:
-            raise IntegrityError("posterior: the stored prior is not JSON") from None
+            raise IntegrityError("the stored prior is not JSON") from None
         require(isinstance(prior, dict) and isinstance(prior.get("parameters"), dict)
                 and isinstance(prior.get("scene", {}), dict),
-                "posterior: the stored prior is not a prior's tables (parameters, scene)")
-        c = check_array(self.copula_, "posterior: copula", shape=(n_p, n_p), lo=-1.0, hi=1.0)
-        require(np.allclose(c, c.T) and np.allclose(np.diag(c), 1.0),
-                "posterior: the copula is not a correlation matrix")
-        try:
-            np.linalg.cholesky(c)
-        except np.linalg.LinAlgError:
-            raise IntegrityError("posterior: the copula is not positive definite") from None
-        self.domain_.check_fitted("posterior's domain check")
+                "the stored prior is not a prior's tables (parameters, scene)")
+        c = self.copula_
+        require(np.allclose(c, c.T) and np.allclose(np.diag(c), 1.0)
+                and (np.linalg.eigvalsh(c) > 0).all(),
+                "the copula is not a positive definite correlation matrix")
 
 
 class CataloguePosterior:
