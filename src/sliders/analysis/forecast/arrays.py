@@ -187,10 +187,7 @@ def _decode(node, arrays: dict, known: dict, used: set, where: str):
         used.add(node[key])
         return arrays[node[key]]
     if key in EVALUATORS and isinstance(node[key], str):  # its arrays, checked by its owner
-        prefix = node[key] + "."
-        part = {k[len(prefix):]: a for k, a in arrays.items() if k.startswith(prefix)}
-        used.update(prefix + k for k in part)
-        return EVALUATORS[key].from_arrays(part, node[key])
+        return EVALUATORS[key].from_arrays(arrays, node[key], used)
     if key == "object" and set(node) == {"object", "state"}:
         cls = known.get(node["object"]) if isinstance(node["object"], str) else None
         require(cls is not None, f"{where}: names {str(node['object'])[:60]!r}, no estimator "

@@ -47,16 +47,18 @@ class Arrays:
     FILE_NAMES: dict = {}
 
     @classmethod
-    def from_arrays(cls, a: dict, what: str):
-        """Back from ``arrays``, each present and a number of one value; checked with the
-        forecaster that holds it (``integrity.check_fields``)."""
+    def from_arrays(cls, arrays: dict, prefix: str, used: set):
+        """Back from the model file's ``arrays`` named ``prefix.NAME`` (each added to ``used``),
+        each present and a number of one value; checked with the forecaster that holds it
+        (``integrity.check_fields``)."""
         obj = cls.__new__(cls)
         for attr, spec in cls.FIELDS.items():
-            key = cls.FILE_NAMES.get(attr, attr)
-            require(key in a, f"array '{what}.{key}' is missing")
-            v = a[key]
+            name = f"{prefix}.{cls.FILE_NAMES.get(attr, attr)}"
+            require(name in arrays, f"array {name!r} is missing")
+            used.add(name)
+            v = arrays[name]
             if spec.kind in ("number", "int"):
-                require(v.shape == (1,), f"{what}.{key} has shape {v.shape}, not (1,)")
+                require(v.shape == (1,), f"{name} has shape {v.shape}, not (1,)")
                 v = v[0].item()
             setattr(obj, attr, v)
         return obj

@@ -676,8 +676,9 @@ class ParameterPosterior(Estimator):
         ``PHYSICAL_RANGES`` (mu_d > 0, the others' log10 finite, above ``LOG_FLOOR``)."""
         lo, hi = PHYSICAL_RANGES[name]
         if name in LOG_PARAMETERS:
-            ok, shown = (lo > 0 and math.log10(lo) or LOG_FLOOR) - 1e-12 <= low and \
-                high <= math.log10(hi) + 1e-12, f"10^{low:.6g} to 10^{high:.6g}"
+            floor = math.log10(lo) if lo > 0 else LOG_FLOOR
+            ok, shown = floor - 1e-12 <= low and high <= math.log10(hi) + 1e-12, \
+                f"10^{low:.6g} to 10^{high:.6g}"
         else:
             ok, shown = lo < low and high <= hi, f"{low:.6g} to {high:.6g}"
         require(ok, f"the prior range of {name}, {shown}, lies outside its physical range "
