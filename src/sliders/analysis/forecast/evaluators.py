@@ -65,6 +65,7 @@ class Arrays:
 
 
 def _nodes(trees) -> tuple:
+    """(nodes,): the shape of each of the trees' node arrays."""
     return (trees.tree_start[-1],)
 
 
