@@ -15,6 +15,7 @@ catalogue:
   (``forecast_conditions.CameraForecast``: in the model's units when its lone slips fix
   the unit, else ``learned_camera``);
 * ``model's units``: displacements and movers as simulated (``learned``);
+* ``angles and sizes, size told``: each pile told its number of sliders (``learned_sized``);
 * and the angles and sizes measured as a lab measures them: angle noise 0.15°, 10 %
   of the events missed, events of one slider unseen (each told to the forecaster).
 
@@ -37,7 +38,7 @@ import os
 
 import numpy as np
 
-from forecast_conditions import CameraForecast, camera_cuts, held_out
+from forecast_conditions import CameraForecast, camera_cuts, held_out, told
 from forecast_skill import blind, write_report
 from sliders.analysis.forecast import Measurement
 from sliders.analysis.forecast.alarm_skill import (THRESHOLDS, alarm_table, choose_threshold,
@@ -61,7 +62,7 @@ MEASURED = {"angle noise 0.15°": Measurement(angle_resolution=math.radians(0.15
             "min size 2": Measurement(min_size=2.0)}
 #: which learned forecaster each kind's default threshold is stored in
 STORED_IN = {"angles and sizes": "learned_blind", "camera's units": "learned_camera",
-             "model's units": "learned"}
+             "model's units": "learned", "angles and sizes, size told": "learned_sized"}
 
 
 def forecast_with_levels(f, cuts):
@@ -192,6 +193,9 @@ def main():
     kinds = {"angles and sizes": (models["learned_blind"], angles_sizes),
              "camera's units": (CameraForecast(models), camera_cuts(cuts, "units only", args.seed)),
              "model's units": (models["learned"], cuts)}
+    if "learned_sized" in models:
+        kinds["angles and sizes, size told"] = (models["learned_sized"],
+                                                told(angles_sizes, "told exactly", args.seed))
     for label, m in MEASURED.items():
         kinds[f"angles and sizes, {label}"] = (
             models["learned_blind"], degrade_cuts(angles_sizes, np.random.default_rng(args.seed), m))
@@ -204,7 +208,7 @@ def main():
     print(draw(rep, args.figures))
     if args.write_model:
         for kind, method in STORED_IN.items():
-            d = rep["kinds"][kind]["default"]
+            d = rep["kinds"].get(kind, {}).get("default")
             if d is not None:
                 models[method].alarm_threshold_ = d["threshold"]
                 models[method].alarm_skill_ = {

@@ -16,9 +16,10 @@ On the held-out rows of the model's training prior (named in its provenance, as
   events and detection thresholds drawn from the training ranges), no number of
   sliders told: the median |error| over the conditioned climatology's 3° and 1°
   before the avalanche, and the 80 % coverage over random cuts and at each lead;
-* **the pile's size**: for the angles-and-sizes forecaster, the coverage per
-  size class (N < 50, 50-199, ≥ 200) over random cuts and at each lead, and
-  the median signed error 3° before;
+* **the pile's size**: for a catalogue of angles and sizes, not told its pile's
+  size (``learned_blind``), told it exactly or as a range (``learned_sized``), the
+  coverage per size class (N < 50, 50-199, ≥ 200) over random cuts and at each
+  lead, and the median signed error 3° before;
 * **the edge of a noisy tilt**: catalogues with 0.15° of angle error cut within
   0.25° of their avalanche (the tilt reached at least their last, noisy, angle),
   angles and sizes only: the coverage;
@@ -42,7 +43,8 @@ from sliders.analysis.forecast import Measurement
 from sliders.analysis.forecast.base import LOWER, MEDIAN, UPPER, Forecast
 from sliders.analysis.forecast.evaluation import cuts_at_leads, typical_accuracy
 from sliders.analysis.forecast.features import cuts_in_model_units, training_cuts
-from sliders.analysis.forecast.measurement import degrade, degrade_cuts, draw_camera
+from sliders.analysis.forecast.measurement import (SLIDERS_TOLD, degrade, degrade_cuts, draw_camera,
+                                                   tell_sliders)
 from sliders.analysis.forecast.model_file import load_forecasters
 from sliders.io.catalogue import CatalogueSet
 from sliders.runs.forecast.catalogue import load_set
@@ -58,6 +60,21 @@ def untold(cuts):
     """The cuts with no number of sliders told."""
     return replace(cuts, measurement=[replace(m, n_sliders=None, n_sliders_high=None)
                                       for m in cuts.measurements()], cache={})
+
+
+def told(cuts, how: str, seed: int):
+    """The cuts told their pile's number of sliders (``TOLD``): exactly, or as a range around it
+    whose ends lie up to ``SLIDERS_TOLD["range_factor"]`` away; untold as they are otherwise."""
+    cuts = untold(cuts)
+    if how == "not told":
+        return cuts
+    rule = {**SLIDERS_TOLD, "p_told": 1.0, "p_exact": 1.0 if how == "told exactly" else 0.0}
+    meas = tell_sliders(cuts.measurements(), cuts.n_sliders, np.random.default_rng(seed), rule)
+    return replace(cuts, measurement=meas, cache={})
+
+
+#: how the pile's number of sliders is told to the angles-and-sizes forecaster (``told``)
+TOLD = ("not told", "told exactly", "told a range")
 
 
 def camera(cuts, seed: int):
@@ -139,17 +156,26 @@ def camera_report(models, test, train_ac, seed) -> dict:
     return out
 
 
-def size_report(f, test, seed) -> dict:
-    """Coverage per size class, angles and sizes only."""
+def sized(models: dict, how: str):
+    """The forecaster ``predict`` gives a catalogue of angles and sizes told its size as ``how``
+    (``TOLD``): ``learned_sized`` when told (if the model holds it), else ``learned_blind``."""
+    return models.get("learned_sized", models["learned_blind"]) if how != "not told" \
+        else models["learned_blind"]
+
+
+def size_report(models, test, seed) -> dict:
+    """Coverage per size class, angles and sizes only, for each way of telling the size
+    (``TOLD``, each by the forecaster ``predict`` gives it: ``sized``): over random cuts, at
+    each lead, and the median signed error there."""
     n = np.asarray(test.parameters["n_sliders"])
     rnd = blind(training_cuts(test, 10, np.random.default_rng(seed)))
     at, which = cuts_at_leads(test, np.arange(len(test)), np.radians(LEADS_DEG))
     at = blind(at)
     lead = np.radians(LEADS_DEG)[which]
     out = {}
-    for how in ("not told",):
+    for how in TOLD:
         out[how] = {}
-        r, a = rnd, at
+        r, a, f = told(rnd, how, seed), told(at, how, seed), sized(models, how)
         for label, of in SIZE_CLASSES.items():
             out[how][label] = {"random_cuts": coverage_at(f, r, mask=of(n[r.row])),
                                "per_lead": coverage_at(f, a, lead, mask=of(n[a.row]))}
@@ -174,10 +200,11 @@ def edge_report(f, test, seed) -> dict:
             "coverage_last_angle_above": float(inside[above].mean()) if above.any() else math.nan}
 
 
-def announced_report(f, test, seed, view=blind) -> dict:
-    """Per size class: the median |error| over the median error announced (random cuts)."""
+def announced_report(f, test, seed, view=blind, how: str = "not told") -> dict:
+    """Per size class: the median |error| over the median error announced (random cuts), the
+    size told as ``how`` (``TOLD``)."""
     n = np.asarray(test.parameters["n_sliders"])
-    cuts = untold(view(training_cuts(test, 6, np.random.default_rng(seed))))
+    cuts = told(view(training_cuts(test, 6, np.random.default_rng(seed))), how, seed)
     q, fb = f.quantiles(cuts)
     announced = np.full(len(cuts), np.nan)
     for i in range(len(cuts)):
@@ -258,10 +285,12 @@ def main():
     train_ac = models["learned_blind"].climatology_.alpha_c_
     rep = {"model": os.path.basename(args.model), "rows_tested": int(len(test)),
            "camera": camera_report(models, test, train_ac, args.seed),
-           "sizes": size_report(models["learned_blind"], test, args.seed),
+           "sizes": size_report(models, test, args.seed),
            "edge": edge_report(models["learned_blind"], test, args.seed),
            "announced": {"learned, angles + sizes": announced_report(models["learned_blind"], test,
                                                                      args.seed),
+                         "learned, angles + sizes, size told exactly": announced_report(
+                             sized(models, "told exactly"), test, args.seed, how="told exactly"),
                          "learned, camera's units": announced_report(
                              models["learned_camera"], test, args.seed,
                              view=lambda c: camera(c, args.seed))}}

@@ -70,16 +70,18 @@ def angles_and_sizes(cat: Catalogue) -> tuple[Catalogue, bool]:
 
 #: which learned forecaster reads a catalogue, by its columns and its measurement: every
 #: feature (displacements and movers in the model's units), a camera's (displacements in any
-#: unit, positions if given), or angles and sizes only
-LEARNED_BY_RECORD = {"complete": "learned", "camera": "learned_camera", "blind": "learned_blind"}
+#: unit, positions if given), angles and sizes only, or those told the pile's size
+LEARNED_BY_RECORD = {"complete": "learned", "camera": "learned_camera", "blind": "learned_blind",
+                     "sized": "learned_sized"}
 
 
 def record_kind(cat: Catalogue, measurement) -> str:
-    """``"complete"``, ``"camera"`` or ``"blind"`` (``LEARNED_BY_RECORD``): a catalogue with
-    every displacement is a camera's when its displacements or positions are not in the
-    model's units, or when its movers are not all given."""
+    """``"complete"``, ``"camera"``, ``"blind"`` or ``"sized"`` (``LEARNED_BY_RECORD``): a
+    catalogue with every displacement is a camera's when its displacements or positions are
+    not in the model's units, or when its movers are not all given; one of angles and sizes
+    is "sized" when the pile's number of sliders is told."""
     if len(cat) == 0 or np.isnan(cat.displacement).any():
-        return "blind"
+        return "blind" if measurement.n_sliders is None else "sized"
     whole = bool((cat.first >= 0).all())
     return "complete" if whole and not measurement.camera else "camera"
 

@@ -30,7 +30,7 @@ POSTERIOR_MAX_ITER = 45
 #: piles simulated at posterior draws by ``infer``'s predictive check
 CHECK_DRAWS = 24
 #: the learned forecasters ``--method learned`` picks from by the catalogue's columns and units
-LEARNED_METHODS = ("learned", "learned_blind", "learned_camera")
+LEARNED_METHODS = ("learned", "learned_blind", "learned_sized", "learned_camera")
 #: the choices of ``predict --method`` (the registry's): "learned" picks the learned forecaster
 #: for the columns given (every feature, a camera's, or angles and sizes only)
 PREDICT_METHODS = ("learned", *(m for m in METHODS if m not in LEARNED_METHODS), "all")

@@ -226,7 +226,7 @@ class ForecastModel:
                                  f"(1 unit = {unit:.4g} g τ²), its positions as slider indices: "
                                  "forecast in the model's units"]
         if LEARNED_BY_RECORD[kind] not in models:
-            kind = "blind"
+            kind = "blind"  # a model file without it: angles and sizes, the size not read
         cat, complete = angles_and_sizes(catalogue)
         # the camera's forecaster reads its displacements and positions; every other method
         # reads them in the model's units only, so it is given the angles and sizes

@@ -235,16 +235,17 @@ class DomainCheck(Estimator):
         """Whether each cut lies in the domain, and if not, why (one phrase each)."""
         novel = self.novel(cuts)
         high = cuts.tilt_now > self.top_tilt_
-        told = [m.n_sliders for m in cuts.measurements()]
+        # the size told, a number or a range: outside when no size of it is a training pile's
+        told = [(m.n_sliders, m.n_sliders_high or m.n_sliders) for m in cuts.measurements()]
         span = self.n_sliders_range_
-        other = np.array([span is not None and n is not None and not span[0] <= n <= span[1]
-                          for n in told], dtype=bool)
+        other = np.array([span is not None and lo is not None and (hi < span[0] or lo > span[1])
+                          for lo, hi in told], dtype=bool)
         reasons = []
-        for h, nv, t, o, n in zip(high, novel, cuts.tilt_now, other, told):
+        for h, nv, t, o, (lo, hi) in zip(high, novel, cuts.tilt_now, other, told):
             why = []
             if o:
-                why.append(f"a pile of {n} sliders, outside the training piles' "
-                           f"{span[0]:.0f}-{span[1]:.0f}")
+                why.append(f"a pile of {lo if hi == lo else f'{lo}-{hi}'} sliders, outside the "
+                           f"training piles' {span[0]:.0f}-{span[1]:.0f}")
             if h:
                 why.append(f"the tilt reached ({np.degrees(t):.2f}°) is above "
                            f"{100 * self.tilt_quantile:g} % of the training avalanche angles "

@@ -18,16 +18,18 @@ from .registry import FORECASTERS
 
 def fit_sharing_cuts(f, train, validation, shared: dict, seed: int):
     """Fit a learned forecaster on training (and calibration) cuts drawn once per kind of
-    training catalogue (exact or degraded: ``shared`` keeps them) for every learned forecaster.
+    training catalogue (exact or degraded; as a camera records it; told the pile's size or
+    not: ``shared`` keeps them) for every learned forecaster of that kind.
 
     ``validation`` None: the forecaster calibrates on its training cuts, out of fold.
     """
-    if f.degrade not in shared:
-        shared[f.degrade] = {"cuts": f.training_cuts(train, np.random.default_rng(seed))}
+    kind = (f.degrade, f.inputs == "camera", f.told_share)  # what training_cuts draws
+    if kind not in shared:
+        shared[kind] = {"cuts": f.training_cuts(train, np.random.default_rng(seed))}
         if validation is not None:
-            shared[f.degrade]["validation_cuts"] = f.training_cuts(
+            shared[kind]["validation_cuts"] = f.training_cuts(
                 validation, np.random.default_rng(seed + 1))
-    return f.fit(train, validation=validation, **shared[f.degrade])
+    return f.fit(train, validation=validation, **shared[kind])
 
 
 def fit_methods(train, max_iter: int = 200, seed: int = 0, log=None) -> dict:

@@ -45,20 +45,21 @@ from two degrees, its central interval would stop short of the avalanche.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
 
 from .base import LEVELS, Forecaster, edge
-from .baselines import Climatology, check_climatology, conditioned_quantiles
+from .baselines import Climatology, conditioned_quantiles
 from ...io.catalogue import Catalogue
 from .domain import DOMAIN_FEATURES, WITH_POSITIONS, DomainCheck
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .features import (Cuts, camera_feature_names, n_sliders_estimate, SHORTEST_WINDOW, camera_feature_matrix, ceiling_features,
                        feature_matrix, training_cuts)
 from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, RECORD_FEATURES, degrade_cuts
-from .evaluators import ResidualTable, check_boosting
-from .integrity import check_array, check_choice, check_number, require
+from .evaluators import QuantileTrees, ResidualTable
+from .integrity import Spec, check_fields, require
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
@@ -99,6 +100,11 @@ CPS_PERCENTILES = np.r_[0.5, np.arange(1.0, 100.0), 99.5]
 RESIDUAL_STEP = 2.0 ** -12
 #: fewest calibration cuts per Mondrian bin (the 0.5 % and 99.5 % percentiles read need 200)
 MIN_PER_BIN = 200
+#: the size classes a told number of sliders falls in (their inner edges): N < 50, 50-199, >= 200
+TOLD_CLASSES = np.array([50.0, 200.0])
+#: kinds of record calibrated apart (``record_category``): no size told or one of
+#: ``TOLD_CLASSES``, each with exact or noisy angles
+RECORD_CATEGORIES = 2 * (TOLD_CLASSES.size + 2)
 #: share of the training rows held out for the calibration (``calibration="held_out"``)
 CALIBRATION_SHARE = 0.25
 #: folds of the training rows whose out-of-fold residuals calibrate (when no validation set is given)
@@ -155,6 +161,12 @@ class Learned(Forecaster):
     degrade : bool
         Degrade every training cut by a measurement drawn from
         ``measurement.MEASUREMENT_RANGES``.
+    told_share : float
+        Share of the degraded training cuts told their pile's number of sliders
+        (``measurement.tell_sliders``: the number, or a range around it).  A
+        forecaster is trained told it (1) or not (0): told to some only, the
+        trees send the cuts not told to one side of each split on it, and
+        those lost coverage near the avalanche.
     calibration_bins, calibration_event_bins, calibration_size_bins, calibration_remaining_bins : int
         Mondrian bins of the tilt reached, in each of the events so far, in
         each of those of the mean event size so far (which tracks the pile's
@@ -180,9 +192,9 @@ class Learned(Forecaster):
     def __init__(self, inputs: str = "all", draws_per_row: int = 10, max_iter: int = 200,
                  learning_rate: float = 0.08, max_leaf_nodes: int = 15, min_samples_leaf: int = 40,
                  max_bins: int = MAX_BINS,
-                 degrade: bool = True, calibration_bins: int = 4, calibration_event_bins: int = 4,
+                 degrade: bool = True, told_share: float = 0.0, calibration_bins: int = 4, calibration_event_bins: int = 4,
                  calibration_size_bins: int = 1, calibration_remaining_bins: int = 1,
-                 interval: str = "shortest",
+                 calibration_by_record: bool = False, interval: str = "shortest",
                  calibration: str = "out_of_fold", domain_contamination: float = 0.03,
                  random_state: int = 0):
         self.inputs = inputs
@@ -193,10 +205,12 @@ class Learned(Forecaster):
         self.min_samples_leaf = min_samples_leaf
         self.max_bins = max_bins
         self.degrade = degrade
+        self.told_share = told_share
         self.calibration_bins = calibration_bins
         self.calibration_event_bins = calibration_event_bins
         self.calibration_size_bins = calibration_size_bins
         self.calibration_remaining_bins = calibration_remaining_bins
+        self.calibration_by_record = calibration_by_record
         self.interval = interval
         self.calibration = calibration
         self.domain_contamination = domain_contamination
@@ -204,13 +218,18 @@ class Learned(Forecaster):
 
     @property
     def name(self) -> str:
-        """``learned`` (every feature), ``learned_blind`` (angles and sizes only) or
-        ``learned_camera`` (a camera's units)."""
+        """``learned`` (every feature), ``learned_blind`` (angles and sizes only),
+        ``learned_sized`` (angles and sizes, told the pile's size) or ``learned_camera`` (a
+        camera's units)."""
+        if self.inputs == "angles_sizes" and self.told_share > 0:
+            return "learned_sized"
         return {"all": "learned", "camera": "learned_camera"}.get(self.inputs, "learned_blind")
 
     @property
     def label(self) -> str:
         """The forecaster's name in tables and legends."""
+        if self.name == "learned_sized":
+            return "learned, angles + sizes, size told"
         return {"all": "learned (boosting)", "camera": "learned, camera's units"}.get(
             self.inputs, "learned, angles + sizes only")
 
@@ -267,7 +286,8 @@ class Learned(Forecaster):
                 round(n) if np.isfinite(n := n_sliders_estimate(c)) else -1
                 for c in cuts.catalogues], dtype=np.int64))
         if self.degrade:
-            cuts = degrade_cuts(cuts, rng, camera=self.inputs == "camera")
+            cuts = degrade_cuts(cuts, rng, camera=self.inputs == "camera",
+                                told_share=self.told_share)
         return with_design(cuts, self.inputs)
 
     def fit(self, train, y=None, validation=None, cuts=None, validation_cuts=None):
@@ -381,8 +401,13 @@ class Learned(Forecaster):
         size_bins = int(np.clip(cells // (tilt_bins * event_bins), 1, self.calibration_size_bins))
         remaining_bins = int(np.clip(cells // (tilt_bins * event_bins * size_bins), 1,
                                      self.calibration_remaining_bins))
-        self.calibration_edges_ = _quantile_edges(vcuts.tilt_now, tilt_bins)
-        tilt_bin = np.searchsorted(self.calibration_edges_, vcuts.tilt_now)
+        if self.calibration_by_record:  # tilt edges within each kind of record
+            self.calibration_edges_ = _nested_edges(vcuts.tilt_now, record_category(vcuts),
+                                                    RECORD_CATEGORIES, tilt_bins)
+        else:
+            self.calibration_edges_ = _quantile_edges(vcuts.tilt_now, tilt_bins)
+        tilt_bin = self._tilt_cell(vcuts)
+        tilt_bins = _cells(self.calibration_edges_)
         events = _log_events(vcuts)
         self.calibration_event_edges_ = _nested_edges(events, tilt_bin, tilt_bins, event_bins)
         cell = tilt_bin * event_bins + _nested_bin(self.calibration_event_edges_, tilt_bin, events)
@@ -401,10 +426,18 @@ class Learned(Forecaster):
         alphas = np.round((truth - centre) / spread / RESIDUAL_STEP) * RESIDUAL_STEP
         self.calibration_ = ConformalPredictiveSystem().fit(alphas, bins=bins)
 
+    def _tilt_cell(self, cuts):
+        """Each cut's bin of tilt reached (within its kind of record, if calibrated by it)."""
+        if self.calibration_edges_.ndim == 2:
+            return record_category(cuts) * (self.calibration_edges_.shape[1] + 1) + \
+                _nested_bin(self.calibration_edges_, record_category(cuts), cuts.tilt_now)
+        return np.searchsorted(self.calibration_edges_, cuts.tilt_now)
+
     def _calibration_bin(self, cuts, centre):
-        """Each cut's Mondrian category: its bin of tilt reached, of events so far within it,
-        of mean event size within that, and of predicted remaining angle (``centre``, log)."""
-        tilt_bin = np.searchsorted(self.calibration_edges_, cuts.tilt_now)
+        """Each cut's Mondrian category: its bin of tilt reached (within its kind of record), of
+        events so far within it, of mean event size within that, and of predicted remaining
+        angle (``centre``, log)."""
+        tilt_bin = self._tilt_cell(cuts)
         event_bins = self.calibration_event_edges_.shape[1] + 1
         cell = tilt_bin * event_bins + _nested_bin(self.calibration_event_edges_, tilt_bin,
                                                    _log_events(cuts))
@@ -486,64 +519,65 @@ class Learned(Forecaster):
         return np.array([[0.0, r["angle_resolution"][1]], [0.0, float(max(r["min_size"]))],
                          [0.0, r["missed_fraction"][1]], [0.0, float(r["p_arbitrary"] > 0)]])
 
-    def check_fitted(self) -> None:
-        """Every fitted part a forecast reads, of the form ``fit`` writes (``integrity``): the
-        options, the feature columns (those of ``design``), one quantile regressor per level of
-        ``TRAINED_LEVELS`` (every tree), the climatology, the domain check, and the conformal
-        calibration's edges, bins and residuals."""
-        check_choice(self.inputs, "inputs", INPUTS)
-        check_choice(self.interval, "interval", INTERVALS)
-        check_choice(self.calibration, "calibration", CALIBRATIONS)
-        check_choice(self.degrade, "degrade", (True, False))
-        check_climatology(self.climatology_, "climatology")
-        check_alarm_skill(self)
+    #: every fitted part a forecast reads, of the form ``fit`` writes (``integrity``)
+    FIELDS = {"inputs": Spec("choice", of=INPUTS), "interval": Spec("choice", of=INTERVALS),
+              "calibration": Spec("choice", of=CALIBRATIONS),
+              "degrade": Spec("choice", of=(True, False)),
+              "told_share": Spec("number", lo=0.0, hi=1.0),
+              "calibration_by_record": Spec("choice", of=(True, False)),
+              "climatology_": Spec("part", of=Climatology),
+              "columns_": Spec("b"),
+              "models_": Spec("list", n=TRAINED_LEVELS.size, of=Spec("part", of=QuantileTrees)),
+              "measurement_ranges_": Spec("f", shape=(len(RECORD_FEATURES), 2), lo=0.0,
+                                          optional=True),
+              "remaining_quantiles_": Spec("f", shape=LEVELS.shape, lo=0.0, hi=np.pi / 2,
+                                           increasing=True),
+              "domain_": Spec("part", of=DomainCheck),
+              "calibration_edges_": Spec("f", ndim=lambda f: 1 + f.calibration_by_record,
+                                         finite=False, increasing=True),
+              **{f"calibration_{k}_edges_": Spec("f", ndim=2, finite=False, increasing=True,
+                                                 optional=k == "size")  # None: fitted without
+                 for k in ("event", "size", "remaining")},
+              "calibration_counts_": Spec("iu", lo=0, min_size=1),
+              "percentiles_": Spec("f", lo=0.0, hi=100.0, min_size=3, increasing="strictly"),
+              # the residuals were normalised before crepes saw them (kept to RESIDUAL_STEP)
+              "calibration_": Spec("part", of=ResidualTable)}
+
+    def check_consistent(self) -> None:
+        """What the declarations cannot say: the feature columns those of ``design``, the names
+        those of the columns kept, each regressor of its level reading them, the measurement
+        ranges not reversed, the tilt edges nested in ``RECORD_CATEGORIES`` kinds of record
+        when calibrated by record, each nested edges one row per cell of those outside
+        (``_cells``), the counts, percentiles and residual bins the calibration's, and the
+        alarm (``check_alarm_skill``)."""
         names = self.design(_probe_cuts())[1]
-        cols = check_array(self.columns_, "feature columns", shape=(len(names),), kind="b")
-        kept = [n for n, k in zip(names, cols) if k]
-        require(isinstance(self.feature_names_, list) and self.feature_names_ == kept,
-                "the feature names are not those of the feature columns")
-        require(isinstance(self.models_, list) and len(self.models_) == TRAINED_LEVELS.size,
-                f"not {TRAINED_LEVELS.size} regressors")
-        for level, model in zip(TRAINED_LEVELS, self.models_):
-            check_boosting(model, len(kept), f"regressor of level {level:g}")
-            require(model.quantile == level, f"regressor of level {level:g} fits {model.quantile!r}")
-        if getattr(self, "measurement_ranges_", None) is not None:
-            ranges = check_array(self.measurement_ranges_, "training measurement ranges",
-                                 shape=(len(RECORD_FEATURES), 2), lo=0.0)
-            require((ranges[:, 0] <= ranges[:, 1]).all(), "training measurement ranges reversed")
-        check_array(self.remaining_quantiles_, "remaining angles", shape=LEVELS.shape, lo=0.0,
-                    hi=np.pi / 2, increasing=True)
-        require(isinstance(self.domain_, DomainCheck), "the domain check is not a DomainCheck")
-        self.domain_.check_fitted()
-        edges = check_array(self.calibration_edges_, "calibration tilt edges", finite=False,
-                            increasing=True)
-        events = check_array(self.calibration_event_edges_, "calibration event edges", ndim=2,
-                             finite=False, increasing=True)
-        remaining = check_array(self.calibration_remaining_edges_, "calibration remaining edges",
-                                ndim=2, finite=False, increasing=True)
-        outer = events.shape[0] * (events.shape[1] + 1)  # cells of tilt and events
-        if getattr(self, "calibration_size_edges_", None) is not None:  # None: fitted without
-            sizes = check_array(self.calibration_size_edges_, "calibration size edges", ndim=2,
-                                finite=False, increasing=True)
-            require(sizes.shape[0] == outer, "the calibration's nested edges do not match")
-            outer = sizes.shape[0] * (sizes.shape[1] + 1)
-        require(events.shape[0] == edges.size + 1 and remaining.shape[0] == outer,
-                "the calibration's nested edges do not match")
-        cells = remaining.shape[0] * (remaining.shape[1] + 1)
-        counts = check_array(self.calibration_counts_, "calibration counts", kind="iu", lo=0)
-        require(1 <= counts.size <= cells, "calibration counts of another number of bins")
-        pct = check_array(self.percentiles_, "percentiles read", lo=0.0, hi=100.0, min_size=3)
-        require((np.diff(pct) > 0).all() and np.isin(pct, CPS_PERCENTILES).all(),
+        kept = [n for n, k in zip(names, self.columns_) if k]
+        require(self.columns_.size == len(names) and self.feature_names_ == kept,
+                "the feature columns or names are not those of the forecaster's design")
+        for level, m in zip(TRAINED_LEVELS, self.models_):
+            require(m.n_features_in_ == len(kept) and m.quantile == level,
+                    f"the regressor of level {level:g} reads {m.n_features_in_} features at "
+                    f"level {m.quantile!r}")
+        ranges = getattr(self, "measurement_ranges_", None)
+        require(ranges is None or (ranges[:, 0] <= ranges[:, 1]).all(),
+                "training measurement ranges reversed")
+        edges = self.calibration_edges_
+        require(edges.ndim == 1 or edges.shape[0] == RECORD_CATEGORIES,
+                f"the calibration's tilt edges are not nested in {RECORD_CATEGORIES} kinds of "
+                "record")
+        cells = _cells(edges)
+        for inner in (self.calibration_event_edges_, getattr(self, "calibration_size_edges_", None),
+                      self.calibration_remaining_edges_):
+            if inner is not None:
+                require(inner.shape[0] == cells, "the calibration's nested edges do not match")
+                cells = _cells(inner)
+        counts, cps = self.calibration_counts_, self.calibration_
+        require(counts.size <= cells, "calibration counts of another number of bins")
+        require(np.isin(self.percentiles_, CPS_PERCENTILES).all(),
                 "the percentiles read are not the calibration's")
-        cps = self.calibration_
-        # the residuals were normalised before crepes saw them (kept to RESIDUAL_STEP)
-        require(isinstance(cps, ResidualTable), "the calibration is not the residual table of a "
-                "Mondrian predictive system of normalised residuals")
-        cps.check("calibration")
-        values = check_array(cps.bins, "calibration bins", kind="i", lo=0, hi=cells - 1)
-        wrong = (values >= counts.size) | (cps.counts() != counts[np.minimum(values, counts.size - 1)])
-        require(not wrong.any(), "a calibration bin holds another number of residuals than "
-                                 "counted")
+        require(cps.bins[-1] < counts.size and (cps.counts() == counts[cps.bins]).all(),
+                "a calibration bin holds another number of residuals than counted")
+        check_alarm_skill(self)
 
     def _quantiles(self, cuts):
         x, _ = self.design(cuts)
@@ -584,18 +618,19 @@ ALARM_SKILL = {"hit_share": (0.0, 1.0), "false_alarm_share": (0.0, 1.0),
                "within_deg": (0.0, 90.0), "piles": (1, 10 ** 9)}
 
 
-def check_alarm_skill(forecaster) -> None:
-    """The alarm's default threshold and its measured skill, if the forecaster holds them:
-    a threshold the alarm takes (0.05-0.95), and every figure of ``ALARM_SKILL`` in range."""
-    threshold = getattr(forecaster, "alarm_threshold_", None)
-    skill = getattr(forecaster, "alarm_skill_", None)
-    if threshold is None and skill is None:
-        return
-    check_number(threshold, "alarm threshold", 0.05, 0.95)
-    require(isinstance(skill, dict) and set(skill) == set(ALARM_SKILL),
-            "the alarm's skill is not a table of " + ", ".join(ALARM_SKILL))
-    for name, (lo, hi) in ALARM_SKILL.items():
-        check_number(skill[name], f"alarm skill {name}", lo, hi)
+#: the alarm's default threshold and its measured skill (``ALARM_SKILL``), if held
+ALARM_FIELDS = {"alarm_threshold_": Spec("number", lo=0.05, hi=0.95, optional=True),
+                "alarm_skill_": Spec("dict", optional=True, of={
+                    k: Spec("number", lo=lo, hi=hi) for k, (lo, hi) in ALARM_SKILL.items()})}
+
+
+def check_alarm_skill(forecaster, where: str = "") -> None:
+    """The alarm's default threshold and its measured skill, both or neither
+    (``ALARM_FIELDS``)."""
+    check_fields(forecaster, where, ALARM_FIELDS)
+    require((getattr(forecaster, "alarm_threshold_", None) is None)
+            == (getattr(forecaster, "alarm_skill_", None) is None),
+            "the alarm's threshold and its skill are not both held")
 
 
 def _outside(feature: str, value: float, lo: float, hi: float) -> str:
@@ -639,6 +674,25 @@ def _nested_edges(values, cell, cells: int, bins: int) -> np.ndarray:
     """(cells, bins - 1) ``_quantile_edges`` of ``values`` within each cell."""
     return np.array([_quantile_edges(values[cell == c], bins) for c in range(cells)]).reshape(
         cells, bins - 1)
+
+
+def _cells(edges) -> int:
+    """The number of bins of inner ``edges``: (bins - 1,), or (cells, bins - 1) nested."""
+    return edges.size + 1 if edges.ndim == 1 else edges.shape[0] * (edges.shape[1] + 1)
+
+
+def record_category(cuts) -> np.ndarray:
+    """(n,) each cut's kind of record (``RECORD_CATEGORIES``): its size class told
+    (``TOLD_CLASSES``, by the geometric middle of the range told; 0: not told), and whether
+    its angles carry an error (``RECORD_CATEGORIES // 2`` added)."""
+    out = []
+    for m in cuts.measurements():
+        told = 0
+        if m.n_sliders is not None:
+            middle = math.sqrt(m.n_sliders * (m.n_sliders_high or m.n_sliders))
+            told = 1 + int(np.searchsorted(TOLD_CLASSES, middle, side="right"))
+        out.append(told + (RECORD_CATEGORIES // 2 if m.angle_resolution > 0 else 0))
+    return np.array(out, dtype=np.int64)
 
 
 def _nested_bin(edges, cell, values) -> np.ndarray:

@@ -38,12 +38,9 @@ MEASUREMENT_RANGES = {"angle_resolution": (math.radians(0.02), math.radians(1.2)
 #: probability ``p_exact`` else uniform up to ``displacement_noise``), positions as fractions
 CAMERA_RANGES = {"displacement_scale": (1e-2, 1e2), "displacement_noise": (0.0, 0.3)}
 #: the pile's number of sliders told to the training cuts (``tell_sliders``): to a share
-#: ``p_told`` of them, as the number itself to a share ``p_exact`` of those, else as a range
-#: around it, each end up to ``range_factor`` away (log-uniform).  None are told: told to half
-#: of them, the angles-and-sizes forecaster's 80 % coverage of the cuts not told fell from
-#: 0.69 to 0.62 a quarter of a degree before the avalanche and from 0.84 to 0.75 a degree
-#: before (one conformal calibration pools the two; 2500 training rows, 1168 held out), for a
-#: told small pile's median still 2° too high 3° before its avalanche
+#: ``p_told`` of them (by default; a learned forecaster's ``told_share``), as the number itself
+#: to a share ``p_exact`` of those, else as a range around it, each end up to
+#: ``range_factor`` away (log-uniform)
 SLIDERS_TOLD = {"p_told": 0.0, "p_exact": 0.4, "range_factor": 4.0}
 #: the measurement's features, in order: how the catalogue was recorded (``RECORD_FEATURES``),
 #: and the number of sliders told, as the logs of its range's ends (NaN when not told)
@@ -235,12 +232,14 @@ def draw_camera(n: int, rng: np.random.Generator, ranges: dict | None = None) ->
 
 
 def degrade_cuts(cuts, rng: np.random.Generator, measurement: Measurement | None = None,
-                 size_scale: float = 1.0, camera: bool = False):
+                 size_scale: float = 1.0, camera: bool = False, told_share: float | None = None):
     """New ``Cuts``: each catalogue degraded, by ``measurement`` or by one drawn per cut.
 
     ``camera``: recorded by a camera too (``draw_camera``; positions as fractions of the
     pile's length, of the cuts' ``n_sliders``: unknown without them).  The truth and the simulation's
     extras are kept; the measurements are recorded with the cuts, as ``predict`` is told them.
+    ``told_share``: the share of drawn measurements told their pile's size (default:
+    ``SLIDERS_TOLD["p_told"]``).
     """
     if measurement is None:
         meas, scales = draw_measurements(len(cuts), rng)
@@ -254,7 +253,8 @@ def degrade_cuts(cuts, rng: np.random.Generator, measurement: Measurement | None
     cats = [degrade(c, m, rng, float(s), cam, int(k))
             for c, m, s, cam, k in zip(cuts.catalogues, meas, scales, cams, n)]
     if measurement is None and cuts.n_sliders is not None:
-        meas = tell_sliders(meas, cuts.n_sliders, rng)
+        meas = tell_sliders(meas, cuts.n_sliders, rng, None if told_share is None else
+                            {**SLIDERS_TOLD, "p_told": told_share})
     return replace(cuts, catalogues=cats, measurement=meas, cache={})
 
 

@@ -117,6 +117,13 @@ FORECASTERS = (
                               "calibration_remaining_bins": 3},
           boosted=True, seeded=True, alarm=True, example=True, method="learned_blind",
           fallback=_LEARNED_FALLBACK, colour="#fdae61"),
+    # angles and sizes told the pile's number of sliders (predict --sliders): every training
+    # cut told it, the number or a range around it, and calibrated apart by the size class told
+    Entry("learned.Learned", {"inputs": "angles_sizes", "told_share": 1.0,
+                              "calibration_by_record": True, "calibration_size_bins": 2,
+                              "calibration_remaining_bins": 3},
+          boosted=True, seeded=True, alarm=True, example=True, method="learned_sized",
+          fallback=_LEARNED_FALLBACK, colour="#fd8d3c"),
     # a camera's catalogue: its displacements in any unit, read relative to the catalogue's
     # own (``features.camera_features``), trained on displacement units drawn over four decades;
     # mu_d from lone slips solved with the unit is exact when the angles are (fine bins, as
