@@ -237,7 +237,7 @@ MODEL_FILE_READING = (
     _F + "baselines:Climatology.FIELDS", _F + "physics:ModelBased.FIELDS",
     _F + "inverse_rate:_InverseRate.FIELDS", _F + "base:Forecaster.check_fitted")
 #: the most non-blank lines MODEL_FILE_READING may hold; it may only fall
-MAX_MODEL_FILE_READING_LINES = 687
+MAX_MODEL_FILE_READING_LINES = 682
 
 
 def nonblank_lines(source: str) -> dict[str, int]:

@@ -136,11 +136,10 @@ def check_accuracy_table(table) -> None:
         return
     if not isinstance(table, dict):
         raise ValueError(f"a {type(table).__name__}, not a table of columns")
-    overall = table.get("overall")
-    missing = [c for c in ("lead_edges_deg", *ACCURACY_COLUMNS) if c not in table]
-    missing += [] if isinstance(overall, dict) else ["overall"]
+    overall = table.get("overall") if isinstance(table.get("overall"), dict) else {}
+    missing = [c for c in ("lead_edges_deg", *ACCURACY_COLUMNS, "overall") if c not in table]
     missing += [f"overall {c}" for c in (*ACCURACY_COLUMNS, "rows")
-                if isinstance(overall, dict) and c not in overall]
+                if "overall" in table and c not in overall]
     if missing:
         raise ValueError(f"no column {', '.join(missing)}")
     edges = _column(table["lead_edges_deg"], "lead_edges_deg")

@@ -529,7 +529,7 @@ class Learned(Forecaster):
               "columns_": Spec("b"),
               "models_": Spec("list", n=TRAINED_LEVELS.size, of=Spec("part", of=QuantileTrees)),
               "measurement_ranges_": Spec("f", shape=(len(RECORD_FEATURES), 2), lo=0.0,
-                                          optional=True),
+                                          increasing=True, optional=True),  # lo <= hi
               "remaining_quantiles_": Spec("f", shape=LEVELS.shape, lo=0.0, hi=np.pi / 2,
                                            increasing=True),
               "domain_": Spec("part", of=DomainCheck),
@@ -545,11 +545,10 @@ class Learned(Forecaster):
 
     def check_consistent(self) -> None:
         """What the declarations cannot say: the feature columns those of ``design``, the names
-        those of the columns kept, each regressor of its level reading them, the measurement
-        ranges not reversed, the tilt edges nested in ``RECORD_CATEGORIES`` kinds of record
-        when calibrated by record, each nested edges one row per cell of those outside
-        (``_cells``), the counts, percentiles and residual bins the calibration's, and the
-        alarm (``check_alarm_skill``)."""
+        those of the columns kept, each regressor of its level reading them, the tilt edges
+        nested in ``RECORD_CATEGORIES`` kinds of record when calibrated by record, each nested
+        edges one row per cell of those outside (``_cells``), the counts, percentiles and
+        residual bins the calibration's, and the alarm (``check_alarm_skill``)."""
         names = self.design(_probe_cuts())[1]
         kept = [n for n, k in zip(names, self.columns_) if k]
         require(self.columns_.size == len(names) and self.feature_names_ == kept,
@@ -558,9 +557,6 @@ class Learned(Forecaster):
             require(m.n_features_in_ == len(kept) and m.quantile == level,
                     f"the regressor of level {level:g} reads {m.n_features_in_} features at "
                     f"level {m.quantile!r}")
-        ranges = getattr(self, "measurement_ranges_", None)
-        require(ranges is None or (ranges[:, 0] <= ranges[:, 1]).all(),
-                "training measurement ranges reversed")
         edges = self.calibration_edges_
         require(edges.ndim == 1 or edges.shape[0] == RECORD_CATEGORIES,
                 f"the calibration's tilt edges are not nested in {RECORD_CATEGORIES} kinds of "
