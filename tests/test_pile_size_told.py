@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from helpers import rate_law_catalogue, synthetic_set
 from sliders.analysis.forecast import Measurement, training_cuts
@@ -74,6 +75,7 @@ def test_the_sized_forecaster_calibrates_each_size_class_apart(shipped):
     assert len(set(bins)) == len(kinds), bins
 
 
+@pytest.mark.slow
 def test_a_size_told_as_a_range_is_outside_only_when_no_size_of_it_is_a_training_piles():
     """The training piles hold 50-800 sliders: told 16-60 or 700-1000 a pile is in the domain
     (some size of the range is a training pile's); told 10-40 or 900-2000, it is out, and the
@@ -93,6 +95,7 @@ def test_a_size_told_as_a_range_is_outside_only_when_no_size_of_it_is_a_training
             is (not expected)
 
 
+@pytest.mark.slow
 def test_each_kind_of_training_cut_is_drawn_for_the_forecasters_that_read_it(small_prior):
     """Forecasters fitted together share their training cuts only with those that read the
     same kind: angles and sizes untold, the same told their pile's size, a camera's record.

@@ -113,8 +113,11 @@ FORECASTERS = (
                               "calibration_remaining_bins": 3},
           boosted=True, seeded=True, alarm=True, example=True, band=True, method="learned",
           fallback=_LEARNED_FALLBACK, colour="#d95f02"),
+    # angles and sizes only, calibrated apart for exact and noisy angles (a noisy cut's remaining
+    # angle is counted from below its tilt reached; pooled, the exact cuts' coverage a quarter
+    # of a degree before the avalanche fell to 0.68, apart 0.73, on 1168 held-out rows)
     Entry("learned.Learned", {"inputs": "angles_sizes", "calibration_size_bins": 2,
-                              "calibration_remaining_bins": 3},
+                              "calibration_remaining_bins": 3, "calibration_by_record": True},
           boosted=True, seeded=True, alarm=True, example=True, method="learned_blind",
           fallback=_LEARNED_FALLBACK, colour="#fdae61"),
     # angles and sizes told the pile's number of sliders (predict --sliders): every training
