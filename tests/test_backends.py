@@ -192,6 +192,7 @@ def test_n100_to_the_first_big_event(scene, monkeypatch):
         assert_bit_for_bit(f, n)
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_n100_first_hundred_events():
     """The reference as it is (NumPy's transcendentals), N = 100, xi > 0:
     over 100 events the drift is still far below the tolerances."""

@@ -236,6 +236,7 @@ def test_cantilever_stiffness_extremes(xi):
     assert run["n_events"] >= 5
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_stiff_cantilever_agrees_between_backends():
     scene = Scene(n_sliders=10, seed=1, xi=100.0)
     fortran, numpy_ = isolated(tilt, scene, "fortran"), isolated(tilt, scene, "numpy")

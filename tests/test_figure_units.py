@@ -105,6 +105,7 @@ def test_study_figure_axes_have_units(tmp_path):
             plt.close(fig)
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_animation_axes_have_units(tmp_path, monkeypatch):
     kept = []
     monkeypatch.setattr(animation.plt, "close", kept.append)  # keep the frame's figure

@@ -62,6 +62,7 @@ def test_domain_check_is_a_scikit_learn_estimator(fitted):
         DomainCheck(features=("tilt", "mu_d")).fit(Cuts.from_catalogues([sparse_pile()]), [0.5])
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_learned_delegates_its_domain_to_the_check():
     f = Learned(inputs="angles_sizes", draws_per_row=20, max_iter=5).fit(synthetic_set(60, seed=2))
     assert isinstance(f.domain_, DomainCheck)

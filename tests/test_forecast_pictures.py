@@ -75,6 +75,7 @@ def test_the_event_count_has_whole_number_ticks():
         assert len(ticks) >= 2 and all(float(t).is_integer() for t in ticks), (n, ticks)
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_the_size_axis_names_the_users_unit_and_its_labels_do_not_overlap():
     cat, fc = normal()
     mm2 = catalogue(np.degrees(cat.alpha), np.round(0.37 * cat.size, 1) + 0.1, 29.5)

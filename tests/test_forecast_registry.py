@@ -35,6 +35,7 @@ def test_the_parser_reads_the_methods_without_scikit_learn():
     assert out.stdout.strip() == "[]"
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_the_convergence_figure_draws_every_example_entry(tmp_path):
     from matplotlib.figure import Figure
 

@@ -393,6 +393,7 @@ def test_interp_rows_is_numpys_interp_row_by_row_to_the_last_bit():
         assert np.array_equal(interp_rows(x, knots, fp), want)
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_a_calibration_set_only_calibrates(held_out, model):
     """Rows given as ``calibration`` join the held-out realisations: the regressors are those
     of the fit without them, and the calibration counts them."""

@@ -61,6 +61,7 @@ def test_h5py_is_imported_only_inside_sliders_io():
         assert module in importing, module
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_the_probe_tells_the_user_what_a_path_holds(tmp_path):
     from sliders.io import formats
 
@@ -169,6 +170,7 @@ def test_prior_file_is_the_same_on_one_and_two_ranks_and_stores_each_thing_once(
         assert f.attrs["format_version"] == 2
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_a_prior_file_of_format_1_still_reads_and_is_not_resumed(tmp_path):
     """Format 1 (everything also flat at the root, events in completion order) reads the
     same catalogues as its own root view; --resume refuses it in one line naming the version."""

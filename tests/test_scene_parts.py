@@ -196,6 +196,7 @@ class UniformPull(Loading):
                 and weight > kinetic)
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_a_loading_defined_here_runs_on_the_reference():
     """The toy loading is a class of this file alone: the scene, the reference engine, the
     result and its forces take it as they take the tilt; the physics is the model's."""
@@ -264,6 +265,7 @@ class UniformStatic(Friction):
         return math.atan(self.mu_d)
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_a_friction_law_defined_here_runs_on_the_reference():
     """The toy law is a class of this file alone: the preparation draws its coefficients,
     the reference engine asks it for thresholds, kinetic force and draws at every stop,

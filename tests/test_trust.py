@@ -274,6 +274,7 @@ def test_merge_removes_and_reports_a_killed_merges_temporary(chunks, capsys):
 # ---------------------------------------------------------------------------
 @pytest.mark.parametrize("ranks", [None, pytest.param(2, marks=[pytest.mark.two_cores,
                                                                  pytest.mark.slow])])
+@pytest.mark.slow  # seconds of work: the full suite
 def test_second_resume_through_a_symlink_is_refused(tmp_path, ranks):
     out = tmp_path / "e.h5"
     (tmp_path / "link.h5").symlink_to(out.name)
@@ -483,6 +484,7 @@ def test_a_file_of_another_kind_is_named_not_damaged(tilt_file, chunks):
     assert "ensemble file" in str(info.value) and "damaged" not in str(info.value)
 
 
+@pytest.mark.slow  # seconds of work: the full suite
 def test_reading_an_ensemble_being_written_says_busy(tmp_path):
     out = tmp_path / "e.h5"
     env = _env(SLIDERS_ENSEMBLE_TEST_DELAY=0.4)
