@@ -113,3 +113,17 @@ def test_each_kind_of_training_cut_is_drawn_for_the_forecasters_that_read_it(sma
     assert all(m.displacement_unit == "arbitrary" for m in cuts[(True, 0.0)].measurements())
     assert "log_sliders_low" in sized.feature_names_
     assert "log_sliders_low" not in blind.feature_names_ + camera.feature_names_
+
+
+def test_a_catalogue_kept_to_its_angles_and_sizes_is_read_by_them(shipped_model):
+    """``Catalogue.angles_and_sizes()`` (displacements 0, movers unknown) given to the API is
+    forecast as a record of angles and sizes, as the same record read from a CSV of two
+    columns, not as a camera's; told its size, by the forecaster told it."""
+    cat = rate_law_catalogue(0.6, 80.0, 0.5).angles_and_sizes()
+    n = len(cat)
+    read = Catalogue(cat.alpha, cat.size, np.full(n, np.nan), np.full(n, -1), np.full(n, -1),
+                     cat.tilt_now)
+    kept, as_read = shipped_model.predict(cat).to_dict(), shipped_model.predict(read).to_dict()
+    assert kept["forecaster"] == as_read["forecaster"] == "learned_blind"
+    assert kept["alpha_c"] == as_read["alpha_c"] and kept["interval"] == as_read["interval"]
+    assert shipped_model.predict(cat, sliders=100).to_dict()["forecaster"] == "learned_sized"

@@ -79,8 +79,9 @@ def record_kind(cat: Catalogue, measurement) -> str:
     """``"complete"``, ``"camera"``, ``"blind"`` or ``"sized"`` (``LEARNED_BY_RECORD``): a
     catalogue with every displacement is a camera's when its displacements or positions are
     not in the model's units, or when its movers are not all given; one of angles and sizes
-    is "sized" when the pile's number of sliders is told."""
-    if len(cat) == 0 or np.isnan(cat.displacement).any():
+    is "sized" when the pile's number of sliders is told.  A catalogue whose displacements are
+    all 0 (``Catalogue.angles_and_sizes``) has none: every event moves some slider."""
+    if len(cat) == 0 or np.isnan(cat.displacement).any() or not (cat.displacement > 0).any():
         return "blind" if measurement.n_sliders is None else "sized"
     whole = bool((cat.first >= 0).all())
     return "complete" if whole and not measurement.camera else "camera"
