@@ -68,15 +68,8 @@ def angles_and_sizes(cat: Catalogue) -> tuple[Catalogue, bool]:
     return (cat, True) if cat.complete else (cat.angles_and_sizes(), False)
 
 
-#: which learned forecaster reads a catalogue, by its columns and its measurement: every
-#: feature (displacements and movers in the model's units), a camera's (displacements in any
-#: unit, positions if given), angles and sizes only, or those told the pile's size
-LEARNED_BY_RECORD = {"complete": "learned", "camera": "learned_camera", "blind": "learned_blind",
-                     "sized": "learned_sized"}
-
-
 def record_kind(cat: Catalogue, measurement) -> str:
-    """``"complete"``, ``"camera"``, ``"blind"`` or ``"sized"`` (``LEARNED_BY_RECORD``): a
+    """``"complete"``, ``"camera"``, ``"blind"`` or ``"sized"`` (``common.LEARNED_BY_RECORD``): a
     catalogue with every displacement is a camera's when its displacements or positions are
     not in the model's units, or when its movers are not all given; one of angles and sizes
     is "sized" when the pile's number of sliders is told.  A catalogue whose displacements are

@@ -29,8 +29,13 @@ TRAIN_MAX_ITER = 100
 POSTERIOR_MAX_ITER = 45
 #: piles simulated at posterior draws by ``infer``'s predictive check
 CHECK_DRAWS = 24
-#: the learned forecasters ``--method learned`` picks from by the catalogue's columns and units
-LEARNED_METHODS = ("learned", "learned_blind", "learned_sized", "learned_camera")
+#: which learned forecaster ``--method learned`` picks for a catalogue, by its columns and its
+#: measurement (``catalogue.record_kind``): every feature (displacements and movers in the
+#: model's units), a camera's (displacements in any unit, positions if given), angles and sizes
+#: only, or those told the pile's size
+LEARNED_BY_RECORD = {"complete": "learned", "camera": "learned_camera", "blind": "learned_blind",
+                     "sized": "learned_sized"}
+LEARNED_METHODS = tuple(LEARNED_BY_RECORD.values())
 #: the choices of ``predict --method`` (the registry's): "learned" picks the learned forecaster
 #: for the columns given (every feature, a camera's, or angles and sizes only)
 PREDICT_METHODS = ("learned", *(m for m in METHODS if m not in LEARNED_METHODS), "all")

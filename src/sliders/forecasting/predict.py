@@ -24,13 +24,13 @@ from ..analysis.forecast.registry import fallback_of
 from ..io.forecast_files import ForecastInputError, angle_option
 from ..io.forecast_model import default_model_path
 from .alarm import Alarm, LatestPicture, RunScore
-from .catalogue import (LEARNED_BY_RECORD, angles_and_sizes, camera_record, measurement_as_json,
+from .catalogue import (angles_and_sizes, camera_record, measurement_as_json,
                         measurement_from, prepared, read_source, record_kind)
 from .files import read_model_file
 from .infer import Inference, load_posterior
 from .report import Report, interval_name
-from .common import (ALARM_DELTA_DEG, PREDICT_METHODS, clipped_probability, jsonable,
-                     probability_text)
+from .common import (ALARM_DELTA_DEG, LEARNED_BY_RECORD, PREDICT_METHODS, clipped_probability,
+                     jsonable, probability_text)
 from .follower import Follower, check_source
 
 #: why a method of the displacements gave no forecast of its own on a catalogue without them

@@ -23,7 +23,7 @@ def fit_sharing_cuts(f, train, validation, shared: dict, seed: int):
 
     ``validation`` None: the forecaster calibrates on its training cuts, out of fold.
     """
-    kind = (f.degrade, f.inputs == "camera", f.told_share)  # what training_cuts draws
+    kind = f.training_kind
     if kind not in shared:
         shared[kind] = {"cuts": f.training_cuts(train, np.random.default_rng(seed))}
         if validation is not None:

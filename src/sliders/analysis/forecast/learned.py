@@ -191,8 +191,8 @@ class Learned(Forecaster):
 
     def __init__(self, inputs: str = "all", draws_per_row: int = 10, max_iter: int = 200,
                  learning_rate: float = 0.08, max_leaf_nodes: int = 15, min_samples_leaf: int = 40,
-                 max_bins: int = MAX_BINS,
-                 degrade: bool = True, told_share: float = 0.0, calibration_bins: int = 4, calibration_event_bins: int = 4,
+                 max_bins: int = MAX_BINS, degrade: bool = True, told_share: float = 0.0,
+                 calibration_bins: int = 4, calibration_event_bins: int = 4,
                  calibration_size_bins: int = 1, calibration_remaining_bins: int = 1,
                  calibration_by_record: bool = False, interval: str = "shortest",
                  calibration: str = "out_of_fold", domain_contamination: float = 0.03,
@@ -276,6 +276,12 @@ class Learned(Forecaster):
             x = np.hstack([x, ffm, cam])
             names = names + list(CAMERA_FFM) + cam_names
         return self._selected(x, names)
+
+    @property
+    def training_kind(self) -> tuple:
+        """What ``training_cuts`` draws depends on: degraded or not, as a camera records them,
+        the share told their pile's size.  Forecasters of one kind may share their cuts."""
+        return self.degrade, self.inputs == "camera", self.told_share
 
     def training_cuts(self, train, rng):
         """Random cuts of ``train``, degraded if ``degrade``, with their features."""
@@ -410,10 +416,10 @@ class Learned(Forecaster):
         tilt_bins = _cells(self.calibration_edges_)
         events = _log_events(vcuts)
         self.calibration_event_edges_ = _nested_edges(events, tilt_bin, tilt_bins, event_bins)
-        cell = tilt_bin * event_bins + _nested_bin(self.calibration_event_edges_, tilt_bin, events)
+        cell = _nested_cell(self.calibration_event_edges_, tilt_bin, events)
         sizes = _log_mean_size(vcuts)
         self.calibration_size_edges_ = _nested_edges(sizes, cell, tilt_bins * event_bins, size_bins)
-        cell = cell * size_bins + _nested_bin(self.calibration_size_edges_, cell, sizes)
+        cell = _nested_cell(self.calibration_size_edges_, cell, sizes)
         self.calibration_remaining_edges_ = _nested_edges(centre, cell,
                                                           tilt_bins * event_bins * size_bins,
                                                           remaining_bins)
@@ -429,24 +435,19 @@ class Learned(Forecaster):
     def _tilt_cell(self, cuts):
         """Each cut's bin of tilt reached (within its kind of record, if calibrated by it)."""
         if self.calibration_edges_.ndim == 2:
-            return record_category(cuts) * (self.calibration_edges_.shape[1] + 1) + \
-                _nested_bin(self.calibration_edges_, record_category(cuts), cuts.tilt_now)
+            return _nested_cell(self.calibration_edges_, record_category(cuts), cuts.tilt_now)
         return np.searchsorted(self.calibration_edges_, cuts.tilt_now)
 
     def _calibration_bin(self, cuts, centre):
         """Each cut's Mondrian category: its bin of tilt reached (within its kind of record), of
         events so far within it, of mean event size within that, and of predicted remaining
         angle (``centre``, log)."""
-        tilt_bin = self._tilt_cell(cuts)
-        event_bins = self.calibration_event_edges_.shape[1] + 1
-        cell = tilt_bin * event_bins + _nested_bin(self.calibration_event_edges_, tilt_bin,
-                                                   _log_events(cuts))
+        cell = _nested_cell(self.calibration_event_edges_, self._tilt_cell(cuts),
+                            _log_events(cuts))
         size_edges = getattr(self, "calibration_size_edges_", None)  # None: fitted without
         if size_edges is not None:
-            cell = cell * (size_edges.shape[1] + 1) + _nested_bin(size_edges, cell,
-                                                                  _log_mean_size(cuts))
-        remaining_bins = self.calibration_remaining_edges_.shape[1] + 1
-        return cell * remaining_bins + _nested_bin(self.calibration_remaining_edges_, cell, centre)
+            cell = _nested_cell(size_edges, cell, _log_mean_size(cuts))
+        return _nested_cell(self.calibration_remaining_edges_, cell, centre)
 
     def _percentiles(self, grid):
         """(n, len(LEVELS)) the calibrated distribution's percentiles reported at ``LEVELS``.
@@ -694,6 +695,12 @@ def record_category(cuts) -> np.ndarray:
 def _nested_bin(edges, cell, values) -> np.ndarray:
     """(n,) each value's bin within its cell's edges (``_nested_edges``)."""
     return np.array([np.searchsorted(edges[c], v) for c, v in zip(cell, values)], dtype=np.int64)
+
+
+def _nested_cell(edges, cell, values) -> np.ndarray:
+    """(n,) each value's cell among all those of nested ``edges``: its bin (``_nested_bin``)
+    within its outer ``cell``, numbered on from the bins of the cells before it."""
+    return cell * (edges.shape[1] + 1) + _nested_bin(edges, cell, values)
 
 
 def _log_events(cuts) -> np.ndarray:
