@@ -387,6 +387,22 @@ def synthetic_set(n_rows, seed=0):
                                         ["avalanche"] * n_rows)
 
 
+def domain_check_of_piles_50_to_800():
+    """``(check, train, cuts, catalogue)``: a domain check fitted on degraded cuts of
+    ``synthetic_set(60, seed=1)`` whose rows hold 50 and 800 sliders in turn, and a catalogue
+    like theirs cut at 0.25 rad."""
+    from sliders.analysis.forecast import training_cuts
+    from sliders.analysis.forecast.domain import DomainCheck
+    from sliders.analysis.forecast.measurement import degrade_cuts
+
+    train = synthetic_set(60, seed=1)
+    rng = np.random.default_rng(0)
+    cuts = degrade_cuts(training_cuts(train, 20, rng), rng)
+    n = np.where(np.arange(len(train)) % 2, 50, 800)
+    check = DomainCheck().fit(cuts, train.alpha_c, n_sliders=n)
+    return check, train, cuts, synthetic_set(3, seed=9).catalogue(0).cut(0.25)
+
+
 def accelerating(n: int = 150, seed: int = 7) -> tuple[np.ndarray, np.ndarray]:
     """Angles (degrees) of ``n`` events accelerating towards 31° and their sizes."""
     rng = np.random.default_rng(seed)

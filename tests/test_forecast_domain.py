@@ -12,7 +12,7 @@ from sliders.analysis.forecast.learned import Learned
 from sliders.analysis.forecast.measurement import degrade_cuts
 from sliders.io.catalogue import Catalogue
 
-from helpers import synthetic_set
+from helpers import domain_check_of_piles_50_to_800, synthetic_set
 
 
 @pytest.fixture(scope="module")
@@ -76,13 +76,8 @@ def test_learned_delegates_its_domain_to_the_check():
 def test_a_pile_told_its_number_of_sliders_is_checked_against_the_training_piles():
     """The training piles hold 50-800 sliders: a catalogue like theirs, told it comes from 16
     sliders, is out of the domain and says why; told 100, it is in; told nothing, as before."""
-    train = synthetic_set(60, seed=1)
-    rng = np.random.default_rng(0)
-    cuts = degrade_cuts(training_cuts(train, 20, rng), rng)
-    n = np.where(np.arange(len(train)) % 2, 50, 800)
-    check = DomainCheck().fit(cuts, train.alpha_c, n_sliders=n)
+    check, train, cuts, cat = domain_check_of_piles_50_to_800()
     assert list(check.n_sliders_range_) == [50.0, 800.0]
-    cat = synthetic_set(3, seed=9).catalogue(0).cut(0.25)
     for told, expected in ((16, False), (100, True), (None, True), (801, False)):
         inside, why = check.check(Cuts.from_catalogues([cat], Measurement(n_sliders=told)))
         assert bool(inside[0]) is expected, (told, why)

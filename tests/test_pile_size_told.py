@@ -13,14 +13,12 @@ import math
 import numpy as np
 import pytest
 
-from helpers import rate_law_catalogue, synthetic_set
-from sliders.analysis.forecast import Measurement, training_cuts
-from sliders.analysis.forecast.domain import DomainCheck
+from helpers import domain_check_of_piles_50_to_800, rate_law_catalogue
+from sliders.analysis.forecast import Measurement
 from sliders.analysis.forecast.features import Cuts
 from sliders.analysis.forecast.fitting import fit_sharing_cuts
 from sliders.analysis.forecast.learned import (RECORD_CATEGORIES, TOLD_CLASSES, Learned,
                                                record_category)
-from sliders.analysis.forecast.measurement import degrade_cuts
 from sliders.io.catalogue import Catalogue
 from sliders.runs.forecast.catalogue import load_set
 
@@ -80,12 +78,7 @@ def test_a_size_told_as_a_range_is_outside_only_when_no_size_of_it_is_a_training
     """The training piles hold 50-800 sliders: told 16-60 or 700-1000 a pile is in the domain
     (some size of the range is a training pile's); told 10-40 or 900-2000, it is out, and the
     reason names the range."""
-    train = synthetic_set(60, seed=1)
-    rng = np.random.default_rng(0)
-    cuts = degrade_cuts(training_cuts(train, 20, rng), rng)
-    n = np.where(np.arange(len(train)) % 2, 50, 800)
-    check = DomainCheck().fit(cuts, train.alpha_c, n_sliders=n)
-    cat = synthetic_set(3, seed=9).catalogue(0).cut(0.25)
+    check, _, _, cat = domain_check_of_piles_50_to_800()
     for (lo, hi), expected in (((16, 60), True), ((700, 1000), True), ((10, 40), False),
                                ((900, 2000), False)):
         inside, why = check.check(Cuts.from_catalogues(
