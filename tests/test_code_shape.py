@@ -218,12 +218,13 @@ _F = "sliders.analysis.forecast."
 #: fitted part, the expected-accuracy tables, the reference forecasts): "module" for all of a
 #: module, "module:Qualified.name" for a function, a class or an assignment (a class's FIELDS)
 MODEL_FILE_READING = (
-    "sliders.io.model_arrays:read_model_arrays", "sliders.io.model_arrays:_member",
+    *(f"sliders.io.model_arrays:{n}" for n in ("read_model_arrays", "ModelArchive", "_member")),
     *(f"sliders.io.forecast_model:{n}" for n in (
-        "read_model_bytes", "check_digest", "printable_tree", "check_accuracy_table", "_column")),
-    _F + "model_file:load_forecasters", _F + "model_file:_estimators_of_blob", _F + "integrity",
-    *(f"{_F}arrays:{n}" for n in ("from_arrays", "_decode", "check_references",
-                                  "CATALOGUE_FIELDS", "catalogues_of", "estimators_of")),
+        "read_model_bytes", "check_digest", "printable_tree")),
+    _F + "model_file:load_forecasters", _F + "model_file:ModelForecasters", _F + "integrity",
+    *(f"{_F}arrays:{n}" for n in ("_decode", "check_references",
+                                  "CATALOGUE_FIELDS", "catalogues_of", "estimator_of",
+                                  "references_of")),
     *(f"{_F}evaluators:{n}" for n in (
         "Arrays", "_nodes", "QuantileTrees.FIELDS", "QuantileTrees.FILE_NAMES",
         "QuantileTrees.check_consistent", "ResidualTable.FIELDS", "ResidualTable.check_consistent",
@@ -235,7 +236,8 @@ MODEL_FILE_READING = (
         "ParameterPosterior.check_fitted", "ParameterPosterior.check_consistent")),
     _F + "domain:DomainCheck.FIELDS", _F + "domain:DomainCheck.check_consistent",
     _F + "baselines:Climatology.FIELDS", _F + "physics:ModelBased.FIELDS",
-    _F + "inverse_rate:_InverseRate.FIELDS", _F + "base:Forecaster.check_fitted")
+    _F + "inverse_rate:_InverseRate.FIELDS", _F + "base:Forecaster.check_fitted",
+    _F + "evaluation:_leads", _F + "evaluation:ACCURACY_RANGES", _F + "evaluation:ACCURACY_FIELDS")
 #: the most non-blank lines MODEL_FILE_READING may hold; it may only fall
 MAX_MODEL_FILE_READING_LINES = 682
 

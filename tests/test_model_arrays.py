@@ -300,7 +300,7 @@ def test_a_model_file_is_read_before_a_member_is_trusted(tmp_path, shipped_parts
             b.writestr(info.filename, data)
         a.writestr("run_me.py", b"print('ran')")
     refused(extra, "run_me.py", "no array")
-    refused(shape, f"{TREE}.left", "not the")
+    refused(shape, f"{TREE}.left", "the header declares")
 
 
 def test_a_file_that_would_run_code_on_load_is_refused_and_never_runs(tmp_path):

@@ -26,7 +26,9 @@ import numpy as np
 import pytest
 
 import sliders.analysis.forecast.model_file as model_file
+from sliders.analysis.forecast import arrays
 from sliders.analysis.forecast.model_file import load_forecasters
+from sliders.forecasting.predict import load_model
 from sliders.io.forecast_model import DIGEST_SUFFIX, ModelFileError, default_model_path
 from sliders.io.model_arrays import read_model_arrays
 
@@ -158,7 +160,7 @@ def test_a_member_that_lies_about_its_array_is_refused(reduced, tmp_path):
             if info.filename.endswith(".npy") and i == 1:
                 data = data[:-8]
             dst.writestr(info.filename, data)
-    with pytest.raises(ModelFileError, match="array '.*'.*holds .* bytes"):
+    with pytest.raises(ModelFileError, match="array '.*' is not a NumPy array .* the header declares"):
         load_forecasters(bad)
 
 
@@ -349,3 +351,24 @@ def test_fuzz_every_corruption_is_the_forecast_or_a_refusal(reduced, reference, 
 # ---------------------------------------------------------------------------
 # exit status under mpirun
 # ---------------------------------------------------------------------------
+
+
+def test_a_forecast_reads_and_checks_only_the_forecasters_it_uses(reduced, tmp_path):
+    """The shipped file holds ten forecasters; a forecast of angles and sizes needs one.  A
+    file whose inverse-rate forecaster has a NaN in its climatology still forecasts a
+    catalogue of angles and sizes (that forecaster never read), refuses in one line the moment
+    that forecaster is asked for, and is refused whole by ``load_forecasters``."""
+    models, prov = copy.deepcopy(reduced)
+    models["ffm_ml_events"].climatology_.alpha_c_[3] = np.nan
+    path = write_model(tmp_path / "partly.zip", models, prov, references=arrays.reference_outputs(
+        reduced[0], arrays.reference_cuts()))
+    with pytest.raises(ModelFileError, match="ffm_ml_events.climatology_.alpha_c_ holds NaN"):
+        load_forecasters(path)
+    model = load_model(path)
+    cat = rate_law_catalogue(0.6, 80.0, 0.5)
+    d = model.predict({"angle [rad]": cat.alpha, "size": cat.size}).to_dict()
+    assert np.isfinite(d["alpha_c"]) and set(model.models._trusted) == {"learned_blind"}
+    with pytest.raises(ModelFileError) as info:
+        model.predict({"angle [rad]": cat.alpha, "size": cat.size}, method="ffm_ml_events")
+    line = str(info.value)
+    assert "\n" not in line and line.startswith(str(path)) and "holds NaN" in line, line

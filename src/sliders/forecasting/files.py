@@ -9,16 +9,17 @@ from ..io.forecast_files import ForecastInputError
 from ..io.forecast_model import ModelFileError
 
 
-def read_model_file(path, shipped_path, missing: str):
+def read_model_file(path, shipped_path, missing: str, lazy: bool = False):
     """``(models, provenance, path)`` of the model file ``path`` (None: the one shipped at
     ``shipped_path``, refused with ``missing`` if absent), read as data; every refusal one line
-    (``ForecastInputError``)."""
+    (``ForecastInputError``).  ``lazy``: each estimator built and checked at its first use
+    (``model_file.ModelForecasters``, whose refusals are ``ModelFileError``)."""
     if path is None:
         path = shipped_path
         if not path.is_file():
             raise ForecastInputError(f"{path}: {missing}")
     try:
-        models, prov = load_forecasters(path)
+        models, prov = load_forecasters(path, lazy)
     except ModelFileError as exc:
         raise ForecastInputError(str(exc)) from None
     return models, prov, path

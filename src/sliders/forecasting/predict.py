@@ -18,11 +18,13 @@ import math
 
 import numpy as np
 
+from ..analysis.forecast.arrays import classes
 from ..analysis.forecast.base import LEVELS, Forecaster
 from ..analysis.forecast.features import Cuts, in_model_units
 from ..analysis.forecast.registry import fallback_of
 from ..io.forecast_files import ForecastInputError, angle_option
 from ..io.forecast_model import default_model_path
+from ..io.safeio import printable
 from .alarm import Alarm, LatestPicture, RunScore
 from .catalogue import (angles_and_sizes, camera_record, measurement_as_json,
                         measurement_from, prepared, read_source, record_kind)
@@ -45,14 +47,20 @@ def load_model(path=None, posterior=None, simulation=None) -> "ForecastModel":
     """The forecasters of the model file ``path`` (default: the one shipped in the package),
     read once, as data (``io.forecast_model``); ``posterior``, a posterior file (default: the
     shipped one), and ``simulation``, how its predictive check makes piles
-    (``infer.PileSimulation``), are ``infer``'s, read at its first call."""
+    (``infer.PileSimulation``), are ``infer``'s, read at its first call.  Each forecaster is
+    built and checked at its first use (a refusal then: ``io.forecast_model.ModelFileError``,
+    one line naming the file)."""
     models, prov, path = read_model_file(
         path, default_model_path(), "the default forecaster is missing from this installation; "
         "reinstall sliders, or train one with python -m sliders.forecast train and pass --model "
-        "FILE")
-    wrong = next((k for k, f in models.items() if not isinstance(f, Forecaster)), None)
+        "FILE", lazy=True)
+    known = classes(posterior=False)  # of a class of the package's, not a forecaster's
+    names = {m: str(n.get("object")) if isinstance(n, dict) else "?"
+             for m, n in models.tree.items()}  # the classes the file names, before it is built
+    wrong = next((k for k, name in names.items()
+                  if not issubclass(known.get(name, Forecaster), Forecaster)), None)
     if wrong is not None:
-        raise ForecastInputError(f"{path}: {wrong!r} holds a {type(models[wrong]).__name__}, not "
+        raise ForecastInputError(f"{path}: {wrong!r} holds a {printable(names[wrong])}, not "
                                  "the fitted forecasters a model file holds")
     if "learned_blind" not in models:
         raise ForecastInputError(f"{path}: no forecaster of angles and sizes (learned_blind) in it")

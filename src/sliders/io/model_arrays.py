@@ -13,9 +13,9 @@ anything is used: a regular file of at most ``MAX_MODEL_BYTES``, read once; a
 zip whose members are exactly the header and the arrays it lists, each bounded
 before it is inflated (``MAX_MEMBER_BYTES``, ``MAX_INFLATED_BYTES``: no zip
 bomb), each member's size and CRC-32 checked by ``zipfile`` as it is read;
-every array a ``.npy`` of version 1.0 in C order (its header parsed by NumPy,
-``read_array_header_1_0``: a literal, never a pickle) of exactly the dtype,
-shape and bytes the header declares.  Any refusal is one line naming the
+every array a ``.npy`` of version 1.0 in C order of exactly the dtype, shape
+and bytes the header declares (its own header compared with the one NumPy
+writes for them, never parsed: no literal, never a pickle).  Any refusal is one line naming the
 file and, where it is one, the array (``ModelFileError``).
 """
 
@@ -75,21 +75,37 @@ def save_model_arrays(path, header: dict, arrays: dict) -> int:
 
 def read_model_arrays(path, blob: bytes | None = None) -> tuple[dict, dict]:
     """``(header, {name: array})`` of a model file, its form checked (module docstring)."""
-    where = printable(path)
-    blob = read_model_bytes(path) if blob is None else blob
+    archive = ModelArchive.open(path, blob)
+    return archive.header, archive.read(archive.schema)
 
-    def refuse(what: str):
-        raise ModelFileError(f"{where}: {what}")
 
-    try:
-        archive = zipfile.ZipFile(io.BytesIO(blob))
-        infos = archive.infolist()
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError):
-        refuse("refused: not a sliders model file (a zip of arrays; a pickle is never loaded)")
-    big = max(infos, key=lambda i: i.file_size, default=zipfile.ZipInfo())
-    by_name = {i.filename: i for i in infos}
-    head = by_name.get(HEADER, zipfile.ZipInfo())
-    for bad, what in (
+class ModelArchive:
+    """A model file whose form is checked when opened (``open``: the zip, the header, every
+    array's declaration and member) and whose arrays are read when asked (``read``), each
+    checked as it is read."""
+
+    def refuse_if(self, *checks) -> None:
+        """``ModelFileError`` naming the file and saying the first ``(bad, what)`` that is bad."""
+        what = next((what for bad, what in checks if bad), None)
+        if what is not None:
+            raise ModelFileError(f"{self.where}: {what}")
+
+    @classmethod
+    def open(cls, path, blob: bytes | None = None) -> "ModelArchive":
+        """The archive of the model file ``path`` (its bytes ``blob`` if read already)."""
+        self = cls()
+        self.where = printable(path)
+        try:
+            self.zip = zipfile.ZipFile(io.BytesIO(read_model_bytes(path) if blob is None else blob))
+            infos = self.zip.infolist()
+        except (zipfile.BadZipFile, ValueError, OSError, EOFError):
+            infos = None
+        self.refuse_if((infos is None, "refused: not a sliders model file (a zip of arrays; a "
+                                       "pickle is never loaded)"))
+        big = max(infos, key=lambda i: i.file_size, default=zipfile.ZipInfo())
+        members = {i.filename: i for i in infos}
+        head = members.get(HEADER, zipfile.ZipInfo())
+        self.refuse_if(
             (len(infos) > MAX_MEMBERS, f"{len(infos)} members; a model file holds at most "
                                        f"{MAX_MEMBERS}"),
             (big.file_size > MAX_MEMBER_BYTES, f"member {printable(big.filename)[:80]!r} inflates "
@@ -97,59 +113,58 @@ def read_model_arrays(path, blob: bytes | None = None) -> tuple[dict, dict]:
              f"{MAX_MEMBER_BYTES // 2**20} MB"),
             (sum(i.file_size for i in infos) > MAX_INFLATED_BYTES,
              f"its members inflate to more than {MAX_INFLATED_BYTES // 2**20} MB"),
-            (len(by_name) != len(infos), "two members of one name"),
-            (HEADER not in by_name, f"refused: not a sliders model file of format "
+            (len(members) != len(infos), "two members of one name"),
+            (HEADER not in members, f"refused: not a sliders model file of format "
                                     f"{MODEL_ARRAYS_FORMAT} (no {HEADER}): train it again"),
             (head.file_size > MAX_TREE_BYTES, f"its header inflates to "
-             f"{head.file_size / 2**20:.0f} MB; at most {MAX_TREE_BYTES // 2**20} MB")):
-        if bad:
-            refuse(what)
-    text = _member(archive, head, where)
-    try:
-        header = json.loads(text)
-    except (ValueError, RecursionError):
-        refuse(f"{HEADER} is not JSON")
-    found = header.get("format") if isinstance(header, dict) else None
-    if found != MODEL_ARRAYS_FORMAT:
-        refuse(f"a model file of format {printable(str(found))[:60]}; this version reads "
-               f"{MODEL_ARRAYS_FORMAT}: train it again" if isinstance(found, str)
-               else f"not a sliders model file of format {MODEL_ARRAYS_FORMAT}")
-    schema = header.get("arrays")
-    if not isinstance(schema, dict):
-        refuse(f"{HEADER} lists no arrays")
-    extra = sorted(set(by_name) - {HEADER} - {f"{n}.npy" for n in schema})
-    if extra:
-        refuse(f"member {printable(extra[0])[:80]!r} is no array of the header's")
-    arrays = {}
-    for name, spec in schema.items():
-        what = f"array {printable(name)[:80]!r}"
-        if not (isinstance(name, str) and NAME.fullmatch(name)):
-            refuse(f"{what}: not a name of an array")
-        if not (isinstance(spec, dict) and spec.get("dtype") in DTYPES
-                and isinstance(spec.get("shape"), list) and len(spec["shape"]) <= 3
-                and all(type(d) is int and 0 <= d <= 2**31 for d in spec["shape"])):
-            refuse(f"{what}: declared of no dtype of {', '.join(DTYPES)} or of no shape")
-        if f"{name}.npy" not in by_name:
-            refuse(f"{what} is missing")
-        raw = io.BytesIO(_member(archive, by_name[f"{name}.npy"], where))
-        dtype, shape = np.dtype(spec["dtype"]), tuple(spec["shape"])
-        try:  # NumPy's own parser of a header of at most 10 kB: a literal, never a pickle
-            found = np.lib.format.read_magic(raw) == (1, 0) and \
-                np.lib.format.read_array_header_1_0(raw)
-        except (ValueError, TypeError, SyntaxError, RecursionError, MemoryError, EOFError):
-            found = False
-        if not found or found[1]:
-            refuse(f"{what} is not a NumPy array of this format's (version 1.0, C order, "
-                   "booleans or 64-bit numbers)")
-        if found[2] != dtype or found[0] != shape:
-            refuse(f"{what} holds {found[2].str} {found[0]}, not the {dtype} {shape} the header "
-                   "declares")
-        body = raw.read()
-        if len(body) != dtype.itemsize * math.prod(shape):
-            refuse(f"{what}: its member holds {len(body)} bytes of data, not the "
-                   f"{dtype.itemsize * math.prod(shape)} of its shape")
-        arrays[name] = np.frombuffer(body, dtype=dtype).reshape(shape).copy()
-    return header, arrays
+             f"{head.file_size / 2**20:.0f} MB; at most {MAX_TREE_BYTES // 2**20} MB"))
+        try:
+            self.header = json.loads(_member(self.zip, head, self.where))
+        except ModelFileError:
+            raise
+        except (ValueError, RecursionError):
+            self.header = None
+        found = self.header.get("format") if isinstance(self.header, dict) else None
+        self.refuse_if((self.header is None, f"{HEADER} is not JSON"), (
+            found != MODEL_ARRAYS_FORMAT,
+            f"a model file of format {printable(str(found))[:60]}; this version reads "
+            f"{MODEL_ARRAYS_FORMAT}: train it again" if isinstance(found, str)
+            else f"not a sliders model file of format {MODEL_ARRAYS_FORMAT}"))
+        self.schema = self.header.get("arrays")
+        self.refuse_if((not isinstance(self.schema, dict), f"{HEADER} lists no arrays"))
+        extra = sorted(set(members) - {HEADER} - {f"{n}.npy" for n in self.schema})
+        self.refuse_if((extra, f"member {printable(extra[0] if extra else '')[:80]!r} is no "
+                               "array of the header's"))
+        for name, spec in self.schema.items():
+            what = f"array {printable(name)[:80]!r}"
+            self.refuse_if(
+                (not (isinstance(name, str) and NAME.fullmatch(name)),
+                 f"{what}: not a name of an array"),
+                (not (isinstance(spec, dict) and spec.get("dtype") in DTYPES
+                      and isinstance(spec.get("shape"), list) and len(spec["shape"]) <= 3
+                      and all(type(d) is int and 0 <= d <= 2**31 for d in spec["shape"])),
+                 f"{what}: declared of no dtype of {', '.join(DTYPES)} or of no shape"),
+                (f"{name}.npy" not in members, f"{what} is missing"))
+        return self
+
+    def read(self, names) -> dict:
+        """``{name: array}`` of the arrays ``names`` declared by the header, each its member's
+        ``.npy`` (version 1.0, C order) of exactly the dtype, shape and bytes declared: its
+        header those bytes NumPy writes for them, compared, never parsed."""
+        out = {}
+        for name in names:
+            dtype, shape = np.dtype(self.schema[name]["dtype"]), tuple(self.schema[name]["shape"])
+            head = io.BytesIO()
+            np.lib.format.write_array_header_1_0(head, {"descr": dtype.str, "shape": shape,
+                                                        "fortran_order": False})
+            head = head.getvalue()
+            data = _member(self.zip, self.zip.getinfo(f"{name}.npy"), self.where)
+            self.refuse_if((not data.startswith(head) or len(data) != len(head) + dtype.itemsize
+                            * math.prod(shape), f"array {printable(name)[:80]!r} is not a NumPy "
+                            f"array of this format's (version 1.0, C order) of the {dtype} "
+                            f"{shape} the header declares"))
+            out[name] = np.frombuffer(data, dtype, offset=len(head)).reshape(shape).copy()
+        return out
 
 
 def _member(archive: zipfile.ZipFile, info: zipfile.ZipInfo, where) -> bytes:

@@ -5,9 +5,9 @@ one's parameters and fitted state become a JSON tree of plain values whose
 arrays are named and kept apart, and every fitted part of scikit-learn or
 crepes becomes the arrays its ``predict`` reads (``evaluators``: the trees of
 each quantile regressor, the conformal residuals, the domain check's
-detectors).  ``from_arrays`` builds the forecasters back from that tree and
-those arrays, each class from a closed table (``classes``), and each
-forecaster's ``check_fitted`` is run (its declared fitted parts, every tree,
+detectors).  ``estimator_of`` builds a forecaster back from its tree and
+its arrays, each class from a closed table (``classes``), and its
+``check_fitted`` is run (its declared fitted parts, every tree,
 table and detector among them: ``integrity.check_fields``): no code of the
 file, no scikit-learn.
 
@@ -31,6 +31,7 @@ from ...io.catalogue import Catalogue
 from .base import Forecaster
 from .baselines import Climatology, ConditionedClimatology
 from .domain import DomainCheck
+from .evaluation import ACCURACY_FIELDS
 from .estimator import param_names
 from .evaluators import NoveltyDetector, QuantileTrees, ResidualTable
 from .features import Cuts, feature_matrix
@@ -152,24 +153,6 @@ def _evaluator(kind: str, value, name: str):
     return part
 
 
-def from_arrays(tree: dict, arrays: dict) -> dict:
-    """``{method: estimator}`` built from ``to_arrays``'s tree and arrays, every part checked
-    (``integrity.IntegrityError`` on the first that is not of the form the converter writes,
-    naming it); every array must be read by a part."""
-    require(isinstance(tree, dict), "no table of estimators")
-    known = classes(any(isinstance(n, dict) and n.get("object") == "ParameterPosterior"
-                        for n in tree.values()))
-    used: set = set()
-    out = {}
-    for method, node in tree.items():
-        require(isinstance(node, dict) and "object" in node,
-                f"{method!r} holds no estimator")
-        out[method] = _decode(node, arrays, known, used, str(method))
-    unread = sorted(set(arrays) - used)
-    require(not unread, f"array {unread[0] if unread else ''!r} is read by no part")
-    return out
-
-
 def _decode(node, arrays: dict, known: dict, used: set, where: str):
     if node is None or isinstance(node, (bool, int, float, str)):
         return node
@@ -195,12 +178,10 @@ def _decode(node, arrays: dict, known: dict, used: set, where: str):
         state = node["state"]
         require(isinstance(state, dict), f"{where}: a state that is not a table")
         params = set(param_names(cls))
-        bad = [k for k in state if not (isinstance(k, str) and k.isidentifier()
-                                        and not k.startswith("_")
-                                        and (k in params or k.endswith("_")))]
-        if bad:
-            raise IntegrityError(f"{where}: {str(bad[0])[:60]!r} is neither a parameter nor a "
-                                 f"fitted part of a {cls.__name__}")
+        bad = next((k for k in state if not (isinstance(k, str) and k.isidentifier() and not
+                    k.startswith("_") and (k in params or k.endswith("_")))), None)
+        require(bad is None, f"{where}: {str(bad)[:60]!r} is neither a parameter nor a fitted "
+                             f"part of a {cls.__name__}")
         obj = cls.__new__(cls)
         obj.__dict__.update({k: _decode(v, arrays, known, used, f"{where}.{k}")
                              for k, v in state.items()})
@@ -261,7 +242,7 @@ def reference_outputs(estimators: dict, cuts=None) -> dict:
     its domain verdicts if it has a domain check); the posterior's quantiles and domain
     verdicts."""
     cuts = reference_cuts() if cuts is None else cuts
-    if any(isinstance(e, Learned) for e in estimators.values()):  # their features, made once
+    if "features" not in cuts.cache and any(isinstance(e, Learned) for e in estimators.values()):
         cuts = replace(cuts, cache={**cuts.cache, "features": feature_matrix(cuts)})
     out = {}
     for method, e in estimators.items():
@@ -319,7 +300,8 @@ CATALOGUE_FIELDS = {
     **{c: Spec("fi" if c in ("first", "last") else "f", shape=lambda o: o.start[-1:])
        for c in CATALOGUE_COLUMNS},
     "tilt_now": Spec("f", shape=lambda o: (o.start.size - 1,), lo=0.0, hi=math.pi / 2),
-    "measurement": Spec("f", ndim=2, lo=0.0)}
+    "measurement": Spec("f", lo=0.0,  # 5 columns: written before a camera's three
+                        shape=lambda o: (o.start.size - 1, 5 if o.measurement.shape[-1] == 5 else 8))}
 
 
 def catalogues_of(arrays: dict) -> list:
@@ -328,14 +310,11 @@ def catalogues_of(arrays: dict) -> list:
     a = SimpleNamespace(**{k: arrays.get(f"catalogue.{k}") for k in CATALOGUE_FIELDS})
     check_fields(a, "reference catalogue", CATALOGUE_FIELDS)
     k = a.start.size - 1
-    require(a.start[0] == 0 and a.measurement.shape in ((k, 5), (k, 8)),
-            f"reference catalogue: starts not from 0, or measurements of shape "
-            f"{a.measurement.shape}, not ({k}, 8)")
+    require(a.start[0] == 0, "reference catalogue: starts not from 0")
     out = []
     for i in range(k):
         s = slice(int(a.start[i]), int(a.start[i + 1]))
-        r, ms, mf, arb, ns, high, disp, frac = np.r_[a.measurement[i],
-                                                     np.zeros(8 - a.measurement.shape[1])]
+        r, ms, mf, arb, ns, high, disp, frac = np.r_[a.measurement[i], [0.0] * 8][:8]
         try:
             m = Measurement(float(r), float(ms), float(mf), "arbitrary" if arb else "sliders",
                             int(ns) if ns else None, int(high) if high else None,
@@ -360,18 +339,28 @@ def model_file_parts(estimators: dict, provenance: dict) -> tuple[dict, dict]:
     return {"content": content, "provenance": provenance}, arrays
 
 
-def estimators_of(header: dict, arrays: dict) -> dict:
-    """``{method: estimator}`` of a model file's header and arrays: built (``from_arrays``),
-    each one's ``check_fitted`` run, and its reference forecasts reproduced
-    (``check_references``); ``integrity.IntegrityError`` naming the first part that fails."""
+def estimator_of(node: dict, method: str, arrays: dict):
+    """The estimator ``method`` of ``to_arrays``'s tree ``node`` (of a class of ``classes``),
+    built from its ``arrays`` (every one read by a part), its ``check_fitted`` run and its
+    expected-accuracy table checked (``evaluation.ACCURACY_FIELDS``):
+    ``integrity.IntegrityError`` naming the first part not of the form ``to_arrays`` writes."""
+    require(isinstance(node, dict) and "object" in node, f"{method!r} holds no estimator")
+    used: set = set()
+    estimator = _decode(node, arrays, classes(node["object"] == "ParameterPosterior"), used,
+                        method)
+    unread = sorted(set(arrays) - used)
+    require(not unread, f"array {unread[0] if unread else ''!r} is read by no part")
+    check_fields(estimator, method)
+    check_fields(estimator, method, ACCURACY_FIELDS)
+    return estimator
+
+
+def references_of(arrays: dict) -> tuple[dict, Cuts]:
+    """``(recorded, cuts)`` of a model file's reference arrays (``reference.*``): the reference
+    forecasts recorded, by name, and the reference catalogues' cuts (checked:
+    ``catalogues_of``), their features made once."""
     refs = {k[len("reference."):]: v for k, v in arrays.items() if k.startswith("reference.")}
-    estimators = from_arrays(header.get("content"),
-                             {k: v for k, v in arrays.items() if not k.startswith("reference.")})
-    for method, e in estimators.items():
-        check_fields(e, method)
-    if not estimators:  # nothing to forecast with: no reference forecasts to make again
-        return estimators
-    cases = catalogues_of({k: v for k, v in refs.items() if k.startswith("catalogue.")})
-    check_references(estimators, {k: v for k, v in refs.items()
-                                  if not k.startswith("catalogue.")}, reference_cuts(cases))
-    return estimators
+    cuts = reference_cuts(catalogues_of({k: v for k, v in refs.items()
+                                         if k.startswith("catalogue.")}))
+    cuts = replace(cuts, cache={**cuts.cache, "features": feature_matrix(cuts)})
+    return {k: v for k, v in refs.items() if not k.startswith("catalogue.")}, cuts

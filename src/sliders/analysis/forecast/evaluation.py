@@ -15,6 +15,7 @@ import numpy as np
 
 from .base import LEVELS, LOWER, MEDIAN, UPPER, pinball_crps, probability_within
 from .features import Cuts, training_cuts
+from .integrity import Spec
 
 
 @dataclass(frozen=True)
@@ -243,6 +244,8 @@ ACCURACY_LEAD_EDGES_DEG = (0.0, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
 ACCURACY_MIN_CUTS = 30
 #: bins of the 80 % interval's width within each lead bin of the stored accuracy
 ACCURACY_WIDTH_BINS = 3
+#: the columns of an expected-accuracy table, each with its largest value (None: unbounded)
+ACCURACY_RANGES = {"median_abs_deg": 90.0, "coverage": 1.0, "n": None}
 
 
 def _lead_bin(forecast_lead_deg) -> np.ndarray:
@@ -261,8 +264,7 @@ def accuracy_table(q: np.ndarray, tilt_now: np.ndarray, truth: np.ndarray, rows:
     interval) and ``n`` (cuts); a bin of fewer than ``ACCURACY_MIN_CUTS``
     cuts holds the overall numbers (its ``n`` still its own).  ``overall``:
     the same over every cut.  A model file's table is checked in this form when the file is
-    loaded (``io.forecast_model.check_accuracy_table``), so that ``typical_accuracy`` reads
-    only finite errors in degrees and coverages in [0, 1].
+    loaded (``ACCURACY_FIELDS``).
     """
     q, truth = np.asarray(q, dtype=float), np.asarray(truth, dtype=float)
     if not truth.size:
@@ -295,6 +297,27 @@ def accuracy_table(q: np.ndarray, tilt_now: np.ndarray, truth: np.ndarray, rows:
         cells["n"].append([float((w == j).sum()) for j in range(ACCURACY_WIDTH_BINS)])
     table["by_width"] = cells
     return table
+
+
+def _leads(f) -> tuple:
+    return (len(f.expected_accuracy_["lead_edges_deg"]),)
+
+
+#: a forecaster's expected-accuracy table as ``accuracy_table`` writes it, checked when a model
+#: file is read (``integrity.check_fields``) so that ``typical_accuracy`` reads only finite
+#: errors in degrees, coverages in [0, 1] and counts from 0, one per lead bin (and width cell)
+ACCURACY_FIELDS = {"expected_accuracy_": Spec("dict", optional=True, when=lambda f: bool(
+    getattr(f, "expected_accuracy_", None)), of={
+        "lead_edges_deg": Spec("f", lo=0.0, min_size=1, increasing="strictly"),
+        **{c: Spec("f", shape=_leads, lo=0.0, hi=hi) for c, hi in ACCURACY_RANGES.items()},
+        "overall": Spec("dict", of={c: Spec("number", lo=0.0, hi=hi) for c, hi in
+                                    {**ACCURACY_RANGES, "rows": None}.items()}),
+        "by_width": Spec("dict", optional=True, of={
+            "width_edges_deg": Spec("f", ndim=2, lo=0.0, increasing=True,
+                                    shape=lambda f: (*_leads(f), ACCURACY_WIDTH_BINS - 1)),
+            **{c: Spec("f", ndim=2, lo=0.0, hi=hi,
+                       shape=lambda f: (*_leads(f), ACCURACY_WIDTH_BINS))
+               for c, hi in ACCURACY_RANGES.items()}})})}
 
 
 def measure_expected_accuracy(forecasters: dict, held, seed: int = 0, draws_per_row: int = 5) -> dict:

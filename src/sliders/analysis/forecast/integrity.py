@@ -43,7 +43,7 @@ class Spec:
     "number", "int", "choice" (one of ``of``), "str", "part" (an instance of class ``of``,
     checked by its own ``FIELDS``), "list" or "tuple" (``n`` items, at least ``min_size``, each
     ``of``), "dict" (keys within ``keys``, each value ``of``; or ``of`` a table key -> Spec,
-    exactly its keys).  An array has ``shape`` (else ``ndim`` dimensions and at least
+    exactly its keys, an optional one may be absent).  An array (or a list of numbers) has ``shape`` (else ``ndim`` dimensions and at least
     ``min_size`` values), is finite (``finite=False``: no NaN; None: not checked here), in
     [lo, hi], non-decreasing along its last axis if ``increasing`` ("strictly": increasing).
     Any of these may be a function of the owner.  ``optional``: may be None or absent;
@@ -93,7 +93,7 @@ def check_value(v, s: Spec, owner, what: str) -> None:
         items = None if not isinstance(v, box) else v if box is dict else dict(enumerate(v))
         specs = s.of if isinstance(s.of, dict) else dict.fromkeys(items or (), s.of)
         require(items is not None and (n is None or len(items) == n) and len(items) >= s.min_size
-                and set(s.keys or specs) >= set(items) >= set(specs),
+                and set(s.keys or specs) >= set(items) >= {k for k in specs if not specs[k].optional},
                 f"{what} is not a {s.kind} of {n if n is not None else ', '.join(map(str, specs))}")
         return [check_value(items[k], specs[k], owner, f"{what}.{k}") for k in items]
     if s.kind == "choice":
@@ -108,6 +108,7 @@ def check_value(v, s: Spec, owner, what: str) -> None:
         return require(ok and math.isfinite(v) and lo <= v <= hi,
                        f"{what} = {v!r} is not a {'whole ' * (s.kind == 'int')}number in "
                        f"[{lo:g}, {hi:g}]")
+    v = np.asarray(v) if isinstance(v, list) else v  # a JSON list of numbers: an array
     require(isinstance(v, np.ndarray), f"{what} is a {type(v).__name__}, not an array")
     require(v.dtype.kind in s.kind, f"{what} has dtype {v.dtype}")
     if shape is not None:

@@ -12,6 +12,7 @@ import traceback
 
 from ...io.filelock import ClaimError
 from ...io.forecast_files import ForecastInputError
+from ...io.forecast_model import ModelFileError
 from ...io.safeio import describe_os_error, os_reason
 
 
@@ -24,7 +25,7 @@ def status_and_line(exc: Exception) -> tuple[int, str]:
     """``(exit status, one line)`` of a command that raised ``exc``: 2 for bad input (a
     refused input or output), 1 for an I/O error, memory, or a fault of the package (whose
     traceback ``SLIDERS_DEBUG`` prints)."""
-    if isinstance(exc, (ForecastInputError, ClaimError)):
+    if isinstance(exc, (ForecastInputError, ModelFileError, ClaimError)):
         return 2, str(exc)
     if isinstance(exc, OSError):
         return 1, describe_os_error(exc, exc.filename) if exc.filename else os_reason(exc)
