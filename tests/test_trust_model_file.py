@@ -29,6 +29,7 @@ import sliders.analysis.forecast.model_file as model_file
 from sliders.analysis.forecast import arrays
 from sliders.analysis.forecast.model_file import load_forecasters
 from sliders.forecasting.predict import load_model
+from sliders.io.forecast_files import ForecastInputError
 from sliders.io.forecast_model import DIGEST_SUFFIX, ModelFileError, default_model_path
 from sliders.io.model_arrays import read_model_arrays
 
@@ -364,7 +365,9 @@ def test_a_forecast_reads_and_checks_only_the_forecasters_it_uses(reduced, tmp_p
         reduced[0], arrays.reference_cuts()))
     with pytest.raises(ModelFileError, match="ffm_ml_events.climatology_.alpha_c_ holds NaN"):
         load_forecasters(path)
-    model = load_model(path)
+    with pytest.raises(ForecastInputError, match="holds NaN"):
+        load_model(path)  # the Python API's default: every forecaster checked at load
+    model = load_model(path, lazy=True)  # as the commands load it
     cat = rate_law_catalogue(0.6, 80.0, 0.5)
     d = model.predict({"angle [rad]": cat.alpha, "size": cat.size}).to_dict()
     assert np.isfinite(d["alpha_c"]) and set(model.models._trusted) == {"learned_blind"}

@@ -38,7 +38,7 @@ from .runs.forecast.infer import CHECK_SIMULATION  # noqa: E402
 __all__ = ["load", "main", "ForecastModel", "Prediction", "Inference"]
 
 
-def load(path=None, posterior=None):
+def load(path=None, posterior=None, lazy=False):
     """The forecasters of a model file, loaded once (default: the one shipped in the package).
 
     Parameters
@@ -48,6 +48,10 @@ def load(path=None, posterior=None):
     posterior : str or os.PathLike, optional
         A posterior file written by ``train --fit posterior`` (default: the shipped one),
         read at the first ``infer``.
+    lazy : bool
+        Check the file's form now and build, check and reproduce the reference forecasts of
+        each forecaster at its first use (as the commands do: a one-shot forecast reads only
+        the forecasters it uses); default: every forecaster now.
 
     Returns
     -------
@@ -59,6 +63,8 @@ def load(path=None, posterior=None):
     Raises
     ------
     sliders.io.forecast_files.ForecastInputError
-        The file is not a model file this version reads (one line naming it).
+        The file is not a model file this version reads (one line naming it); with ``lazy``,
+        a forecaster refused at its first use raises ``sliders.io.forecast_model.ModelFileError``
+        (one line naming the file).
     """
-    return load_model(path, posterior, CHECK_SIMULATION)
+    return load_model(path, posterior, CHECK_SIMULATION, lazy)

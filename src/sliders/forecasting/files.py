@@ -11,15 +11,18 @@ from ..io.forecast_model import ModelFileError
 
 def read_model_file(path, shipped_path, missing: str, lazy: bool = False):
     """``(models, provenance, path)`` of the model file ``path`` (None: the one shipped at
-    ``shipped_path``, refused with ``missing`` if absent), read as data; every refusal one line
-    (``ForecastInputError``).  ``lazy``: each estimator built and checked at its first use
-    (``model_file.ModelForecasters``, whose refusals are ``ModelFileError``)."""
+    ``shipped_path``, refused with ``missing`` if absent), read as data: ``models`` a
+    ``model_file.ModelForecasters``, every estimator built and checked now, or with ``lazy``
+    at its first use (whose refusals are ``ModelFileError``); every refusal here one line
+    (``ForecastInputError``)."""
     if path is None:
         path = shipped_path
         if not path.is_file():
             raise ForecastInputError(f"{path}: {missing}")
     try:
-        models, prov = load_forecasters(path, lazy)
+        models, prov = load_forecasters(path, lazy=True)
+        if not lazy:
+            models.all()
     except ModelFileError as exc:
         raise ForecastInputError(str(exc)) from None
     return models, prov, path

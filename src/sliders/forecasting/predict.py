@@ -43,17 +43,18 @@ NO_DISPLACEMENT = ("the catalogue has no displacement column: the conditioned cl
 DEFAULT_ALARM_THRESHOLD = 0.5
 
 
-def load_model(path=None, posterior=None, simulation=None) -> "ForecastModel":
+def load_model(path=None, posterior=None, simulation=None, lazy=False) -> "ForecastModel":
     """The forecasters of the model file ``path`` (default: the one shipped in the package),
     read once, as data (``io.forecast_model``); ``posterior``, a posterior file (default: the
     shipped one), and ``simulation``, how its predictive check makes piles
-    (``infer.PileSimulation``), are ``infer``'s, read at its first call.  Each forecaster is
-    built and checked at its first use (a refusal then: ``io.forecast_model.ModelFileError``,
-    one line naming the file)."""
+    (``infer.PileSimulation``), are ``infer``'s, read at its first call.  Every forecaster is
+    built, checked and its reference forecasts reproduced now; ``lazy`` (a one-shot forecast,
+    as the commands make): the file's form now, each forecaster at its first use (a refusal
+    then: ``io.forecast_model.ModelFileError``, one line naming the file)."""
     models, prov, path = read_model_file(
         path, default_model_path(), "the default forecaster is missing from this installation; "
         "reinstall sliders, or train one with python -m sliders.forecast train and pass --model "
-        "FILE", lazy=True)
+        "FILE", lazy=lazy)
     known = classes(posterior=False)  # of a class of the package's, not a forecaster's
     names = {m: str(n.get("object")) if isinstance(n, dict) else "?"
              for m, n in models.tree.items()}  # the classes the file names, before it is built

@@ -31,7 +31,7 @@ def follow_command(args, argv=None) -> int:
     if args.tilt_rate is not None:
         rate_option(args.tilt_rate)
     check_source(args.catalogue)
-    model = load_model(args.model)
+    model = load_model(args.model, lazy=True)
     follower = model.follow(
         args.catalogue, tilt_now=args.tilt_now, tilt_rate=args.tilt_rate, until=args.until,
         within=args.within, **measurement_options(args), method=args.method, alarm_threshold=getattr(args, "alarm_threshold", None),

@@ -29,7 +29,7 @@ def predict(args, argv=None) -> int:
     cat, notes = prepared(read_source(args.catalogue, angle_resolution=measurement.angle_resolution,
                                       position_unit=measurement.position_unit),
                           args.tilt_now, measurement)
-    model = load_model(args.model)
+    model = load_model(args.model, lazy=True)
     pred = model.forecast(cat, measurement, within_option(args.within), args.method, notes)
     pred.size_label = getattr(args, "size_label", None)
     report, lines = pred.to_dict(), pred.lines(verbose=args.verbose)
