@@ -136,6 +136,8 @@ LAZY_IMPORTS = {
     "importlib.metadata": "the installed distributions' versions (18 ms), read when a file's "
                           "provenance is written: the forecast parser's --help does not need it",
     "scipy": "imported by the one statistic that needs it",
+    "sliders.forecasting.infer": "the posterior and its piles' simulation (the scene, 50 ms): "
+                                 "a forecast's model imports it at its first inference",
     "sliders._kernel": "the compiled kernel is optional: the NumPy reference runs without it",
 }
 # Modules whose function-level imports wait for a change that moves the modules they import

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..analysis.forecast.arrays import classes
 from ..analysis.forecast.base import LEVELS, Forecaster
+from ..analysis.forecast.evaluation import typical_accuracy, typical_accuracy_line
 from ..analysis.forecast.features import Cuts, in_model_units
 from ..analysis.forecast.registry import fallback_of
 from ..io.forecast_files import ForecastInputError, angle_option
@@ -29,7 +30,6 @@ from .alarm import Alarm, LatestPicture, RunScore
 from .catalogue import (angles_and_sizes, camera_record, measurement_as_json,
                         measurement_from, prepared, read_source, record_kind)
 from .files import read_model_file
-from .infer import Inference, load_posterior
 from .report import Report, interval_name
 from .common import (ALARM_DELTA_DEG, LEARNED_BY_RECORD, PREDICT_METHODS, clipped_probability,
                      jsonable, probability_text)
@@ -106,9 +106,11 @@ class ForecastModel:
         self.simulation = simulation
         self._posterior = None
 
-    def infer(self, catalogue, tilt_now=None, **options) -> Inference:
+    def infer(self, catalogue, tilt_now=None, **options) -> "Inference":
         """The posterior of the material of the pile that made ``catalogue``
         (``infer.PosteriorModel.infer``, its options)."""
+        from .infer import load_posterior  # its piles' simulation, read only by an inference
+
         if self._posterior is None:
             self._posterior = load_posterior(self.posterior_path, self.simulation)
         return self._posterior.infer(catalogue, tilt_now, **options)
@@ -220,8 +222,6 @@ class ForecastModel:
                  notes=()) -> "Prediction":
         """The ``Prediction`` of a ``Catalogue`` (its ``tilt_now`` is the tilt reached) measured
         as ``measurement``, the alarm's horizon ``within`` in radians."""
-        from ..analysis.forecast.evaluation import typical_accuracy, typical_accuracy_line
-
         kind = record_kind(catalogue, measurement)
         models, prov, path = self.models, self.provenance, self.path
         given = measurement  # as the user gave it, reported so

@@ -1,7 +1,7 @@
 """``python -m sliders.forecast catalogue``: a simulated row written as the CSV ``predict``
 reads, cut at a tilt or a lead before its avalanche (the documentation's examples are made so);
 the prior files' rows read for the commands (``load_set``: ``evaluate``, ``train``,
-``catalogue``); the measurement of the commands' flags (``measurement_of``).
+``catalogue``).
 
     python -m sliders.forecast catalogue --data prior.h5 --row 7 --lead 3deg --out row7.csv
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import os
 
-from ...forecasting.catalogue import catalogue_csv_text, measurement_from
+from ...forecasting.catalogue import catalogue_csv_text
 from ...io.catalogue import CatalogueSet
 from ...io.forecast_files import ForecastInputError, parse_angle
 from ...io.prior_file import read_prior_ensemble
@@ -28,19 +28,6 @@ def load_set(path: str, what: str = "--data") -> CatalogueSet:
         raise ForecastInputError(f"{what}: {' '.join(str(exc).split())}") from None
     except OSError as exc:
         raise ForecastInputError(f"{what}: {describe_os_error(exc, path)}") from None
-
-
-def measurement_of(args):
-    """The ``Measurement`` the flags of ``predict`` describe (one line naming a bad flag)."""
-    return measurement_from(**measurement_options(args))
-
-
-def measurement_options(args) -> dict:
-    """The measurement's keywords of the API (``ForecastModel.predict``) from the flags."""
-    return {"angle_resolution": args.angle_resolution, "min_size": args.min_size,
-            "missed_fraction": args.missed_fraction, "size_unit": args.size_unit,
-            "sliders": args.sliders, "displacement_unit": args.displacement_unit,
-            "position_unit": args.position_unit, "pile_length": args.pile_length}
 
 
 def catalogue(args, argv=None) -> int:

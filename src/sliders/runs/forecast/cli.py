@@ -179,6 +179,14 @@ def add_measured_catalogue_arguments(pr: argparse.ArgumentParser) -> None:
                     help="the pile's length along the slope in mm (with --position-unit mm)")
 
 
+def measurement_options(args) -> dict:
+    """The measurement's keywords of the API (``ForecastModel.predict``) from the flags."""
+    return {"angle_resolution": args.angle_resolution, "min_size": args.min_size,
+            "missed_fraction": args.missed_fraction, "size_unit": args.size_unit,
+            "sliders": args.sliders, "displacement_unit": args.displacement_unit,
+            "position_unit": args.position_unit, "pile_length": args.pile_length}
+
+
 def add_infer_arguments(inf: argparse.ArgumentParser) -> None:
     """The options of ``infer``."""
     add_measured_catalogue_arguments(inf)

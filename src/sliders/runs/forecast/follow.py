@@ -20,7 +20,7 @@ from ...forecasting.alarm import RunScore
 from ...forecasting.follower import check_source, rate_option
 from ...forecasting.predict import load_model
 from ..signals import raise_stopped
-from .catalogue import measurement_options
+from .cli import measurement_options
 from .predict import check_predict_options
 
 

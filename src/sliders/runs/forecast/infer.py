@@ -16,7 +16,7 @@ import math
 
 from ... import status
 from ...driver import run
-from ...forecasting.catalogue import prepared, read_source
+from ...forecasting.catalogue import measurement_from, prepared, read_source
 from ...forecasting.infer import MAX_CHECK_DRAWS, PileSimulation, load_posterior
 from ...io.forecast_files import ForecastInputError, angle_option, parse_angle, tilt_in_range
 from ...io.forecast_model import default_posterior_path
@@ -24,7 +24,7 @@ from ...preparation import prepare
 from ...scene import check_memory
 from ..command import DEFAULT_BACKEND
 from ..prior_spec import parse_prior
-from .catalogue import measurement_of
+from .cli import measurement_options
 from .predict import check_plot_target
 
 
@@ -61,7 +61,7 @@ def infer(args, argv=None) -> int:
     """The posterior of a measured catalogue: the text (or ``--json``), the corner plot."""
     check_infer_options(args)
     # the catalogue read and checked before the posterior's seconds of loading
-    measurement = measurement_of(args)
+    measurement = measurement_from(**measurement_options(args))
     cat, notes = prepared(read_source(args.catalogue, angle_resolution=measurement.angle_resolution,
                                       position_unit=measurement.position_unit),
                           args.tilt_now, measurement)

@@ -11,13 +11,13 @@ import json
 import math
 
 from ...forecasting.alarm import check_hook, check_release, single_alarm, threshold_option
-from ...forecasting.catalogue import prepared, read_source
+from ...forecasting.catalogue import measurement_from, prepared, read_source
 from ...forecasting.predict import load_model, within_option
 from ...io.forecast_files import (ForecastInputError, angle_option, check_output_target,
                                   parse_angle, tilt_in_range)
 from ...io.forecast_model import default_model_path
 from ...io.safeio import check_output_name, resolve_target
-from .catalogue import measurement_of
+from .cli import measurement_options
 
 
 def predict(args, argv=None) -> int:
@@ -25,7 +25,7 @@ def predict(args, argv=None) -> int:
     (``--follow`` runs ``follow.follow_command`` instead)."""
     check_predict_options(args)
     # the catalogue read and checked before the model's seconds of loading
-    measurement = measurement_of(args)
+    measurement = measurement_from(**measurement_options(args))
     cat, notes = prepared(read_source(args.catalogue, angle_resolution=measurement.angle_resolution,
                                       position_unit=measurement.position_unit),
                           args.tilt_now, measurement)
