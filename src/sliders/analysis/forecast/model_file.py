@@ -68,8 +68,8 @@ def load_forecasters(path, lazy: bool = False) -> tuple[dict, dict]:
 
 class ModelForecasters(Mapping):
     """A model file's estimators by method, each read, built and checked
-    (``arrays.estimator_of``) and its reference forecasts reproduced at its first use;
-    the file's form, its estimators' classes and each array's owner checked at once."""
+    (``arrays.estimator_of``) and its reference forecasts reproduced at its first use; the
+    file's form (``ModelArchive.open``), its provenance and each array's owner checked at once."""
 
     def __init__(self, archive: ModelArchive):
         self.archive, self.tree = archive, archive.header.get("content")
