@@ -37,7 +37,7 @@ from .evaluators import NoveltyDetector, QuantileTrees, ResidualTable
 from .features import Cuts, feature_matrix
 from .integrity import IntegrityError, Spec, check_fields, require
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
-from .learned import Learned
+from .learned import Learned, with_design
 from .measurement import Measurement
 from .physics import ModelBased
 
@@ -360,7 +360,6 @@ def references_of(arrays: dict) -> tuple[dict, Cuts]:
     forecasts recorded, by name, and the reference catalogues' cuts (checked:
     ``catalogues_of``), their features made once."""
     refs = {k[len("reference."):]: v for k, v in arrays.items() if k.startswith("reference.")}
-    cuts = reference_cuts(catalogues_of({k: v for k, v in refs.items()
-                                         if k.startswith("catalogue.")}))
-    cuts = replace(cuts, cache={**cuts.cache, "features": feature_matrix(cuts)})
+    cuts = with_design(reference_cuts(catalogues_of({k: v for k, v in refs.items()
+                                                     if k.startswith("catalogue.")})), "camera")
     return {k: v for k, v in refs.items() if not k.startswith("catalogue.")}, cuts
