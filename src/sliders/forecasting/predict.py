@@ -55,11 +55,13 @@ def load_model(path=None, posterior=None, simulation=None, lazy=False) -> "Forec
         path, default_model_path(), "the default forecaster is missing from this installation; "
         "reinstall sliders, or train one with python -m sliders.forecast train and pass --model "
         "FILE", lazy=lazy)
-    known = classes(posterior=False)  # of a class of the package's, not a forecaster's
+    # a class of the package's that is no forecaster, named before it is built (a name of no
+    # class of the package's is refused when that forecaster is built)
+    known = classes(posterior=False)
     names = {m: str(n.get("object")) if isinstance(n, dict) else "?"
-             for m, n in models.tree.items()}  # the classes the file names, before it is built
+             for m, n in models.tree.items()}
     wrong = next((k for k, name in names.items()
-                  if not issubclass(known.get(name, Forecaster), Forecaster)), None)
+                  if name in known and not issubclass(known[name], Forecaster)), None)
     if wrong is not None:
         raise ForecastInputError(f"{path}: {wrong!r} holds a {printable(names[wrong])}, not "
                                  "the fitted forecasters a model file holds")

@@ -118,10 +118,9 @@ class ModelArchive:
                                     f"{MODEL_ARRAYS_FORMAT} (no {HEADER}): train it again"),
             (head.file_size > MAX_TREE_BYTES, f"its header inflates to "
              f"{head.file_size / 2**20:.0f} MB; at most {MAX_TREE_BYTES // 2**20} MB"))
+        text = _member(self.zip, head, self.where)
         try:
-            self.header = json.loads(_member(self.zip, head, self.where))
-        except ModelFileError:
-            raise
+            self.header = json.loads(text)
         except (ValueError, RecursionError):
             self.header = None
         found = self.header.get("format") if isinstance(self.header, dict) else None

@@ -300,8 +300,9 @@ CATALOGUE_FIELDS = {
     **{c: Spec("fi" if c in ("first", "last") else "f", shape=lambda o: o.start[-1:])
        for c in CATALOGUE_COLUMNS},
     "tilt_now": Spec("f", shape=lambda o: (o.start.size - 1,), lo=0.0, hi=math.pi / 2),
-    "measurement": Spec("f", lo=0.0,  # 5 columns: written before a camera's three
-                        shape=lambda o: (o.start.size - 1, 5 if o.measurement.shape[-1] == 5 else 8))}
+    # 8 columns, or 5 in a file written before the camera's three (read as 0)
+    "measurement": Spec("f", lo=0.0, shape=lambda o: (
+        o.start.size - 1, 5 if o.measurement.shape[-1] == 5 else 8))}
 
 
 def catalogues_of(arrays: dict) -> list:
@@ -309,12 +310,11 @@ def catalogues_of(arrays: dict) -> list:
     events, each catalogue's angles increasing and below its tilt reached)."""
     a = SimpleNamespace(**{k: arrays.get(f"catalogue.{k}") for k in CATALOGUE_FIELDS})
     check_fields(a, "reference catalogue", CATALOGUE_FIELDS)
-    k = a.start.size - 1
     require(a.start[0] == 0, "reference catalogue: starts not from 0")
     out = []
-    for i in range(k):
+    for i in range(a.start.size - 1):
         s = slice(int(a.start[i]), int(a.start[i + 1]))
-        r, ms, mf, arb, ns, high, disp, frac = np.r_[a.measurement[i], [0.0] * 8][:8]
+        r, ms, mf, arb, ns, high, disp, frac = (*a.measurement[i], 0.0, 0.0, 0.0)[:8]
         try:
             m = Measurement(float(r), float(ms), float(mf), "arbitrary" if arb else "sliders",
                             int(ns) if ns else None, int(high) if high else None,

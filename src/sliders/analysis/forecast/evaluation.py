@@ -306,7 +306,7 @@ def _leads(f) -> tuple:
 #: a forecaster's expected-accuracy table as ``accuracy_table`` writes it, checked when a model
 #: file is read (``integrity.check_fields``) so that ``typical_accuracy`` reads only finite
 #: errors in degrees, coverages in [0, 1] and counts from 0, one per lead bin (and width cell)
-ACCURACY_FIELDS = {"expected_accuracy_": Spec("dict", optional=True, when=lambda f: bool(
+ACCURACY_FIELDS = {"expected_accuracy_": Spec("dict", when=lambda f: bool(
     getattr(f, "expected_accuracy_", None)), of={
         "lead_edges_deg": Spec("f", lo=0.0, min_size=1, increasing="strictly"),
         **{c: Spec("f", shape=_leads, lo=0.0, hi=hi) for c, hi in ACCURACY_RANGES.items()},

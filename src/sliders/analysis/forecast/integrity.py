@@ -43,11 +43,11 @@ class Spec:
     "number", "int", "choice" (one of ``of``), "str", "part" (an instance of class ``of``,
     checked by its own ``FIELDS``), "list" or "tuple" (``n`` items, at least ``min_size``, each
     ``of``), "dict" (keys within ``keys``, each value ``of``; or ``of`` a table key -> Spec,
-    exactly its keys, an optional one may be absent).  An array (or a list of numbers) has ``shape`` (else ``ndim`` dimensions and at least
-    ``min_size`` values), is finite (``finite=False``: no NaN; None: not checked here), in
-    [lo, hi], non-decreasing along its last axis if ``increasing`` ("strictly": increasing).
-    Any of these may be a function of the owner.  ``optional``: may be None or absent;
-    ``when``: checked only if true of the owner."""
+    exactly its keys, an optional one may be absent).  An array (a list of numbers is read as
+    one) has ``shape`` (else ``ndim`` dimensions and at least ``min_size`` values), is finite
+    (``finite=False``: no NaN; None: not checked here), in [lo, hi], non-decreasing along its
+    last axis if ``increasing`` ("strictly": increasing).  Any of these may be a function of the
+    owner.  ``optional``: may be None or absent; ``when``: checked only if true of the owner."""
     kind: str
     shape: object = None
     ndim: object = 1
@@ -93,7 +93,8 @@ def check_value(v, s: Spec, owner, what: str) -> None:
         items = None if not isinstance(v, box) else v if box is dict else dict(enumerate(v))
         specs = s.of if isinstance(s.of, dict) else dict.fromkeys(items or (), s.of)
         require(items is not None and (n is None or len(items) == n) and len(items) >= s.min_size
-                and set(s.keys or specs) >= set(items) >= {k for k in specs if not specs[k].optional},
+                and set(s.keys or specs) >= set(items)
+                >= {k for k, spec in specs.items() if not spec.optional},
                 f"{what} is not a {s.kind} of {n if n is not None else ', '.join(map(str, specs))}")
         return [check_value(items[k], specs[k], owner, f"{what}.{k}") for k in items]
     if s.kind == "choice":

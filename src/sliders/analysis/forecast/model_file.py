@@ -84,7 +84,7 @@ class ModelForecasters(Mapping):
         self.provenance = printable_tree(self.provenance)
         for name in self.archive.schema:
             owner, _, part = name.partition(".")
-            require(owner in self.tree or owner == "reference", f"array {name!r} is read by no part")
+            require(owner in (*self.tree, "reference"), f"array {name!r} is read by no part")
             require(owner != "reference" or part.split(".")[0] in (*self.tree, "catalogue"),
                     f"reference forecast {part!r} is of no estimator of the file")
 
@@ -135,8 +135,9 @@ class ModelForecasters(Mapping):
         except ModelFileError:
             raise
         except (IntegrityError, ValueError, TypeError, KeyError, IndexError, AttributeError) as exc:
-            again = (f" (a part is missing: written by sliders {self.provenance.get('sliders', '?')}"
-                     ", whose forecasters this version cannot use; train it again)"
+            again = (" (a part is missing: written by sliders "
+                     f"{self.provenance.get('sliders', '?')}, whose forecasters this version "
+                     "cannot use; train it again)"
                      if isinstance(exc, AttributeError) else "; refused")
             raise ModelFileError(f"{self.archive.where}: " +
                                  printable(" ".join(str(exc).split()) + again)) from None
