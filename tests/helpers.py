@@ -489,11 +489,21 @@ def forecasts_before_arrays() -> dict:
 
 
 def recorded_cases(ref):
-    """The recorded catalogues with their measurements, and the same kept to angles and sizes."""
-    from sliders.analysis.forecast.arrays import catalogues_of
+    """The recorded catalogues with their measurements (``case.catalogue.*``, as
+    ``arrays.catalogue_arrays`` writes them), and the same kept to angles and sizes."""
+    from sliders.analysis.forecast.arrays import CATALOGUE_COLUMNS
+    from sliders.analysis.forecast.measurement import Measurement
     from sliders.forecasting.catalogue import angles_and_sizes
+    from sliders.io.catalogue import Catalogue
 
-    cases = catalogues_of({k[len("case."):]: v for k, v in ref.items() if k.startswith("case.")})
+    a = {k[len("case.catalogue."):]: v for k, v in ref.items() if k.startswith("case.catalogue.")}
+    cases = []
+    for i, (lo, hi) in enumerate(zip(a["start"][:-1], a["start"][1:])):
+        r, ms, mf, arbitrary, n = a["measurement"][i]  # recorded before a camera's columns
+        m = Measurement(float(r), float(ms), float(mf), "arbitrary" if arbitrary else "sliders",
+                        int(n) if n else None)
+        cases.append((Catalogue(*(a[c][lo:hi] for c in CATALOGUE_COLUMNS),
+                                tilt_now=float(a["tilt_now"][i])), m))
     return cases, [(angles_and_sizes(c)[0], m) for c, m in cases]
 
 

@@ -244,6 +244,8 @@ def test_the_shipped_parts_load_as_written(tmp_path, shipped_parts):
     ("levels not increasing", ("learned_blind", "percentiles")),
     ("unread array", ("stray", "read by no part")),
     ("unread array of a tree", (f"{TREE}.stray", "read by no part")),
+    ("reference catalogue moved", ("reference catalogues", "not those")),
+    ("reference catalogue dropped", ("reference catalogues", "not those")),
 ])
 def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shipped_parts, attack,
                                                                   words):
@@ -268,6 +270,10 @@ def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shippe
             a[f"{TREE}.baseline"] = a[f"{TREE}.baseline"] + 1e-3  # a valid model, another one
         elif attack == "levels not increasing":
             a["learned_blind.percentiles_"] = a["learned_blind.percentiles_"][::-1].copy()
+        elif attack == "reference catalogue moved":  # the forecasts recorded of other events
+            a["reference.catalogue.alpha"][3] += 1e-9
+        elif attack == "reference catalogue dropped":
+            del a["reference.catalogue.size"]
         elif attack == "unread array of a tree":
             a[f"{TREE}.stray"] = np.zeros(3)
         else:

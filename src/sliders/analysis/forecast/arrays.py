@@ -23,7 +23,6 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import replace
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -35,7 +34,7 @@ from .evaluation import ACCURACY_FIELDS
 from .estimator import param_names
 from .evaluators import NoveltyDetector, QuantileTrees, ResidualTable
 from .features import Cuts, feature_matrix
-from .integrity import IntegrityError, Spec, check_fields, require
+from .integrity import IntegrityError, check_fields, require
 from .inverse_rate import LinearInverseRate, PointProcessInverseRate
 from .learned import Learned, with_design
 from .measurement import Measurement
@@ -294,39 +293,6 @@ def catalogue_arrays(cases) -> dict:
     return out
 
 
-#: the reference catalogues' arrays (``catalogue_arrays``), by their name after "catalogue."
-CATALOGUE_FIELDS = {
-    "start": Spec("i", lo=0, min_size=2, increasing=True),
-    **{c: Spec("fi" if c in ("first", "last") else "f", shape=lambda o: o.start[-1:])
-       for c in CATALOGUE_COLUMNS},
-    "tilt_now": Spec("f", shape=lambda o: (o.start.size - 1,), lo=0.0, hi=math.pi / 2),
-    # 8 columns, or 5 in a file written before the camera's three (read as 0)
-    "measurement": Spec("f", lo=0.0, shape=lambda o: (
-        o.start.size - 1, 5 if o.measurement.shape[-1] == 5 else 8))}
-
-
-def catalogues_of(arrays: dict) -> list:
-    """The ``[(Catalogue, Measurement)]`` of ``catalogue_arrays`` (checked: finite, within the
-    events, each catalogue's angles increasing and below its tilt reached)."""
-    a = SimpleNamespace(**{k: arrays.get(f"catalogue.{k}") for k in CATALOGUE_FIELDS})
-    check_fields(a, "reference catalogue", CATALOGUE_FIELDS)
-    require(a.start[0] == 0, "reference catalogue: starts not from 0")
-    out = []
-    for i in range(a.start.size - 1):
-        s = slice(int(a.start[i]), int(a.start[i + 1]))
-        r, ms, mf, arb, ns, high, disp, frac = (*a.measurement[i], 0.0, 0.0, 0.0)[:8]
-        try:
-            m = Measurement(float(r), float(ms), float(mf), "arbitrary" if arb else "sliders",
-                            int(ns) if ns else None, int(high) if high else None,
-                            "arbitrary" if disp else "model", "fraction" if frac else "sliders")
-            c = Catalogue(*(getattr(a, col)[s] for col in CATALOGUE_COLUMNS),
-                          tilt_now=float(a.tilt_now[i]))
-        except (ValueError, TypeError) as exc:
-            raise IntegrityError(f"reference catalogue {i}: {exc}") from None
-        out.append((c, m))
-    return out
-
-
 def model_file_parts(estimators: dict, provenance: dict) -> tuple[dict, dict]:
     """``(header, arrays)`` of a model file of fitted ``estimators`` (``{method: estimator}``,
     fitted with scikit-learn and crepes or built from arrays): their array form, and the
@@ -357,9 +323,17 @@ def estimator_of(node: dict, method: str, arrays: dict):
 
 def references_of(arrays: dict) -> tuple[dict, Cuts]:
     """``(recorded, cuts)`` of a model file's reference arrays (``reference.*``): the reference
-    forecasts recorded, by name, and the reference catalogues' cuts (checked:
-    ``catalogues_of``), their features made once."""
+    forecasts recorded, by name, and the cuts of ``reference_catalogues`` (their features made
+    once), whose arrays the file carries for any reader: they must be this version's (the
+    first of them; measurements of five columns in a file written before a camera's three)."""
     refs = {k[len("reference."):]: v for k, v in arrays.items() if k.startswith("reference.")}
-    cuts = with_design(reference_cuts(catalogues_of({k: v for k, v in refs.items()
-                                                     if k.startswith("catalogue.")})), "camera")
-    return {k: v for k, v in refs.items() if not k.startswith("catalogue.")}, cuts
+    stored = {k: v for k, v in refs.items() if k.startswith("catalogue.")}
+    cases = reference_catalogues()[:stored.get("catalogue.tilt_now", np.zeros(0)).size]
+    made = catalogue_arrays(cases)
+    m = made["catalogue.measurement"]
+    if stored.get("catalogue.measurement", m).shape[-1:] == (5,) and not m[:, 5:].any():
+        made["catalogue.measurement"] = m[:, :5]
+    require(set(stored) == set(made) and all(np.array_equal(v, made[k]) for k, v in stored.items()),
+            "the reference catalogues are not those of this version's reference forecasts")
+    return ({k: v for k, v in refs.items() if k not in stored},
+            with_design(reference_cuts(cases), "camera"))
