@@ -169,7 +169,7 @@ def test_evaluate_command_end_to_end(tmp_path, capsys):
                     "--alarm-rows", "4", "--leads-deg", "1", "3", "--tilts", "0.2", "--quiet"])
     assert code == 0
     text = capsys.readouterr().out
-    assert "3° before the avalanche" in text and "learned (boosting)" in text and "AUC" in text
+    assert "3° before the avalanche" in text and "learned, every feature" in text and "AUC" in text
     metrics = json.loads((out / "forecast_metrics.json").read_text())
     assert metrics["split"] == {"train": 8, "validation": 2, "test": 6}
     assert "zero" in metrics["sets"] and metrics["provenance"]["command"].startswith("python -m")

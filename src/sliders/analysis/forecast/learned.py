@@ -230,7 +230,7 @@ class Learned(Forecaster):
         """The forecaster's name in tables and legends."""
         if self.name == "learned_sized":
             return "learned, angles + sizes, size told"
-        return {"all": "learned (boosting)", "camera": "learned, camera's units"}.get(
+        return {"all": "learned, every feature", "camera": "learned, camera's units"}.get(
             self.inputs, "learned, angles + sizes only")
 
     def _selected(self, x, names):
