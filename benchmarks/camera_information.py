@@ -225,15 +225,15 @@ def scores(f, test, lead, train_ac, seed: int = 0) -> dict:
     return out
 
 
-def approach_auc(view: Learned, test, lead, seed: int) -> dict:
-    """ROC AUC of a small boosted classifier telling the cuts ``AUC_LEADS_DEG[0]`` before the
-    avalanche from those ``AUC_LEADS_DEG[1]`` before, on ``view``'s features, its probabilities
-    out of fold (5 folds of piles: a pile's two cuts lie in one fold)."""
+def approach_auc(view: Learned, test, lead, seed: int, leads=AUC_LEADS_DEG) -> dict:
+    """ROC AUC of a small boosted classifier telling the cuts ``leads[0]`` (deg) before the
+    avalanche from those ``leads[1]`` before, on ``view``'s features, its probabilities out of
+    fold (5 folds of piles: a pile's two cuts lie in one fold)."""
     from sklearn.ensemble import HistGradientBoostingClassifier
     from sklearn.metrics import roc_auc_score
     from sklearn.model_selection import GroupKFold, cross_val_predict
 
-    near, far = (np.isclose(lead, math.radians(d)) for d in AUC_LEADS_DEG)
+    near, far = (np.isclose(lead, math.radians(d)) for d in leads)
     m = near | far
     x = finite(view.design(test)[0])[m]
     x = x[:, np.isfinite(x).any(axis=0)]
@@ -241,6 +241,22 @@ def approach_auc(view: Learned, test, lead, seed: int) -> dict:
     p = cross_val_predict(clf, x, near[m], groups=test.row[m], cv=GroupKFold(5),
                           method="predict_proba")[:, 1]
     return {"auc": float(roc_auc_score(near[m], p)), "n": int(m.sum())}
+
+
+def model_rows(prior: str, model: str):
+    """The forecasters of ``model``, its training prior ``prior``, and the prior's rows that reached
+    the avalanche: those the model trained on and those it held out (its provenance's); a
+    ValueError when ``prior`` is not the model's."""
+    models, prov = load_forecasters(model)
+    data = CatalogueSet.joined([load_set(prior)])
+    held, named = np.zeros(len(data), bool), np.asarray(prov["held_out_rows"], dtype=int)
+    held[named[named < len(data)]] = True
+    ok = np.isfinite(np.asarray(data.alpha_c, dtype=float))
+    train_rows, test_rows = np.flatnonzero(ok & ~held), np.flatnonzero(ok & held)
+    if len(train_rows) != prov["rows"] or (named >= len(data)).any():
+        raise ValueError(f"--prior {prior}: {len(train_rows)} training rows, the model's "
+                         f"{prov['rows']}: not its prior")
+    return models, data, train_rows, test_rows
 
 
 def options_of() -> dict:
@@ -286,37 +302,47 @@ def markdown(rep: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def model_parser(doc: str, draws: int, piles: str = "") -> argparse.ArgumentParser:
+    """The options of a benchmark on a model's training prior: the prior, the model, the output
+    folder, the seed, and the caps of its cost (``piles``: which piles they count)."""
+    p = argparse.ArgumentParser(description=doc.splitlines()[0])
     p.add_argument("--prior", default="results/default_model/default_forecaster.zip.prior.h5",
                    help="the model's training prior (its rows; the held-out ones the model's)")
     p.add_argument("--model", default="src/sliders/data/default_forecaster.zip")
     p.add_argument("--out", default="benchmarks/results")
-    p.add_argument("--rows", type=int, default=0, help="at most this many training piles (0: all)")
-    p.add_argument("--draws", type=int, default=4, help="training cuts drawn per training pile")
-    p.add_argument("--test-rows", type=int, default=0, help="at most this many held-out piles")
-    p.add_argument("--quick", action="store_true",
-                   help="800 training piles, 3 cuts each, 300 held-out piles, no deeper trees")
+    p.add_argument("--rows", type=int, default=0,
+                   help=f"at most this many {piles}training piles (0: all)")
+    p.add_argument("--draws", type=int, default=draws, help="training cuts drawn per training pile")
+    p.add_argument("--test-rows", type=int, default=0,
+                   help=f"at most this many {piles}held-out piles (0: all)")
     p.add_argument("--seed", type=int, default=0)
-    args = p.parse_args()
-    if args.quick:
-        args.rows, args.draws, args.test_rows = args.rows or 800, 3, args.test_rows or 300
+    return p
+
+
+def one_thread_rows(p, args):
+    """``model_rows`` of ``args.prior`` and ``args.model`` (a bad one ends the command through
+    ``p``), every learner after limited to one thread."""
     if not os.path.isfile(args.prior):
         p.error(f"--prior {args.prior}: no such file")
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(1)
+    try:
+        return model_rows(args.prior, args.model)
+    except ValueError as e:
+        p.error(str(e))
+
+
+def main():
+    p = model_parser(__doc__, 4)
+    p.add_argument("--quick", action="store_true",
+                   help="800 training piles, 3 cuts each, 300 held-out piles, no deeper trees")
+    args = p.parse_args()
+    if args.quick:
+        args.rows, args.draws, args.test_rows = args.rows or 800, 3, args.test_rows or 300
     t0 = time.time()
-    models, prov = load_forecasters(args.model)
-    data = CatalogueSet.joined([load_set(args.prior)])
-    held = np.zeros(len(data), bool)
-    held[np.asarray(prov["held_out_rows"], dtype=int)] = True
-    ok = np.isfinite(np.asarray(data.alpha_c, dtype=float))
+    models, data, train_rows, test_rows = one_thread_rows(p, args)
     rng = np.random.default_rng(args.seed)
-    train_rows, test_rows = np.flatnonzero(ok & ~held), np.flatnonzero(ok & held)
-    if len(train_rows) != prov["rows"]:
-        p.error(f"--prior {args.prior}: {len(train_rows)} training rows, the model's "
-                f"{prov['rows']}: not its prior")
     if args.rows and args.rows < len(train_rows):
         train_rows = np.sort(rng.choice(train_rows, args.rows, replace=False))
     if args.test_rows and args.test_rows < len(test_rows):
