@@ -333,6 +333,19 @@ def one_thread_rows(p, args):
         p.error(str(e))
 
 
+def model_piles(p, args):
+    """``(models, train, test)``: ``one_thread_rows``'s forecasters, and its training and held-out
+    piles, at most ``args.rows`` and ``args.test_rows`` of them (drawn by ``args.seed``)."""
+    models, data, train_rows, test_rows = one_thread_rows(p, args)
+    rng = np.random.default_rng(args.seed)
+    if args.rows and args.rows < len(train_rows):
+        train_rows = np.sort(rng.choice(train_rows, args.rows, replace=False))
+    if args.test_rows and args.test_rows < len(test_rows):
+        test_rows = np.sort(rng.choice(test_rows, args.test_rows, replace=False))
+    train, test = data.subset(train_rows), data.subset(test_rows)
+    return models, train, test
+
+
 def main():
     p = model_parser(__doc__, 4)
     p.add_argument("--quick", action="store_true",
@@ -341,13 +354,7 @@ def main():
     if args.quick:
         args.rows, args.draws, args.test_rows = args.rows or 800, 3, args.test_rows or 300
     t0 = time.time()
-    models, data, train_rows, test_rows = one_thread_rows(p, args)
-    rng = np.random.default_rng(args.seed)
-    if args.rows and args.rows < len(train_rows):
-        train_rows = np.sort(rng.choice(train_rows, args.rows, replace=False))
-    if args.test_rows and args.test_rows < len(test_rows):
-        test_rows = np.sort(rng.choice(test_rows, args.test_rows, replace=False))
-    train, test = data.subset(train_rows), data.subset(test_rows)
+    models, train, test = model_piles(p, args)
     train_ac = models["learned_blind"].climatology_.alpha_c_
     options = options_of()
     for o in options.values():

@@ -15,30 +15,26 @@ conditioned climatology's (`forecast_skill.skill`'s ratio) and the median signed
 learner better at every lead and over random cuts is better; one better near the avalanche,
 worse far from it and biased low over random cuts has only moved its point.
 
-Training piles and held-out piles are the model's (`train --hold-out 0.2`), 4 training cuts
-per pile recorded as ``--record`` says (`camera_information.record`), each learner on one
+Training piles and held-out piles are the model's (`train --hold-out 0.2`), ``--draws``
+training cuts per pile (4) recorded as ``--record`` says (`camera_information.record`), each learner on one
 thread.  Writes lead_bias_<forecaster>.json and .md to ``--out``.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import os
 import time
 
 import numpy as np
 
-from camera_information import LADDER, OnDesign, learners, options_of, record
+from camera_information import (LADDER, OnDesign, learners, model_parser, model_piles,
+                                options_of, record)
 from forecast_skill import write_report
 from sliders.analysis.forecast.base import MEDIAN
 from sliders.analysis.forecast.baselines import conditioned_quantiles
 from sliders.analysis.forecast.evaluation import cuts_at_leads
 from sliders.analysis.forecast.features import training_cuts
-from sliders.analysis.forecast.model_file import load_forecasters
 from sliders.forecasting.common import TRAIN_MAX_ITER
-from sliders.io.catalogue import CatalogueSet
-from sliders.runs.forecast.catalogue import load_set
 
 #: the leads (deg) scored
 LEADS_DEG = (0.25, 1.0, 3.0, 8.0, 12.0, 20.0)
@@ -77,33 +73,19 @@ def markdown(rep: dict) -> str:
 
 
 def main():
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--prior", default="results/default_model/default_forecaster.zip.prior.h5")
-    p.add_argument("--model", default="src/sliders/data/default_forecaster.zip")
-    p.add_argument("--out", default="benchmarks/results")
+    p = model_parser(__doc__, 4)
     p.add_argument("--ladder", default="angles and sizes, exact", choices=list(LADDER),
                    help="the record and the forecaster of its inputs (camera_information.LADDER)")
-    p.add_argument("--seed", type=int, default=0)
     args = p.parse_args()
-    if not os.path.isfile(args.prior):
-        p.error(f"--prior {args.prior}: no such file")
     from sklearn.ensemble import HistGradientBoostingRegressor
-    from threadpoolctl import threadpool_limits
 
-    threadpool_limits(1)
     t0 = time.time()
+    models, train, test = model_piles(p, args)
     how, method = LADDER[args.ladder]
-    models, prov = load_forecasters(args.model)
-    data = CatalogueSet.joined([load_set(args.prior)])
-    held = np.zeros(len(data), bool)
-    held[np.asarray(prov["held_out_rows"], dtype=int)] = True
-    ok = np.isfinite(np.asarray(data.alpha_c, dtype=float))
-    train, test = data.subset(np.flatnonzero(ok & ~held)), data.subset(np.flatnonzero(ok & held))
-    if len(train) != prov["rows"]:
-        p.error(f"--prior {args.prior}: {len(train)} training rows, the model's {prov['rows']}")
     train_ac = models[method].climatology_.alpha_c_
     options = {**options_of()[method], "max_iter": TRAIN_MAX_ITER}
-    tr = record(training_cuts(train, 4, np.random.default_rng(args.seed)), how, args.seed + 1)
+    tr = record(training_cuts(train, args.draws, np.random.default_rng(args.seed)), how,
+                args.seed + 1)
     at, which = cuts_at_leads(test, np.arange(len(test)), np.radians(LEADS_DEG))
     at, lead = record(at, how, args.seed + 2), np.radians(LEADS_DEG)[which]
     anywhere = record(training_cuts(test, 4, np.random.default_rng(args.seed + 9)), how,
