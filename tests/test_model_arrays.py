@@ -246,6 +246,7 @@ def test_the_shipped_parts_load_as_written(tmp_path, shipped_parts):
     ("unread array of a tree", (f"{TREE}.stray", "read by no part")),
     ("reference catalogue moved", ("reference catalogues", "not those")),
     ("reference catalogue dropped", ("reference catalogues", "not those")),
+    ("reference catalogues' count dropped", ("no reference catalogues",)),
 ])
 def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shipped_parts, attack,
                                                                   words):
@@ -274,6 +275,8 @@ def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shippe
             a["reference.catalogue.alpha"][3] += 1e-9
         elif attack == "reference catalogue dropped":
             del a["reference.catalogue.size"]
+        elif attack == "reference catalogues' count dropped":
+            del a["reference.catalogue.tilt_now"]
         elif attack == "unread array of a tree":
             a[f"{TREE}.stray"] = np.zeros(3)
         else:

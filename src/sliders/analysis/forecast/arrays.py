@@ -322,13 +322,13 @@ def estimator_of(node: dict, method: str, arrays: dict):
 
 
 def references_of(arrays: dict) -> tuple[dict, Cuts]:
-    """``(recorded, cuts)`` of a model file's reference arrays (``reference.*``): the reference
-    forecasts recorded, by name, and the cuts of ``reference_catalogues`` (their features made
-    once), whose arrays the file carries for any reader: they must be this version's (the
-    first of them; measurements of five columns in a file written before a camera's three)."""
+    """``(recorded, cuts)``: a model file's reference forecasts (``reference.*``) by name, and
+    the cuts of ``reference_catalogues`` (features made once), which must be the catalogues the
+    file carries (the first of them; five measurement columns in a file before a camera's)."""
     refs = {k[len("reference."):]: v for k, v in arrays.items() if k.startswith("reference.")}
     stored = {k: v for k, v in refs.items() if k.startswith("catalogue.")}
     cases = reference_catalogues()[:stored.get("catalogue.tilt_now", np.zeros(0)).size]
+    require(cases, "it carries no reference catalogues (their tilts reached)")
     made = catalogue_arrays(cases)
     m = made["catalogue.measurement"]
     if stored.get("catalogue.measurement", m).shape[-1:] == (5,) and not m[:, 5:].any():
