@@ -380,6 +380,12 @@ def test_a_header_of_more_than_16_mb_is_refused_before_it_is_parsed(tmp_path):
     ({"format": "sliders-model-arrays-1", "arrays": {}, "provenance": {},
       "content": {"learned_blind": {"object": "builtins.eval", "state": {}}}},
      "no estimator of this package"),
+    ({"format": "sliders-model-arrays-1", "arrays": {}, "provenance": {},
+      "content": {"learned_blind": {"object": "Learned", "state": {"inputs": {}}}}},
+     "learned_blind.inputs: not a part of a model"),
+    ({"format": "sliders-model-arrays-1", "arrays": {}, "provenance": {},
+      "content": {"learned_blind": {"object": "Learned", "state": []}}},
+     "learned_blind: a state that is not a table"),
     ({"schema": "another format's"}, "not a sliders model file of format"),
 ])
 def test_a_malformed_header_is_one_line_naming_the_file(tmp_path, header, words):

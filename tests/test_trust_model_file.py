@@ -375,3 +375,57 @@ def test_a_forecast_reads_and_checks_only_the_forecasters_it_uses(reduced, tmp_p
         model.predict({"angle [rad]": cat.alpha, "size": cat.size}, method="ffm_ml_events")
     line = str(info.value)
     assert "\n" not in line and line.startswith(str(path)) and "holds NaN" in line, line
+
+
+def _drop_reference(name):
+    """A change that leaves out the reference forecast ``name`` (or, ``+name``, adds one)."""
+    def change(models, prov):
+        refs = arrays.reference_outputs(models, arrays.reference_cuts())
+        if name.startswith("+"):
+            refs[name[1:]] = refs["conditioned.quantiles"]
+        else:
+            del refs[name]
+        prov["references"] = refs
+    return change
+
+
+def _domain(**parts):
+    def change(models, prov):
+        domain = models["learned_blind"].domain_
+        for k, v in parts.items():
+            setattr(domain, k, v(domain) if callable(v) else v)
+    return change
+
+
+def _shrink_detector(domain):
+    detectors = list(domain.detectors_)
+    k = next(i for i, d in enumerate(detectors) if d is not None)
+    d = copy.copy(detectors[k])
+    d.points, d.medians, d.mean, d.scale = (d.points[:, :-1], d.medians[:-1], d.mean[:-1],
+                                            d.scale[:-1])
+    detectors[k] = d
+    return detectors
+
+
+@pytest.mark.parametrize("change, words", [
+    (_drop_reference("learned_blind.raw"), "reference forecast 'learned_blind.raw' is missing"),
+    (_drop_reference("+conditioned.extra"),
+     "reference forecast 'conditioned.extra' is of no estimator of the file"),
+    (_domain(features=("tilt", "the pile's colour")), "learned_blind.domain_: unknown features"),
+    (_domain(features=("tilt", "tilt")), "learned_blind.domain_: unknown features"),
+    (_domain(detectors_=_shrink_detector), "detector reads other features than its class's"),
+    (_domain(n_sliders_range_=np.array([300.0, 50.0])), "the range of sliders is reversed"),
+], ids=["reference missing", "reference of no estimator", "unknown domain feature",
+        "domain feature twice", "detector narrower than its class", "sliders range reversed"])
+def test_a_file_whose_parts_disagree_is_refused_saying_which(reduced, tmp_path, change, words):
+    """Parts each of the right form that do not fit together: the reference forecasts a file
+    carries against those of its estimators, a domain check's features against its detectors.
+    Each is one line naming the file and the disagreement, before a forecast is made."""
+    models, prov = copy.deepcopy(reduced)
+    change(models, prov)
+    refs = prov.pop("references", None)
+    path = write_model(tmp_path / "disagree.zip", models, prov, references=refs)
+    with pytest.raises(ModelFileError) as info:
+        load_forecasters(path)
+    line = str(info.value)
+    assert "\n" not in line and line.startswith(str(path)) and words in line, line
