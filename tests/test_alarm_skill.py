@@ -43,8 +43,8 @@ def test_the_first_alarm_hits_warnings_and_false_alarms_of_known_follows():
 
 
 def test_a_forecasters_alarm_skill_is_checked_and_said_in_one_line():
-    from sliders.analysis.forecast.integrity import IntegrityError
-    from sliders.analysis.forecast.learned import Learned, check_alarm_skill
+    from sliders.analysis.forecast.integrity import IntegrityError, check_fields
+    from sliders.analysis.forecast.learned import Learned
     from sliders.forecasting.alarm import alarm_skill_line
 
     f = Learned(inputs="angles_sizes")
@@ -52,7 +52,8 @@ def test_a_forecasters_alarm_skill_is_checked_and_said_in_one_line():
     f.alarm_threshold_ = 0.35
     f.alarm_skill_ = {"hit_share": 0.8, "false_alarm_share": 0.06, "warning_median_deg": 0.42,
                       "warning_p10_deg": 0.1, "within_deg": 1.0, "piles": 200}
-    check_alarm_skill(f)
+    alarm = {k: Learned.FIELDS[k] for k in ("alarm_threshold_", "alarm_skill_")}
+    check_fields(f, "", alarm)
     line = alarm_skill_line(f, 0.35, "0.5")
     assert "≥ 0.5" in line and "default 0.35" in line and "80%" in line and "0.42°" in line
     assert "\n" not in line
@@ -65,4 +66,4 @@ def test_a_forecasters_alarm_skill_is_checked_and_said_in_one_line():
             else:
                 setattr(g, k, v)
         with pytest.raises(IntegrityError):
-            check_alarm_skill(g)
+            check_fields(g, "", alarm)

@@ -230,8 +230,7 @@ MODEL_FILE_READING = (
         "Arrays", "_nodes", "QuantileTrees.FIELDS", "QuantileTrees.FILE_NAMES",
         "QuantileTrees.check_consistent", "ResidualTable.FIELDS", "ResidualTable.check_consistent",
         "NoveltyDetector.FIELDS", "NoveltyDetector.check_consistent")),
-    *(f"{_F}learned:{n}" for n in ("Learned.FIELDS", "Learned.check_consistent", "ALARM_SKILL",
-                                   "ALARM_FIELDS", "check_alarm_skill")),
+    *(f"{_F}learned:{n}" for n in ("Learned.FIELDS", "Learned.check_consistent", "ALARM_SKILL")),
     *(f"{_F}posterior:{n}" for n in (
         "_n_p", "ParameterPosterior._check_range", "ParameterPosterior.FIELDS",
         "ParameterPosterior.check_fitted", "ParameterPosterior.check_consistent")),
@@ -240,7 +239,7 @@ MODEL_FILE_READING = (
     _F + "inverse_rate:_InverseRate.FIELDS", _F + "base:Forecaster.check_fitted",
     _F + "evaluation:_leads", _F + "evaluation:ACCURACY_RANGES", _F + "evaluation:ACCURACY_FIELDS")
 #: the most non-blank lines MODEL_FILE_READING may hold; it may only fall
-MAX_MODEL_FILE_READING_LINES = 662
+MAX_MODEL_FILE_READING_LINES = 657
 
 
 def nonblank_lines(source: str) -> dict[str, int]:

@@ -247,6 +247,7 @@ def test_the_shipped_parts_load_as_written(tmp_path, shipped_parts):
     ("reference catalogue moved", ("reference catalogues", "not those")),
     ("reference catalogue dropped", ("reference catalogues", "not those")),
     ("reference catalogues' count dropped", ("no reference catalogues",)),
+    ("a number of two values", (f"{TREE}.baseline", "not (1,)")),
 ])
 def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shipped_parts, attack,
                                                                   words):
@@ -277,6 +278,8 @@ def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shippe
             del a["reference.catalogue.size"]
         elif attack == "reference catalogues' count dropped":
             del a["reference.catalogue.tilt_now"]
+        elif attack == "a number of two values":  # the first read, the second hidden
+            a[f"{TREE}.baseline"] = np.repeat(a[f"{TREE}.baseline"], 2)
         elif attack == "unread array of a tree":
             a[f"{TREE}.stray"] = np.zeros(3)
         else:

@@ -59,7 +59,7 @@ from .features import (Cuts, camera_feature_names, n_sliders_estimate, SHORTEST_
                        feature_matrix, training_cuts)
 from .measurement import MEASUREMENT_FEATURES, MEASUREMENT_RANGES, RECORD_FEATURES, degrade_cuts
 from .evaluators import QuantileTrees, ResidualTable
-from .integrity import Spec, check_fields, require
+from .integrity import Spec, require
 
 #: the levels at which a regressor is trained; the others are interpolated (in log remaining angle)
 TRAINED_LEVELS = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95])
@@ -109,6 +109,13 @@ RECORD_CATEGORIES = 2 * (TOLD_CLASSES.size + 2)
 CALIBRATION_SHARE = 0.25
 #: folds of the training rows whose out-of-fold residuals calibrate (when no validation set is given)
 CALIBRATION_FOLDS = 4
+
+
+#: what a learned forecaster's measured alarm holds (``alarm_skill_``, set by
+#: benchmarks/alarm_skill.py with its default threshold ``alarm_threshold_``): name -> range
+ALARM_SKILL = {"hit_share": (0.0, 1.0), "false_alarm_share": (0.0, 1.0),
+               "warning_median_deg": (0.0, 90.0), "warning_p10_deg": (0.0, 90.0),
+               "within_deg": (0.0, 90.0), "piles": (1, 10 ** 9)}
 
 
 def event_rate_fits() -> list:
@@ -542,14 +549,17 @@ class Learned(Forecaster):
               "calibration_counts_": Spec("iu", lo=0, min_size=1),
               "percentiles_": Spec("f", lo=0.0, hi=100.0, min_size=3, increasing="strictly"),
               # the residuals were normalised before crepes saw them (kept to RESIDUAL_STEP)
-              "calibration_": Spec("part", of=ResidualTable)}
+              "calibration_": Spec("part", of=ResidualTable),
+              "alarm_threshold_": Spec("number", lo=0.05, hi=0.95, optional=True),
+              "alarm_skill_": Spec("dict", optional=True, of={
+                  k: Spec("number", lo=lo, hi=hi) for k, (lo, hi) in ALARM_SKILL.items()})}
 
     def check_consistent(self) -> None:
         """What the declarations cannot say: the feature columns those of ``design``, the names
         those of the columns kept, each regressor of its level reading them, the tilt edges
         nested in ``RECORD_CATEGORIES`` kinds of record when calibrated by record, each nested
         edges one row per cell of those outside (``_cells``), the counts, percentiles and
-        residual bins the calibration's, and the alarm (``check_alarm_skill``)."""
+        residual bins the calibration's, and the alarm's threshold and skill both held or neither."""
         names = self.design(_probe_cuts())[1]
         kept = [n for n, k in zip(names, self.columns_) if k]
         require(self.columns_.size == len(names) and self.feature_names_ == kept,
@@ -574,7 +584,9 @@ class Learned(Forecaster):
                 "the percentiles read are not the calibration's")
         require(cps.bins[-1] < counts.size and (cps.counts() == counts[cps.bins]).all(),
                 "a calibration bin holds another number of residuals than counted")
-        check_alarm_skill(self)
+        require((getattr(self, "alarm_threshold_", None) is None)
+                == (getattr(self, "alarm_skill_", None) is None),
+                "the alarm's threshold and its skill are not both held")
 
     def _quantiles(self, cuts):
         x, _ = self.design(cuts)
@@ -606,28 +618,6 @@ class Learned(Forecaster):
             q[out] = np.where(half[None, :], lower, upper)
             levels[out] = LEVELS  # no distribution of its own: read at the nominal levels
         return q, out, levels
-
-
-#: what a learned forecaster's measured alarm holds (``alarm_skill_``, set by
-#: benchmarks/alarm_skill.py with its default threshold ``alarm_threshold_``): name -> range
-ALARM_SKILL = {"hit_share": (0.0, 1.0), "false_alarm_share": (0.0, 1.0),
-               "warning_median_deg": (0.0, 90.0), "warning_p10_deg": (0.0, 90.0),
-               "within_deg": (0.0, 90.0), "piles": (1, 10 ** 9)}
-
-
-#: the alarm's default threshold and its measured skill (``ALARM_SKILL``), if held
-ALARM_FIELDS = {"alarm_threshold_": Spec("number", lo=0.05, hi=0.95, optional=True),
-                "alarm_skill_": Spec("dict", optional=True, of={
-                    k: Spec("number", lo=lo, hi=hi) for k, (lo, hi) in ALARM_SKILL.items()})}
-
-
-def check_alarm_skill(forecaster, where: str = "") -> None:
-    """The alarm's default threshold and its measured skill, both or neither
-    (``ALARM_FIELDS``)."""
-    check_fields(forecaster, where, ALARM_FIELDS)
-    require((getattr(forecaster, "alarm_threshold_", None) is None)
-            == (getattr(forecaster, "alarm_skill_", None) is None),
-            "the alarm's threshold and its skill are not both held")
 
 
 def _outside(feature: str, value: float, lo: float, hi: float) -> str:
