@@ -219,6 +219,18 @@ def refused(path, *words):
 
 
 TREE = "learned_blind.models_.3"
+CAL = "learned_blind.calibration_"
+DETECTOR = "learned_blind.domain_.detectors_.0"
+
+
+def _rename(node, old, new):
+    """Every array name in a header's ``node`` that starts with ``old``, made to start with
+    ``new`` (a part moved to another place of its estimator)."""
+    for k, v in (node.items() if isinstance(node, dict) else enumerate(node)):
+        if isinstance(v, str) and v.startswith(old):
+            node[k] = new + v[len(old):]
+        elif isinstance(v, (dict, list)):
+            _rename(v, old, new)
 
 
 def split_of(arrays):
@@ -248,6 +260,12 @@ def test_the_shipped_parts_load_as_written(tmp_path, shipped_parts):
     ("reference catalogue dropped", ("reference catalogues", "not those")),
     ("reference catalogues' count dropped", ("no reference catalogues",)),
     ("a number of two values", (f"{TREE}.baseline", "not (1,)")),
+    ("trees not from node 0", (TREE, "tree starts are not")),
+    ("a tree of no node", (TREE, "tree starts are not")),
+    ("residuals not from 0", (f"{CAL}", "do not start at 0")),
+    ("residuals unsorted", (f"{CAL}", "not sorted")),
+    ("detector of no feature", (f"{DETECTOR}", "training points of shape")),
+    ("a part of another class", ("learned_blind.climatology_", "not a Climatology")),
 ])
 def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shipped_parts, attack,
                                                                   words):
@@ -280,12 +298,42 @@ def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shippe
             del a["reference.catalogue.tilt_now"]
         elif attack == "a number of two values":  # the first read, the second hidden
             a[f"{TREE}.baseline"] = np.repeat(a[f"{TREE}.baseline"], 2)
+        elif attack == "trees not from node 0":
+            a[f"{TREE}.tree_start"][0] = 1  # node 0 in no tree
+        elif attack == "a tree of no node":
+            a[f"{TREE}.tree_start"][1] = a[f"{TREE}.tree_start"][0]
+        elif attack == "residuals not from 0":  # the first, one no bin reads
+            a[f"{CAL}.start"] = a[f"{CAL}.start"] + 1
+            a[f"{CAL}.residuals"] = np.r_[0.0, a[f"{CAL}.residuals"]]
+        elif attack == "residuals unsorted":
+            r, (i, j) = a[f"{CAL}.residuals"], a[f"{CAL}.start"][:2]
+            r[i:j] = r[i:j][::-1].copy()
+        elif attack == "detector of no feature":
+            for k in ("points", "medians", "mean", "scale"):
+                a[f"{DETECTOR}.{k}"] = a[f"{DETECTOR}.{k}"][..., :0].copy()
+        elif attack == "a part of another class":  # a domain check where a climatology is read
+            state = header["content"]["learned_blind"]["state"]
+            state["climatology_"] = state.pop("domain_")
+            for k in [k for k in a if k.startswith("learned_blind.climatology_.")]:
+                del a[k]
+            for k in [k for k in a if k.startswith("learned_blind.domain_.")]:
+                a[k.replace("domain_", "climatology_", 1)] = a.pop(k)
+            _rename(state["climatology_"], "learned_blind.domain_.", "learned_blind.climatology_.")
         elif attack == "unread array of a tree":
             a[f"{TREE}.stray"] = np.zeros(3)
         else:
             a["stray"] = np.zeros(3)
 
     refused(crafted(tmp_path, shipped_parts, change), *words)
+
+
+def test_every_class_a_model_file_holds_declares_its_parts():
+    """A class a model file may name (``arrays.classes``), and each evaluator, declares its
+    fitted parts for ``integrity.check_fields``: none is built unchecked."""
+    from sliders.analysis.forecast.arrays import EVALUATORS, classes
+
+    for cls in (*classes().values(), *EVALUATORS.values()):
+        assert isinstance(cls.FIELDS, dict) and cls.FIELDS, cls.__name__
 
 
 def test_a_model_file_is_read_before_a_member_is_trusted(tmp_path, shipped_parts):

@@ -66,7 +66,7 @@ class Arrays:
 
 def _nodes(trees) -> tuple:
     """(nodes,): the shape of each of the trees' node arrays."""
-    return (trees.tree_start[-1],)
+    return (int(trees.tree_start[-1]),)
 
 
 class QuantileTrees(Arrays):

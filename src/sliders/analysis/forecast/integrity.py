@@ -66,9 +66,7 @@ class Spec:
 def check_fields(obj, where: str = "", fields: dict | None = None) -> None:
     """Every part of ``obj`` its class declares (``FIELDS``), then its ``check_consistent``;
     or the parts ``fields`` declares."""
-    own, fields = fields is None, getattr(type(obj), "FIELDS", None) if fields is None else fields
-    require(fields is not None, f"{where or 'it'}: a {type(obj).__name__} is not a part a "
-                                "model file holds")
+    own, fields = fields is None, type(obj).FIELDS if fields is None else fields
     for name, spec in fields.items():
         if spec.when is None or spec.when(obj):
             value = getattr(obj, name, None) if spec.optional else getattr(obj, name)
