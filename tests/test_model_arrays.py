@@ -266,6 +266,8 @@ def test_the_shipped_parts_load_as_written(tmp_path, shipped_parts):
     ("residuals unsorted", (f"{CAL}", "not sorted")),
     ("detector of no feature", (f"{DETECTOR}", "training points of shape")),
     ("a part of another class", ("learned_blind.climatology_", "not a Climatology")),
+    ("a climatology of three avalanches", ("learned_blind.climatology_.alpha_c_",
+                                           "holds 3 values, fewer than")),
 ])
 def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shipped_parts, attack,
                                                                   words):
@@ -319,6 +321,8 @@ def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shippe
             for k in [k for k in a if k.startswith("learned_blind.domain_.")]:
                 a[k.replace("domain_", "climatology_", 1)] = a.pop(k)
             _rename(state["climatology_"], "learned_blind.domain_.", "learned_blind.climatology_.")
+        elif attack == "a climatology of three avalanches":
+            a["learned_blind.climatology_.alpha_c_"] = a["learned_blind.climatology_.alpha_c_"][:3]
         elif attack == "unread array of a tree":
             a[f"{TREE}.stray"] = np.zeros(3)
         else:
@@ -422,6 +426,8 @@ def test_a_header_of_more_than_16_mb_is_refused_before_it_is_parsed(tmp_path):
     ({"format": "sliders-model-arrays-1", "arrays": {"../a": {"dtype": "<f8", "shape": [2]}},
       "content": {}}, "not a name of an array"),
     ({"format": "sliders-model-arrays-1", "arrays": {}, "content": {}}, "no provenance"),
+    ({"format": "sliders-model-arrays-1", "arrays": {"a": {"dtype": "<f8", "shape": [2]}},
+      "content": {}}, "array 'a' is missing"),
     ({"format": "sliders-model-arrays-1", "arrays": {}, "provenance": {},
       "content": {"learned_blind": {"object": "Learned", "state": {"__class__": 1}}}},
      "neither a parameter nor a fitted part"),
