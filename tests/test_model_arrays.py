@@ -21,6 +21,7 @@ import json
 import pathlib
 import subprocess
 import sys
+import warnings
 import zipfile
 
 import numpy as np
@@ -268,6 +269,12 @@ def test_the_shipped_parts_load_as_written(tmp_path, shipped_parts):
     ("a part of another class", ("learned_blind.climatology_", "not a Climatology")),
     ("a climatology of three avalanches", ("learned_blind.climatology_.alpha_c_",
                                            "holds 3 values, fewer than")),
+    ("columns not the design's", ("learned_blind", "feature columns or names")),
+    ("a regressor of another level", ("learned_blind", "the regressor of level 0.5")),
+    ("tilt edges of a kind of record short", ("learned_blind", "not nested in 8 kinds")),
+    ("nested edges short", ("learned_blind", "nested edges do not match")),
+    ("counts of more bins than cells", ("learned_blind", "counts of another number of bins")),
+    ("percentiles not the calibration's", ("learned_blind", "percentiles read are not")),
 ])
 def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shipped_parts, attack,
                                                                   words):
@@ -323,12 +330,42 @@ def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, shippe
             _rename(state["climatology_"], "learned_blind.domain_.", "learned_blind.climatology_.")
         elif attack == "a climatology of three avalanches":
             a["learned_blind.climatology_.alpha_c_"] = a["learned_blind.climatology_.alpha_c_"][:3]
+        elif attack == "columns not the design's":
+            a["learned_blind.columns_"][0] = ~a["learned_blind.columns_"][0]
+        elif attack == "a regressor of another level":
+            a["learned_blind.models_.3.quantile"] = np.array([0.55])
+        elif attack == "tilt edges of a kind of record short":
+            a["learned_blind.calibration_edges_"] = a["learned_blind.calibration_edges_"][:-1]
+        elif attack == "nested edges short":
+            a["learned_blind.calibration_event_edges_"] = \
+                a["learned_blind.calibration_event_edges_"][:-1]
+        elif attack == "counts of more bins than cells":
+            a["learned_blind.calibration_counts_"] = np.r_[a["learned_blind.calibration_counts_"],
+                                                           np.zeros(1000, dtype=np.int64)]
+        elif attack == "percentiles not the calibration's":
+            a["learned_blind.percentiles_"] = a["learned_blind.percentiles_"] + 0.25
         elif attack == "unread array of a tree":
             a[f"{TREE}.stray"] = np.zeros(3)
         else:
             a["stray"] = np.zeros(3)
 
     refused(crafted(tmp_path, shipped_parts, change), *words)
+
+
+def test_members_of_one_name_or_inflating_past_the_bound_together_are_refused(tmp_path):
+    """Two members named alike (which of them a reader takes is the zip library's choice),
+    and five members of 60 MB of zeros, each within its bound and together past the file's."""
+    twice, wide = tmp_path / "twice.zip", tmp_path / "wide.zip"
+    with warnings.catch_warnings(), zipfile.ZipFile(twice, "w") as zf:
+        warnings.simplefilter("ignore")  # zipfile warns of the name it writes twice
+        zf.writestr("header.json", "{}")
+        zf.writestr("header.json", "{}")
+    refused(twice, "two members of one name")
+    with zipfile.ZipFile(wide, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for i in range(5):
+            zf.writestr(f"a{i}.npy", bytes(60 * 2**20))
+    assert wide.stat().st_size < 2**20
+    refused(wide, "members inflate to more than 256 MB")
 
 
 def test_every_class_a_model_file_holds_declares_its_parts():
