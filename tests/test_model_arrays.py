@@ -285,6 +285,7 @@ def test_the_shipped_parts_load_as_written(tmp_path, shipped_parts):
     ("nested edges short", ("learned_blind", "nested edges do not match")),
     ("counts of more bins than cells", ("learned_blind", "counts of another number of bins")),
     ("percentiles not the calibration's", ("learned_blind", "percentiles read are not")),
+    ("an alarm's skill without its threshold", ("learned_blind", "not both held")),
 ])
 def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, blind_parts, attack,
                                                                   words):
@@ -354,12 +355,25 @@ def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, blind_
                                                            np.zeros(1000, dtype=np.int64)]
         elif attack == "percentiles not the calibration's":
             a["learned_blind.percentiles_"] = a["learned_blind.percentiles_"] + 0.25
+        elif attack == "an alarm's skill without its threshold":
+            header["content"]["learned_blind"]["state"]["alarm_threshold_"] = None
         elif attack == "unread array of a tree":
             a[f"{TREE}.stray"] = np.zeros(3)
         else:
             a["stray"] = np.zeros(3)
 
     refused(crafted(tmp_path, blind_parts, change), *words)
+
+
+def test_a_file_of_more_members_than_the_bound_is_refused_before_one_is_read(tmp_path,
+                                                                            monkeypatch):
+    """The bound on members (a zip's directory may list millions), here lowered to 3."""
+    monkeypatch.setattr("sliders.io.model_arrays.MAX_MEMBERS", 3)
+    path = tmp_path / "many.zip"
+    with zipfile.ZipFile(path, "w") as zf:
+        for i in range(4):
+            zf.writestr(f"a{i}.npy", b"")
+    refused(path, "4 members; a model file holds at most 3")
 
 
 @pytest.mark.slow  # 300 MB through deflate
