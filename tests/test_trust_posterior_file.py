@@ -138,6 +138,14 @@ def _range(name, low, high):
     return change
 
 
+def _wider_regressor(p):
+    """One regressor reading a feature more than the posterior makes."""
+    tree = copy.copy(p.models_[0][0])
+    tree.n_features_in_ += 1
+    p.models_ = [list(row) for row in p.models_]
+    p.models_[0][0] = tree
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("change, words", [
     (lambda p: None, None),  # the shipped posterior's tables, written again: accepted
@@ -152,6 +160,9 @@ def _range(name, low, high):
     (lambda p: setattr(p, "mu_d_reference_", -0.5), "mu_d's reference"),
     (lambda p: setattr(p, "prior_", '{"parameters": {}, "scene": {"n_sliders": "many"}}'),
      "the stored prior"),
+    (_range("mu_d", 0.5, 0.1), "a prior range is reversed"),
+    (lambda p: setattr(p, "copula_", np.ones_like(p.copula_)), "copula is not a positive"),
+    (_wider_regressor, "a regressor reads another number of features"),
 ])
 def test_every_table_of_a_posterior_file_is_checked_on_load(posterior, tmp_path, capsys, change,
                                                             words):
