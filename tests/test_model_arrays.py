@@ -379,7 +379,8 @@ def test_a_file_of_more_members_than_the_bound_is_refused_before_one_is_read(tmp
 @pytest.mark.slow  # 300 MB through deflate
 def test_members_of_one_name_or_inflating_past_the_bound_together_are_refused(tmp_path):
     """Two members named alike (which of them a reader takes is the zip library's choice),
-    and five members of 60 MB of zeros, each within its bound and together past the file's."""
+    five members of 60 MB of zeros, each within its bound and together past the file's, and
+    one member past its own."""
     twice, wide = tmp_path / "twice.zip", tmp_path / "wide.zip"
     with warnings.catch_warnings(), zipfile.ZipFile(twice, "w") as zf:
         warnings.simplefilter("ignore")  # zipfile warns of the name it writes twice
@@ -391,6 +392,9 @@ def test_members_of_one_name_or_inflating_past_the_bound_together_are_refused(tm
             zf.writestr(f"a{i}.npy", bytes(60 * 2**20))
     assert wide.stat().st_size < 2**20
     refused(wide, "members inflate to more than 256 MB")
+    with zipfile.ZipFile(wide, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("a.npy", bytes(65 * 2**20))
+    refused(wide, "member 'a.npy' inflates to 65 MB; a member holds at most 64 MB")
 
 
 def test_every_class_a_model_file_holds_declares_its_parts():
@@ -490,6 +494,10 @@ def test_a_header_of_more_than_16_mb_is_refused_before_it_is_parsed(tmp_path):
     ({"format": "sliders-model-arrays-1", "arrays": {}, "content": {}}, "no provenance"),
     ({"format": "sliders-model-arrays-1", "arrays": {"a": {"dtype": "<f8", "shape": [2]}},
       "content": {}}, "array 'a' is missing"),
+    ({"format": "sliders-model-arrays-1", "arrays": {}, "provenance": {},
+      "content": {"learned blind": {}}}, "no table of estimators"),
+    ({"format": "sliders-model-arrays-1", "arrays": {}, "provenance": {}, "content": []},
+     "no table of estimators"),
     ({"format": "sliders-model-arrays-1", "arrays": {}, "provenance": {},
       "content": {"learned_blind": {"object": "Learned", "state": {"__class__": 1}}}},
      "neither a parameter nor a fitted part"),
