@@ -18,6 +18,7 @@ from __future__ import annotations
 import copy
 import io
 import json
+import os
 import pathlib
 import subprocess
 import sys
@@ -286,6 +287,8 @@ def test_the_shipped_parts_load_as_written(tmp_path, shipped_parts):
     ("counts of more bins than cells", ("learned_blind", "counts of another number of bins")),
     ("percentiles not the calibration's", ("learned_blind", "percentiles read are not")),
     ("an alarm's skill without its threshold", ("learned_blind", "not both held")),
+    ("a reference forecast of no estimator", ("reference forecast 'ghost.quantiles'",
+                                             "of no estimator")),
 ])
 def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, blind_parts, attack,
                                                                   words):
@@ -357,6 +360,8 @@ def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, blind_
             a["learned_blind.percentiles_"] = a["learned_blind.percentiles_"] + 0.25
         elif attack == "an alarm's skill without its threshold":
             header["content"]["learned_blind"]["state"]["alarm_threshold_"] = None
+        elif attack == "a reference forecast of no estimator":
+            a["reference.ghost.quantiles"] = a["reference.learned_blind.quantiles"]
         elif attack == "unread array of a tree":
             a[f"{TREE}.stray"] = np.zeros(3)
         else:
@@ -395,6 +400,17 @@ def test_members_of_one_name_or_inflating_past_the_bound_together_are_refused(tm
     with zipfile.ZipFile(wide, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("a.npy", bytes(65 * 2**20))
     refused(wide, "member 'a.npy' inflates to 65 MB; a member holds at most 64 MB")
+
+
+def test_a_file_that_grows_while_it_is_read_is_refused(tmp_path, monkeypatch):
+    """Its status said 1 kB; 65 MB came: refused once read, not parsed."""
+    path = tmp_path / "growing.zip"
+    with open(path, "wb") as fh:
+        fh.truncate(65 * 2**20)
+    real = os.fstat
+    monkeypatch.setattr("sliders.io.forecast_model.os.fstat",
+                        lambda fd: os.stat_result((*real(fd)[:6], 1024, *real(fd)[7:])))
+    refused(path, "more than 64 MB")
 
 
 def test_every_class_a_model_file_holds_declares_its_parts():

@@ -149,7 +149,8 @@ def test_a_model_file_above_the_size_bound_is_refused(catalogue_csv, tmp_path):
     path = tmp_path / "big.zip"
     with open(path, "wb") as fh:
         fh.truncate(65 * 2**20)  # sparse: no disk used
-    assert_refused(*run_predict([catalogue_csv, "--model", path]), path, "MB")
+    assert_refused(*run_predict([catalogue_csv, "--model", path]), path,
+                   "65 MB; a model file holds at most 64 MB")
 
 
 def test_a_member_that_lies_about_its_array_is_refused(reduced, tmp_path):
