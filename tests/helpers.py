@@ -530,3 +530,29 @@ def model_outputs(forecasters, posterior, cases, blind) -> dict:
         out[f"{kind}.posterior.quantiles"] = posterior.quantiles(cuts)
         out[f"{kind}.posterior.inside"] = posterior.domain(cuts)[0]
     return out
+
+
+# -- the code that reads and checks a model file ---------------------------------------
+_F = "sliders.analysis.forecast."
+#: the source that reads a model file and checks it (its form, the header's schema, every
+#: fitted part, the expected-accuracy tables, the reference forecasts): "module" for all of a
+#: module, "module:Qualified.name" for a function, a class or an assignment (a class's FIELDS)
+MODEL_FILE_READING = (
+    *(f"sliders.io.model_arrays:{n}" for n in ("read_model_arrays", "ModelArchive", "_member")),
+    *(f"sliders.io.forecast_model:{n}" for n in (
+        "read_model_bytes", "check_digest", "printable_tree")),
+    _F + "model_file:load_forecasters", _F + "model_file:ModelForecasters", _F + "integrity",
+    *(f"{_F}arrays:{n}" for n in ("_decode", "check_references",
+                                  "estimator_of", "references_of")),
+    *(f"{_F}evaluators:{n}" for n in (
+        "Arrays", "_nodes", "QuantileTrees.FIELDS", "QuantileTrees.FILE_NAMES",
+        "QuantileTrees.check_consistent", "ResidualTable.FIELDS", "ResidualTable.check_consistent",
+        "NoveltyDetector.FIELDS", "NoveltyDetector.check_consistent")),
+    *(f"{_F}learned:{n}" for n in ("Learned.FIELDS", "Learned.check_consistent", "ALARM_SKILL")),
+    *(f"{_F}posterior:{n}" for n in (
+        "_n_p", "ParameterPosterior._check_range", "ParameterPosterior.FIELDS",
+        "ParameterPosterior.check_fitted", "ParameterPosterior.check_consistent")),
+    _F + "domain:DomainCheck.FIELDS", _F + "domain:DomainCheck.check_consistent",
+    _F + "baselines:Climatology.FIELDS", _F + "physics:ModelBased.FIELDS",
+    _F + "inverse_rate:_InverseRate.FIELDS", _F + "base:Forecaster.check_fitted",
+    _F + "evaluation:_leads", _F + "evaluation:ACCURACY_RANGES", _F + "evaluation:ACCURACY_FIELDS")

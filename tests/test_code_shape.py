@@ -10,11 +10,16 @@ a nested function counts inside the function that holds it (and once more on its
 from __future__ import annotations
 
 import ast
+import importlib.util
 import io
 import pathlib
 import tokenize
 
+import pytest
+
 import sliders
+
+from helpers import MODEL_FILE_READING
 
 PACKAGE = pathlib.Path(sliders.__file__).parent
 MAX_CODE_LINES = 80
@@ -215,29 +220,6 @@ def test_the_import_count_sees_relative_and_nested_imports():
 # ---------------------------------------------------------------------------
 # the reading and checking of a model file
 # ---------------------------------------------------------------------------
-_F = "sliders.analysis.forecast."
-#: the source that reads a model file and checks it (its form, the header's schema, every
-#: fitted part, the expected-accuracy tables, the reference forecasts): "module" for all of a
-#: module, "module:Qualified.name" for a function, a class or an assignment (a class's FIELDS)
-MODEL_FILE_READING = (
-    *(f"sliders.io.model_arrays:{n}" for n in ("read_model_arrays", "ModelArchive", "_member")),
-    *(f"sliders.io.forecast_model:{n}" for n in (
-        "read_model_bytes", "check_digest", "printable_tree")),
-    _F + "model_file:load_forecasters", _F + "model_file:ModelForecasters", _F + "integrity",
-    *(f"{_F}arrays:{n}" for n in ("_decode", "check_references",
-                                  "estimator_of", "references_of")),
-    *(f"{_F}evaluators:{n}" for n in (
-        "Arrays", "_nodes", "QuantileTrees.FIELDS", "QuantileTrees.FILE_NAMES",
-        "QuantileTrees.check_consistent", "ResidualTable.FIELDS", "ResidualTable.check_consistent",
-        "NoveltyDetector.FIELDS", "NoveltyDetector.check_consistent")),
-    *(f"{_F}learned:{n}" for n in ("Learned.FIELDS", "Learned.check_consistent", "ALARM_SKILL")),
-    *(f"{_F}posterior:{n}" for n in (
-        "_n_p", "ParameterPosterior._check_range", "ParameterPosterior.FIELDS",
-        "ParameterPosterior.check_fitted", "ParameterPosterior.check_consistent")),
-    _F + "domain:DomainCheck.FIELDS", _F + "domain:DomainCheck.check_consistent",
-    _F + "baselines:Climatology.FIELDS", _F + "physics:ModelBased.FIELDS",
-    _F + "inverse_rate:_InverseRate.FIELDS", _F + "base:Forecaster.check_fitted",
-    _F + "evaluation:_leads", _F + "evaluation:ACCURACY_RANGES", _F + "evaluation:ACCURACY_FIELDS")
 #: the most non-blank lines MODEL_FILE_READING may hold; it may only fall
 MAX_MODEL_FILE_READING_LINES = 655
 
@@ -285,3 +267,22 @@ def test_the_reading_and_checking_of_a_model_file_does_not_grow():
     assert total <= MAX_MODEL_FILE_READING_LINES, (
         f"{total} lines read and check a model file: " + ", ".join(
             f"{e} ({n})" for e, n in sorted(counts.items(), key=lambda kv: -kv[1])[:8]))
+
+
+@pytest.mark.slow  # 130 sources compiled
+def test_each_check_of_the_model_file_reader_is_disabled_alone_by_the_mutation_script():
+    """``scripts/model_file_mutants.py`` finds checks of every kind in the counted code, and
+    each of its mutants is Python that differs from its source by one check disabled."""
+    spec = importlib.util.spec_from_file_location(
+        "model_file_mutants", PACKAGE.parents[1] / "scripts" / "model_file_mutants.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    rows = script.mutants()
+    assert {r["kind"] for r in rows} == set("abcde") and len(rows) > 100
+    assert len({r["id"] for r in rows}) == len(rows)
+    for r in rows:
+        original = r["path"].read_bytes()
+        compile(r["source"], str(r["path"]), "exec")
+        assert r["source"] != original and len(r["source"]) - len(original) < 120, r["check"]
+    requires = [r for r in rows if r["kind"] == "a"]
+    assert all(b"require(True" in r["source"] for r in requires)
