@@ -5,9 +5,9 @@ a model file (``tests/helpers.MODEL_FILE_READING``): each ``require(ok, ...)`` (
 each tree check ``none(bad, ...)`` (bad -> nothing bad), each ``(bad, what)`` of
 ``ModelArchive.refuse_if`` (bad -> False), each ``if`` whose body raises ``ModelFileError``
 or ``IntegrityError`` (never taken), and each declared part of an estimator (a key of its
-``FIELDS``, dropped; the evaluators' declarations also build them, and are left).  One mutant at a time is written into
-the source, the model-file tests run until their first failure, and the source is restored.  A
-mutant they pass ("survived") is a check no test asks for.
+``FIELDS``, dropped; the evaluators' declarations also build them, and are left).  One mutant
+at a time is written into the source, the model-file tests run until their first failure, and
+the source is restored.  A mutant they pass ("survived") is a check no test asks for.
 
 It rewrites the sources it tests: run it in a scratch clone with its own environment::
 
@@ -170,7 +170,8 @@ def main(argv=None) -> int:
     else:
         args.out.write_text("\t".join(COLUMNS) + "\n", encoding="utf-8")
     for r in rows:
-        if r["id"] in done or r["kind"] not in args.kinds or (args.only and r["id"] not in args.only):
+        chosen = r["kind"] in args.kinds and (not args.only or r["id"] in args.only)
+        if r["id"] in done or not chosen:
             continue
         result, seconds, first = run(r)
         cells = (r["id"], r["kind"], f"{r['path'].relative_to(ROOT)}:{r['line']}", r["check"],
