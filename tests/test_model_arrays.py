@@ -289,6 +289,8 @@ def test_the_shipped_parts_load_as_written(tmp_path, shipped_parts):
     ("an alarm's skill without its threshold", ("learned_blind", "not both held")),
     ("a reference forecast of no estimator", ("reference forecast 'ghost.quantiles'",
                                              "of no estimator")),
+    ("a climatology of two dimensions", ("learned_blind.climatology_.alpha_c_",
+                                         "has 2 dimensions, not 1")),
 ])
 def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, blind_parts, attack,
                                                                   words):
@@ -362,6 +364,9 @@ def test_a_crafted_file_is_refused_in_one_line_naming_the_array(tmp_path, blind_
             header["content"]["learned_blind"]["state"]["alarm_threshold_"] = None
         elif attack == "a reference forecast of no estimator":
             a["reference.ghost.quantiles"] = a["reference.learned_blind.quantiles"]
+        elif attack == "a climatology of two dimensions":
+            alpha = a["learned_blind.climatology_.alpha_c_"]
+            a["learned_blind.climatology_.alpha_c_"] = alpha[:, None]
         elif attack == "unread array of a tree":
             a[f"{TREE}.stray"] = np.zeros(3)
         else:
