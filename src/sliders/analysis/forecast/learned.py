@@ -559,7 +559,7 @@ class Learned(Forecaster):
         those of the columns kept, each regressor of its level reading them, the tilt edges
         nested in ``RECORD_CATEGORIES`` kinds of record when calibrated by record, each nested
         edges one row per cell of those outside (``_cells``), the counts, percentiles and
-        residual bins the calibration's, and the alarm's threshold and skill both held or neither."""
+        residual bins the calibration's, the alarm's threshold and skill both held or neither."""
         names = self.design(_probe_cuts())[1]
         kept = [n for n, k in zip(names, self.columns_) if k]
         require(self.columns_.size == len(names) and self.feature_names_ == kept,
