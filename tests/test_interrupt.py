@@ -127,22 +127,28 @@ def test_a_resolvable_refine_tol_is_unaffected_by_the_bound():
     assert run.status == "avalanche"
 
 
-def test_ctrl_c_as_the_run_ends_is_not_swallowed(monkeypatch):
-    """Ctrl-C that lands while the kernel returns its avalanche: the finished run
-    is kept (attached to the exception), and the interrupt still reaches the caller."""
+def ctrl_c_as_the_kernel_returns(monkeypatch, code: int) -> None:
+    """Every kernel call that ends with status ``code`` sends this process a SIGINT
+    before it returns, and waits while the main thread handles it."""
     from sliders import _kernel
 
     real = _kernel.tilt_advance
-    whole = sliders.tilt(Scene(n_sliders=10, seed=0, mode="explore"))
 
-    def ends_then_ctrl_c(*args):
+    def returns_then_ctrl_c(*args):
         out = real(*args)
-        if out[3] == status.AVALANCHE:  # the call that ends the run
+        if out[3] == code:
             os.kill(os.getpid(), signal.SIGINT)
             time.sleep(1.0)  # the main thread handles it while it waits for us
         return out
 
-    monkeypatch.setattr(_kernel, "tilt_advance", ends_then_ctrl_c)
+    monkeypatch.setattr(_kernel, "tilt_advance", returns_then_ctrl_c)
+
+
+def test_ctrl_c_as_the_run_ends_is_not_swallowed(monkeypatch):
+    """Ctrl-C that lands while the kernel returns its avalanche: the finished run
+    is kept (attached to the exception), and the interrupt still reaches the caller."""
+    whole = sliders.tilt(Scene(n_sliders=10, seed=0, mode="explore"))
+    ctrl_c_as_the_kernel_returns(monkeypatch, status.AVALANCHE)
     with pytest.raises(sliders.Interrupted) as caught:
         sliders.tilt(Scene(n_sliders=10, seed=0, mode="explore"))
     partial = caught.value.partial
@@ -155,6 +161,62 @@ def test_ctrl_c_as_the_run_ends_is_not_swallowed(monkeypatch):
     else:
         assert partial.n_events <= whole.n_events
         np.testing.assert_array_equal(partial.alpha, whole.alpha[:partial.n_events])
+
+
+def test_ctrl_c_as_the_relaxation_ends_stops_the_run(monkeypatch):
+    """Ctrl-C that lands while the kernel returns the relaxation at alpha = 0: the run
+    stops there (as the reference does), rather than tilting on to its end with the
+    interrupt forgotten (a loop of short runs once carried on past a SIGTERM)."""
+    ctrl_c_as_the_kernel_returns(monkeypatch, status.RELAXED)
+    with pytest.raises(sliders.Interrupted) as caught:
+        sliders.tilt(Scene(n_sliders=10, seed=0, mode="explore"))
+    assert caught.value.partial.status == "interrupted"
+    assert caught.value.partial.n_events == 0
+
+
+def test_ctrl_c_as_a_historys_avalanche_comes_ends_the_history_as_interrupted(monkeypatch):
+    """The history preparation's tilt, Ctrl-C landing as its avalanche is returned: the
+    preparation stops saying it was interrupted instead of tilting back a full history."""
+    from sliders.preparation import last_stable_state
+
+    ctrl_c_as_the_kernel_returns(monkeypatch, status.AVALANCHE)
+    with pytest.raises(RuntimeError, match="history preparation: the tilt ended with status "
+                                           "'interrupted'"):
+        last_stable_state(Scene(n_sliders=10, seed=0, mode="explore"))
+
+
+def test_ctrl_c_after_the_kernel_returned_keeps_its_events(monkeypatch):
+    """A Ctrl-C handled in the Python that turns the kernel's outputs into a chunk:
+    the kernel's events are in the state already, so the chunk is built to the end
+    and answers INTERRUPTED with them, and the state is the uninterrupted run's
+    after as many events (a chunk lost there left a state ahead of its events)."""
+    from sliders.engine import fortran_engine
+
+    scene = Scene(n_sliders=50, seed=2, record="displacements")
+    real, calls = fortran_engine._message, []
+
+    def ctrl_c_once(*args):
+        calls.append(args)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        return real(*args)
+
+    engine, state = relaxed(scene, "fortran")
+    monkeypatch.setattr(fortran_engine, "_message", ctrl_c_once)
+    try:
+        chunk = engine.advance(state, max_events=7)
+    except KeyboardInterrupt:
+        pytest.fail("the Ctrl-C left the engine: the kernel's chunk was lost")
+    monkeypatch.undo()
+    assert chunk.status == status.INTERRUPTED and chunk.n_events == 7
+    again, expected = relaxed(scene, "fortran")
+    whole = again.advance(expected, max_events=7)
+    assert state.drive == expected.drive
+    for name in ("displacement", "mu_s", "n_stops"):
+        np.testing.assert_array_equal(getattr(state, name), getattr(expected, name), name)
+    for field in chunk.events:
+        np.testing.assert_array_equal(chunk.events[field], whole.events[field], field)
+    np.testing.assert_array_equal(chunk.sparse_displacement, whole.sparse_displacement)
 
 
 def test_ctrl_c_inside_the_kernel_threads_start_waits_for_the_kernel(monkeypatch):

@@ -386,6 +386,23 @@ def test_interrupt_in_python_raises_with_the_partial_result():
     assert kept.status == "interrupted" and kept.n_events == partial.n_events
 
 
+def test_interrupt_in_python_as_the_run_ends_keeps_the_whole_run():
+    """Ctrl-C in the progress report of the chunk that ended the run: the run is
+    kept whole (avalanche, its angle, every event) and the interrupt still raised."""
+    scene = sliders.Scene(n_sliders=20, seed=3, mode="explore")
+    full = sliders.tilt(scene)
+
+    def ctrl_c_at_the_end(progress):
+        if progress.n_events == full.n_events:
+            raise KeyboardInterrupt
+
+    with pytest.raises(sliders.Interrupted) as exc:
+        sliders.tilt(scene, progress=ctrl_c_at_the_end)
+    partial = exc.value.partial
+    assert partial.status == full.status == "avalanche" and partial.alpha_c == full.alpha_c
+    np.testing.assert_array_equal(partial.alpha, full.alpha)
+
+
 # ---------------------------------------------------------------------------
 # damaged files: flipped bytes and truncations, loaded in a subprocess (a crash fails)
 # ---------------------------------------------------------------------------

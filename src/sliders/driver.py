@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 
@@ -120,92 +120,104 @@ def run(
     """
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be a sliders.Scene, not {type(scene).__name__}")
-    check_memory(scene)
-    started = time.perf_counter()
-    engine, stopped = _to_the_end(lambda: make_engine(scene, backend))
-    given = state
-    state, stopped_preparing = _to_the_end(lambda: prepare(scene) if given is None else given.copy())
-
-    relaxation = {"n_events": 0, "n_moved": 0, "slider_steps": 0}
-    # Relax at alpha = 0 first: with xi > 0 the coupling may destabilise sliders.
-    interrupted = Chunk(status.INTERRUPTED, {}, np.zeros(1, np.int64), np.zeros(0, np.int64),
-                        np.zeros(0), message=INTERRUPTED_MESSAGE)
-    if stopped or stopped_preparing:
-        relax = interrupted
-    else:
-        try:
-            relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
-        except KeyboardInterrupt:
-            relax = interrupted
-    if relax.status != status.RELAXED:
-        result = _finish(scene, backend, relax.status, relax.message, math.nan, [], state, state,
-                         relaxation, started, relax.final_event)
-        return _interrupt_or_return(result, keep_partial)
-    relaxation = {
-        "n_events": relax.n_events,
-        "n_moved": int(np.count_nonzero(state.displacement)),
-        "slider_steps": int(relax.events["slider_steps"].sum()),
-    }
-    initial = state.copy()
-
-    chunks: list[Chunk] = []
-    final_event: dict = {}
-    n_events = 0
-    slider_steps = 0
-    budget = chunk_events(scene, backend)
-    while True:
-        remaining = scene.max_events - n_events
-        if remaining <= 0:
-            code, message, alpha_c = status.MAX_EVENTS, "", math.nan
-            break
-        try:
-            chunk = engine.advance(state, max_events=min(budget, remaining))
-        except KeyboardInterrupt:
-            # An engine that lets Ctrl-C through loses the chunk in flight (its
-            # events were not returned); the completed events are what counts.
-            code, message, alpha_c = status.INTERRUPTED, INTERRUPTED_MESSAGE, math.nan
-            break
-        chunks.append(chunk)
-        n_events += chunk.n_events
-        slider_steps += int(chunk.events["slider_steps"].sum())
-        if progress is not None:
-            try:
-                progress(Progress(state.drive, n_events, time.perf_counter() - started,
-                                  slider_steps))
-            except KeyboardInterrupt:
-                code, message, alpha_c = status.INTERRUPTED, INTERRUPTED_MESSAGE, math.nan
-                break
-        if chunk.status not in (status.RUNNING, status.SPARSE_FULL):
-            code, message, alpha_c = chunk.status, chunk.message, chunk.alpha_c
-            final_event = chunk.final_event
-            break
-    result, stopped = _to_the_end(lambda: _finish(scene, backend, code, message, alpha_c, chunks,
-                                                  initial, state, relaxation, started,
-                                                  final_event))
-    if (stopped or getattr(engine, "interrupted_late", False)) and not keep_partial:
-        raise Interrupted(result)  # Ctrl-C as the run ended: the whole run, never swallowed
-    return _interrupt_or_return(result, keep_partial)
-
-
-def _to_the_end(work: Callable[[], Any]) -> tuple[Any, bool]:
-    """(work(), whether Ctrl-C landed in it).  For the milliseconds of Python
-    around the engine (building it, drawing the chain, assembling the result):
-    a Ctrl-C there lets ``work`` run again to the end (it has no side
-    effects), and the caller then stops as if the engine had been
-    interrupted, so that run always answers Ctrl-C with ``Interrupted``."""
+    loop = None
     try:
-        return work(), False
+        loop = RunLoop(scene, backend, state, progress)
+        loop.proceed()
+        result = loop.result()
     except KeyboardInterrupt:
-        return work(), True
-
-
-def _interrupt_or_return(result: Result, keep_partial: bool) -> Result:
-    if result.status == status.NAMES[status.INTERRUPTED]:
-        if not result.message:
-            result.message = INTERRUPTED_MESSAGE
-        if not keep_partial:
-            raise Interrupted(result)
+        # Ctrl-C in the Python around the engine (inside a call the engine answers
+        # it): the run stops where it is and is described whole, its chain drawn
+        # to the end if the interrupt came while it was drawn
+        loop = loop or RunLoop(scene, backend, state, progress)
+        loop.stop()
+        result = loop.result()
+    if loop.interrupted and not keep_partial:
+        raise Interrupted(result)  # never swallowed: a loop over runs must stop too
     return result
+
+
+_CONTINUING = (status.RUNNING, status.SPARSE_FULL)
+
+
+class RunLoop:
+    """One run's loop: build the engine, prepare and relax the chain, then drive
+    the loading chunk by chunk until a chunk ends the run.  The loop owns its
+    stop conditions (the run's end, ``max_events``, a Ctrl-C), and at any
+    moment ``result`` describes the run so far, so that a Ctrl-C between two
+    of its statements loses nothing.  Building one does no work.
+    """
+
+    def __init__(self, scene: Scene, backend: str, given: ChainState | None,
+                 progress: Callable[[Progress], None] | None):
+        self.scene, self.backend, self.given, self.progress = scene, backend, given, progress
+        self.started = time.perf_counter()
+        self.state: ChainState | None = None  # the chain as the engine leaves it
+        self.initial: ChainState | None = None  # the relaxed chain the drive starts from
+        self.relaxation = {"n_events": 0, "n_moved": 0, "slider_steps": 0}
+        self.chunks: list[Chunk] = []  # the drive's engine calls, the last one ending the run
+        self.end: tuple | None = None  # (status, message, alpha_c, final_event) once it ended
+        self.interrupted = False  # a Ctrl-C reached the run (its result may still be whole)
+
+    def proceed(self) -> None:
+        """Run to the end: relax at alpha = 0, then drive in chunks of events."""
+        scene = self.scene
+        check_memory(scene)
+        engine = make_engine(scene, self.backend)
+        self.state = prepare(scene) if self.given is None else self.given.copy()
+        # Relax at alpha = 0 first: with xi > 0 the coupling may destabilise sliders.
+        relax = engine.advance(self.state, max_events=scene.max_events, relax_only=True)
+        if relax.status != status.RELAXED:
+            self.interrupted = relax.status == status.INTERRUPTED
+            self.end = (relax.status, relax.message, math.nan, relax.final_event)
+            return
+        self.relaxation = {
+            "n_events": relax.n_events,
+            "n_moved": int(np.count_nonzero(self.state.displacement)),
+            "slider_steps": int(relax.events["slider_steps"].sum()),
+        }
+        self.initial = self.state.copy()
+        n_events = slider_steps = 0
+        budget = chunk_events(scene, self.backend)
+        while self.end is None:
+            remaining = scene.max_events - n_events
+            if remaining <= 0:
+                self.end = (status.MAX_EVENTS, "", math.nan, {})
+                break
+            self.chunks.append(engine.advance(self.state, max_events=min(budget, remaining)))
+            chunk = self.chunks[-1]
+            n_events += chunk.n_events
+            slider_steps += int(chunk.events["slider_steps"].sum())
+            if self.progress is not None:
+                self.progress(Progress(self.state.drive, n_events,
+                                       time.perf_counter() - self.started, slider_steps))
+            if chunk.status not in _CONTINUING:
+                self.end = (chunk.status, chunk.message, chunk.alpha_c, chunk.final_event)
+        # the engine's Ctrl-C that came as the run ended: the whole run, still interrupted
+        self.interrupted = (self.end[0] == status.INTERRUPTED
+                            or getattr(engine, "interrupted_late", False))
+
+    def stop(self) -> None:
+        """End the run here, on a Ctrl-C: the chain is drawn if it was not, and
+        a run whose last chunk had ended it keeps that end."""
+        self.interrupted = True
+        if self.state is None:
+            check_memory(self.scene)
+            self.state = prepare(self.scene) if self.given is None else self.given.copy()
+        last = self.chunks[-1] if self.chunks else None
+        if self.end is None and last is not None and last.status not in _CONTINUING:
+            self.end = (last.status, last.message, last.alpha_c, last.final_event)
+        if self.end is None:
+            self.end = (status.INTERRUPTED, INTERRUPTED_MESSAGE, math.nan, {})
+
+    def result(self) -> Result:
+        """The run so far (it has ended: ``proceed`` returned or ``stop`` was called)."""
+        code, message, alpha_c, final_event = self.end
+        if code == status.INTERRUPTED and not message:
+            message = INTERRUPTED_MESSAGE
+        initial = self.initial if self.initial is not None else self.state
+        return _finish(self.scene, self.backend, code, message, alpha_c, self.chunks, initial,
+                       self.state, self.relaxation, self.started, final_event)
 
 
 def _finish(scene, backend, code, message, alpha_c, chunks, initial, final, relaxation, started,

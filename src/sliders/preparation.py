@@ -196,17 +196,19 @@ def last_stable_state(scene: Scene, engine=None) -> ChainState:
     while True:
         before = state.copy()
         chunk = engine.advance(state, max_events=HISTORY_CHUNK)
-        if chunk.status in (status.RUNNING, status.SPARSE_FULL):
+        # a Ctrl-C as the avalanche came ends the history as interrupted, not as tilted
+        code = status.INTERRUPTED if getattr(engine, "interrupted_late", False) else chunk.status
+        if code in (status.RUNNING, status.SPARSE_FULL):
             continue
-        if chunk.status == status.AVALANCHE:
+        if code == status.AVALANCHE:
             state = before
             if chunk.n_events:
                 engine.advance(state, max_events=chunk.n_events)
             return state
-        if chunk.status in (status.ALPHA_MAX, status.MAX_EVENTS):
+        if code in (status.ALPHA_MAX, status.MAX_EVENTS):
             return state
         raise RuntimeError(f"history preparation: the tilt ended with status "
-                           f"{status.NAMES.get(chunk.status, chunk.status)!r}")
+                           f"{status.NAMES.get(code, code)!r}")
 
 
 def tilt_back(state: ChainState, scene: Scene, engine=None, step: float = UNLOAD_STEP) -> ChainState:

@@ -20,7 +20,9 @@ millisecond) and returns a ``Chunk`` with status ``INTERRUPTED``: the events
 completed in the call, the event in progress undone entirely (displacements,
 draws, stop counts, drive), exactly as ``reference.NumpyEngine`` does.  Any
 other exception arriving while it waits also stops the kernel first (the
-state is then consistent) and is raised again.
+state is then consistent) and is raised again.  A Ctrl-C handled in the Python
+after the kernel returned is answered the same way: the kernel's events are in
+the state already, so the chunk is built to the end, never lost.
 """
 
 from __future__ import annotations
@@ -81,7 +83,13 @@ class FortranEngine:
             return self._call(state, max_events, relax_only=False)
         pieces = []
         while True:  # a relaxation must end RELAXED (or in error): join the pieces
-            piece = self._call(state, max_events, relax_only=True)
+            try:
+                piece = self._call(state, max_events, relax_only=True)
+            except KeyboardInterrupt:
+                if not pieces:
+                    raise
+                # between two calls: the pieces' events are in the state, so they are kept
+                piece = join_chunks([], status.INTERRUPTED, message=INTERRUPTED_MESSAGE)
             pieces.append(piece)
             if piece.status != status.SPARSE_FULL:
                 if len(pieces) == 1:
@@ -108,15 +116,31 @@ class FortranEngine:
         real_params, int_params = pack_parameters(sc, float(state.drive), self._record_sparse,
                                                   relax_only, max_events)
         chain0 = np.concatenate([e0, w0, t0]).astype(np.float64)  # the kernel's packed layout
+        outcome: dict = {}
+        args = (real_params, int_params, chain0, mu, stops, du, self._event_real, self._event_int,
+                self._sparse_ptr, self._sparse_index, self._sparse_value, self._interrupt)
+        try:
+            self._interruptible(outcome, args)
+            return self._chunk(state, outcome, mu, stops, du)
+        except KeyboardInterrupt:
+            if "value" not in outcome:
+                raise  # the kernel never ran: nothing changed
+            # Ctrl-C in the Python after the kernel: its events are in the state's
+            # arrays already, so the chunk is built to the end (building it has no
+            # other effect) and answers the interrupt like one inside the call
+            outcome["pending"] = True
+            return self._chunk(state, outcome, mu, stops, du)
+
+    def _chunk(self, state: ChainState, outcome: dict, mu, stops, du) -> Chunk:
+        """The kernel's outputs written back into ``state`` and returned as a Chunk."""
+        sc = self.scene
         (drive, n_events, n_sparse, code, alpha_c, event_time, final_steps, final_slider_steps,
-         detail) = self._interruptible(
-            real_params, int_params, chain0, mu, stops, du,
-            self._event_real, self._event_int, self._sparse_ptr,
-            self._sparse_index, self._sparse_value, self._interrupt,
-        )
+         detail) = outcome["value"]
         if code == _CONTRACT_MISMATCH:
             raise RuntimeError("Fortran kernel: its packed layout (sliders_contract.f90) is not "
                                "contract.py's; rebuild the extension")
+        if outcome.get("pending"):
+            code = self._answer_ctrl_c(int(code))
         # write back (no-ops when the state arrays were passed themselves)
         state.mu_s[:] = mu
         state.n_stops[:] = stops
@@ -127,7 +151,7 @@ class FortranEngine:
         if code == status.SPARSE_FULL and k == 0:
             raise RuntimeError(
                 f"Fortran kernel: the displacement buffer ({self._sparse_index.size} entries) "
-                f"cannot hold one event of {n} sliders")
+                f"cannot hold one event of {state.n_sliders} sliders")
         events = {f: self._event_real[:k, j].copy() for j, f in enumerate(REAL_FIELDS)}
         events.update({f: self._event_int[:k, j].copy() for j, f in enumerate(INT_FIELDS)})
         events = {f: events[f] for f in EVENT_FIELDS}
@@ -141,25 +165,36 @@ class FortranEngine:
             _final_event(float(event_time), int(final_steps), int(final_slider_steps)),
         )
 
+    def _answer_ctrl_c(self, code: int) -> int:
+        """The status of a call a Ctrl-C reached after the kernel stopped reading the flag.
 
-    def _interruptible(self, *args):
+        A call that stopped between events (its chunk is full, or the relaxation
+        is done: no run's end) is INTERRUPTED, as the reference answers.  A run
+        that had ended (avalanche, alpha_max, an error) keeps its status, and
+        ``interrupted_late`` tells the driver to raise the interrupt still.
+        """
+        if code in (status.RUNNING, status.SPARSE_FULL, status.RELAXED):
+            return status.INTERRUPTED
+        if code != status.INTERRUPTED:
+            self.interrupted_late = True
+        return code
+
+    def _interruptible(self, outcome: dict, args: tuple) -> None:
         """The kernel call in a worker thread; Ctrl-C raises the interrupt flag.
 
-        Returns the kernel's outputs.  After a KeyboardInterrupt the status is
-        INTERRUPTED unless the kernel had already ended the run (avalanche,
-        alpha_max, an error): a finished run is not thrown away.
+        Fills ``outcome``: "value" (the kernel's outputs) and "pending" (a
+        Ctrl-C came while it ran), or raises the kernel's error.  A Ctrl-C is
+        raised on only if the kernel never launched.
         """
         self._interrupt[0] = 0
         self.interrupted_late = False
-        outcome: dict = {}
         finished = threading.Event()
-
         launched = threading.Event()
 
         def kernel():
             launched.set()
             try:
-                outcome["value"] = self._tilt_advance(*args)
+                outcome["value"] = tuple(self._tilt_advance(*args))
             except BaseException as exc:  # handed to the calling thread
                 outcome["error"] = exc
             finally:
@@ -178,27 +213,21 @@ class FortranEngine:
             pending = exc
             if not launched.wait(_LAUNCH_GRACE):
                 raise
-        # An Event, not Thread.join: a join interrupted by KeyboardInterrupt
+        # An Event, not Thread.join alone: a join interrupted by KeyboardInterrupt
         # can leave is_alive() False while the thread still runs.
-        while not finished.is_set():
+        while True:
             try:
-                finished.wait(_WAIT_SECONDS)
+                if finished.wait(_WAIT_SECONDS):
+                    worker.join()
+                    break
             except BaseException as exc:  # Ctrl-C (or a signal handler's exception)
                 self._interrupt[0] = 1
                 pending = pending or exc
-        worker.join()
         if "error" in outcome:
             raise outcome["error"]
         if pending is not None and not isinstance(pending, KeyboardInterrupt):
             raise pending
-        value = list(outcome["value"])
-        if pending is not None and value[3] in (status.RUNNING, status.SPARSE_FULL):
-            value[3] = status.INTERRUPTED  # it returned before it saw the flag
-        elif pending is not None and value[3] != status.INTERRUPTED:
-            # the run had ended (avalanche, alpha_max, an error) as Ctrl-C came:
-            # the result is kept, and the driver still raises the interrupt
-            self.interrupted_late = True
-        return value
+        outcome["pending"] = pending is not None
 
 
 def _final_event(duration: float, n_steps: int, slider_steps: int) -> dict:
