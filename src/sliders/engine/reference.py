@@ -84,21 +84,24 @@ class NumpyEngine:
                 alpha_c, message, dict(final_event or {}),
             )
 
-        while True:
-            # everything one iteration may change, to undo it on Ctrl-C
-            undo = (state.drive, state.displacement.copy(), state.mu_s.copy(),
-                    state.n_stops.copy(), len(records), len(ptr), len(index))
-            try:
+        undo = None
+        try:  # around the whole loop: a Ctrl-C between two events is answered too
+            while True:
+                # everything one iteration may change, to undo it on Ctrl-C
+                undo = (state.drive, state.displacement.copy(), state.mu_s.copy(),
+                        state.n_stops.copy(), len(records), len(ptr), len(index))
                 done = self._one_event(state, max_events, relax_only, records, ptr, index,
                                        disp, chunk)
-            except KeyboardInterrupt:
+                if done is not None:
+                    return done
+                undo = None  # the event is complete and recorded: it is kept
+        except KeyboardInterrupt:
+            if undo is not None:  # else it came between events: nothing to undo
                 drive, du, mu, stops, n_records, n_ptr, n_index = undo
                 state.drive = drive
                 state.displacement[:], state.mu_s[:], state.n_stops[:] = du, mu, stops
                 del records[n_records:], ptr[n_ptr:], index[n_index:], disp[n_index:]
-                return chunk(status.INTERRUPTED, message=INTERRUPTED_MESSAGE)
-            if done is not None:
-                return done
+            return chunk(status.INTERRUPTED, message=INTERRUPTED_MESSAGE)
 
     def _one_event(self, state, max_events, relax_only, records, ptr, index, disp, chunk):
         """One iteration of advance: a Chunk if the call ends, else None."""
