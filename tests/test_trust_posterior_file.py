@@ -146,6 +146,15 @@ def _wider_regressor(p):
     p.models_[0][0] = tree
 
 
+def _every_reader_wider(p):
+    """The posterior and all its regressors reading a feature more than the design has."""
+    p.n_features_in_ += 1
+    p.models_ = [[copy.copy(tree) for tree in row] for row in p.models_]
+    for row in p.models_:
+        for tree in row:
+            tree.n_features_in_ += 1
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("change, words", [
     (lambda p: None, None),  # the shipped posterior's tables, written again: accepted
@@ -163,6 +172,7 @@ def _wider_regressor(p):
     (_range("mu_d", 0.5, 0.1), "a prior range is reversed"),
     (lambda p: setattr(p, "copula_", np.ones_like(p.copula_)), "copula is not a positive"),
     (_wider_regressor, "a regressor reads another number of features"),
+    (_every_reader_wider, "n_features_in_"),  # consistent together, not with the design
 ])
 def test_every_table_of_a_posterior_file_is_checked_on_load(posterior, tmp_path, capsys, change,
                                                             words):
