@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import json
 import os
 import random
 import shutil
@@ -351,6 +352,18 @@ def test_signal_stops_a_loop_of_tilts(tmp_path, sig):
     assert "loop ended" not in out
     assert "Interrupted" in err and "completed events" in err, err
     assert elapsed < STOP_WITHIN, f"stopped after {elapsed:.2f} s"
+
+
+def test_signals_at_random_moments_each_stop_a_loop_of_tilts(tmp_path):
+    """The trial script of the reliability page, three trials: each loop stops with
+    Interrupted and its completed events within 2 s."""
+    out = tmp_path / "trials.json"
+    script = Path(__file__).resolve().parents[1] / "scripts" / "interrupt_trials.py"
+    res = subprocess.run([PY, str(script), "--trials", "3",
+                          "--out", str(out)], capture_output=True, text=True, timeout=120,
+                         env=_env())
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert json.loads(out.read_text())["counts"]["interrupted"] == 3
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
