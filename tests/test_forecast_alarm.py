@@ -324,6 +324,22 @@ def test_a_picture_that_cannot_be_written_is_raised_once_naming_the_path(tmp_pat
         again.close()
 
 
+@pytest.mark.parametrize("fork", [False, True], ids=["thread", "forked child"])
+def test_a_failed_picture_is_told_by_check_with_no_update_after_it(tmp_path, fork):
+    """A follow whose input goes quiet after the update whose picture fails still learns
+    of the failure: ``check`` raises it (once), as the next ``show`` would."""
+    path = tmp_path / "live.png"
+    path.mkdir()  # a folder where the picture goes
+    picture = LatestPicture(path, draw=SlowDraw(0.0), fork=fork)
+    picture.check()  # nothing failed yet
+    picture.show("u0", {"rows": 1})
+    picture.wait(timeout=10)
+    with pytest.raises(ForecastInputError, match="could not be written"):
+        picture.check()
+    picture.check()  # told once
+    picture.close()
+
+
 def test_a_fault_of_the_drawing_child_is_raised_in_one_line(tmp_path):
     picture = LatestPicture(tmp_path / "live.png", draw=SlowDraw(0.0), fork=True)
     picture.show("fault", {"rows": 1})

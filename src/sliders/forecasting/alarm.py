@@ -406,8 +406,9 @@ class LatestPicture:
     ``show(prediction, status)`` hands the newest prediction over and returns at once; if one
     is being drawn, the new one waits, replacing any that waited before it (never more than
     one update behind).  ``close()`` waits for the last picture.  A failure to write the file
-    is raised (``ForecastInputError``, one line naming the path) from the next ``show`` or
-    from ``close``, once; nothing is drawn after it.
+    is raised (``ForecastInputError``, one line naming the path) from the next ``check``,
+    ``show`` or ``close``, once; nothing is drawn after it.  A follow calls ``check`` at
+    every poll, so that a failure is told even when no update follows it.
 
     A thread of this object takes each prediction; where the system forks (POSIX) it draws it
     in a child process forked for the picture, at a lower priority (``PICTURE_NICENESS``), and
@@ -451,6 +452,11 @@ class LatestPicture:
             self._pending = (prediction, dict(status or {}))
             self.shown += 1
             self._cond.notify_all()
+
+    def check(self) -> None:
+        """Raise a failure to write the picture now, if one came (once)."""
+        with self._cond:
+            self._raise_error()
 
     def behind(self) -> int:
         """Updates handed over but not yet written: 0, 1 or 2 (one drawn, one waiting)."""

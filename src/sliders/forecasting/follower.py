@@ -684,6 +684,8 @@ class Follower:
         or None.  Sets ``stopped`` at ``# avalanche``, ``until`` or the end of the input."""
         if not self.proceed:
             return None
+        if self.picture is not None:  # a picture that failed while the input was quiet
+            self.picture.check()
         now = self.clock()
         notice, lines = self.reader.poll()
         if notice:
