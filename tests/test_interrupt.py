@@ -176,13 +176,24 @@ def test_ctrl_c_as_the_relaxation_ends_stops_the_run(monkeypatch):
 
 def test_ctrl_c_as_a_historys_avalanche_comes_ends_the_history_as_interrupted(monkeypatch):
     """The history preparation's tilt, Ctrl-C landing as its avalanche is returned: the
-    preparation stops saying it was interrupted instead of tilting back a full history."""
+    preparation stops as interrupted instead of tilting back a full history."""
     from sliders.preparation import last_stable_state
 
     ctrl_c_as_the_kernel_returns(monkeypatch, status.AVALANCHE)
-    with pytest.raises(RuntimeError, match="history preparation: the tilt ended with status "
-                                           "'interrupted'"):
+    with pytest.raises(sliders.PreparationInterrupted, match="no chain was made"):
         last_stable_state(Scene(n_sliders=10, seed=0, mode="explore"))
+
+
+def test_ctrl_c_in_a_history_preparation_stops_the_run_with_no_chain(monkeypatch):
+    """A tilt whose chain is prepared by its history, Ctrl-C answered by the history's
+    engine: the run stops at once with PreparationInterrupted (a KeyboardInterrupt), and
+    draws no chain again to describe a run that never started."""
+    ctrl_c_as_the_kernel_returns(monkeypatch, status.RELAXED)
+    started = time.monotonic()
+    with pytest.raises(sliders.PreparationInterrupted) as caught:
+        sliders.tilt(Scene(n_sliders=10, seed=0, mode="explore", initial_forces="history"))
+    assert isinstance(caught.value, KeyboardInterrupt)
+    assert time.monotonic() - started < 3.0  # one relaxation and the signal's second
 
 
 def test_ctrl_c_after_the_kernel_returned_keeps_its_events(monkeypatch):

@@ -367,6 +367,21 @@ def test_signals_at_random_moments_each_stop_a_loop_of_tilts(tmp_path):
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_signal_stops_tilt_cli_while_the_history_is_prepared(tmp_path, sig):
+    """A history preparation of 2000 sliders takes seconds with no event to save: the
+    signal stops it within 2 s, one line, 128 + signal, and no file is written."""
+    out = tmp_path / "history.h5"
+    cmd = [PY, "-m", "sliders", "tilt", "--n-sliders", "2000", "--initial-forces", "history",
+           "--out", str(out)]
+    code, elapsed, _, err = _stop_after_start(cmd, sig, "preparing the chain's history")
+    assert code == 128 + sig, err
+    assert err.strip().splitlines() == [
+        f"interrupted ({sig.name}) while the chain's history was prepared; nothing written"]
+    assert elapsed < STOP_WITHIN, f"stopped after {elapsed:.2f} s"
+    assert not out.exists() and leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_signal_stops_tilt_cli_and_saves_finished_events(tmp_path, sig):
     out = tmp_path / "long.h5"
     cmd = [PY, "-m", "sliders", "tilt", "--n-sliders", "3000", "--out", str(out)]
@@ -397,6 +412,25 @@ def test_interrupt_in_python_raises_with_the_partial_result():
     assert np.array_equal(partial.alpha, full.alpha[:partial.n_events])
     kept = sliders.tilt(scene, backend="numpy", progress=ctrl_c, keep_partial=True)
     assert kept.status == "interrupted" and kept.n_events == partial.n_events
+
+
+def test_interrupt_in_the_python_of_a_history_preparation_draws_no_chain_again(monkeypatch):
+    """Ctrl-C in the Python of a history preparation (a tilt of its own, seconds to minutes
+    for large chains): the run stops with PreparationInterrupted rather than preparing the
+    whole history again to describe a run that never started."""
+    from sliders import preparation
+
+    calls = []
+
+    def ctrl_c(*args):
+        calls.append(args)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(preparation, "rebased", ctrl_c)
+    with pytest.raises(sliders.PreparationInterrupted):
+        sliders.tilt(sliders.Scene(n_sliders=10, seed=3, mode="explore",
+                                   initial_forces="history"))
+    assert len(calls) == 1  # the history was not prepared again
 
 
 def test_interrupt_in_python_as_the_run_ends_keeps_the_whole_run():

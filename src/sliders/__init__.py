@@ -27,6 +27,7 @@ _PUBLIC = {
     "PushedEnd": ("parts.loading", "PushedEnd"),
     "Tilt": ("parts.loading", "Tilt"),
     "prepare": ("preparation", "prepare"),
+    "PreparationInterrupted": ("preparation", "PreparationInterrupted"),
     "EventSparse": ("result", "EventSparse"),
     "Result": ("result", "Result"),
     "Scene": ("scene", "Scene"),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 
 from ._forward import interrupted_while_starting
@@ -18,6 +19,7 @@ try:
     from .parts.checks import SceneError
     from .scene import BACKENDS, check_memory
     from .driver import run
+    from .preparation import PreparationInterrupted, prepared_at_once
 except KeyboardInterrupt:  # Ctrl-C while the command's modules are imported
     if __name__ != "__main__":
         raise
@@ -79,6 +81,9 @@ def _run(args, scene) -> int:
             line.show(f"{scene.loading.name} N={scene.n_sliders}: {drive}={p.drive:.5f}  "
                       f"events={p.n_events}  slider-steps={p.slider_steps:.3g}  {p.elapsed:.1f} s")
 
+    if line is not None and not prepared_at_once(scene):
+        line.show(f"{scene.loading.name} N={scene.n_sliders}: preparing the chain's history "
+                  "(its own tilt to the avalanche and back)", force=True)
     # SIGTERM (batch systems, kill) stops the run as Ctrl-C does: finished events are saved;
     # while the result is saved a second signal waits until the file is complete
     received = Received()
@@ -88,6 +93,12 @@ def _run(args, scene) -> int:
                 result = run(scene, backend=args.backend, progress=progress, keep_partial=True)
             except ImportError as exc:
                 fail(f"backend {args.backend!r} is not available: {exc}")
+            except PreparationInterrupted:  # no chain yet: nothing to save
+                if line is not None:
+                    line.close()
+                print(f"interrupted ({signal.Signals(received.exit_status() - 128).name}) "
+                      "while the chain's history was prepared; nothing written", file=sys.stderr)
+                return received.exit_status()
         if line is not None:
             line.close()
         try:

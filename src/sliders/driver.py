@@ -21,7 +21,7 @@ from . import status
 from .chain import ChainState
 from .engine.contract import INTERRUPTED_MESSAGE, Chunk, join_chunks
 from .keyed_random import realisation_seed
-from .preparation import prepare
+from .preparation import PreparationInterrupted, prepare, prepared_at_once
 from .engine.reference import NumpyEngine
 from .result import EventSparse, Result
 from .parts.checks import SceneError
@@ -115,6 +115,8 @@ def run(
     ------
     Interrupted
         On Ctrl-C, unless ``keep_partial``.
+    PreparationInterrupted
+        On Ctrl-C while a ``"history"`` preparation runs (no chain was made yet).
     SceneError
         If the run would need more memory than is available (``scene.memory_estimate``).
     """
@@ -125,6 +127,8 @@ def run(
         loop = RunLoop(scene, backend, state, progress)
         loop.proceed()
         result = loop.result()
+    except PreparationInterrupted:
+        raise  # no chain to describe, and drawing it again would take as long
     except KeyboardInterrupt:
         # Ctrl-C in the Python around the engine (inside a call the engine answers
         # it): the run stops where it is and is described whole, its chain drawn
@@ -198,10 +202,13 @@ class RunLoop:
                             or getattr(engine, "interrupted_late", False))
 
     def stop(self) -> None:
-        """End the run here, on a Ctrl-C: the chain is drawn if it was not, and
-        a run whose last chunk had ended it keeps that end."""
+        """End the run here, on a Ctrl-C: the chain is drawn if it was not (unless
+        drawing it is itself a run, ``PreparationInterrupted``), and a run whose
+        last chunk had ended it keeps that end."""
         self.interrupted = True
         if self.state is None:
+            if self.given is None and not prepared_at_once(self.scene):
+                raise PreparationInterrupted(self.scene)
             check_memory(self.scene)
             self.state = prepare(self.scene) if self.given is None else self.given.copy()
         last = self.chunks[-1] if self.chunks else None

@@ -49,6 +49,22 @@ from .engine.reference import NumpyEngine
 from .parts.loading import ALPHA_MAX_LIMIT
 from .scene import Scene
 
+class PreparationInterrupted(KeyboardInterrupt):
+    """Ctrl-C (or a SIGTERM the caller turned into KeyboardInterrupt) stopped a
+    preparation that is itself a run (``"history"``, seconds to minutes): no chain
+    was made, so nothing is drawn again to describe it."""
+
+    def __init__(self, scene: Scene):
+        super().__init__(f"interrupted while the history of a chain of {scene.n_sliders} "
+                         "sliders was prepared (initial_forces='history'); no chain was made")
+
+
+def prepared_at_once(scene: Scene) -> bool:
+    """Whether ``prepare(scene)`` is a few array operations (every preparation but
+    ``"history"``, which tilts a chain to its avalanche and back)."""
+    return scene.initial_forces != "history"
+
+
 MAX_FORCE_ATTEMPTS = 1000
 ZERO_SUM_SWEEPS = 20
 PAIRING_STREAM = 0xFFFFFFFD  # keyed stream of the random pairings
@@ -178,6 +194,8 @@ def _history_engine(scene: Scene):
 
 def _relaxed(engine, state: ChainState, scene: Scene, where: str) -> None:
     relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
+    if relax.status == status.INTERRUPTED:  # the engine answered a signal
+        raise PreparationInterrupted(scene)
     if relax.status != status.RELAXED:
         raise RuntimeError(f"history preparation: the relaxation {where} ended with status "
                            f"{status.NAMES.get(relax.status, relax.status)!r}")
@@ -196,7 +214,7 @@ def last_stable_state(scene: Scene, engine=None) -> ChainState:
     while True:
         before = state.copy()
         chunk = engine.advance(state, max_events=HISTORY_CHUNK)
-        # a Ctrl-C as the avalanche came ends the history as interrupted, not as tilted
+        # a Ctrl-C as the avalanche came stops the history too
         code = status.INTERRUPTED if getattr(engine, "interrupted_late", False) else chunk.status
         if code in (status.RUNNING, status.SPARSE_FULL):
             continue
@@ -207,6 +225,8 @@ def last_stable_state(scene: Scene, engine=None) -> ChainState:
             return state
         if code in (status.ALPHA_MAX, status.MAX_EVENTS):
             return state
+        if code == status.INTERRUPTED:
+            raise PreparationInterrupted(scene)
         raise RuntimeError(f"history preparation: the tilt ended with status "
                            f"{status.NAMES.get(code, code)!r}")
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import math
 
-from ... import status
 from ...driver import run
 from ...forecasting.catalogue import measurement_from, prepared, read_source
 from ...forecasting.infer import MAX_CHECK_DRAWS, PileSimulation, load_posterior
@@ -40,16 +39,10 @@ def simulate_pile(scene, backend: str = DEFAULT_BACKEND):
     here, outside the run: ``run`` finishes a preparation a signal interrupts (the milliseconds
     of Python around its engine), which for a pile of millions of sliders is half a minute
     and more; here the signal's exception goes on up at once.  The same state, so the same
-    run as ``run(scene)``.  A history preparation (``initial_forces = "history"``), whose
-    engine answers a signal by ending its tilt as interrupted, stops as interrupted too."""
+    run as ``run(scene)``.  A history preparation (``initial_forces = "history"``) answers a
+    signal with ``PreparationInterrupted``, a KeyboardInterrupt too."""
     check_memory(scene)
-    try:
-        state = prepare(scene)
-    except RuntimeError as exc:
-        if f"'{status.NAMES[status.INTERRUPTED]}'" in str(exc):
-            raise KeyboardInterrupt from None
-        raise
-    return run(scene, backend, state=state)
+    return run(scene, backend, state=prepare(scene))
 
 
 #: how ``infer``'s predictive check makes its piles: the stored prior's base scene, each pile
