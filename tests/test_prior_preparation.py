@@ -56,6 +56,28 @@ def test_a_pile_brought_near_its_avalanche_starts_from_it():
     assert np.array_equal(ref.alpha, again.alpha) and ref.alpha_c == again.alpha_c
 
 
+def test_a_historys_progress_follows_its_tilt_and_changes_nothing():
+    """``history_progress`` is told the tilt up to the avalanche (angles and events growing)
+    then the steps back to 0; the chain is bit for bit the one prepared without it, and a
+    run given it is the run that prepares it itself (as ``tilt`` on the command line does)."""
+    scene = SCENE.replace(n_sliders=300)  # three chunks of events up to its avalanche
+    told = []
+    state = prepare(scene, history_progress=lambda *a: told.append(a))
+    phases = [phase for phase, _, _ in told]
+    assert phases[0] == "to the avalanche" and phases[-1] == "back to 0"
+    k = phases.index("back to 0")
+    assert set(phases[k:]) == {"back to 0"} and k >= 3
+    up, back = np.array(told[:k])[:, 1:].astype(float), np.array(told[k:])[:, 1:].astype(float)
+    assert np.all(np.diff(up, axis=0) > 0)  # alpha and the events grow
+    assert np.all(np.diff(back[:, 0]) < 0) and back[-1, 0] == 0.0
+    plain = prepare(scene)
+    for name in ("elastic_force0", "spring_extension0", "cantilever_stretch0", "mu_s", "n_stops"):
+        np.testing.assert_array_equal(getattr(state, name), getattr(plain, name), name)
+    given, itself = sliders.tilt(scene, state=state), sliders.tilt(scene)
+    assert given.alpha_c == itself.alpha_c
+    np.testing.assert_array_equal(given.alpha, itself.alpha)
+
+
 def test_history_needs_a_free_tilted_chain():
     with pytest.raises(SceneError, match="initial_forces='history'"):
         SCENE.replace(ends="walls", alpha_max=1.0)

@@ -6,6 +6,7 @@ import argparse
 import math
 import signal
 import sys
+import time
 
 from ._forward import interrupted_while_starting
 
@@ -19,7 +20,7 @@ try:
     from .parts.checks import SceneError
     from .scene import BACKENDS, check_memory
     from .driver import run
-    from .preparation import PreparationInterrupted, prepared_at_once
+    from .preparation import PreparationInterrupted, prepare, prepared_at_once
 except KeyboardInterrupt:  # Ctrl-C while the command's modules are imported
     if __name__ != "__main__":
         raise
@@ -81,7 +82,16 @@ def _run(args, scene) -> int:
             line.show(f"{scene.loading.name} N={scene.n_sliders}: {drive}={p.drive:.5f}  "
                       f"events={p.n_events}  slider-steps={p.slider_steps:.3g}  {p.elapsed:.1f} s")
 
-    if line is not None and not prepared_at_once(scene):
+    started = time.perf_counter()
+
+    def preparing(phase, alpha, n_events):
+        if line is not None:
+            line.show(f"{scene.loading.name} N={scene.n_sliders}: preparing the chain's history, "
+                      f"{phase}: alpha={alpha:.5f}  events={n_events}  "
+                      f"{time.perf_counter() - started:.1f} s")
+
+    history = not prepared_at_once(scene)  # a tilt of its own, minutes for large chains
+    if line is not None and history:
         line.show(f"{scene.loading.name} N={scene.n_sliders}: preparing the chain's history "
                   "(its own tilt to the avalanche and back)", force=True)
     # SIGTERM (batch systems, kill) stops the run as Ctrl-C does: finished events are saved;
@@ -90,7 +100,10 @@ def _run(args, scene) -> int:
     with received.waiting():
         with received.stopping():
             try:
-                result = run(scene, backend=args.backend, progress=progress, keep_partial=True)
+                # the same chain run(scene) prepares, with the history's progress shown
+                given = prepare(scene, history_progress=preparing) if history else None
+                result = run(scene, backend=args.backend, state=given, progress=progress,
+                             keep_partial=True)
             except ImportError as exc:
                 fail(f"backend {args.backend!r} is not available: {exc}")
             except PreparationInterrupted:  # no chain yet: nothing to save

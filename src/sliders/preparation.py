@@ -40,6 +40,8 @@ prepared chain (rebased: its displacement folded into the reference state).
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from . import keyed_random, status
@@ -64,6 +66,11 @@ def prepared_at_once(scene: Scene) -> bool:
     ``"history"``, which tilts a chain to its avalanche and back)."""
     return scene.initial_forces != "history"
 
+
+#: ``progress(phase, alpha, n_events)`` of a history: ``phase`` "to the avalanche" (after each
+#: chunk of events; ``n_events`` so far) or "back to 0" (after each step back; the events of
+#: the relaxations so far), ``alpha`` the tilt reached in rad
+HistoryProgress = Callable[[str, float, int], None]
 
 MAX_FORCE_ATTEMPTS = 1000
 ZERO_SUM_SWEEPS = 20
@@ -126,7 +133,7 @@ def remove_net_force(forces: np.ndarray, bound: np.ndarray) -> np.ndarray:
     return forces.copy()
 
 
-def prepare(scene: Scene) -> ChainState:
+def prepare(scene: Scene, history_progress: HistoryProgress | None = None) -> ChainState:
     """The prepared chain at alpha = 0, before any coupling relaxation.
 
     Parameters
@@ -134,6 +141,9 @@ def prepare(scene: Scene) -> ChainState:
     scene : Scene
         Its ``n_sliders``, friction coefficients, ``seed``, ``ends`` and
         ``initial_forces`` are used.
+    history_progress : callable, optional
+        For ``initial_forces="history"`` (a tilt of its own, minutes for large
+        chains): called as the history advances (``prepare_with_history``).
 
     Returns
     -------
@@ -143,7 +153,7 @@ def prepare(scene: Scene) -> ChainState:
         for a free chain, summing to zero (docs/model.md, "Preparation").
     """
     if scene.initial_forces == "history":
-        return prepare_with_history(scene)
+        return prepare_with_history(scene, history_progress)
     n = scene.n_sliders
     sliders = np.arange(n)
     mu_s = scene.friction.draw_at_stop(scene.seed, sliders, np.zeros(n, dtype=np.int64))
@@ -192,16 +202,19 @@ def _history_engine(scene: Scene):
         return NumpyEngine(scene)
 
 
-def _relaxed(engine, state: ChainState, scene: Scene, where: str) -> None:
+def _relaxed(engine, state: ChainState, scene: Scene, where: str) -> int:
+    """Relax ``state`` in place; the number of its events."""
     relax = engine.advance(state, max_events=scene.max_events, relax_only=True)
     if relax.status == status.INTERRUPTED:  # the engine answered a signal
         raise PreparationInterrupted(scene)
     if relax.status != status.RELAXED:
         raise RuntimeError(f"history preparation: the relaxation {where} ended with status "
                            f"{status.NAMES.get(relax.status, relax.status)!r}")
+    return relax.n_events
 
 
-def last_stable_state(scene: Scene, engine=None) -> ChainState:
+def last_stable_state(scene: Scene, engine=None,
+                      progress: HistoryProgress | None = None) -> ChainState:
     """The chain of ``scene`` (prepared as "uniform") just after its last event before the avalanche.
 
     Tilted in chunks of events; the chunk in which the avalanche starts is run
@@ -211,11 +224,15 @@ def last_stable_state(scene: Scene, engine=None) -> ChainState:
     engine = engine or _history_engine(scene)
     state = prepare(scene)
     _relaxed(engine, state, scene, "at alpha = 0")
+    n_events = 0
     while True:
         before = state.copy()
         chunk = engine.advance(state, max_events=HISTORY_CHUNK)
         # a Ctrl-C as the avalanche came stops the history too
         code = status.INTERRUPTED if getattr(engine, "interrupted_late", False) else chunk.status
+        n_events += chunk.n_events
+        if progress is not None and code != status.INTERRUPTED:
+            progress("to the avalanche", state.drive, n_events)
         if code in (status.RUNNING, status.SPARSE_FULL):
             continue
         if code == status.AVALANCHE:
@@ -231,12 +248,17 @@ def last_stable_state(scene: Scene, engine=None) -> ChainState:
                            f"{status.NAMES.get(code, code)!r}")
 
 
-def tilt_back(state: ChainState, scene: Scene, engine=None, step: float = UNLOAD_STEP) -> ChainState:
-    """``state`` tilted back to alpha = 0 in steps of ``step`` rad, relaxed at every step (in place)."""
+def tilt_back(state: ChainState, scene: Scene, engine=None, step: float = UNLOAD_STEP,
+              progress: HistoryProgress | None = None) -> ChainState:
+    """``state`` tilted back to alpha = 0 in steps of ``step`` rad, relaxed at every step
+    (in place)."""
     engine = engine or _history_engine(scene)
+    n_events = 0
     for alpha in np.arange(state.drive, 0.0, -step)[1:].tolist() + [0.0]:
         state.drive = float(alpha)
-        _relaxed(engine, state, scene, f"at alpha = {alpha:.4f} on the way back")
+        n_events += _relaxed(engine, state, scene, f"at alpha = {alpha:.4f} on the way back")
+        if progress is not None:
+            progress("back to 0", state.drive, n_events)
     return state
 
 
@@ -258,7 +280,7 @@ def rebased(state: ChainState, scene: Scene) -> ChainState:
     )
 
 
-def prepare_with_history(scene: Scene) -> ChainState:
+def prepare_with_history(scene: Scene, progress: HistoryProgress | None = None) -> ChainState:
     """The ``"history"`` preparation (module docstring): a chain brought to its last stable
     state before an avalanche (the same scene, seed ``history_seed(scene.seed)``), then
     tilted back to alpha = 0.
@@ -269,6 +291,8 @@ def prepare_with_history(scene: Scene) -> ChainState:
         The scene to prepare; its ``seed`` keys the history's seed, and every
         other field but ``alpha_max`` is the history's too (the history is
         tilted to its avalanche).
+    progress : callable, optional
+        ``progress(phase, alpha, n_events)`` as the history advances (``HistoryProgress``).
 
     Returns
     -------
@@ -280,5 +304,6 @@ def prepare_with_history(scene: Scene) -> ChainState:
     past = scene.replace(seed=history_seed(scene.seed), initial_forces="uniform",
                          alpha_max=ALPHA_MAX_LIMIT)
     engine = _history_engine(past)
-    state = tilt_back(last_stable_state(past, engine), past, engine)
+    state = tilt_back(last_stable_state(past, engine, progress), past, engine,
+                      progress=progress)
     return rebased(state, past)
